@@ -1,0 +1,133 @@
+"""The ``windwarden`` command: one entry point, one subcommand per job.
+
+Exit codes: 0 success, 1 a failure while running, 2 bad input (scenario, options), refused before anything ran.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from collections.abc import Callable, Sequence
+from pathlib import Path
+
+from rich.console import Console
+
+from wwcore.scenario import ScenarioError, load_scenario, shipped_scenarios
+
+EXIT_BAD_INPUT = 2
+console = Console()
+err_console = Console(stderr=True)
+
+
+class BadInput(Exception):
+    """Input refused before anything ran (exit code 2)."""
+
+
+def _positive_int(text: str) -> int:
+    value = int(text)
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"must be ≥ 1, got {value}")
+    return value
+
+
+def _add_eval(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser("eval", help="score a scenario over Monte Carlo runs (batch mode, no transport)")
+    p.add_argument("scenario", help="shipped scenario name or path to a scenario file")
+    p.add_argument("--runs", type=_positive_int, default=10, help="Monte Carlo runs (default 10)")
+    p.add_argument("--seed", type=int, default=0, help="master seed (default 0)")
+    p.add_argument("--out", type=Path, default=None, help="folder for scorecard.json and plots")
+    p.add_argument("--detector", default=None, help="registered detector name (overrides the scenario)")
+    p.add_argument("--estimator", default=None, help="registered estimator/observer name")
+    p.add_argument("--controller", default=None, help="farm controller: dispatch or pi")
+    p.add_argument("--no-accommodation", action="store_true", help="farm: dispatch without fault accommodation")
+    p.add_argument("--no-compensation", action="store_true", help="hydro: do not apply the virtual actuator")
+    p.add_argument("--compare", action="store_true", help="also write the paper-comparison tables and plots")
+    p.add_argument("--plugin", action="append", default=[], help="import this module first (registers algorithms)")
+    p.add_argument("--workers", type=_positive_int, default=None, help="processes (default: all cores)")
+    p.add_argument("--no-plots", action="store_true", help="skip the PNG plots")
+    p.add_argument("--quiet", action="store_true", help="no progress bar")
+    p.set_defaults(func=cmd_eval)
+
+
+def cmd_eval(args: argparse.Namespace) -> int:
+    from service.plugins import UnknownAlgorithmError, load_plugins
+    from windwarden.evaluation.kinds import EvalOptions, evaluator_for
+    from windwarden.evaluation.report import render
+
+    try:
+        load_plugins(tuple(args.plugin))
+    except ModuleNotFoundError as error:
+        raise BadInput(f"--plugin: cannot import {error.name!r}") from None
+    scenario = load_scenario(args.scenario)
+    options = EvalOptions(
+        detector=args.detector,
+        estimator=args.estimator,
+        controller=args.controller,
+        accommodation=not args.no_accommodation,
+        compensation=not args.no_compensation,
+        compare=args.compare,
+        workers=args.workers,
+        progress=not args.quiet,
+    )
+    try:
+        evaluation = evaluator_for(scenario)(scenario, args.runs, args.seed, options)
+    except UnknownAlgorithmError as error:
+        raise BadInput(str(error)) from None
+    console.print(render(evaluation.scorecard))
+    if args.out is not None:
+        args.out.mkdir(parents=True, exist_ok=True)
+        (args.out / "scorecard.json").write_text(json.dumps(evaluation.scorecard, indent=2) + "\n")
+        for name, text in evaluation.extra_files.items():
+            (args.out / name).write_text(text)
+        written = [] if args.no_plots else evaluation.plot(args.out)
+        console.print(f"wrote {args.out / 'scorecard.json'}" + (f" and {len(written)} plots" if written else ""))
+    return 0
+
+
+def _add_scenarios(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser("scenarios", help="list the shipped scenarios")
+    p.set_defaults(func=cmd_scenarios)
+
+
+def cmd_scenarios(args: argparse.Namespace) -> int:
+    from rich.table import Table
+
+    table = Table(title="shipped scenarios")
+    for column in ("name", "plant", "duration s", "faults", "description"):
+        table.add_column(column)
+    for name, path in sorted(shipped_scenarios().items()):
+        s = load_scenario(path)
+        table.add_row(name, s.plant.kind, f"{s.duration_s:g}", str(len(s.faults)), s.description)
+    console.print(table)
+    return 0
+
+
+SUBCOMMANDS: list[Callable[[argparse._SubParsersAction], None]] = [_add_eval, _add_scenarios]
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(prog="windwarden", description=__doc__.splitlines()[0])
+    sub = parser.add_subparsers(dest="command", required=True)
+    for add in SUBCOMMANDS:
+        add(sub)
+    return parser
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    try:
+        return int(args.func(args) or 0)
+    except ScenarioError as error:
+        err_console.print(f"[red]error:[/red] {error}", highlight=False)
+        return EXIT_BAD_INPUT
+    except BadInput as error:
+        err_console.print(f"[red]error:[/red] {error}", highlight=False)
+        return EXIT_BAD_INPUT
+    except KeyboardInterrupt:
+        return 130
+
+
+if __name__ == "__main__":
+    sys.exit(main())

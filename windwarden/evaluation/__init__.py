@@ -1,0 +1,1 @@
+"""Batch evaluation: plant and supervisor in one process, vectorised over Monte Carlo runs, scored."""

@@ -1,0 +1,50 @@
+"""What each plant kind provides to the ``eval`` command, and the lookup from a scenario's kind to it.
+
+A plant kind's evaluator is a module with ``evaluate(scenario, runs, seed, options) -> Evaluation``. It runs
+its plant and supervisor in batch mode (``wwcore.stepping``), usually through ``parallel.run_chunks``, and
+returns the scorecard (JSON-ready, the schema in ``docs/scorecards.md``) and the plots it can draw.
+"""
+
+from __future__ import annotations
+
+import importlib
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from wwcore.scenario import Scenario
+
+EVALUATORS: dict[str, str] = {
+    "turbine": "windwarden.evaluation.turbine",
+    "farm": "windwarden.evaluation.farm",
+    "hydro": "windwarden.evaluation.hydro",
+}
+
+
+@dataclass(frozen=True)
+class EvalOptions:
+    """Choices of the ``eval`` command that are not part of the scenario."""
+
+    detector: str | None = None  # overrides scenario.supervisor.detector
+    estimator: str | None = None  # overrides scenario.supervisor.estimator
+    controller: str | None = None  # farm: dispatch | pi
+    accommodation: bool = True  # farm: fault accommodation of eqs. (23)–(26)
+    compensation: bool = True  # hydro: virtual actuator of eq. (36)
+    compare: bool = False  # write the paper-comparison tables where the kind has them
+    workers: int | None = None  # processes; None uses every core
+    progress: bool = True
+
+
+@dataclass
+class Evaluation:
+    """What an evaluator returns: the scorecard and a function that draws its plots into a folder."""
+
+    scorecard: dict[str, Any]
+    plot: Callable[[Path], list[Path]] = field(default=lambda out: [])
+    extra_files: dict[str, str] = field(default_factory=dict)  # file name → text (markdown tables, …)
+
+
+def evaluator_for(scenario: Scenario) -> Callable[[Scenario, int, int, EvalOptions], Evaluation]:
+    module = importlib.import_module(EVALUATORS[scenario.plant.kind])
+    return module.evaluate

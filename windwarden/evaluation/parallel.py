@@ -1,0 +1,77 @@
+"""Monte Carlo runs split into fixed-size chunks, simulated on all cores, with one progress bar.
+
+Chunks depend only on the number of runs (never on the number of cores), and every run draws its random
+numbers from its own stream, so the same scenario, runs and seed give the same numbers on any machine.
+"""
+
+from __future__ import annotations
+
+import multiprocessing as mp
+import os
+from collections.abc import Callable, Sequence
+from concurrent.futures import ProcessPoolExecutor
+from typing import Any, TypeVar
+
+from tqdm import tqdm
+
+R = TypeVar("R")
+ProgressHook = Callable[[float], None]
+"""Called by a worker with the simulated seconds it advanced (per run batch) since the last call."""
+
+DEFAULT_CHUNK = 25
+
+
+def chunk_runs(runs: int, chunk: int = DEFAULT_CHUNK) -> list[list[int]]:
+    """Run indices split into chunks of at most ``chunk`` runs, spread evenly."""
+    n_chunks = max(1, -(-runs // chunk))
+    return [list(range(runs))[i::n_chunks] for i in range(n_chunks)]
+
+
+def _call(worker: Callable[..., R], run_ids: list[int], queue: Any, args: tuple) -> R:
+    def hook(seconds: float) -> None:
+        queue.put(seconds * len(run_ids))
+
+    return worker(run_ids, hook, *args)
+
+
+def run_chunks(
+    worker: Callable[..., R],
+    runs: int,
+    total_seconds: float,
+    args: tuple = (),
+    chunk: int = DEFAULT_CHUNK,
+    workers: int | None = None,
+    label: str = "simulating",
+    show_progress: bool = True,
+) -> list[R]:
+    """Call ``worker(run_ids, progress_hook, *args)`` for every chunk; results in chunk order.
+
+    ``total_seconds`` is the simulated time of one run; the bar counts run-seconds over all runs.
+    """
+    chunks = chunk_runs(runs, chunk)
+    workers = min(len(chunks), workers or os.cpu_count() or 1)
+    bar = tqdm(total=total_seconds * runs, unit="run-s", desc=label, disable=not show_progress, smoothing=0.1)
+    try:
+        if workers == 1:
+            results = []
+            for run_ids in chunks:
+                results.append(worker(run_ids, lambda s, n=len(run_ids): bar.update(s * n), *args))
+            return results
+        ctx = mp.get_context("fork")
+        with ctx.Manager() as manager, ProcessPoolExecutor(workers, mp_context=ctx) as pool:
+            queue = manager.Queue()
+            futures = [pool.submit(_call, worker, run_ids, queue, args) for run_ids in chunks]
+            while not all(f.done() for f in futures):
+                try:
+                    bar.update(queue.get(timeout=0.2))
+                except Exception:  # queue.Empty: nothing reported in this interval
+                    pass
+            while not queue.empty():
+                bar.update(queue.get())
+            return [f.result() for f in futures]
+    finally:
+        bar.close()
+
+
+def concat_runs(parts: Sequence[Sequence[int]]) -> list[int]:
+    return [run for part in parts for run in part]

@@ -1,0 +1,40 @@
+"""The step contract every plant and every supervisor follows, in batch, lockstep and realtime alike.
+
+One tick k of a plant (sample time ``dt``):
+
+1. ``frame = plant.measure()`` – the sensor readings y_k (with noise and sensor faults) and the controller
+   outputs of tick k−1, for all ``n`` turbines of the batch;
+2. ``plant.control(refs)`` – the turbine controllers compute u_k from y_k and ``refs``, the supervisor's newest
+   references (computed from y_{k−1}; ``None`` when there are none yet or they are stale);
+3. ``refs = supervisor.step(frame)`` – the supervisor digests y_k and returns its references for tick k+1;
+4. ``plant.advance()`` – the plant integrates from tick k to k+1.
+
+Batch mode runs these four calls in one loop; lockstep runs 1–2–4 in the plant process and 3 in the
+supervisor process, the plant waiting for refs_k before tick k+1; realtime is lockstep that does not wait past
+the tick's deadline. The same objects run in all three, so the same scenario and seed give the same results.
+"""
+
+from __future__ import annotations
+
+from typing import Any, Protocol
+
+import numpy as np
+
+from wwcore.events import Event
+
+
+class Plant(Protocol):
+    dt: float
+    n: int
+    k: int
+
+    def measure(self) -> Any: ...
+    def control(self, refs: Any | None) -> None: ...
+    def advance(self) -> None: ...
+    def truth(self) -> dict[str, np.ndarray]: ...
+    def drain_events(self) -> list[Event]: ...
+
+
+class Supervisor(Protocol):
+    def step(self, frame: Any) -> Any: ...
+    def drain_events(self) -> list[Event]: ...
