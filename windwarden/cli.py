@@ -20,7 +20,7 @@ console = Console()
 err_console = Console(stderr=True)
 
 
-class BadInput(Exception):
+class BadInputError(Exception):
     """Input refused before anything ran (exit code 2)."""
 
 
@@ -58,7 +58,7 @@ def cmd_eval(args: argparse.Namespace) -> int:
     try:
         load_plugins(tuple(args.plugin))
     except ModuleNotFoundError as error:
-        raise BadInput(f"--plugin: cannot import {error.name!r}") from None
+        raise BadInputError(f"--plugin: cannot import {error.name!r}") from None
     scenario = load_scenario(args.scenario)
     options = EvalOptions(
         detector=args.detector,
@@ -73,7 +73,7 @@ def cmd_eval(args: argparse.Namespace) -> int:
     try:
         evaluation = evaluator_for(scenario)(scenario, args.runs, args.seed, options)
     except UnknownAlgorithmError as error:
-        raise BadInput(str(error)) from None
+        raise BadInputError(str(error)) from None
     console.print(render(evaluation.scorecard))
     if args.out is not None:
         args.out.mkdir(parents=True, exist_ok=True)
@@ -122,7 +122,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     except ScenarioError as error:
         err_console.print(f"[red]error:[/red] {error}", highlight=False)
         return EXIT_BAD_INPUT
-    except BadInput as error:
+    except BadInputError as error:
         err_console.print(f"[red]error:[/red] {error}", highlight=False)
         return EXIT_BAD_INPUT
     except KeyboardInterrupt:

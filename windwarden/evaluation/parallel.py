@@ -6,8 +6,10 @@ numbers from its own stream, so the same scenario, runs and seed give the same n
 
 from __future__ import annotations
 
+import contextlib
 import multiprocessing as mp
 import os
+import queue as queue_module
 from collections.abc import Callable, Sequence
 from concurrent.futures import ProcessPoolExecutor
 from typing import Any, TypeVar
@@ -55,17 +57,16 @@ def run_chunks(
         if workers == 1:
             results = []
             for run_ids in chunks:
-                results.append(worker(run_ids, lambda s, n=len(run_ids): bar.update(s * n), *args))
+                size = len(run_ids)
+                results.append(worker(run_ids, lambda seconds, size=size: bar.update(seconds * size), *args))
             return results
         ctx = mp.get_context("fork")
         with ctx.Manager() as manager, ProcessPoolExecutor(workers, mp_context=ctx) as pool:
             queue = manager.Queue()
             futures = [pool.submit(_call, worker, run_ids, queue, args) for run_ids in chunks]
             while not all(f.done() for f in futures):
-                try:
+                with contextlib.suppress(queue_module.Empty):
                     bar.update(queue.get(timeout=0.2))
-                except Exception:  # queue.Empty: nothing reported in this interval
-                    pass
             while not queue.empty():
                 bar.update(queue.get())
             return [f.result() for f in futures]

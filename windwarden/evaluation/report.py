@@ -18,8 +18,16 @@ def _fmt(value: Any, digits: int = 3) -> str:
 
 def faults_table(scorecard: dict[str, Any]) -> Table:
     table = Table(title=f"{scorecard['scenario']}: {scorecard['runs']} runs, seed {scorecard['seed']}")
-    for column in ("fault", "target", "window s", "detected %", "isolated %", "delay mean s", "delay max s",
-                   "end mean s"):
+    for column in (
+        "fault",
+        "target",
+        "window s",
+        "detected %",
+        "isolated %",
+        "delay mean s",
+        "delay max s",
+        "end mean s",
+    ):
         table.add_column(column, justify="left" if column in ("fault", "target") else "right")
     for f in scorecard["faults"]:
         table.add_row(

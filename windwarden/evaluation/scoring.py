@@ -120,7 +120,11 @@ def score_faults(
         isolated = 0
         for run in range(runs):
             flags = history.get((run, w.turbine), empty)
-            hits = [e.t for e in detections if e.run == run and e.turbine == w.turbine and w.start_s <= e.t < w.end_s + grace_s]
+            hits = [
+                e.t
+                for e in detections
+                if e.run == run and e.turbine == w.turbine and w.start_s <= e.t < w.end_s + grace_s
+            ]
             if hits:
                 delays.append(min(hits) - w.start_s)
             if any(flagged == want for _, _, flagged in flags.intervals(w.start_s, w.end_s + grace_s)):

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import itertools
+
 from pydantic import BaseModel, ConfigDict, Field, field_validator
 
 
@@ -24,7 +26,7 @@ class WindSpec(BaseModel):
         if not points:
             raise ValueError("needs at least one (t, v) point")
         times = [t for t, _ in points]
-        if any(b <= a for a, b in zip(times, times[1:], strict=False)):
+        if any(b <= a for a, b in itertools.pairwise(times)):
             raise ValueError("times must increase strictly")
         if times[0] < 0.0:
             raise ValueError("times must be ≥ 0")
