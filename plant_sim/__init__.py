@@ -1,1 +1,4 @@
-"""plant_sim"""
+"""Plant simulators: the 4.8 MW benchmark turbine, the 9-turbine farm and the hydrostatic turbine.
+
+Pure numpy: nothing here imports a transport, except ``plant_sim.node`` (the Zenoh edge of the plant process).
+"""

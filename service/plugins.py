@@ -91,7 +91,8 @@ def load_plugins(extra_modules: tuple[str, ...] = ()) -> None:
             try:
                 importlib.import_module(module)
             except ModuleNotFoundError as error:
-                if error.name != module:  # a missing built-in package is fine; a broken one is not
+                missing = error.name or ""
+                if not module.startswith(missing):  # a plant kind not installed is fine; a broken import is not
                     raise
         for entry in entry_points(group="windwarden.plugins"):
             entry.load()

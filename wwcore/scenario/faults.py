@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from enum import StrEnum
 
-from pydantic import BaseModel, ConfigDict, Field, model_validator
+from pydantic import BaseModel, ConfigDict, Field, ValidationInfo, field_validator
 
 
 class FaultKind(StrEnum):
@@ -45,13 +45,21 @@ class FaultSpec(BaseModel):
     turbine: int = Field(default=1, ge=1, description="which turbine of the plant, 1-based")
     name: str | None = Field(default=None, description="label in scorecards; defaults to target:kind@start")
 
-    @model_validator(mode="after")
-    def _check_times(self) -> FaultSpec:
-        if self.end_s is not None and self.end_s <= self.start_s:
-            raise ValueError(f"end_s ({self.end_s}) must be after start_s ({self.start_s})")
-        if self.end_s is not None and 2.0 * self.ramp_s > self.end_s - self.start_s:
-            raise ValueError(f"ramp_s ({self.ramp_s}) leaves no room: ramps in and out must fit in the window")
-        return self
+    @field_validator("end_s")
+    @classmethod
+    def _end_after_start(cls, end_s: float | None, info: ValidationInfo) -> float | None:
+        start_s = info.data.get("start_s")
+        if end_s is not None and start_s is not None and end_s <= start_s:
+            raise ValueError(f"end_s ({end_s}) must be after start_s ({start_s})")
+        return end_s
+
+    @field_validator("ramp_s")
+    @classmethod
+    def _ramps_fit(cls, ramp_s: float, info: ValidationInfo) -> float:
+        start_s, end_s = info.data.get("start_s"), info.data.get("end_s")
+        if end_s is not None and start_s is not None and 2.0 * ramp_s > end_s - start_s:
+            raise ValueError(f"ramp_s ({ramp_s}) leaves no room: ramps in and out must fit in the window")
+        return ramp_s
 
     @property
     def label(self) -> str:

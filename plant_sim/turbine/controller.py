@@ -1,0 +1,71 @@
+"""The benchmark's turbine controller (PARAMETERS.md a.1–a.2, Simulink block "Controller"), vectorised.
+
+Zone logic (Embedded MATLAB ``ZoneControl``, previous zone held in a unit delay)::
+
+    if last == 0: zone = 1 if (P_g ≥ P_r or ω_g ≥ Ω_nom) else 0
+    else:         zone = 0 if ω_g < Ω_nom − Ω_Δ else 1
+
+Zone 0 (region 2): β_ref = 0, τ_g,r = K_opt ω_g².
+Zone 1 (region 3): β_ref = sat(K_p e + K_i I), e = ω_g − Ω_nom, I = sat(∫e dt, −2, 90); τ_g,r = P_r/(η_gc ω_g).
+
+The integrator runs in both zones (in region 2 e < 0 drives it to its lower limit), so re-entering region 3
+starts from β_ref ≈ K_p e − 2 deg rather than from a stale value. The controller runs at Ts with a zero-order
+hold; P_r is the turbine's power reference (rated, or the farm dispatch's per-turbine reference).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from wwcore.turbine_frames import TurbineRefs
+from wwcore.turbine_params import TurbineParams
+
+
+class BenchmarkController:
+    """Region 2/3 controller for n turbines. ``step`` is called once per tick."""
+
+    def __init__(self, params: TurbineParams, n: int, power_reference: float, max_ref_age: int = 10):
+        self.p = params
+        self.n = n
+        self.max_ref_age = max_ref_age  # ticks after which the supervisor's references count as stale
+        self.zone = np.zeros(n, dtype=np.int8)
+        self.integrator = np.full(n, params.pitch_min_deg)
+        self.power_ref = np.full(n, float(power_reference))
+        self.tau_g_ref = np.zeros(n)
+        self.beta_ref = np.zeros(n)
+        self.using_estimates = np.zeros(n, dtype=bool)
+
+    def initialise(self, zone: np.ndarray, beta_ref: np.ndarray, tau_g_ref: np.ndarray) -> None:
+        """Start from a trimmed operating point (see ``TurbineBatch``)."""
+        self.zone[:] = zone
+        self.integrator[:] = np.clip(beta_ref, self.p.pitch_min_deg, self.p.pitch_max_deg)
+        self.beta_ref[:] = beta_ref
+        self.tau_g_ref[:] = tau_g_ref
+
+    def step(self, k: int, omega_g_m: np.ndarray, p_g_m: np.ndarray, refs: TurbineRefs | None) -> None:
+        """Compute τ_g,r and β_ref for tick k from the turbine's own sensors and fresh references."""
+        p = self.p
+        omega_g = omega_g_m
+        fresh = refs is not None and 0 <= k - refs.tick <= self.max_ref_age
+        if fresh:
+            # The fault-tolerant estimate replaces the raw generator-speed sensor while it is valid.
+            self.using_estimates = refs.valid.copy()
+            omega_g = np.where(refs.valid, refs.omega_g, omega_g_m)
+            if refs.power_ref is not None:
+                self.power_ref = np.where(refs.valid, refs.power_ref, self.power_ref)
+        else:
+            self.using_estimates[:] = False
+        # Zone logic with the previous zone held (unit delay).
+        to_region3 = (p_g_m >= self.power_ref) | (omega_g >= p.omega_nom)
+        stay_region3 = omega_g >= p.omega_nom - p.omega_delta
+        self.zone = np.where(self.zone == 0, to_region3, stay_region3).astype(np.int8)
+        region3 = self.zone == 1
+        # Region-3 PI on the generator speed error, integrator and output saturated to the pitch range.
+        error = omega_g - p.omega_nom
+        self.integrator = np.clip(self.integrator + p.dt * error, p.pitch_min_deg, p.pitch_max_deg)
+        beta_pi = np.clip(p.K_p * error + p.K_i * self.integrator, p.pitch_min_deg, p.pitch_max_deg)
+        self.beta_ref = np.where(region3, beta_pi, 0.0)
+        safe_omega = np.maximum(omega_g, 1.0)  # the constant-power law must not divide by a failed sensor's 0
+        tau_region3 = self.power_ref / (p.eta_gc * safe_omega)
+        tau_region2 = p.k_opt * omega_g * omega_g
+        self.tau_g_ref = np.where(region3, tau_region3, tau_region2)

@@ -1,0 +1,162 @@
+"""Dynamics of the benchmark turbine (PARAMETERS.md a.2) for a batch of n turbines, and their discretisation.
+
+State columns of ``x`` (shape (n, N_STATES)):
+
+====  ========  ===========================================  ======
+col   symbol    meaning                                      unit
+====  ========  ===========================================  ======
+0     ω_r       rotor speed (low-speed shaft)                rad/s
+1     ω_g       generator speed (high-speed shaft)           rad/s
+2     θ_Δ       drive-train torsion angle                    rad
+3     τ_g       generator/converter torque                   N m
+4     ψ         rotor azimuth of blade 1                     rad
+5,7,9 β_i       pitch angle of blade i (actuator output)     deg
+6,8,10 β̇_i      pitch rate of blade i                        deg/s
+====  ========  ===========================================  ======
+
+Drive train (two-mass model, a.2) and converter::
+
+    J_r ω̇_r = τ_r − K_dt θ_Δ − (B_dt + B_r) ω_r + (B_dt/N_g) ω_g
+    J_g ω̇_g = η_dt K_dt/N_g θ_Δ + η_dt B_dt/N_g ω_r − (η_dt B_dt/N_g² + B_g) ω_g − τ_g
+    θ̇_Δ     = ω_r − ω_g/N_g
+    τ̇_g     = α_gc (τ_g,r + Δτ − τ_g),       ψ̇ = ω_r
+
+Pitch actuator i: β̈_i = ω_n,i² (β_ref,i − β_i) − 2ζ_i ω_n,i β̇_i.
+Aerodynamics per blade: τ_r,i = (ρπR³/6) C_q(λ_i, β_i + δβ_i) v_i², λ_i = ω_r R / v_i, τ_r = Σ τ_r,i.
+
+Given the aerodynamic torque, everything above is linear. The plant therefore integrates exactly: the linear
+part is discretised with a zero-order hold on its inputs (τ_r, τ_g,r + Δτ, β_ref,i) by the matrix exponential,
+so the 4.5 Hz torsion mode is neither damped nor excited numerically, and τ_r is evaluated once per tick at the
+tick's state and wind and held over the step, like the controller outputs and the wind sample.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy.linalg import expm
+
+from wwcore import aero
+from wwcore.turbine_params import TurbineParams
+
+OMEGA_R, OMEGA_G, THETA, TAU_G, AZIMUTH = 0, 1, 2, 3, 4
+PITCH = np.array([5, 7, 9])
+PITCH_RATE = PITCH + 1
+N_MECH = 5  # ω_r, ω_g, θ_Δ, τ_g, ψ
+N_STATES = 11
+
+
+def mechanical_matrices(
+    p: TurbineParams, eta: np.ndarray, stiffness: np.ndarray, damping: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """Continuous A (n, 5, 5) and B (n, 5, 2) of [ω_r, ω_g, θ_Δ, τ_g, ψ] with inputs [τ_r, τ_g,r + Δτ]."""
+    n = len(eta)
+    K, Bd, N = p.K_dt * stiffness, p.B_dt * damping, p.N_g
+    A = np.zeros((n, N_MECH, N_MECH))
+    A[:, 0, 0] = -(Bd + p.B_r) / p.J_r
+    A[:, 0, 1] = Bd / (N * p.J_r)
+    A[:, 0, 2] = -K / p.J_r
+    A[:, 1, 0] = eta * Bd / (N * p.J_g)
+    A[:, 1, 1] = -(eta * Bd / N**2 + p.B_g) / p.J_g
+    A[:, 1, 2] = eta * K / (N * p.J_g)
+    A[:, 1, 3] = -1.0 / p.J_g
+    A[:, 2, 0] = 1.0
+    A[:, 2, 1] = -1.0 / N
+    A[:, 3, 3] = -p.alpha_gc
+    A[:, 4, 0] = 1.0
+    B = np.zeros((n, N_MECH, 2))
+    B[:, 0, 0] = 1.0 / p.J_r
+    B[:, 3, 1] = p.alpha_gc
+    return A, B
+
+
+def pitch_matrices(a0: np.ndarray, a1: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Continuous A (…, 2, 2), B (…, 2, 1) of [β, β̇] with input β_ref; a0 = ω_n², a1 = 2ζω_n."""
+    A = np.zeros((*a0.shape, 2, 2))
+    A[..., 0, 1] = 1.0
+    A[..., 1, 0] = -a0
+    A[..., 1, 1] = -a1
+    B = np.zeros((*a0.shape, 2, 1))
+    B[..., 1, 0] = a0
+    return A, B
+
+
+def zoh(A: np.ndarray, B: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray]:
+    """Exact zero-order-hold discretisation of batched (…, n, n), (…, n, m): expm([[A, B], [0, 0]] dt)."""
+    n, m = A.shape[-1], B.shape[-1]
+    M = np.zeros((*A.shape[:-2], n + m, n + m))
+    M[..., :n, :n] = A * dt
+    M[..., :n, n:] = B * dt
+    E = expm(M)
+    return E[..., :n, :n], E[..., :n, n:]
+
+
+class TurbineDynamics:
+    """Aerodynamic torque and the continuous-time derivative (the latter for tests and reference)."""
+
+    def __init__(self, params: TurbineParams):
+        self.p = params
+        self.blade_gain = params.rho * np.pi * params.radius**3 / 6.0  # ρπR³/6, per blade
+
+    def aero_torque(self, omega_r: np.ndarray, pitch: np.ndarray, wind: np.ndarray, factor: np.ndarray) -> np.ndarray:
+        """τ_r = Σ_i (ρπR³/6) C_q(λ_i, β_i) v_i² in N m; pitch (n,3) in deg, wind (n,3) in m/s."""
+        tsr = omega_r[:, None] * (self.p.radius / wind)
+        cq = aero.torque_coefficient(tsr, pitch)
+        return (self.blade_gain * factor) * np.einsum("ij,ij->i", cq, wind * wind)
+
+    def derivative(self, x, tau_g_ref, pitch_ref, wind, faults) -> np.ndarray:
+        """ẋ for the continuous model with the aerodynamic torque re-evaluated at x (reference implementation)."""
+        p = self.p
+        out = np.zeros_like(x)
+        omega_r, omega_g, theta, tau_g = x[:, OMEGA_R], x[:, OMEGA_G], x[:, THETA], x[:, TAU_G]
+        tau_r = self.aero_torque(omega_r, x[:, PITCH] + faults.pitch_offset, wind, faults.aero_factor)
+        k_dt, b_dt = p.K_dt * faults.stiffness_factor, p.B_dt * faults.damping_factor
+        shaft = k_dt * theta + b_dt * (omega_r - omega_g / p.N_g)
+        out[:, OMEGA_R] = (tau_r - shaft - p.B_r * omega_r) / p.J_r
+        out[:, OMEGA_G] = (faults.eta_dt * shaft / p.N_g - p.B_g * omega_g - tau_g) / p.J_g
+        out[:, THETA] = omega_r - omega_g / p.N_g
+        out[:, TAU_G] = p.alpha_gc * (tau_g_ref + faults.torque_offset - tau_g)
+        out[:, AZIMUTH] = omega_r
+        out[:, PITCH] = x[:, PITCH_RATE]
+        out[:, PITCH_RATE] = faults.pitch_a0 * (pitch_ref - x[:, PITCH]) - faults.pitch_a1 * x[:, PITCH_RATE]
+        return out
+
+
+class DiscreteStep:
+    """x[k+1] = Φ x[k] + Γ u[k] per row, rebuilt for rows whose parameters change (faults)."""
+
+    def __init__(self, params: TurbineParams, n: int):
+        self.p = params
+        self.n = n
+        self.phi_m = np.zeros((n, N_MECH, N_MECH))
+        self.gamma_m = np.zeros((n, N_MECH, 2))
+        self.phi_p = np.zeros((n, 3, 2, 2))
+        self.gamma_p = np.zeros((n, 3, 2))
+        self._key_m: np.ndarray | None = None
+        self._key_p: np.ndarray | None = None
+
+    def update(self, faults) -> None:
+        """Recompute Φ, Γ for the rows whose drive-train or pitch parameters differ from last time."""
+        key_m = np.column_stack([faults.eta_dt, faults.stiffness_factor, faults.damping_factor])
+        rows = np.arange(self.n) if self._key_m is None else np.flatnonzero((key_m != self._key_m).any(axis=1))
+        if len(rows):
+            A, B = mechanical_matrices(self.p, key_m[rows, 0], key_m[rows, 1], key_m[rows, 2])
+            self.phi_m[rows], self.gamma_m[rows] = zoh(A, B, self.p.dt)
+        self._key_m = key_m
+        key_p = np.concatenate([faults.pitch_a0, faults.pitch_a1], axis=1)
+        rows = np.arange(self.n) if self._key_p is None else np.flatnonzero((key_p != self._key_p).any(axis=1))
+        if len(rows):
+            A, B = pitch_matrices(faults.pitch_a0[rows], faults.pitch_a1[rows])
+            phi, gamma = zoh(A, B, self.p.dt)
+            self.phi_p[rows], self.gamma_p[rows] = phi, gamma[..., 0]
+        self._key_p = key_p
+
+    def step(self, x: np.ndarray, tau_r: np.ndarray, tau_g_cmd: np.ndarray, pitch_ref: np.ndarray) -> np.ndarray:
+        out = np.empty_like(x)
+        mech = x[:, :N_MECH]
+        out[:, :N_MECH] = np.einsum("nij,nj->ni", self.phi_m, mech) + (
+            self.gamma_m[:, :, 0] * tau_r[:, None] + self.gamma_m[:, :, 1] * tau_g_cmd[:, None]
+        )
+        pitch = x[:, N_MECH:].reshape(self.n, 3, 2)
+        new_pitch = np.einsum("nbij,nbj->nbi", self.phi_p, pitch) + self.gamma_p * pitch_ref[:, :, None]
+        out[:, N_MECH:] = new_pitch.reshape(self.n, 6)
+        return out

@@ -1,0 +1,186 @@
+"""The bank of seed 000's observers, run together every tick for a batch of turbines.
+
+Observers (seed 000, Section 3; "faulty" is the sensor set each one leaves out):
+
+=====  ==========================  ===================================================
+paper  observer instances          sensors used (``y_j``, eqs. (4)–(10))
+=====  ==========================  ===================================================
+1, 7   ``1``                       ω_r,m1 ω_r,m2 ω_g,m1 ω_g,m2 (7 = 1 here: the anemometer measures no state)
+2      ``2-r1``, ``2-r2``          one rotor-speed sensor left out
+3      ``3-g1``, ``3-g2``          one generator-speed sensor left out
+4      ``4``                       ω_g,m1 ω_g,m2 (no UIO exists: augmented Kalman filter, see ``uio``)
+5      ``5``                       ω_r,m1 ω_r,m2
+6      ``6-r1g1`` … ``6-r2g2``     one rotor- and one generator-speed sensor left out
+=====  ==========================  ===================================================
+
+All observers are computed at each sample (seed 000, after eq. (20)); their states are stacked into one array
+and advanced with block matrices, so the whole bank costs a few matrix products per tick.
+"""
+
+from __future__ import annotations
+
+import itertools
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.linalg import block_diag
+
+from service.turbine.design_model import DesignModel
+from service.turbine.uio import ObserverDesign, design_augmented_kalman, design_uio, existence_problem
+from wwcore.channels import SPEED_SENSORS
+
+SHORT = {"omega_r_m1": "r1", "omega_r_m2": "r2", "omega_g_m1": "g1", "omega_g_m2": "g2"}
+ROTOR = ("omega_r_m1", "omega_r_m2")
+GENERATOR = ("omega_g_m1", "omega_g_m2")
+
+
+def paper_number(left_out: frozenset[str]) -> int:
+    """Seed 000's observer number for a set of left-out (faulty) speed sensors."""
+    rotor, gen = len(left_out & set(ROTOR)), len(left_out & set(GENERATOR))
+    table = {(0, 0): 1, (1, 0): 2, (0, 1): 3, (2, 0): 4, (0, 2): 5, (1, 1): 6}
+    return table[(rotor, gen)]
+
+
+def observer_name(left_out: frozenset[str]) -> str:
+    number = paper_number(left_out)
+    suffix = "".join(SHORT[s] for s in SPEED_SENSORS if s in left_out)
+    return str(number) if number in (1, 4, 5) else f"{number}-{suffix}"
+
+
+def bank_subsets() -> list[frozenset[str]]:
+    """Left-out sets of the bank: none, any one sensor, or two sensors of the paper's cases 4–6."""
+    out = [frozenset()]
+    out += [frozenset({s}) for s in SPEED_SENSORS]
+    out += [frozenset(pair) for pair in itertools.combinations(SPEED_SENSORS, 2)]
+    return out
+
+
+@dataclass(frozen=True)
+class BankDesign:
+    """The observers of the bank and their block matrices over the 4 speed sensors."""
+
+    left_out: tuple[frozenset[str], ...]
+    names: tuple[str, ...]
+    observers: tuple[ObserverDesign, ...]
+    offsets: np.ndarray  # start column of each observer's state block
+    F_blk: np.ndarray  # steady-state block-diagonal F
+    K_blk: np.ndarray  # (Σn, 4): K_j M_j stacked
+    H_blk: np.ndarray  # (Σn, 4): H_j M_j stacked
+    TB_blk: np.ndarray  # (Σn,)
+    F_transient: np.ndarray  # (N, Σn, Σn)
+    K_transient: np.ndarray  # (N, Σn, 4)
+    G_res: np.ndarray  # (Σrank, 4): W_j (I − C_j H_j) M_j stacked
+    L_res: np.ndarray  # (Σrank, Σn): block-diag W_j C_j
+    res_starts: np.ndarray  # start row of each observer's whitened residual
+    ranks: np.ndarray  # (n_obs,)
+
+    def index(self, left_out: frozenset[str]) -> int:
+        return self.left_out.index(left_out)
+
+
+def _selector(sensors: tuple[str, ...]) -> np.ndarray:
+    M = np.zeros((len(sensors), len(SPEED_SENSORS)))
+    for row, name in enumerate(sensors):
+        M[row, SPEED_SENSORS.index(name)] = 1.0
+    return M
+
+
+def design_bank(model: DesignModel, sigma: dict[str, float], Q: np.ndarray, q_unknown: float) -> BankDesign:
+    """Design every observer of the bank. ``sigma``: speed-sensor noise σ (same units as the channel)."""
+    left_outs = bank_subsets()
+    observers = []
+    for left_out in left_outs:
+        sensors = tuple(s for s in SPEED_SENSORS if s not in left_out)
+        R = np.diag([sigma[s] ** 2 for s in sensors])
+        problem = existence_problem(model, sensors)
+        if problem is None:
+            observers.append(design_uio(model, sensors, R, Q))
+        else:
+            observers.append(design_augmented_kalman(model, sensors, R, Q, q_unknown, note=problem))
+    sizes = [o.n_states for o in observers]
+    offsets = np.concatenate([[0], np.cumsum(sizes)[:-1]])
+    selectors = [_selector(o.sensors) for o in observers]
+    n_transient = max(len(o.F_transient) for o in observers)
+
+    def gains_at(step: int) -> tuple[np.ndarray, np.ndarray]:
+        Fs, Ks = [], []
+        for o, M in zip(observers, selectors, strict=True):
+            if step < len(o.F_transient):
+                Fs.append(o.F_transient[step])
+                Ks.append(o.K_transient[step] @ M)
+            else:
+                Fs.append(o.F)
+                Ks.append(o.K @ M)
+        return block_diag(*Fs), np.vstack(Ks)
+
+    transient = [gains_at(step) for step in range(n_transient)]
+    F_blk, K_blk = gains_at(10**9)
+    G_res = np.vstack(
+        [o.whitening @ (np.eye(len(o.sensors)) - o.C @ o.H) @ M for o, M in zip(observers, selectors, strict=True)]
+    )
+    L_res = block_diag(*[o.whitening @ o.C for o in observers])
+    ranks = np.array([o.rank for o in observers])
+    return BankDesign(
+        left_out=tuple(left_outs),
+        names=tuple(observer_name(s) for s in left_outs),
+        observers=tuple(observers),
+        offsets=offsets,
+        F_blk=F_blk,
+        K_blk=K_blk,
+        H_blk=np.vstack([o.H @ M for o, M in zip(observers, selectors, strict=True)]),
+        TB_blk=np.concatenate([o.TB.ravel() for o in observers]),
+        F_transient=np.array([f for f, _ in transient]),
+        K_transient=np.array([k for _, k in transient]),
+        G_res=G_res,
+        L_res=L_res,
+        res_starts=np.concatenate([[0], np.cumsum(ranks)[:-1]]),
+        ranks=ranks,
+    )
+
+
+class ObserverBank:
+    """Runs a ``BankDesign`` for n turbines: eqs. (11)–(12) for every observer, plus whitened residuals."""
+
+    def __init__(self, design: BankDesign, n: int):
+        self.d = design
+        self.n = n
+        width = design.F_blk.shape[0]
+        self.z = np.zeros((n, width))
+        self.x_hat = np.zeros((n, width))
+        self.chi2 = np.zeros((n, len(design.names)))  # ‖W_j r_j‖², χ²-distributed with rank_j dof when healthy
+        self.steps = 0
+        self._y_prev: np.ndarray | None = None
+        self._u_prev: np.ndarray | None = None
+
+    def initialise(self, x0: np.ndarray, y: np.ndarray) -> None:
+        """Start every observer at the state estimate x0 (n, 4): z[0] = x0 − H y[0] (and d̂ from x0 statics)."""
+        d = self.d
+        for j, o in enumerate(d.observers):
+            block = slice(d.offsets[j], d.offsets[j] + o.n_states)
+            target = x0 if o.n_states == 4 else np.column_stack([x0, np.zeros(self.n)])
+            self.z[:, block] = target
+        self.z -= y @ d.H_blk.T
+        self.x_hat = self.z + y @ d.H_blk.T
+
+    def step(self, y: np.ndarray, u_prev: np.ndarray) -> None:
+        """Advance with y[n] (n, 4 speed sensors) and u[n−1] (n,) the torque reference of the previous tick."""
+        d = self.d
+        if self._y_prev is not None:
+            if self.steps < len(d.F_transient):
+                F, K = d.F_transient[self.steps], d.K_transient[self.steps]
+            else:
+                F, K = d.F_blk, d.K_blk
+            # (11) z[n] = F z[n−1] + T B_d u[n−1] + K y[n−1]
+            self.z = self.z @ F.T + u_prev[:, None] * d.TB_blk + self._y_prev @ K.T
+            self.steps += 1
+        # (12) x̂[n] = z[n] + H y[n]
+        self.x_hat = self.z + y @ d.H_blk.T
+        # r_j = (I − C_j H_j) y_j − C_j z_j, whitened by W_j: χ²_j = ‖W_j r_j‖²
+        white = y @ d.G_res.T - self.z @ d.L_res.T
+        self.chi2 = np.add.reduceat(white * white, d.res_starts, axis=1)
+        self._y_prev = y
+
+    def states(self, j: int) -> np.ndarray:
+        """x̂ of observer j, (n, n_states_j)."""
+        o = self.d.observers[j]
+        return self.x_hat[:, self.d.offsets[j] : self.d.offsets[j] + o.n_states]

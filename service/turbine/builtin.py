@@ -1,0 +1,136 @@
+"""The built-in turbine algorithms, registered by name.
+
+Detectors: ``uio-bank`` (seed 000's bank with the FDI of ``fdi``), ``none``.
+Estimators: ``uio-bank`` (the observer matching the healthy set, wind from ``wind_recovery``), ``none``
+(passes the raw sensors through, i.e. the benchmark controller as published).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from service.plugins import TURBINE_DETECTORS, TURBINE_ESTIMATORS
+from service.turbine.fdi import FDISettings, SpeedSensorFDI
+from service.turbine.interfaces import (
+    SPEED_COLUMNS,
+    Diagnosis,
+    Estimates,
+    TurbineContext,
+    empty_diagnosis,
+    static_state_guess,
+)
+from service.turbine.wind_recovery import WindRecovery
+from wwcore.channels import SENSOR_INDEX, SPEED_SENSORS, TARGET_INDEX
+from wwcore.turbine_frames import TurbineFrame
+
+SPEED_TARGETS = np.array([TARGET_INDEX[s] for s in SPEED_SENSORS])
+_MASK_WEIGHTS = 1 << np.arange(len(SPEED_SENSORS))
+
+
+def _settings(cls, options: dict):
+    known = {k: v for k, v in options.items() if k in cls.__dataclass_fields__}
+    return cls(**known)
+
+
+@TURBINE_DETECTORS.register("uio-bank")
+class UIOBankDetector:
+    """Speed-sensor FDI on the residuals of seed 000's observer bank (see ``service.turbine.fdi``)."""
+
+    def __init__(self, *, context: TurbineContext, options: dict | None = None):
+        self.context = context
+        self.fdi = SpeedSensorFDI(context.bank_design, context.n, context.dt, _settings(FDISettings, options or {}))
+
+    def step(self, frame: TurbineFrame) -> Diagnosis:
+        bank = self.context.bank(frame)
+        self.fdi.step(frame.sensors[:, SPEED_COLUMNS], bank.chi2)
+        diagnosis = empty_diagnosis(self.context.n)
+        diagnosis.faulty[:, SPEED_TARGETS] = self.fdi.faulty
+        margins = self.fdi.margins(bank.chi2)
+        names = self.context.bank_design.names
+        diagnosis.margins = {f"observer {name}": margins[:, j] for j, name in enumerate(names)}
+        return diagnosis
+
+
+@TURBINE_DETECTORS.register("none")
+class NoDetector:
+    """Flags nothing: the supervisor then always uses observer 1 (the non-fault-tolerant estimator)."""
+
+    def __init__(self, *, context: TurbineContext, options: dict | None = None):
+        self.n = context.n
+
+    def step(self, frame: TurbineFrame) -> Diagnosis:
+        return empty_diagnosis(self.n)
+
+
+@TURBINE_ESTIMATORS.register("uio-bank")
+class UIOBankEstimator:
+    """Estimates of the observer whose sensor set matches the healthy sensors (active fault tolerance).
+
+    Options: ``wind_cutoff_hz`` (default 0.3), ``speed_cutoff_hz`` (2.0), ``warmup_s`` (5.0),
+    ``wind_every`` (10): the wind is inverted every that many ticks and held in between; the torque it inverts
+    is low-pass filtered at ``wind_cutoff_hz``, far below the 10 Hz this resolves.
+    """
+
+    def __init__(self, *, context: TurbineContext, options: dict | None = None):
+        options = options or {}
+        self.context = context
+        design = context.bank_design
+        self.recovery = WindRecovery(
+            context.params,
+            design,
+            context.n,
+            wind_cutoff_hz=float(options.get("wind_cutoff_hz", 0.3)),
+            speed_cutoff_hz=float(options.get("speed_cutoff_hz", 2.0)),
+        )
+        self.warmup_ticks = round(float(options.get("warmup_s", 5.0)) / context.dt)
+        self.wind_every = int(options.get("wind_every", 10))
+        self.observer_of_mask = np.full(1 << len(SPEED_SENSORS), -1)
+        for j, left_out in enumerate(design.left_out):
+            self.observer_of_mask[sum(1 << SPEED_SENSORS.index(s) for s in left_out)] = j
+        self.names = design.names
+        self.ticks = 0
+        self._winds: np.ndarray | None = None  # (2, n): FTE, NFTE
+
+    def step(self, frame: TurbineFrame, faulty: np.ndarray) -> Estimates:
+        bank = self.context.bank(frame)
+        if self.ticks == 0:
+            p = self.context.params
+            x0 = static_state_guess(p, frame.sensors[:, SPEED_COLUMNS], frame.tau_g_ref)
+            tau_aero0 = p.N_g * (p.B_g * x0[:, 1] + x0[:, 3]) / p.eta_dt + p.B_r * x0[:, 0]
+            self.recovery.start(bank.x_hat, frame.beta_ref, tau_aero0)
+            self._winds = np.tile(np.maximum(frame.sensors[:, SENSOR_INDEX["v_hub_m"]], 3.0), (2, 1))
+        self.recovery.step(bank.x_hat, frame.beta_ref)
+        mask = (faulty[:, SPEED_TARGETS] * _MASK_WEIGHTS).sum(axis=1)
+        selected = self.observer_of_mask[mask]
+        columns = np.maximum(selected, 0)
+        if self.ticks % self.wind_every == 0:
+            self._winds = self.recovery.wind(np.stack([columns, np.zeros_like(columns)]), self._winds)
+        self.ticks += 1
+        rows = np.arange(self.context.n)
+        return Estimates(
+            valid=(selected >= 0) & (self.ticks > self.warmup_ticks),
+            omega_r=self.recovery.omega_r[rows, columns],
+            omega_g=self.recovery.omega_g[rows, columns],
+            wind=self._winds[0],
+            selected=selected,
+            observer_names=self.names,
+            wind_reference=self._winds[1],
+        )
+
+
+@TURBINE_ESTIMATORS.register("none")
+class RawSensors:
+    """No estimator: the controller keeps its own sensors; the 'estimates' are the raw first sensors."""
+
+    def __init__(self, *, context: TurbineContext, options: dict | None = None):
+        self.n = context.n
+
+    def step(self, frame: TurbineFrame, faulty: np.ndarray) -> Estimates:
+        y = frame.sensors
+        return Estimates(
+            valid=np.zeros(self.n, dtype=bool),
+            omega_r=y[:, SENSOR_INDEX["omega_r_m1"]].copy(),
+            omega_g=y[:, SENSOR_INDEX["omega_g_m1"]].copy(),
+            wind=y[:, SENSOR_INDEX["v_hub_m"]].copy(),
+            selected=np.full(self.n, -1),
+        )

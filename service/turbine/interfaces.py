@@ -1,0 +1,108 @@
+"""The two plug-in roles of turbine supervision and what they exchange.
+
+A **detector** (registry ``service.plugins.TURBINE_DETECTORS``) is built as
+``factory(context=TurbineContext, options=dict)`` and has ``step(frame: TurbineFrame) -> Diagnosis``.
+An **estimator** (``TURBINE_ESTIMATORS``) is built the same way and has
+``step(frame: TurbineFrame, faulty: np.ndarray) -> Estimates``; ``faulty`` is the detector's verdict.
+Both see only what a real supervisor sees: the sensor frame, never the plant's truth. Everything is batched
+over n turbines (rows). See ``docs/plugins.md`` for a worked example.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from functools import cached_property
+
+import numpy as np
+
+from service.turbine.bank import BankDesign, ObserverBank, design_bank
+from service.turbine.design_model import design_model
+from wwcore.channels import DIAGNOSIS_TARGETS, SENSOR_INDEX, SENSORS, SPEED_SENSORS, noise_std
+from wwcore.turbine_frames import TurbineFrame
+from wwcore.turbine_params import TurbineParams
+
+SPEED_COLUMNS = np.array([SENSOR_INDEX[s] for s in SPEED_SENSORS])
+
+# Design process noise of the observers (per step): the drive-train model is exact up to the efficiency fault
+# and the converter's torque offset, so Q is small; the unknown input's random walk is for observer 4 only.
+DESIGN_Q = np.diag([1e-8, 1e-6, 1e-12, 1.0])  # (rad/s)², (rad/s)², rad², (N m)²
+DESIGN_Q_UNKNOWN = 2e4**2  # (N m)² per step, aerodynamic torque increments (observer 4's Kalman filter)
+
+
+@dataclass
+class Diagnosis:
+    """A detector's verdict for n turbines."""
+
+    faulty: np.ndarray  # (n, len(DIAGNOSIS_TARGETS)) bool, wwcore.channels.DIAGNOSIS_TARGETS order
+    margins: dict[str, np.ndarray] = field(default_factory=dict)  # name → statistic/threshold (n,); > 1 trips
+
+
+@dataclass
+class Estimates:
+    """An estimator's outputs for n turbines."""
+
+    valid: np.ndarray  # (n,) bool, the controller may use them
+    omega_r: np.ndarray  # (n,) rad/s
+    omega_g: np.ndarray  # (n,) rad/s
+    wind: np.ndarray  # (n,) m/s, the fault-tolerant estimate (FTE)
+    selected: np.ndarray  # (n,) int, index of the observer in use (−1 none)
+    observer_names: tuple[str, ...] = ()
+    wind_reference: np.ndarray | None = None  # (n,) m/s, the non-fault-tolerant estimate (NFTE), if any
+
+
+def empty_diagnosis(n: int) -> Diagnosis:
+    return Diagnosis(np.zeros((n, len(DIAGNOSIS_TARGETS)), dtype=bool))
+
+
+class TurbineContext:
+    """What every turbine algorithm may know: the turbine's parameters, the sensors' noise, the batch size.
+
+    It also owns the observer bank of seed 000, designed once and stepped at most once per tick however many
+    algorithms ask for it.
+    """
+
+    def __init__(self, params: TurbineParams, n: int, noise_convention: str = "sigma"):
+        self.params = params
+        self.n = n
+        self.dt = params.dt
+        self.noise_convention = noise_convention
+        self.sensor_sigma = {c.name: noise_std(c, noise_convention) for c in SENSORS}
+        self._bank: ObserverBank | None = None
+        self._bank_tick: int | None = None
+
+    @cached_property
+    def bank_design(self) -> BankDesign:
+        return _cached_bank_design(self.params, self.noise_convention)
+
+    def bank(self, frame: TurbineFrame) -> ObserverBank:
+        """The observer bank advanced to ``frame`` (initialised on the first frame)."""
+        y = frame.sensors[:, SPEED_COLUMNS]
+        if self._bank is None:
+            self._bank = ObserverBank(self.bank_design, self.n)
+            self._bank.initialise(static_state_guess(self.params, y, frame.tau_g_ref), y)
+            self._bank_tick = frame.k
+            self._bank.step(y, frame.tau_g_ref)
+        elif self._bank_tick != frame.k:
+            self._bank.step(y, frame.tau_g_ref)
+            self._bank_tick = frame.k
+        return self._bank
+
+
+def static_state_guess(p: TurbineParams, y_speed: np.ndarray, tau_g: np.ndarray) -> np.ndarray:
+    """[ω_r, ω_g, θ_Δ, τ_g] from one sample, assuming the drive train at rest (used to start observers)."""
+    omega_r = y_speed[:, :2].mean(axis=1)
+    omega_g = y_speed[:, 2:].mean(axis=1)
+    shaft = p.N_g * (p.B_g * omega_g + tau_g) / p.eta_dt
+    theta = (shaft - p.B_dt * (omega_r - omega_g / p.N_g)) / p.K_dt
+    return np.column_stack([omega_r, omega_g, theta, tau_g])
+
+
+_BANKS: dict[tuple, BankDesign] = {}
+
+
+def _cached_bank_design(params: TurbineParams, convention: str) -> BankDesign:
+    key = (params, convention)
+    if key not in _BANKS:
+        sigma = {c.name: noise_std(c, convention) for c in SENSORS if c.name in SPEED_SENSORS}
+        _BANKS[key] = design_bank(design_model(params), sigma, DESIGN_Q, DESIGN_Q_UNKNOWN)
+    return _BANKS[key]
