@@ -236,12 +236,14 @@ def test_ramped_fault_follows_its_ramp():
 
 
 def test_rows_do_not_depend_on_the_batch():
+    """A run's random streams depend only on (seed, run); matrix products over different batch sizes may round
+    differently in the last bit, so rows agree to rounding, not bit for bit."""
     wind = WindSpec(mean=[(0.0, 11.0)])
     fault = [FaultSpec(target="omega_r_m1", kind="gain", value=1.1, start_s=0.5)]
     alone = TurbineBatch(TurbinePlant(), wind, fault, seed=9, runs=[2])
     batch = TurbineBatch(TurbinePlant(), wind, fault, seed=9, runs=[0, 1, 2, 3])
     ya, yb = run(alone, 2.0), run(batch, 2.0)
-    assert all(np.array_equal(fa.sensors[0], fb.sensors[2]) for fa, fb in zip(ya, yb, strict=True))
+    assert all(np.allclose(fa.sensors[0], fb.sensors[2], rtol=1e-9, atol=0) for fa, fb in zip(ya, yb, strict=True))
 
 
 def test_controller_uses_fresh_estimates_and_falls_back_when_stale():

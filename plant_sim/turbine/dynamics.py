@@ -101,7 +101,7 @@ class TurbineDynamics:
         """τ_r = Σ_i (ρπR³/6) C_q(λ_i, β_i) v_i² in N m; pitch (n,3) in deg, wind (n,3) in m/s."""
         tsr = omega_r[:, None] * (self.p.radius / wind)
         cq = aero.torque_coefficient(tsr, pitch)
-        return (self.blade_gain * factor) * np.einsum("ij,ij->i", cq, wind * wind)
+        return (self.blade_gain * factor) * (cq * (wind * wind)).sum(axis=1)
 
     def derivative(self, x, tau_g_ref, pitch_ref, wind, faults) -> np.ndarray:
         """ẋ for the continuous model with the aerodynamic torque re-evaluated at x (reference implementation)."""
@@ -133,6 +133,7 @@ class DiscreteStep:
         self.gamma_p = np.zeros((n, 3, 2))
         self._key_m: np.ndarray | None = None
         self._key_p: np.ndarray | None = None
+        self._shared: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None  # when every row is alike
 
     def update(self, faults) -> None:
         """Recompute Φ, Γ for the rows whose drive-train or pitch parameters differ from last time."""
@@ -149,8 +150,23 @@ class DiscreteStep:
             phi, gamma = zoh(A, B, self.p.dt)
             self.phi_p[rows], self.gamma_p[rows] = phi, gamma[..., 0]
         self._key_p = key_p
+        alike = (key_m == key_m[0]).all() and (key_p == key_p[0]).all()
+        if alike:
+            # One matrix for the whole batch: [x_mech, τ_r, τ_g,cmd] → x_mech', and per blade [β, β̇, β_ref] → [β, β̇]'
+            mech = np.hstack([self.phi_m[0], self.gamma_m[0]]).T  # (7, 5)
+            pitch = np.concatenate([self.phi_p[0], self.gamma_p[0][..., None]], axis=2).transpose(0, 2, 1)  # (3, 3, 2)
+            self._shared = (mech, np.ascontiguousarray(pitch), np.zeros(0))
+        else:
+            self._shared = None
 
     def step(self, x: np.ndarray, tau_r: np.ndarray, tau_g_cmd: np.ndarray, pitch_ref: np.ndarray) -> np.ndarray:
+        if self._shared is not None:
+            mech, pitch, _ = self._shared
+            out = np.empty_like(x)
+            out[:, :N_MECH] = np.column_stack([x[:, :N_MECH], tau_r, tau_g_cmd]) @ mech
+            blades = np.concatenate([x[:, N_MECH:].reshape(self.n, 3, 2), pitch_ref[:, :, None]], axis=2)
+            out[:, N_MECH:] = np.einsum("nbk,bkj->nbj", blades, pitch).reshape(self.n, 6)
+            return out
         out = np.empty_like(x)
         mech = x[:, :N_MECH]
         out[:, :N_MECH] = np.einsum("nij,nj->ni", self.phi_m, mech) + (

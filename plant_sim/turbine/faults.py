@@ -128,6 +128,16 @@ class ScheduledFault:
             return 0.0
         return self.spec.intensity(max(k * dt, self.spec.start_s))
 
+    def next_change(self, k: int, dt: float) -> int:
+        """The first tick after k at which ``changing`` may be true (every tick while ramping)."""
+        if k < self.start_tick:
+            return self.start_tick
+        if self.spec.ramp_s > 0.0 and (self.end_tick is None or k < self.end_tick):
+            return k + 1
+        if self.end_tick is not None and k < self.end_tick:
+            return self.end_tick
+        return np.iinfo(np.int64).max
+
     def changing(self, k: int, dt: float) -> bool:
         """True when the fault's intensity at tick k may differ from tick k−1."""
         if k == self.start_tick or k == self.end_tick:

@@ -42,7 +42,8 @@ from wwcore.turbine_params import BENCHMARK, TurbineParams
 # Measured quantities, in the order the sensor channels pick them (wwcore.channels.SENSORS[i].quantity).
 _QUANTITIES = ("omega_r", "omega_g", "v_hub", "beta_1", "beta_2", "beta_3", "tau_g", "p_g")
 _PICK = np.array([_QUANTITIES.index(c.quantity) for c in SENSORS])
-_BETA_PAIRS = np.array([[SENSOR_INDEX[f"beta_{i}_m1"], SENSOR_INDEX[f"beta_{i}_m2"]] for i in (1, 2, 3)])
+_BETA_M1 = np.array([SENSOR_INDEX[f"beta_{i}_m1"] for i in (1, 2, 3)])
+_BETA_M2 = np.array([SENSOR_INDEX[f"beta_{i}_m2"] for i in (1, 2, 3)])
 _OMEGA_G_M1 = SENSOR_INDEX["omega_g_m1"]
 _P_G_M = SENSOR_INDEX["p_g_m"]
 
@@ -71,12 +72,19 @@ class TurbineBatch:
         params: TurbineParams = BENCHMARK,
         wind_field: object | None = None,
         noise_chunk: int = 1000,
+        fault_free_twins: bool = False,
     ):
         self.p = params
         self.dt = params.dt
         self.k = 0
-        self.run_of_row = np.repeat(np.asarray(runs, dtype=int), len(turbines))
-        self.turbine_of_row = np.tile(np.asarray(turbines, dtype=int), len(runs))
+        run_of_row = np.repeat(np.asarray(runs, dtype=int), len(turbines))
+        turbine_of_row = np.tile(np.asarray(turbines, dtype=int), len(runs))
+        copies = 2 if fault_free_twins else 1
+        # Twin rows (the second half, when asked for) share their run's wind and noise but no fault ever reaches
+        # them: the same run without faults, for scoring what the faults cost.
+        self.twin_of_row = np.repeat(np.arange(copies) == 1, len(run_of_row))
+        self.run_of_row = np.tile(run_of_row, copies)
+        self.turbine_of_row = np.tile(turbine_of_row, copies)
         self.n = len(self.run_of_row)
         streams = [row_streams(seed, int(r), int(t)) for r, t in zip(self.run_of_row, self.turbine_of_row, strict=True)]
         self._noise_rngs = [noise for _, noise in streams]
@@ -89,6 +97,7 @@ class TurbineBatch:
         self._noise = np.empty((0, self.n, len(SENSORS)))
         self.faults = FaultState(self.n, params)
         self.schedule: list[ScheduledFault] = []
+        self._next_change = 0  # tick at which the fault arrays may next change
         for fault in faults:
             self.inject(fault)
         self.controller = BenchmarkController(params, self.n, plant.power_reference_w)
@@ -115,16 +124,18 @@ class TurbineBatch:
 
     def inject(self, fault: FaultSpec) -> None:
         """Schedule a fault (from the scenario, or at run time from the API: start ≥ now)."""
-        rows = np.flatnonzero(self.turbine_of_row == fault.turbine)
+        rows = np.flatnonzero((self.turbine_of_row == fault.turbine) & ~self.twin_of_row)
         start = round(fault.start_s / self.dt)
         end = None if fault.end_s is None else round(fault.end_s / self.dt)
         self.schedule.append(ScheduledFault(fault, rows, max(start, self.k), end))
+        self._next_change = self.k
 
     def clear(self, label: str) -> bool:
         """End a fault now. Returns False when no active or pending fault has that label."""
         for sched in self.schedule:
             if sched.spec.label == label and (sched.end_tick is None or sched.end_tick > self.k):
                 sched.end_tick = max(self.k, sched.start_tick)
+                self._next_change = self.k
                 return True
         return False
 
@@ -146,7 +157,7 @@ class TurbineBatch:
         quantities = np.column_stack(
             (x[:, OMEGA_R], x[:, OMEGA_G], ws.hub, pitch, x[:, TAU_G], self.p.eta_gc * x[:, OMEGA_G] * x[:, TAU_G])
         )
-        noise = self._next_noise() * self.sigma
+        noise = self._next_noise()  # already σ-scaled
         f = self.faults
         if f.sensor_faults_active:
             y = (quantities[:, _PICK] + self.bias + noise * f.noise_scale) * f.gain + f.offset
@@ -155,12 +166,12 @@ class TurbineBatch:
             y = np.where(f.fixed, f.fixed_value, y)
             y = np.where(f.stuck, f.stuck_value, y)
         else:
-            y = quantities[:, _PICK] + self.bias + noise
+            y = quantities[:, _PICK] + (noise + self.bias)
         self.last_reading = y
         # Pitch-sensor errors reach the true pitch: the actuator's internal loop closes on the mean of the two
         # measurements, so its reference is corrected by their mean error (PARAMETERS.md a.2; sign decision in
         # docs/turbine.md: a loop that drives the measured mean to β_ref leaves the true pitch off by −error).
-        self._pitch_error = y[:, _BETA_PAIRS].mean(axis=2) - pitch
+        self._pitch_error = 0.5 * (y[:, _BETA_M1] + y[:, _BETA_M2]) - pitch
         c = self.controller
         return TurbineFrame(self.k, self.t, y, c.tau_g_ref.copy(), c.beta_ref.copy(), c.power_ref.copy(), c.zone.copy())
 
@@ -205,11 +216,14 @@ class TurbineBatch:
         j = self.k % self.noise_chunk
         if j == 0 or len(self._noise) == 0:
             size = (self.noise_chunk, len(SENSORS))
-            self._noise = np.stack([rng.standard_normal(size) for rng in self._noise_rngs], axis=1)
+            self._noise = np.stack([rng.standard_normal(size) for rng in self._noise_rngs], axis=1) * self.sigma
         return self._noise[j]
 
     def _update_faults(self) -> None:
         k, dt = self.k, self.dt
+        if k < self._next_change:
+            return
+        self._next_change = min((s.next_change(k, dt) for s in self.schedule), default=np.iinfo(np.int64).max)
         if not any(s.changing(k, dt) for s in self.schedule):
             return
         for sched in self.schedule:

@@ -15,6 +15,9 @@ paper  observer instances          sensors used (``y_j``, eqs. (4)–(10))
 
 All observers are computed at each sample (seed 000, after eq. (20)); their states are stacked into one array
 and advanced with block matrices, so the whole bank costs a few matrix products per tick.
+
+The non-fault-tolerant estimate of seed 000 ("observer 1 throughout") is a separate copy of observer 1
+(``1-nfte``), so that nothing the supervisor does to its own observers can make the comparison kinder.
 """
 
 from __future__ import annotations
@@ -59,8 +62,8 @@ def bank_subsets() -> list[frozenset[str]]:
 class BankDesign:
     """The observers of the bank and their block matrices over the 4 speed sensors."""
 
-    left_out: tuple[frozenset[str], ...]
-    names: tuple[str, ...]
+    left_out: tuple[frozenset[str], ...]  # of the isolating observers 0 … n_isolating − 1
+    names: tuple[str, ...]  # every observer, the NFTE copy of observer 1 last
     observers: tuple[ObserverDesign, ...]
     offsets: np.ndarray  # start column of each observer's state block
     F_blk: np.ndarray  # steady-state block-diagonal F
@@ -73,6 +76,11 @@ class BankDesign:
     L_res: np.ndarray  # (Σrank, Σn): block-diag W_j C_j
     res_starts: np.ndarray  # start row of each observer's whitened residual
     ranks: np.ndarray  # (n_obs,)
+    reference: int  # index of the NFTE copy of observer 1
+
+    @property
+    def n_isolating(self) -> int:
+        return len(self.left_out)
 
     def index(self, left_out: frozenset[str]) -> int:
         return self.left_out.index(left_out)
@@ -89,7 +97,7 @@ def design_bank(model: DesignModel, sigma: dict[str, float], Q: np.ndarray, q_un
     """Design every observer of the bank. ``sigma``: speed-sensor noise σ (same units as the channel)."""
     left_outs = bank_subsets()
     observers = []
-    for left_out in left_outs:
+    for left_out in [*left_outs, frozenset()]:  # the last one is the NFTE copy of observer 1
         sensors = tuple(s for s in SPEED_SENSORS if s not in left_out)
         R = np.diag([sigma[s] ** 2 for s in sensors])
         problem = existence_problem(model, sensors)
@@ -101,6 +109,8 @@ def design_bank(model: DesignModel, sigma: dict[str, float], Q: np.ndarray, q_un
     offsets = np.concatenate([[0], np.cumsum(sizes)[:-1]])
     selectors = [_selector(o.sensors) for o in observers]
     n_transient = max(len(o.F_transient) for o in observers)
+
+    reference = len(observers) - 1
 
     def gains_at(step: int) -> tuple[np.ndarray, np.ndarray]:
         Fs, Ks = [], []
@@ -122,7 +132,7 @@ def design_bank(model: DesignModel, sigma: dict[str, float], Q: np.ndarray, q_un
     ranks = np.array([o.rank for o in observers])
     return BankDesign(
         left_out=tuple(left_outs),
-        names=tuple(observer_name(s) for s in left_outs),
+        names=(*(observer_name(s) for s in left_outs), "1-nfte"),
         observers=tuple(observers),
         offsets=offsets,
         F_blk=F_blk,
@@ -135,22 +145,36 @@ def design_bank(model: DesignModel, sigma: dict[str, float], Q: np.ndarray, q_un
         L_res=L_res,
         res_starts=np.concatenate([[0], np.cumsum(ranks)[:-1]]),
         ranks=ranks,
+        reference=reference,
     )
 
 
 class ObserverBank:
-    """Runs a ``BankDesign`` for n turbines: eqs. (11)–(12) for every observer, plus whitened residuals."""
+    """Runs a ``BankDesign`` for n turbines: eqs. (11)–(12) for every observer, plus whitened residuals.
+
+    Each tick is two matrix products: [z, u, y_prev] @ [Fᵀ; (TB)ᵀ; Kᵀ] gives z[n] (11), and
+    [z[n], y[n]] @ [[I, −Lᵀ], [Hᵀ, Gᵀ]] gives x̂[n] (12) and the whitened residuals side by side.
+    """
 
     def __init__(self, design: BankDesign, n: int):
         self.d = design
         self.n = n
         width = design.F_blk.shape[0]
+
+        def update_matrix(F: np.ndarray, K: np.ndarray) -> np.ndarray:
+            return np.vstack([F.T, design.TB_blk[None, :], K.T])
+
+        self._update = update_matrix(design.F_blk, design.K_blk)
+        self._update_transient = [
+            update_matrix(F, K) for F, K in zip(design.F_transient, design.K_transient, strict=True)
+        ]
+        self._output = np.block([[np.eye(width), -design.L_res.T], [design.H_blk.T, design.G_res.T]])
+        self._width = width
         self.z = np.zeros((n, width))
         self.x_hat = np.zeros((n, width))
         self.chi2 = np.zeros((n, len(design.names)))  # ‖W_j r_j‖², χ²-distributed with rank_j dof when healthy
         self.steps = 0
-        self._y_prev: np.ndarray | None = None
-        self._u_prev: np.ndarray | None = None
+        self._y_prev: np.ndarray | None = None  # y[n−1]
 
     def initialise(self, x0: np.ndarray, y: np.ndarray) -> None:
         """Start every observer at the state estimate x0 (n, 4): z[0] = x0 − H y[0] (and d̂ from x0 statics)."""
@@ -164,20 +188,16 @@ class ObserverBank:
 
     def step(self, y: np.ndarray, u_prev: np.ndarray) -> None:
         """Advance with y[n] (n, 4 speed sensors) and u[n−1] (n,) the torque reference of the previous tick."""
-        d = self.d
         if self._y_prev is not None:
-            if self.steps < len(d.F_transient):
-                F, K = d.F_transient[self.steps], d.K_transient[self.steps]
-            else:
-                F, K = d.F_blk, d.K_blk
+            update = self._update_transient[self.steps] if self.steps < len(self._update_transient) else self._update
             # (11) z[n] = F z[n−1] + T B_d u[n−1] + K y[n−1]
-            self.z = self.z @ F.T + u_prev[:, None] * d.TB_blk + self._y_prev @ K.T
+            self.z = np.concatenate([self.z, u_prev[:, None], self._y_prev], axis=1) @ update
             self.steps += 1
-        # (12) x̂[n] = z[n] + H y[n]
-        self.x_hat = self.z + y @ d.H_blk.T
-        # r_j = (I − C_j H_j) y_j − C_j z_j, whitened by W_j: χ²_j = ‖W_j r_j‖²
-        white = y @ d.G_res.T - self.z @ d.L_res.T
-        self.chi2 = np.add.reduceat(white * white, d.res_starts, axis=1)
+        # (12) x̂[n] = z[n] + H y[n], and r_j = (I − C_j H_j) y_j − C_j z_j whitened by W_j: χ²_j = ‖W_j r_j‖²
+        out = np.concatenate([self.z, y], axis=1) @ self._output
+        self.x_hat = out[:, : self._width]
+        white = out[:, self._width :]
+        self.chi2 = np.add.reduceat(white * white, self.d.res_starts, axis=1)
         self._y_prev = y
 
     def states(self, j: int) -> np.ndarray:

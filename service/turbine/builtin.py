@@ -39,15 +39,17 @@ class UIOBankDetector:
     def __init__(self, *, context: TurbineContext, options: dict | None = None):
         self.context = context
         self.fdi = SpeedSensorFDI(context.bank_design, context.n, context.dt, _settings(FDISettings, options or {}))
+        design = context.bank_design
+        self._margin_names = tuple(f"observer {name}" for name in design.names[: design.n_isolating])
 
     def step(self, frame: TurbineFrame) -> Diagnosis:
         bank = self.context.bank(frame)
         self.fdi.step(frame.sensors[:, SPEED_COLUMNS], bank.chi2)
+        faulty = self.fdi.faulty
         diagnosis = empty_diagnosis(self.context.n)
-        diagnosis.faulty[:, SPEED_TARGETS] = self.fdi.faulty
-        margins = self.fdi.margins(bank.chi2)
-        names = self.context.bank_design.names
-        diagnosis.margins = {f"observer {name}": margins[:, j] for j, name in enumerate(names)}
+        diagnosis.faulty[:, SPEED_TARGETS] = faulty
+        diagnosis.margins = self.fdi.margins(bank.chi2)
+        diagnosis.margin_names = self._margin_names
         return diagnosis
 
 
@@ -67,8 +69,8 @@ class UIOBankEstimator:
     """Estimates of the observer whose sensor set matches the healthy sensors (active fault tolerance).
 
     Options: ``wind_cutoff_hz`` (default 0.3), ``speed_cutoff_hz`` (2.0), ``warmup_s`` (5.0),
-    ``wind_every`` (10): the wind is inverted every that many ticks and held in between; the torque it inverts
-    is low-pass filtered at ``wind_cutoff_hz``, far below the 10 Hz this resolves.
+    ``wind_every`` (20): the wind is inverted every that many ticks (5 Hz) and held in between; the torque it
+    inverts is low-pass filtered at ``wind_cutoff_hz``, far below the 5 Hz this resolves.
     """
 
     def __init__(self, *, context: TurbineContext, options: dict | None = None):
@@ -83,10 +85,13 @@ class UIOBankEstimator:
             speed_cutoff_hz=float(options.get("speed_cutoff_hz", 2.0)),
         )
         self.warmup_ticks = round(float(options.get("warmup_s", 5.0)) / context.dt)
-        self.wind_every = int(options.get("wind_every", 10))
+        self.wind_every = int(options.get("wind_every", 20))
         self.observer_of_mask = np.full(1 << len(SPEED_SENSORS), -1)
         for j, left_out in enumerate(design.left_out):
             self.observer_of_mask[sum(1 << SPEED_SENSORS.index(s) for s in left_out)] = j
+        self.reference = design.reference
+        self._reference_columns = np.full(context.n, design.reference)
+        self._rows = np.arange(context.n)
         self.names = design.names
         self.ticks = 0
         self._winds: np.ndarray | None = None  # (2, n): FTE, NFTE
@@ -100,13 +105,12 @@ class UIOBankEstimator:
             self.recovery.start(bank.x_hat, frame.beta_ref, tau_aero0)
             self._winds = np.tile(np.maximum(frame.sensors[:, SENSOR_INDEX["v_hub_m"]], 3.0), (2, 1))
         self.recovery.step(bank.x_hat, frame.beta_ref)
-        mask = (faulty[:, SPEED_TARGETS] * _MASK_WEIGHTS).sum(axis=1)
-        selected = self.observer_of_mask[mask]
+        selected = self.observer_of_mask[faulty[:, SPEED_TARGETS] @ _MASK_WEIGHTS]
         columns = np.maximum(selected, 0)
         if self.ticks % self.wind_every == 0:
-            self._winds = self.recovery.wind(np.stack([columns, np.zeros_like(columns)]), self._winds)
+            self._winds = self.recovery.wind(np.stack([columns, self._reference_columns]), self._winds)
         self.ticks += 1
-        rows = np.arange(self.context.n)
+        rows = self._rows
         return Estimates(
             valid=(selected >= 0) & (self.ticks > self.warmup_ticks),
             omega_r=self.recovery.omega_r[rows, columns],

@@ -18,11 +18,20 @@ Design (eqs. (13)–(20)), with the paper's typesetting slips corrected (each no
     K_j[n]  = F_j[n] H_j + K¹_j[n]                        (20)
     P_j[0]  = 0
 
-Existence: rank(C_j E_d) = rank(E_d) and (C_j, A¹_j) detectable. Where it fails (seed 000's observer 4, which
-has no rotor-speed sensor: C E = 0 in continuous time, and in discrete time the zero-order hold puts a sampling
-zero near −3.7 outside the unit circle, so (C_j, A¹_j) is not detectable), the observer is a steady-state Kalman
-filter of the design model augmented with the unknown input as a random-walk state, written in the same
-(F, T, K, H) form so the bank runs it like the others (``kind == "kalman"``).
+Existence: rank(C_j E_d) = rank(E_d) and (C_j, A¹_j) detectable. Detectable is read with a margin: a mode that
+no output sees must decay faster than ``SLOWEST_ERROR_S`` (5 s, |λ| < e^(−Ts/5 s) = 0.998), because an observer
+whose error lingers for tens of seconds is of no use to a supervisor that switches observers within tens of
+milliseconds. Two observers of seed 000 fail:
+
+* observer 4 (no rotor-speed sensor): C E = 0 in continuous time, and in discrete time the zero-order hold puts
+  a sampling zero near −3.7 outside the unit circle, so (C_j, A¹_j) is not detectable at all;
+* observer 5 (no generator-speed sensor): with the rotor-speed channel consumed by the decoupling, the
+  generator side of the 4.5 Hz torsion mode is unobservable and damped only by friction (|λ| = 0.9994, a 17 s
+  time constant); its estimate of ω_g would carry a resonant error of several rad/s.
+
+Where it fails the observer is a steady-state Kalman filter of the design model augmented with the unknown input
+as a random-walk state, written in the same (F, T, K, H) form so the bank runs it like the others
+(``kind == "kalman"``).
 
 Residual (decoupled from d): r_j[n] = y_j[n] − C_j x̂[n] = (I − C_j H_j) y_j[n] − C_j z[n]. With ε = T x − z,
 ε[n+1] = F ε[n] + T ξ[n] − K η[n] and r = C ε + (I − C H) η, so its stationary covariance is closed-form:
@@ -39,7 +48,9 @@ from scipy.linalg import solve_discrete_are
 from service.turbine.design_model import DesignModel
 
 RANK_TOL = 1e-9
+SLOWEST_ERROR_S = 5.0  # an observer whose error decays slower than this counts as not detectable (see below)
 CONVERGENCE_TOL = 1e-10
+LAGS = 8  # residual autocovariance lags kept (windowed tests look back at most this many ticks)
 MAX_TRANSIENT = 20_000
 
 
@@ -65,6 +76,7 @@ class ObserverDesign:
     residual_cov: np.ndarray  # (p, p) S_j
     state_error_cov: np.ndarray  # (n, n) Σ_x = Σ_ε + H R Hᵀ
     whitening: np.ndarray  # (rank, p): w = W r has identity covariance
+    autocov: np.ndarray  # (LAGS, rank, rank): E[w[n+k] w[n]ᵀ] of the whitened residual, k = 0 … LAGS−1
     note: str = ""
 
     @property
@@ -73,7 +85,7 @@ class ObserverDesign:
 
 
 def detectable(A: np.ndarray, C: np.ndarray, margin: float = 1e-9) -> bool:
-    """PBH test: every eigenvalue of A on or outside the unit circle is observable through C."""
+    """PBH test: every eigenvalue of A with |λ| ≥ 1 − margin is observable through C."""
     n = A.shape[0]
     for lam in np.linalg.eigvals(A):
         if abs(lam) >= 1.0 - margin:
@@ -92,19 +104,20 @@ def existence_problem(model: DesignModel, sensors: tuple[str, ...]) -> str | Non
         return "rank(C E_d) < rank(E_d)"
     H = model.E_d @ np.linalg.pinv(CE)  # any left inverse gives the same A¹ null structure
     A1 = model.A_d - H @ C @ model.A_d
-    if not detectable(A1, C):
-        zeros = _unstable_modes(A1, C)
-        return f"(C, A¹) not detectable: unobservable mode(s) at z = {zeros}"
+    margin = -np.expm1(-model.dt / SLOWEST_ERROR_S)
+    if not detectable(A1, C, margin):
+        modes = _unobservable_modes(A1, C, margin)
+        return f"(C, A¹) not detectable: unobservable mode(s) at z = {modes} (|z| ≥ {1 - margin:.4f})"
     return None
 
 
-def _unstable_modes(A: np.ndarray, C: np.ndarray) -> str:
+def _unobservable_modes(A: np.ndarray, C: np.ndarray, margin: float) -> str:
     n = A.shape[0]
     bad = []
     for lam in np.linalg.eigvals(A):
         pbh = np.vstack([lam * np.eye(n) - A, C.astype(complex)])
-        if abs(lam) >= 1.0 and np.linalg.matrix_rank(pbh, tol=1e-8 * max(1.0, np.abs(pbh).max())) < n:
-            bad.append(f"{lam.real:.3g}{lam.imag:+.3g}j")
+        if abs(lam) >= 1.0 - margin and np.linalg.matrix_rank(pbh, tol=1e-8 * max(1.0, np.abs(pbh).max())) < n:
+            bad.append(f"{lam.real:.4g}{lam.imag:+.3g}j")
     return ", ".join(bad)
 
 
@@ -209,6 +222,14 @@ def _finish(sensors, kind, C, H, T, TB, F, K, F_seq, K_seq, R, Q, note: str = ""
     sigma_eps = stationary_covariance(F, T @ Q @ T.T + K @ R @ K.T)
     I_CH = np.eye(C.shape[0]) - C @ H
     S = C @ sigma_eps @ C.T + I_CH @ R @ I_CH.T
+    W = _whitening(S)
+    # cov(r[n+k], r[n]) = C F^k Σ_ε Cᵀ − C F^(k−1) K R (I − C H)ᵀ for k ≥ 1 (ε[n+k] carries −K η[n] forward)
+    lags = [W @ S @ W.T]
+    Fk = np.eye(F.shape[0])
+    for _ in range(1, LAGS):
+        lag = C @ (F @ Fk) @ sigma_eps @ C.T - C @ Fk @ K @ R @ I_CH.T
+        lags.append(W @ lag @ W.T)
+        Fk = F @ Fk
     return ObserverDesign(
         sensors=sensors,
         kind=kind,
@@ -223,6 +244,7 @@ def _finish(sensors, kind, C, H, T, TB, F, K, F_seq, K_seq, R, Q, note: str = ""
         K_transient=K_seq,
         residual_cov=0.5 * (S + S.T),
         state_error_cov=sigma_eps + H @ R @ H.T,
-        whitening=_whitening(S),
+        whitening=W,
+        autocov=np.array(lags),
         note=note,
     )

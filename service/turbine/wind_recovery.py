@@ -8,10 +8,12 @@
    the 4.5 Hz torsion mode the shaft is rigid (the low-frequency part of θ̇_Δ = ω_r − ω_g/N_g is ~1e-4 rad/s),
    and the generator encoder is ~50× less noisy than the rotor-speed sensors once referred to the rotor side.
    Observers without one (observer 5) use Ω̂ = ω̂_r.
-2. τ̂_r, ω̂_r and the pitch are low-pass filtered by the same second-order Butterworth filter (cutoff
-   ``wind_cutoff_hz``), so all three carry the same delay, then
+2. τ̂_r and the pitch are low-pass filtered by the same second-order Butterworth filter (cutoff
+   ``wind_cutoff_hz``), so both carry the same delay, then
 3. v̂ solves τ̂_r = ½ρπR³ C_q(ω̂_r R / v, β̂) v² (``wwcore.aero.wind_from_torque``), started from the previous
-   estimate; the anemometer only provides the start value at the first tick.
+   estimate; the anemometer only provides the start value at the first tick. ω̂_r here is the published speed
+   estimate (filtered at ``speed_cutoff_hz``): the rotor's inertia makes it change too slowly for the two
+   filters' different delays to matter in λ.
 
 The pitch is the collective reference passed through the nominal actuator model, so pitch-sensor faults do
 not reach the wind estimate. The published speed estimates pass through a second-order Butterworth filter
@@ -30,24 +32,29 @@ from wwcore.turbine_params import TurbineParams
 
 
 class Biquad:
-    """Second-order IIR filter (transposed direct form II) applied column-wise to (n, m) arrays."""
+    """Second-order Butterworth low-passes (transposed direct form II) on the columns of (n, m) arrays; each
+    column has its own cutoff (``cutoffs_hz``, length m)."""
 
-    def __init__(self, cutoff_hz: float, dt: float):
-        b, a = butter(2, cutoff_hz, fs=1.0 / dt)
-        self.b, self.a = b, a
+    def __init__(self, cutoffs_hz: np.ndarray, dt: float):
+        coeffs = [butter(2, fc, fs=1.0 / dt) for fc in cutoffs_hz]
+        self.b = np.array([b for b, _ in coeffs]).T  # (3, m)
+        if not np.allclose(self.b[1], 2.0 * self.b[0]) or not np.allclose(self.b[2], self.b[0]):
+            raise ValueError("expected Butterworth low-pass numerators b0·[1, 2, 1]")
+        self.a = np.array([a for _, a in coeffs]).T
+        self.zi = np.array([lfilter_zi(b, a) for b, a in coeffs]).T  # (2, m)
         self.s1: np.ndarray | None = None
         self.s2: np.ndarray | None = None
 
     def start(self, x0: np.ndarray) -> None:
         """Set the state to the steady state of a constant input x0."""
-        zi = lfilter_zi(self.b, self.a)
-        self.s1, self.s2 = zi[0] * x0, zi[1] * x0
+        self.s1, self.s2 = self.zi[0] * x0, self.zi[1] * x0
 
     def __call__(self, x: np.ndarray) -> np.ndarray:
-        b, a = self.b, self.a
-        y = b[0] * x + self.s1
-        self.s1 = b[1] * x - a[1] * y + self.s2
-        self.s2 = b[2] * x - a[2] * y
+        # A Butterworth low-pass has b = b0·[1, 2, 1]: one product of x serves all three taps.
+        bx = self.b[0] * x
+        y = bx + self.s1
+        self.s1 = (bx + bx + self.s2) - self.a[1] * y
+        self.s2 = bx - self.a[2] * y
         return y
 
 
@@ -60,84 +67,98 @@ class PitchModel:
         B = np.array([[0.0], [wn**2]])
         Ad, Bd, *_ = cont2discrete((A, B, np.eye(2), np.zeros((2, 1))), p.dt, method="zoh")
         self.Ad, self.Bd = Ad, Bd.ravel()
-        self.x = np.zeros((n, 2))
+        self.x = (np.zeros(n), np.zeros(n))  # (β, β̇)
 
     def start(self, beta: np.ndarray) -> None:
-        self.x[:, 0], self.x[:, 1] = beta, 0.0
+        self.x = (beta.astype(float).copy(), np.zeros_like(beta, dtype=float))
 
     def step(self, beta_ref_prev: np.ndarray) -> np.ndarray:
-        self.x = self.x @ self.Ad.T + beta_ref_prev[:, None] * self.Bd
-        return self.x[:, 0]
+        (a, b), (c, d) = self.Ad
+        beta, rate = self.x
+        self.x = (a * beta + b * rate + self.Bd[0] * beta_ref_prev, c * beta + d * rate + self.Bd[1] * beta_ref_prev)
+        return self.x[0]
 
 
 class WindRecovery:
-    """Torque, wind and filtered speeds for every observer of the bank, every tick (columns = observers)."""
+    """Torque, wind and filtered speeds for every observer of the bank, every tick (columns = observers).
+
+    One matrix product maps [x̂[n], x̂[n−1]] to the raw columns [τ̂_r | ω̂_r | ω̂_g] of every observer; one bank
+    of biquads filters them (τ̂_r and the pitch at ``wind_cutoff_hz``, the speeds at ``speed_cutoff_hz``).
+    """
 
     def __init__(self, p: TurbineParams, bank: BankDesign, n: int, wind_cutoff_hz: float, speed_cutoff_hz: float):
         self.p = p
         self.n = n
-        n_obs = len(bank.names)
+        m = len(bank.names)
         width = bank.F_blk.shape[0]
-        self.now_map = np.zeros((width, n_obs))  # τ̂_raw[n] = x̂[n] @ now_map + x̂[n−1] @ prev_map
-        self.prev_map = np.zeros((width, n_obs))
-        self.omega_r_map = np.zeros((width, n_obs))
-        self.omega_g_map = np.zeros((width, n_obs))
+        now = np.zeros((width, 3 * m))  # raw[n] = x̂[n] @ now + x̂[n−1] @ prev
+        prev = np.zeros((width, 3 * m))
+        torque, speed_r, speed_g = (slice(i * m, (i + 1) * m) for i in range(3))
         for j, o in enumerate(bank.observers):
             i0 = bank.offsets[j]
             uses_generator = any(s.startswith("omega_g") for s in o.sensors)
-            accel_col, accel_gain = (i0 + 1, p.J_r / (p.N_g * p.dt)) if uses_generator else (i0, p.J_r / p.dt)
-            self.now_map[accel_col, j] += accel_gain
-            self.prev_map[accel_col, j] -= accel_gain
-            self.now_map[i0 + 2, j] += p.K_dt
-            self.now_map[i0 + 0, j] += p.B_dt + p.B_r
-            self.now_map[i0 + 1, j] -= p.B_dt / p.N_g
-            self.omega_r_map[i0, j] = 1.0
-            if uses_generator:
-                self.omega_g_map[i0 + 1, j] = 1.0
+            col = torque.start + j
+            if o.kind == "kalman":  # the augmented Kalman filter estimates τ_r as its fifth state
+                now[i0 + 4, col] = 1.0
             else:
-                self.omega_g_map[i0, j] = p.N_g
-        self.torque_filter = Biquad(wind_cutoff_hz, p.dt)  # columns: τ (n_obs), ω_r (n_obs), β (1)
-        self.speed_filter = Biquad(speed_cutoff_hz, p.dt)  # columns: ω_r (n_obs), ω_g (n_obs)
+                accel_col, accel_gain = (i0 + 1, p.J_r / (p.N_g * p.dt)) if uses_generator else (i0, p.J_r / p.dt)
+                now[accel_col, col] += accel_gain
+                prev[accel_col, col] -= accel_gain
+                now[i0 + 2, col] += p.K_dt
+                now[i0 + 0, col] += p.B_dt + p.B_r
+                now[i0 + 1, col] -= p.B_dt / p.N_g
+            now[i0, speed_r.start + j] = 1.0
+            if uses_generator:
+                now[i0 + 1, speed_g.start + j] = 1.0
+            else:
+                now[i0, speed_g.start + j] = p.N_g
+        self._map = np.vstack([now, prev])
+        self._groups = (torque, speed_r, speed_g)
+        cutoffs = np.r_[np.full(m, wind_cutoff_hz), np.full(2 * m, speed_cutoff_hz), wind_cutoff_hz]
+        self.filter = Biquad(cutoffs, p.dt)  # columns: τ, ω_r, ω_g, β
         self.pitch = PitchModel(p, n)
-        self.n_obs = n_obs
+        self.n_obs = m
         self._x_prev: np.ndarray | None = None
-        self.torque = np.zeros((n, n_obs))
-        self.omega_r = np.zeros((n, n_obs))
-        self.omega_g = np.zeros((n, n_obs))
-        self.pitch_filtered = np.zeros(n)
-        self._filtered_torque = np.zeros((n, n_obs))
-        self._filtered_omega_r = np.zeros((n, n_obs))
+        self._filtered = np.zeros((n, 3 * m + 1))
+
+    @property
+    def omega_r(self) -> np.ndarray:
+        """(n, n_obs) filtered rotor-speed estimates, rad/s."""
+        return self._filtered[:, self._groups[1]]
+
+    @property
+    def omega_g(self) -> np.ndarray:
+        """(n, n_obs) filtered generator-speed estimates, rad/s."""
+        return self._filtered[:, self._groups[2]]
+
+    @property
+    def pitch_filtered(self) -> np.ndarray:
+        return self._filtered[:, -1]
 
     def start(self, x_hat: np.ndarray, beta0: np.ndarray, tau_aero0: np.ndarray) -> None:
         self.pitch.start(beta0)
-        omega_r = x_hat @ self.omega_r_map
-        torque_in = np.hstack([np.repeat(tau_aero0[:, None], self.n_obs, axis=1), omega_r, beta0[:, None]])
-        self.torque_filter.start(torque_in)
-        self.speed_filter.start(np.hstack([omega_r, x_hat @ self.omega_g_map]))
+        raw = np.concatenate([x_hat, x_hat], axis=1) @ self._map
+        raw[:, self._groups[0]] = tau_aero0[:, None]
+        self.filter.start(np.column_stack([raw, beta0]))
+        self._filtered = np.column_stack([raw, beta0])
         self._x_prev = x_hat
 
     def step(self, x_hat: np.ndarray, beta_ref_prev: np.ndarray) -> None:
         """Update torque, speed and pitch estimates of every observer from the bank's x̂[n]."""
-        raw_torque = x_hat @ self.now_map + self._x_prev @ self.prev_map
-        raw_omega_r = x_hat @ self.omega_r_map
+        raw = np.concatenate([x_hat, self._x_prev], axis=1) @ self._map
         beta = self.pitch.step(beta_ref_prev)
-        filtered = self.torque_filter(np.hstack([raw_torque, raw_omega_r, beta[:, None]]))
-        m = self.n_obs
-        self._filtered_torque = filtered[:, :m]
-        self._filtered_omega_r = filtered[:, m : 2 * m]
-        self.pitch_filtered = filtered[:, 2 * m]
-        speeds = self.speed_filter(np.hstack([raw_omega_r, x_hat @ self.omega_g_map]))
-        self.omega_r, self.omega_g = speeds[:, :m], speeds[:, m:]
+        self._filtered = self.filter(np.column_stack([raw, beta]))
         self._x_prev = x_hat
 
     def wind(self, columns: np.ndarray, v_guess: np.ndarray) -> np.ndarray:
         """Wind speed of observer ``columns[i]`` (shape (m, n)) for every row: (m, n) m/s, one inversion call."""
         rows = np.broadcast_to(np.arange(self.n), columns.shape)
+        torque, omega_r = self._groups[0], self._groups[1]  # the published ω̂_r (see the module docstring)
         return aero.wind_from_torque(
-            self._filtered_torque[rows, columns],
-            self._filtered_omega_r[rows, columns],
+            self._filtered[rows, torque.start + columns],
+            self._filtered[rows, omega_r.start + columns],
             np.broadcast_to(self.pitch_filtered, columns.shape),
             v_guess,
             self.p,
-            iterations=3,  # warm-started from the previous estimate, 10 Hz apart
+            iterations=3,  # warm-started from the previous estimate, 0.2 s apart
         )

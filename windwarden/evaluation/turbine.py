@@ -2,8 +2,12 @@
 
 Scorecard: detection figures per fault window from the event log (``scoring``), and ``metrics.wind_rmse``:
 for the fault-free time and each fault window, the RMSE of the fault-tolerant estimate (FTE), the
-non-fault-tolerant estimate (NFTE, observer 1 throughout) and the raw anemometer against the true
+non-fault-tolerant estimate (NFTE, observer 1 throughout) and the raw anemometer reading against the true
 rotor-effective wind, pooled over runs. The first ``WARMUP_S`` seconds of each run are left out.
+
+When the scenario has faults, every run also has a fault-free twin in the same batch (same wind, same noise,
+no faults), and ``fte_fault_free`` is the twin's FTE RMSE over the same window: "the FTE's fault-free RMSE"
+that a fault window is compared with. The twins' detections are counted as ``false_alarms_twin``.
 """
 
 from __future__ import annotations
@@ -19,9 +23,10 @@ from windwarden.evaluation.kinds import EvalOptions, Evaluation
 from windwarden.evaluation.parallel import run_chunks
 from windwarden.evaluation.scoring import score_faults, windows_from_faults
 from wwcore.channels import SENSOR_INDEX
-from wwcore.events import Event
+from wwcore.events import Event, EventType
 from wwcore.scenario import Scenario
 
+TWIN_TURBINE = 0  # turbine number of the fault-free twin rows in events (no real turbine has it)
 WARMUP_S = 10.0  # observer convergence and the supervisor's 5 s decision warm-up, left out of every figure
 GRACE_S = 2.0  # after a fault ends, detections still belong to it for this long
 TRACE_EVERY = 10  # ticks between stored trace samples of run 0 (10 Hz)
@@ -53,7 +58,10 @@ def _window_of_tick(scenario: Scenario, n_steps: int, dt: float) -> tuple[np.nda
 def simulate_chunk(
     run_ids: list[int], progress, scenario: Scenario, seed: int, detector: str, estimator: str, options: dict
 ) -> ChunkResult:
-    plant = TurbineBatch(scenario.plant, scenario.wind, scenario.faults, seed=seed, runs=run_ids)
+    twins = bool(scenario.faults)
+    plant = TurbineBatch(
+        scenario.plant, scenario.wind, scenario.faults, seed=seed, runs=run_ids, fault_free_twins=twins
+    )
     supervisor = TurbineSupervisor(
         plant.n,
         detector=detector,
@@ -61,11 +69,12 @@ def simulate_chunk(
         options=options,
         noise_convention=scenario.plant.noise_convention,
         run_of_row=plant.run_of_row,
-        turbine_of_row=plant.turbine_of_row,
+        turbine_of_row=np.where(plant.twin_of_row, TWIN_TURBINE, plant.turbine_of_row),
     )
+    main, twin = ~plant.twin_of_row, plant.twin_of_row
     n_steps = round(scenario.duration_s / plant.dt)
     which, labels = _window_of_tick(scenario, n_steps, plant.dt)
-    sq = {key: np.zeros(len(labels)) for key in ("fte", "nfte", "anemometer")}
+    sq = {key: np.zeros(len(labels)) for key in ("fte", "nfte", "anemometer", "fte_fault_free")}
     counts = np.zeros(len(labels))
     anemometer = SENSOR_INDEX["v_hub_m"]
     trace_rows = run_ids.index(0) if 0 in run_ids else None
@@ -80,11 +89,13 @@ def simulate_chunk(
         est = supervisor.estimates
         truth_wind = plant.true_rotor_wind()
         if w >= 0:
-            sq["fte"][w] += np.sum((est.wind - truth_wind) ** 2)
+            err = (est.wind - truth_wind) ** 2
+            sq["fte"][w] += err[main].sum()
+            sq["fte_fault_free"][w] += err[twin].sum()
             if est.wind_reference is not None:
-                sq["nfte"][w] += np.sum((est.wind_reference - truth_wind) ** 2)
-            sq["anemometer"][w] += np.sum((frame.sensors[:, anemometer] - truth_wind) ** 2)
-            counts[w] += plant.n
+                sq["nfte"][w] += ((est.wind_reference - truth_wind)[main] ** 2).sum()
+            sq["anemometer"][w] += ((frame.sensors[:, anemometer] - truth_wind)[main] ** 2).sum()
+            counts[w] += len(run_ids)
         if trace_rows is not None and k % TRACE_EVERY == 0:
             r = trace_rows
             trace["t"].append(frame.t)
@@ -118,7 +129,9 @@ def evaluate(scenario: Scenario, runs: int, seed: int, options: EvalOptions) -> 
         show_progress=options.progress,
         label=scenario.name,
     )
-    events = sorted((e for r in results for e in r.events), key=lambda e: (e.run, e.t))
+    all_events = sorted((e for r in results for e in r.events), key=lambda e: (e.run, e.t))
+    events = [e for e in all_events if e.turbine != TWIN_TURBINE]
+    twin_events = [e for e in all_events if e.turbine == TWIN_TURBINE]
     windows = windows_from_faults(scenario.faults, scenario.duration_s)
     faults, fa_rate, fa_raw = score_faults(events, windows, runs, scenario.duration_s, GRACE_S, WARMUP_S)
     labels = ["fault_free"] + [w.name for w in windows]
@@ -127,10 +140,8 @@ def evaluate(scenario: Scenario, runs: int, seed: int, options: EvalOptions) -> 
     for i, label in enumerate(labels):
         if counts[i] == 0:
             continue
-        wind_rmse[label] = {
-            key: float(np.sqrt(sum(r.sq_err[key][i] for r in results) / counts[i]))
-            for key in ("fte", "nfte", "anemometer")
-        }
+        keys = ("fte", "nfte", "anemometer", "fte_fault_free") if scenario.faults else ("fte", "nfte", "anemometer")
+        wind_rmse[label] = {key: float(np.sqrt(sum(r.sq_err[key][i] for r in results) / counts[i])) for key in keys}
     scorecard = {
         "scenario": scenario.name,
         "runs": runs,
@@ -140,6 +151,7 @@ def evaluate(scenario: Scenario, runs: int, seed: int, options: EvalOptions) -> 
         "estimator": estimator,
         "false_alarms_per_1000s": fa_rate,
         "false_alarms": fa_raw,
+        **(_twin_false_alarms(twin_events, runs, scenario.duration_s) if scenario.faults else {}),
         "faults": faults,
         "metrics": {"wind_rmse": wind_rmse},
     }
@@ -151,3 +163,10 @@ def evaluate(scenario: Scenario, runs: int, seed: int, options: EvalOptions) -> 
         return plot_turbine(scenario, trace, windows, out_dir)
 
     return Evaluation(scorecard, plot=plot)
+
+
+def _twin_false_alarms(events: list[Event], runs: int, duration_s: float) -> dict:
+    """Detections in the fault-free twins over the whole run: a false-alarm count on the same wind."""
+    count = sum(1 for e in events if e.type is EventType.DETECTION and e.t >= WARMUP_S)
+    observed = runs * (duration_s - WARMUP_S)
+    return {"false_alarms_twin": {"count": count, "observed_s": observed, "per_1000s": 1000.0 * count / observed}}
