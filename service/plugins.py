@@ -20,8 +20,11 @@ and is then scored with ``windwarden eval ftwse-2012 --plugin my_module --detect
 from __future__ import annotations
 
 import importlib
+import importlib.util
+import sys
 from collections.abc import Callable
 from importlib.metadata import entry_points
+from pathlib import Path
 from typing import Any, Generic, TypeVar
 
 T = TypeVar("T")
@@ -83,7 +86,8 @@ _loaded = False
 
 
 def load_plugins(extra_modules: tuple[str, ...] = ()) -> None:
-    """Import the built-in algorithms, installed ``windwarden.plugins`` entry points and ``extra_modules``."""
+    """Import the built-in algorithms, installed ``windwarden.plugins`` entry points and ``extra_modules``
+    (module names, or paths of ``.py`` files)."""
     global _loaded
     if not _loaded:
         _loaded = True
@@ -97,4 +101,19 @@ def load_plugins(extra_modules: tuple[str, ...] = ()) -> None:
         for entry in entry_points(group="windwarden.plugins"):
             entry.load()
     for module in extra_modules:
-        importlib.import_module(module)
+        if module.endswith(".py"):
+            _import_file(Path(module))
+        else:
+            importlib.import_module(module)
+
+
+def _import_file(path: Path) -> None:
+    if not path.is_file():
+        raise ModuleNotFoundError(f"no plug-in file {path}", name=str(path))
+    name = f"windwarden_plugin_{path.stem}"
+    if name in sys.modules:
+        return
+    spec = importlib.util.spec_from_file_location(name, path)
+    module = importlib.util.module_from_spec(spec)
+    sys.modules[name] = module
+    spec.loader.exec_module(module)

@@ -106,7 +106,7 @@ def test_exact_step_agrees_with_fine_runge_kutta_of_the_continuous_model():
     for _ in range(300):
         frame = plant.measure()
         plant.control(None)
-        blades, pitch_ref = plant._wind_sample.blades, plant.controller.beta_ref[:, None] - plant._pitch_error
+        blades, pitch_ref = plant._wind_sample.blades, plant.controller.beta_ref[:, None] + plant._pitch_error
         tau_ref = plant.controller.tau_g_ref
         h = plant.dt / 50
         for _ in range(50):
@@ -171,6 +171,18 @@ def test_each_sensor_fault_changes_exactly_its_channel(channel, kind, value):
     assert all(np.array_equal(a[i].sensors, b[i].sensors) for i in range(first if kind != "drift" else first - 1))
     events = faulty.drain_events()
     assert [(e.type.value, e.target, e.t) for e in events] == [("fault_injected", channel, 1.0)]
+
+
+def test_pitch_sensor_errors_reach_the_true_pitch_with_the_benchmarks_sign():
+    """β_i,f = mean measurement error of blade i is added to its actuator's reference (PARAMETERS.md a.2)."""
+    fault = FaultSpec(target="beta_1_m1", kind="fixed", value=5.0, start_s=1.0)
+    plant = TurbineBatch(TurbinePlant(), steady(16.0), [fault], seed=4)
+    run(plant, 20.0)
+    # steady state: β = ref + (5 + β)/2 − β  ⇒  β = (2 ref + 5)/3, blades 2 and 3 stay at ref
+    beta = plant.x[0, PITCH]
+    assert beta[0] == pytest.approx((2 * plant.controller.beta_ref[0] + 5.0) / 3.0, abs=0.3)
+    assert beta[1] == pytest.approx(plant.controller.beta_ref[0], abs=0.3)
+    assert beta[1] - beta[0] == pytest.approx((plant.controller.beta_ref[0] - 5.0) / 3.0, abs=0.3)
 
 
 def test_fixed_and_stuck_faults_carry_no_noise_and_end_on_time():

@@ -99,9 +99,13 @@ class TurbineDynamics:
 
     def aero_torque(self, omega_r: np.ndarray, pitch: np.ndarray, wind: np.ndarray, factor: np.ndarray) -> np.ndarray:
         """τ_r = Σ_i (ρπR³/6) C_q(λ_i, β_i) v_i² in N m; pitch (n,3) in deg, wind (n,3) in m/s."""
+        return self.blade_torques(omega_r, pitch, wind, factor).sum(axis=1)
+
+    def blade_torques(self, omega_r: np.ndarray, pitch: np.ndarray, wind: np.ndarray, factor: np.ndarray) -> np.ndarray:
+        """τ_r,i = (ρπR³/6) C_q(λ_i, β_i) v_i² of each blade, (n, 3) in N m (``aero_torque`` is their sum)."""
         tsr = omega_r[:, None] * (self.p.radius / wind)
         cq = aero.torque_coefficient(tsr, pitch)
-        return (self.blade_gain * factor) * (cq * (wind * wind)).sum(axis=1)
+        return (self.blade_gain * np.asarray(factor, dtype=float))[..., None] * (cq * (wind * wind))
 
     def derivative(self, x, tau_g_ref, pitch_ref, wind, faults) -> np.ndarray:
         """ẋ for the continuous model with the aerodynamic torque re-evaluated at x (reference implementation)."""
@@ -122,18 +126,25 @@ class TurbineDynamics:
 
 
 class DiscreteStep:
-    """x[k+1] = Φ x[k] + Γ u[k] per row, rebuilt for rows whose parameters change (faults)."""
+    """x[k+1] = Φ x[k] + Γ u[k] per row, rebuilt for rows whose parameters change (faults).
+
+    Inputs u held over the step: τ_r (rotor side, N m), τ_g,cmd (converter command, N m), β_ref,i (deg) and,
+    optionally, an external torque τ_ext on the generator side (N m, high-speed shaft, accelerating), which the
+    farm's drive-train fault uses for its internal torque pair (``plant_sim.turbine.plant``).
+    """
 
     def __init__(self, params: TurbineParams, n: int):
         self.p = params
         self.n = n
         self.phi_m = np.zeros((n, N_MECH, N_MECH))
         self.gamma_m = np.zeros((n, N_MECH, 2))
+        self.gamma_ext = np.zeros((n, N_MECH))  # response to τ_ext held over the step
         self.phi_p = np.zeros((n, 3, 2, 2))
         self.gamma_p = np.zeros((n, 3, 2))
         self._key_m: np.ndarray | None = None
         self._key_p: np.ndarray | None = None
-        self._shared: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None  # when every row is alike
+        self._shared: np.ndarray | None = None  # (16, 11) when every row is alike
+        self._z = np.empty((n, N_STATES + 5))  # [x, τ_r, τ_g,cmd, β_ref,1..3], the shared path's input
 
     def update(self, faults) -> None:
         """Recompute Φ, Γ for the rows whose drive-train or pitch parameters differ from last time."""
@@ -141,7 +152,10 @@ class DiscreteStep:
         rows = np.arange(self.n) if self._key_m is None else np.flatnonzero((key_m != self._key_m).any(axis=1))
         if len(rows):
             A, B = mechanical_matrices(self.p, key_m[rows, 0], key_m[rows, 1], key_m[rows, 2])
-            self.phi_m[rows], self.gamma_m[rows] = zoh(A, B, self.p.dt)
+            b_ext = np.zeros((len(rows), N_MECH, 1))
+            b_ext[:, OMEGA_G, 0] = 1.0 / self.p.J_g  # J_g ω̇_g = … + τ_ext
+            phi, gamma = zoh(A, np.concatenate([B, b_ext], axis=2), self.p.dt)
+            self.phi_m[rows], self.gamma_m[rows], self.gamma_ext[rows] = phi, gamma[..., :2], gamma[..., 2]
         self._key_m = key_m
         key_p = np.concatenate([faults.pitch_a0, faults.pitch_a1], axis=1)
         rows = np.arange(self.n) if self._key_p is None else np.flatnonzero((key_p != self._key_p).any(axis=1))
@@ -152,27 +166,43 @@ class DiscreteStep:
         self._key_p = key_p
         alike = (key_m == key_m[0]).all() and (key_p == key_p[0]).all()
         if alike:
-            # One matrix for the whole batch: [x_mech, τ_r, τ_g,cmd] → x_mech', and per blade [β, β̇, β_ref] → [β, β̇]'
-            mech = np.hstack([self.phi_m[0], self.gamma_m[0]]).T  # (7, 5)
-            pitch = np.concatenate([self.phi_p[0], self.gamma_p[0][..., None]], axis=2).transpose(0, 2, 1)  # (3, 3, 2)
-            self._shared = (mech, np.ascontiguousarray(pitch), np.zeros(0))
+            # One (16, 11) matrix for the whole batch: [x, τ_r, τ_g,cmd, β_ref,1..3] → x'. The drive train and
+            # converter block, and per blade [β, β̇, β_ref] → [β, β̇]' (block diagonal), in one matrix product.
+            m = np.zeros((N_STATES + 5, N_STATES))
+            m[:N_MECH, :N_MECH] = self.phi_m[0].T
+            m[N_STATES : N_STATES + 2, :N_MECH] = self.gamma_m[0].T
+            for b in range(3):
+                cols = slice(N_MECH + 2 * b, N_MECH + 2 * b + 2)
+                m[cols, cols] = self.phi_p[0, b].T
+                m[N_STATES + 2 + b, cols] = self.gamma_p[0, b]
+            self._shared = m
         else:
             self._shared = None
 
-    def step(self, x: np.ndarray, tau_r: np.ndarray, tau_g_cmd: np.ndarray, pitch_ref: np.ndarray) -> np.ndarray:
+    def step(
+        self,
+        x: np.ndarray,
+        tau_r: np.ndarray,
+        tau_g_cmd: np.ndarray,
+        pitch_ref: np.ndarray,
+        tau_ext: np.ndarray | None = None,
+    ) -> np.ndarray:
         if self._shared is not None:
-            mech, pitch, _ = self._shared
+            z = self._z
+            z[:, :N_STATES] = x
+            z[:, N_STATES] = tau_r
+            z[:, N_STATES + 1] = tau_g_cmd
+            z[:, N_STATES + 2 :] = pitch_ref
+            out = z @ self._shared
+        else:
             out = np.empty_like(x)
-            out[:, :N_MECH] = np.column_stack([x[:, :N_MECH], tau_r, tau_g_cmd]) @ mech
-            blades = np.concatenate([x[:, N_MECH:].reshape(self.n, 3, 2), pitch_ref[:, :, None]], axis=2)
-            out[:, N_MECH:] = np.einsum("nbk,bkj->nbj", blades, pitch).reshape(self.n, 6)
-            return out
-        out = np.empty_like(x)
-        mech = x[:, :N_MECH]
-        out[:, :N_MECH] = np.einsum("nij,nj->ni", self.phi_m, mech) + (
-            self.gamma_m[:, :, 0] * tau_r[:, None] + self.gamma_m[:, :, 1] * tau_g_cmd[:, None]
-        )
-        pitch = x[:, N_MECH:].reshape(self.n, 3, 2)
-        new_pitch = np.einsum("nbij,nbj->nbi", self.phi_p, pitch) + self.gamma_p * pitch_ref[:, :, None]
-        out[:, N_MECH:] = new_pitch.reshape(self.n, 6)
+            mech = x[:, :N_MECH]
+            out[:, :N_MECH] = np.einsum("nij,nj->ni", self.phi_m, mech) + (
+                self.gamma_m[:, :, 0] * tau_r[:, None] + self.gamma_m[:, :, 1] * tau_g_cmd[:, None]
+            )
+            pitch = x[:, N_MECH:].reshape(self.n, 3, 2)
+            new_pitch = np.einsum("nbij,nbj->nbi", self.phi_p, pitch) + self.gamma_p * pitch_ref[:, :, None]
+            out[:, N_MECH:] = new_pitch.reshape(self.n, 6)
+        if tau_ext is not None:
+            out[:, :N_MECH] += self.gamma_ext * tau_ext[:, None]
         return out

@@ -37,11 +37,16 @@ class FaultState:
     pitch_offset: np.ndarray = field(init=False)  # (n, 3) deg added to each blade's actual pitch
     torque_offset: np.ndarray = field(init=False)  # (n,) N m added to the converter's torque reference
     eta_dt: np.ndarray = field(init=False)  # (n,) drive-train efficiency
-    aero_factor: np.ndarray = field(init=False)  # (n,) multiplies the aerodynamic torque (blade debris)
-    stiffness_factor: np.ndarray = field(init=False)  # (n,) multiplies K_dt (farm drive-train fault)
-    damping_factor: np.ndarray = field(init=False)  # (n,) multiplies B_dt (farm drive-train fault)
+    aero_factor: np.ndarray = field(init=False)  # (n,) multiplies the aerodynamic torque (no kind sets it yet)
+    stiffness_factor: np.ndarray = field(init=False)  # (n,) multiplies K_dt
+    damping_factor: np.ndarray = field(init=False)  # (n,) multiplies B_dt
+    power_factor: np.ndarray = field(init=False)  # (n,) multiplies the electrical power output (farm debris)
+    pitch_command_offset: np.ndarray = field(init=False)  # (n, 3) deg added to each blade's actuator command
+    transmission_error: np.ndarray = field(init=False)  # (n,) rad, 3P transmission error amplitude (farm fault 3)
     sensor_faults_active: bool = False
     drift_active: bool = False
+    command_offset_active: bool = False
+    mesh_active: bool = False
 
     def __post_init__(self) -> None:
         self.reset()
@@ -65,8 +70,13 @@ class FaultState:
         self.aero_factor = np.ones(n)
         self.stiffness_factor = np.ones(n)
         self.damping_factor = np.ones(n)
+        self.power_factor = np.ones(n)
+        self.pitch_command_offset = np.zeros((n, 3))
+        self.transmission_error = np.zeros(n)
         self.sensor_faults_active = False
         self.drift_active = False
+        self.command_offset_active = False
+        self.mesh_active = False
 
     def apply(self, fault: FaultSpec, rows: np.ndarray, f: float, held: np.ndarray | None) -> None:
         """Add one fault at intensity f ∈ (0, 1] to ``rows``; ``held`` is a stuck fault's frozen reading."""
@@ -107,8 +117,24 @@ class FaultState:
                 self.torque_offset[rows] += f * fault.value
             case FaultKind.EFFICIENCY:
                 self.eta_dt[rows] += f * (fault.value - p.eta_dt)
+            case FaultKind.OFFSET if fault.target in PITCH_COMPONENTS:
+                # Farm fault 2, pitch misalignment: blade k's actuator holds it ``value`` deg off the collective
+                # command; its encoders measure the true blade angle, so they see the offset (docs/farm.md).
+                self.command_offset_active = True
+                self.pitch_command_offset[rows, PITCH_COMPONENTS[Component(fault.target)]] += f * fault.value
             case FaultKind.DEBRIS:
-                self.aero_factor[rows] *= 1.0 + f * (fault.value - 1.0)
+                # Farm fault 1 as the farm benchmark defines it: the power output falls to ``value`` (0.97) of what
+                # the generator delivers, at unchanged rotor speed and torque (seed 001, Section 3.3: the rotor
+                # speed "is not affected by the debris"; eq. (24) restores the output by 1/0.97). A loss of
+                # aerodynamic efficiency instead would be absorbed by the pitch loop below the available power
+                # and is indistinguishable from a 1 % lower wind (docs/farm.md).
+                self.power_factor[rows] *= 1.0 + f * (fault.value - 1.0)
+            case FaultKind.DRIVETRAIN_WEAR:
+                # Farm fault 3: a worn planetary stage (three planets, carrier on the main shaft) with a transmission
+                # error at the planet-pass frequency 3P, e(ψ) = e_0 cos 3ψ on the low-speed shaft, e_0 = ``value``
+                # in mrad: the spring twists by θ_Δ − e(ψ) (docs/farm.md, plant_sim.turbine.plant).
+                self.mesh_active = True
+                self.transmission_error[rows] += f * fault.value * 1e-3
             case _:
                 raise ValueError(f"the turbine plant cannot apply a {fault.kind.value} fault on {fault.target}")
 

@@ -1,6 +1,7 @@
 """The built-in turbine algorithms, registered by name.
 
-Detectors: ``uio-bank`` (seed 000's bank with the FDI of ``fdi``), ``none``.
+Detectors: ``benchmark`` (the default: ``uio-bank`` plus the pitch-sensor, pitch-actuator and converter tests of
+``component_fdi``), ``uio-bank`` (seed 000's bank with the speed-sensor FDI of ``fdi``), ``none``.
 Estimators: ``uio-bank`` (the observer matching the healthy set, wind from ``wind_recovery``), ``none``
 (passes the raw sensors through, i.e. the benchmark controller as published).
 """
@@ -10,6 +11,7 @@ from __future__ import annotations
 import numpy as np
 
 from service.plugins import TURBINE_DETECTORS, TURBINE_ESTIMATORS
+from service.turbine.component_fdi import ComponentFDI, ComponentSettings
 from service.turbine.fdi import FDISettings, SpeedSensorFDI
 from service.turbine.interfaces import (
     SPEED_COLUMNS,
@@ -50,6 +52,25 @@ class UIOBankDetector:
         diagnosis.faulty[:, SPEED_TARGETS] = faulty
         diagnosis.margins = self.fdi.margins(bank.chi2)
         diagnosis.margin_names = self._margin_names
+        return diagnosis
+
+
+@TURBINE_DETECTORS.register("benchmark")
+class BenchmarkDetector(UIOBankDetector):
+    """``uio-bank`` for the speed sensors plus ``component_fdi``'s tests for the benchmark's other faults."""
+
+    def __init__(self, *, context: TurbineContext, options: dict | None = None):
+        super().__init__(context=context, options=options)
+        settings = _settings(
+            ComponentSettings,
+            {k[len("component_") :]: v for k, v in (options or {}).items() if k.startswith("component_")},
+        )
+        self.components = ComponentFDI(context.params, context.n, context.sensor_sigma, settings)
+
+    def step(self, frame: TurbineFrame) -> Diagnosis:
+        diagnosis = super().step(frame)
+        flags = self.components.step(frame)
+        diagnosis.faulty |= flags
         return diagnosis
 
 

@@ -13,7 +13,7 @@ from wwcore.events import Event, EventType
 from wwcore.turbine_frames import TurbineFrame, TurbineRefs
 from wwcore.turbine_params import BENCHMARK, TurbineParams
 
-DEFAULT_DETECTOR = "uio-bank"
+DEFAULT_DETECTOR = "benchmark"
 DEFAULT_ESTIMATOR = "uio-bank"
 
 

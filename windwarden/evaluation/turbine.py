@@ -71,7 +71,7 @@ def simulate_chunk(
         run_of_row=plant.run_of_row,
         turbine_of_row=np.where(plant.twin_of_row, TWIN_TURBINE, plant.turbine_of_row),
     )
-    main, twin = ~plant.twin_of_row, plant.twin_of_row
+    half = len(run_ids)  # rows [0, half) are the runs, [half, 2·half) their fault-free twins (if any)
     n_steps = round(scenario.duration_s / plant.dt)
     which, labels = _window_of_tick(scenario, n_steps, plant.dt)
     sq = {key: np.zeros(len(labels)) for key in ("fte", "nfte", "anemometer", "fte_fault_free")}
@@ -89,12 +89,13 @@ def simulate_chunk(
         est = supervisor.estimates
         truth_wind = plant.true_rotor_wind()
         if w >= 0:
-            err = (est.wind - truth_wind) ** 2
-            sq["fte"][w] += err[main].sum()
-            sq["fte_fault_free"][w] += err[twin].sum()
+            err = est.wind - truth_wind
+            err *= err
+            sq["fte"][w] += err[:half].sum()
+            sq["fte_fault_free"][w] += err[half:].sum()
             if est.wind_reference is not None:
-                sq["nfte"][w] += ((est.wind_reference - truth_wind)[main] ** 2).sum()
-            sq["anemometer"][w] += ((frame.sensors[:, anemometer] - truth_wind)[main] ** 2).sum()
+                sq["nfte"][w] += np.square(est.wind_reference[:half] - truth_wind[:half]).sum()
+            sq["anemometer"][w] += np.square(frame.sensors[:half, anemometer] - truth_wind[:half]).sum()
             counts[w] += len(run_ids)
         if trace_rows is not None and k % TRACE_EVERY == 0:
             r = trace_rows

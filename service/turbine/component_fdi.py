@@ -1,0 +1,188 @@
+"""Residual tests for the benchmark's pitch sensors, pitch actuators and converter (faults 1–3, 6–8).
+
+Seed 000's observer bank watches the speed sensors only. These three families of residuals cover the rest of
+the benchmark's fault catalogue that a model can see; each residual is white Gaussian with a known variance
+when the turbine is healthy, so each test's threshold follows from the false-alarm budget alone.
+
+* **Pitch sensors** (faults 1–3). Parity of blade i's two sensors, p_i = (β_i,m1 − β_i,m2)/(√2 σ_β). Flagged
+  when |p_i| or the window mean of p_i is too large. Isolation within the pair: a frozen reading, else the
+  sensor farther from the other two blades' four sensors (the blades share the collective reference; with the
+  benchmark's pitch loop a faulty sensor drags its own blade only part of the way, so it stays the outlier).
+* **Pitch actuators** (faults 6–7). With the benchmark's pitch loop, actuator i is driven by β_ref + n̄_i,
+  n̄_i the mean noise of its two sensors, so its pair mean is m̄_i = G β_ref + (1 + G) n̄_i for the nominal
+  actuator G. The cross-blade residual e_i = m̄_i − ½(m̄_j + m̄_k) cancels G β_ref, and (1 + G)⁻¹ e_i is white
+  with variance (1 + ¼ + ¼)·σ_β²/2 = ¾ σ_β² when all actuators are nominal. An actuator with other dynamics leaves
+  (G_i − G) β_ref in it, visible whenever the pitch moves; the test is a window χ² sum, the isolation the blade
+  with the largest sum. The residual assumes healthy pitch sensors (a sensor fault moves its blade through the
+  pitch loop), so the test rests while any pitch sensor is flagged and for one window after.
+* **Converter** (fault 8). r = τ_g,m − τ̂_g, with τ̂_g the first-order converter (α_gc) driven by the torque
+  reference: white with σ_τ. An offset shows in the window mean of r.
+
+Fault 9 (drive-train efficiency) has no test: a gearbox that loses more torque looks, to an observer that
+treats the rotor torque as unknown, exactly like a different aerodynamic torque (docs/turbine.md).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.signal import cont2discrete
+from scipy.stats import chi2, norm
+
+from wwcore.channels import SENSOR_INDEX, TARGET_INDEX, Component
+from wwcore.turbine_frames import TurbineFrame
+from wwcore.turbine_params import TurbineParams
+
+M1 = np.array([SENSOR_INDEX[f"beta_{i}_m1"] for i in (1, 2, 3)])
+M2 = np.array([SENSOR_INDEX[f"beta_{i}_m2"] for i in (1, 2, 3)])
+M1_TARGET = np.array([TARGET_INDEX[f"beta_{i}_m1"] for i in (1, 2, 3)])
+M2_TARGET = np.array([TARGET_INDEX[f"beta_{i}_m2"] for i in (1, 2, 3)])
+_ACTUATORS = (Component.PITCH_ACTUATOR_1, Component.PITCH_ACTUATOR_2, Component.PITCH_ACTUATOR_3)
+ACTUATOR_TARGET = np.array([TARGET_INDEX[c.value] for c in _ACTUATORS])
+CONVERTER_TARGET = TARGET_INDEX[Component.CONVERTER.value]
+TAU_G_M = SENSOR_INDEX["tau_g_m"]
+OTHERS = np.array([[1, 2], [0, 2], [0, 1]])
+
+
+@dataclass(frozen=True)
+class ComponentSettings:
+    false_alarms_per_1000s: float = 0.01  # design rate of each family of tests
+    clear_alpha: float = 0.01
+    parity_window: int = 10  # ticks averaged by the pitch-sensor window test
+    actuator_window: int = 200  # ticks summed by the pitch-actuator χ² test (2 s)
+    converter_window: int = 100  # ticks averaged by the converter test (1 s)
+    frozen_ticks: int = 3
+    warmup_s: float = 5.0
+
+
+class _Window:
+    """Running sum over the last ``size`` ticks of an (n, m) statistic."""
+
+    def __init__(self, size: int, shape: tuple[int, ...]):
+        self.size = size
+        self.ring = np.zeros((size, *shape))
+        self.total = np.zeros(shape)
+        self.count = 0
+
+    def push(self, x: np.ndarray) -> np.ndarray:
+        slot = self.count % self.size
+        self.total += x - self.ring[slot]
+        self.ring[slot] = x
+        self.count += 1
+        return self.total
+
+
+def actuator_whitener(p: TurbineParams) -> tuple[np.ndarray, np.ndarray]:
+    """(b, a) of (1 + G_d)⁻¹ for the nominal pitch actuator G_d (zero-order hold), as a difference equation."""
+    wn, zeta = p.pitch.omega_n, p.pitch.zeta
+    num, den, _ = cont2discrete(([wn**2], [1.0, 2.0 * zeta * wn, wn**2]), p.dt, method="zoh")
+    num = np.trim_zeros(np.ravel(num), "f")
+    num = np.concatenate([np.zeros(len(den) - len(num)), num])
+    return den / (den + num)[0], (den + num) / (den + num)[0]  # (1 + N/D)⁻¹ = D / (D + N)
+
+
+class ComponentFDI:
+    """Flags pitch sensors, pitch actuators and the converter for n turbines (DIAGNOSIS_TARGETS columns)."""
+
+    def __init__(self, p: TurbineParams, n: int, sigma: dict[str, float], settings: ComponentSettings):
+        self.s = settings
+        self.n = n
+        alpha = settings.false_alarms_per_1000s * p.dt / 1000.0
+        self.sigma_beta = sigma["beta_1_m1"]
+        self.sigma_tau = sigma["tau_g_m"]
+        # pitch-sensor parity: a two-sided single-tick test and a two-sided window-mean test, α/2 each, 3 blades
+        self.z_single = norm.isf(alpha / 12.0)
+        self.z_clear = norm.isf(settings.clear_alpha / 2.0)
+        self.h_actuator = chi2.isf(alpha / 3.0, settings.actuator_window)
+        self.h_actuator_clear = chi2.isf(settings.clear_alpha, settings.actuator_window)
+        self.z_converter = norm.isf(alpha / 4.0)
+        self.parity = _Window(settings.parity_window, (n, 3))
+        self.actuator = _Window(settings.actuator_window, (n, 3))
+        self.converter = _Window(settings.converter_window, (n,))
+        self.whiten_b, self.whiten_a = actuator_whitener(p)
+        self._e_hist = np.zeros((len(self.whiten_b), n, 3))  # e[k], e[k−1], e[k−2]
+        self._w_hist = np.zeros((len(self.whiten_a), n, 3))
+        self._tau_hat: np.ndarray | None = None
+        self._actuator_rest = np.zeros(n, dtype=np.int64)  # ticks until the actuator test may flag again
+        self._actuator_quiet = np.zeros((n, 3), dtype=np.int64)  # consecutive ticks below the clearing threshold
+        self._converter_gain = float(np.exp(-p.alpha_gc * p.dt))
+        self._prev_beta: np.ndarray | None = None
+        self._same = np.zeros((n, 6), dtype=np.int64)
+        self.flags = np.zeros((n, len(TARGET_INDEX)), dtype=bool)
+        self.ticks = 0
+        self.warmup_ticks = round(settings.warmup_s / p.dt)
+
+    def step(self, frame: TurbineFrame) -> np.ndarray:
+        y = frame.sensors
+        m1, m2 = y[:, M1], y[:, M2]
+        self._pitch_sensors(m1, m2)
+        self._actuators(m1, m2)
+        self._converter(y[:, TAU_G_M], frame.tau_g_ref)
+        self.ticks += 1
+        if self.ticks <= self.warmup_ticks:
+            self.flags[:] = False
+        return self.flags
+
+    # -- pitch sensors ------------------------------------------------------------------------------------------
+    def _pitch_sensors(self, m1: np.ndarray, m2: np.ndarray) -> None:
+        beta = np.concatenate([m1, m2], axis=1)
+        if self._prev_beta is not None:
+            self._same = (self._same + 1) * (beta == self._prev_beta)
+        self._prev_beta = beta
+        frozen = self._same >= self.s.frozen_ticks - 1
+        parity = (m1 - m2) / (np.sqrt(2.0) * self.sigma_beta)
+        window = self.parity.push(parity) / np.sqrt(self.s.parity_window)
+        fault = (np.abs(parity) > self.z_single) | (np.abs(window) > self.z_single) | frozen[:, :3] | frozen[:, 3:]
+        healthy = (np.abs(window) < self.z_clear) & ~frozen[:, :3] & ~frozen[:, 3:]
+        flagged_1, flagged_2 = self.flags[:, M1_TARGET], self.flags[:, M2_TARGET]
+        new = fault & ~(flagged_1 | flagged_2)
+        if new.any():
+            # the sensor farther from the other two blades' sensors (or a frozen one) is the faulty one
+            others = 0.25 * (m1[:, OTHERS].sum(axis=2) + m2[:, OTHERS].sum(axis=2))
+            first = ((np.abs(m1 - others) >= np.abs(m2 - others)) | frozen[:, :3]) & ~frozen[:, 3:]
+            flagged_1 = flagged_1 | (new & first)
+            flagged_2 = flagged_2 | (new & ~first)
+        self.flags[:, M1_TARGET] = flagged_1 & ~healthy
+        self.flags[:, M2_TARGET] = flagged_2 & ~healthy
+
+    # -- pitch actuators ----------------------------------------------------------------------------------------
+    def _actuators(self, m1: np.ndarray, m2: np.ndarray) -> None:
+        mean = 0.5 * (m1 + m2)
+        e = mean - 0.5 * mean[:, OTHERS].sum(axis=2)
+        # w = (1 + G)⁻¹ e:  a0 w[k] = Σ b_i e[k−i] − Σ_{i≥1} a_i w[k−i]
+        self._e_hist = np.roll(self._e_hist, 1, axis=0)
+        self._e_hist[0] = e
+        w = np.tensordot(self.whiten_b, self._e_hist, axes=1)
+        w -= np.tensordot(self.whiten_a[1:], self._w_hist[:-1], axes=1)
+        self._w_hist = np.roll(self._w_hist, 1, axis=0)
+        self._w_hist[0] = w
+        z2 = w * w / (0.75 * self.sigma_beta**2)
+        total = self.actuator.push(z2)
+        sensor_flagged = self.flags[:, M1_TARGET].any(axis=1) | self.flags[:, M2_TARGET].any(axis=1)
+        self._actuator_rest = np.where(sensor_flagged, self.s.actuator_window, np.maximum(self._actuator_rest - 1, 0))
+        if self.actuator.count < self.s.actuator_window:
+            return
+        worst = np.argmax(total, axis=1)
+        fault = (total[np.arange(self.n), worst] > self.h_actuator) & (self._actuator_rest == 0)
+        flagged = self.flags[:, ACTUATOR_TARGET]
+        flagged[np.flatnonzero(fault), worst[fault]] = True
+        # An actuator shows its dynamics only while the pitch moves, so health needs a whole window of evidence:
+        # the flag clears after ``actuator_window`` consecutive ticks below the clearing threshold.
+        self._actuator_quiet = np.where(total <= self.h_actuator_clear, self._actuator_quiet + 1, 0)
+        flagged &= (self._actuator_quiet < self.s.actuator_window) & (self._actuator_rest == 0)[:, None]
+        self.flags[:, ACTUATOR_TARGET] = flagged
+
+    # -- converter ----------------------------------------------------------------------------------------------
+    def _converter(self, tau_g_m: np.ndarray, tau_g_ref_prev: np.ndarray) -> None:
+        if self._tau_hat is None:
+            self._tau_hat = tau_g_m.copy()
+        else:
+            a = self._converter_gain
+            self._tau_hat = a * self._tau_hat + (1.0 - a) * tau_g_ref_prev
+        r = (tau_g_m - self._tau_hat) / self.sigma_tau
+        mean = self.converter.push(r) / np.sqrt(self.s.converter_window)
+        if self.converter.count < self.s.converter_window:
+            return
+        flagged = self.flags[:, CONVERTER_TARGET]
+        self.flags[:, CONVERTER_TARGET] = (flagged | (np.abs(mean) > self.z_converter)) & (np.abs(mean) > self.z_clear)
