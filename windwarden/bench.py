@@ -85,9 +85,11 @@ def bench_turbine(args: argparse.Namespace) -> int:
         )
     console.print(table)
     one, many = results[1], results[args.runs]
+    speedup = many["run_s_per_wall"] / one["run_s_per_wall"]
+    minutes = 4400 / many["sim_per_wall"] / 60
     console.print(
-        f"batching {args.runs} runs: ×{many['run_s_per_wall'] / one['run_s_per_wall']:.1f} run-seconds per wall second "
-        f"over one run; one process would take {4400 / many['sim_per_wall'] / 60:.1f} min for {args.runs} runs × 4400 s "
+        f"batching {args.runs} runs: ×{speedup:.1f} run-seconds per wall second over one run; "
+        f"one process would take {minutes:.1f} min for {args.runs} runs × 4400 s "
         f"({'with' if args.twins else 'without'} fault-free twins). `windwarden eval` splits runs into chunks of "
         "at most 25 and runs one chunk per core."
     )
