@@ -26,6 +26,10 @@ from wwcore.channels import SENSOR_INDEX, SPEED_SENSORS, TARGET_INDEX
 from wwcore.turbine_frames import TurbineFrame
 
 SPEED_TARGETS = np.array([TARGET_INDEX[s] for s in SPEED_SENSORS])
+PITCH_M1 = np.array([SENSOR_INDEX[f"beta_{i}_m1"] for i in (1, 2, 3)])
+PITCH_M2 = np.array([SENSOR_INDEX[f"beta_{i}_m2"] for i in (1, 2, 3)])
+PITCH_M1_T = np.array([TARGET_INDEX[f"beta_{i}_m1"] for i in (1, 2, 3)])
+PITCH_M2_T = np.array([TARGET_INDEX[f"beta_{i}_m2"] for i in (1, 2, 3)])
 _MASK_WEIGHTS = 1 << np.arange(len(SPEED_SENSORS))
 
 
@@ -125,7 +129,10 @@ class UIOBankEstimator:
             tau_aero0 = p.N_g * (p.B_g * x0[:, 1] + x0[:, 3]) / p.eta_dt + p.B_r * x0[:, 0]
             self.recovery.start(bank.x_hat, frame.beta_ref, tau_aero0)
             self._winds = np.tile(np.maximum(frame.sensors[:, SENSOR_INDEX["v_hub_m"]], 3.0), (2, 1))
-        self.recovery.step(bank.x_hat, frame.beta_ref)
+        y = frame.sensors
+        self.recovery.step(
+            bank.x_hat, frame.beta_ref, y[:, PITCH_M1], y[:, PITCH_M2], ~faulty[:, PITCH_M1_T], ~faulty[:, PITCH_M2_T]
+        )
         selected = self.observer_of_mask[faulty[:, SPEED_TARGETS] @ _MASK_WEIGHTS]
         columns = np.maximum(selected, 0)
         if self.ticks % self.wind_every == 0:

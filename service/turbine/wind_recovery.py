@@ -15,8 +15,10 @@
    estimate (filtered at ``speed_cutoff_hz``): the rotor's inertia makes it change too slowly for the two
    filters' different delays to matter in λ.
 
-The pitch is the collective reference passed through the nominal actuator model, so pitch-sensor faults do
-not reach the wind estimate. The published speed estimates pass through a second-order Butterworth filter
+The pitch is the mean over the blades of each blade's healthy pitch sensors (a blade whose two sensors are
+both flagged falls back to the collective reference through the nominal actuator model). Measured rather than
+modelled, because a faulty pitch sensor really moves its blade (the benchmark's pitch loop), and a faulty
+actuator really lags. The published speed estimates pass through a second-order Butterworth filter
 (``speed_cutoff_hz``) that removes the torsion mode, which is unobservable once the unknown input is decoupled
 in observers without a generator-speed sensor; there ω̂_g = N_g ω̂_r.
 """
@@ -143,10 +145,24 @@ class WindRecovery:
         self._filtered = np.column_stack([raw, beta0])
         self._x_prev = x_hat
 
-    def step(self, x_hat: np.ndarray, beta_ref_prev: np.ndarray) -> None:
-        """Update torque, speed and pitch estimates of every observer from the bank's x̂[n]."""
+    def step(
+        self,
+        x_hat: np.ndarray,
+        beta_ref_prev: np.ndarray,
+        pitch_m1: np.ndarray,
+        pitch_m2: np.ndarray,
+        healthy_m1: np.ndarray,
+        healthy_m2: np.ndarray,
+    ) -> None:
+        """Update torque, speed and pitch estimates of every observer from the bank's x̂[n] and the pitch
+        sensors (n, 3 blades each) with their health flags."""
         raw = np.concatenate([x_hat, self._x_prev], axis=1) @ self._map
-        beta = self.pitch.step(beta_ref_prev)
+        modelled = self.pitch.step(beta_ref_prev)
+        weight = healthy_m1.astype(float) + healthy_m2
+        per_blade = np.where(
+            weight > 0, (healthy_m1 * pitch_m1 + healthy_m2 * pitch_m2) / np.maximum(weight, 1.0), modelled[:, None]
+        )
+        beta = per_blade.mean(axis=1)
         self._filtered = self.filter(np.column_stack([raw, beta]))
         self._x_prev = x_hat
 
