@@ -101,8 +101,9 @@ class ComponentFDI:
         self.actuator = _Window(settings.actuator_window, (n, 3))
         self.converter = _Window(settings.converter_window, (n,))
         self.whiten_b, self.whiten_a = actuator_whitener(p)
-        self._e_hist = np.zeros((len(self.whiten_b), n, 3))  # e[k], e[k−1], e[k−2]
-        self._w_hist = np.zeros((len(self.whiten_a), n, 3))
+        if len(self.whiten_b) != 3 or len(self.whiten_a) != 3:
+            raise ValueError("the nominal pitch actuator should give a second-order whitening filter")
+        self._w_state = (np.zeros((n, 3)), np.zeros((n, 3)))  # transposed direct form II
         self._tau_hat: np.ndarray | None = None
         self._actuator_rest = np.zeros(n, dtype=np.int64)  # ticks until the actuator test may flag again
         self._actuator_quiet = np.zeros((n, 3), dtype=np.int64)  # consecutive ticks below the clearing threshold
@@ -150,13 +151,11 @@ class ComponentFDI:
     def _actuators(self, m1: np.ndarray, m2: np.ndarray) -> None:
         mean = 0.5 * (m1 + m2)
         e = mean - 0.5 * mean[:, OTHERS].sum(axis=2)
-        # w = (1 + G)⁻¹ e:  a0 w[k] = Σ b_i e[k−i] − Σ_{i≥1} a_i w[k−i]
-        self._e_hist = np.roll(self._e_hist, 1, axis=0)
-        self._e_hist[0] = e
-        w = np.tensordot(self.whiten_b, self._e_hist, axes=1)
-        w -= np.tensordot(self.whiten_a[1:], self._w_hist[:-1], axes=1)
-        self._w_hist = np.roll(self._w_hist, 1, axis=0)
-        self._w_hist[0] = w
+        # w = (1 + G)⁻¹ e, a normalised (a0 = 1) second-order section in transposed direct form II
+        (b0, b1, b2), (_, a1, a2) = self.whiten_b, self.whiten_a
+        s1, s2 = self._w_state
+        w = b0 * e + s1
+        self._w_state = (b1 * e - a1 * w + s2, b2 * e - a2 * w)
         z2 = w * w / (0.75 * self.sigma_beta**2)
         total = self.actuator.push(z2)
         sensor_flagged = self.flags[:, M1_TARGET].any(axis=1) | self.flags[:, M2_TARGET].any(axis=1)
