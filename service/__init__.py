@@ -1,5 +1,5 @@
 """The supervisory service: observers, fault detection and isolation, and dispatch.
 
-The numerical core of this package is pure numpy/scipy and imports no transport; only ``service.node`` (the
-Zenoh edge) does. See ``docs/architecture.md``.
+Pure numpy/scipy: nothing here imports a transport. The Zenoh edge of the supervisor process is
+``windwarden.live.supervisor_node``. See ``docs/architecture.md``.
 """

@@ -48,7 +48,7 @@ def test_the_worked_example_is_scored_like_a_built_in_detector(tmp_path):
     scenario.write_text(
         'name = "short"\nduration_s = 60.0\n[plant]\nkind = "turbine"\n'
         "[wind]\nmean = [[0.0, 10.0]]\n"
-        '[[faults]]\ntarget = "omega_g_m1"\nkind = "fixed"\nvalue = 100.0\nstart_s = 30.0\nend_s = 40.0\n'
+        '[[faults]]\ntarget = "omega_g_m1"\nkind = "fixed"\nvalue = 60.0\nstart_s = 30.0\nend_s = 40.0\n'
     )
     out = tmp_path / "out"
     code = main(

@@ -13,6 +13,7 @@ from pathlib import Path
 
 from rich.console import Console
 
+from windwarden.live.cli import LIVE_SUBCOMMANDS
 from wwcore.scenario import ScenarioError, load_scenario, shipped_scenarios
 
 EXIT_BAD_INPUT = 2
@@ -43,6 +44,7 @@ def _add_eval(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--no-accommodation", action="store_true", help="farm: dispatch without fault accommodation")
     p.add_argument("--no-compensation", action="store_true", help="hydro: do not apply the virtual actuator")
     p.add_argument("--compare", action="store_true", help="also write the paper-comparison tables and plots")
+    p.add_argument("--no-twins", action="store_true", help="turbine: no fault-free twin runs (as a live run)")
     p.add_argument("--plugin", action="append", default=[], help="import this module first (registers algorithms)")
     p.add_argument("--workers", type=_positive_int, default=None, help="processes (default: all cores)")
     p.add_argument("--no-plots", action="store_true", help="skip the PNG plots")
@@ -67,6 +69,7 @@ def cmd_eval(args: argparse.Namespace) -> int:
         accommodation=not args.no_accommodation,
         compensation=not args.no_compensation,
         compare=args.compare,
+        twins=not args.no_twins,
         workers=args.workers,
         progress=not args.quiet,
     )
@@ -103,7 +106,18 @@ def cmd_scenarios(args: argparse.Namespace) -> int:
     return 0
 
 
-SUBCOMMANDS: list[Callable[[argparse._SubParsersAction], None]] = [_add_eval, _add_scenarios]
+def _add_bench(sub: argparse._SubParsersAction) -> None:
+    from windwarden.bench import add_parser
+
+    add_parser(sub)
+
+
+SUBCOMMANDS: list[Callable[[argparse._SubParsersAction], None]] = [
+    _add_eval,
+    _add_scenarios,
+    _add_bench,
+    *LIVE_SUBCOMMANDS,
+]
 
 
 def build_parser() -> argparse.ArgumentParser:

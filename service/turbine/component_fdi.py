@@ -27,10 +27,10 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.signal import cont2discrete
-from scipy.stats import chi2, norm
 
 from wwcore.channels import SENSOR_INDEX, TARGET_INDEX, Component
+from wwcore.lti import second_order_tf, zoh
+from wwcore.quantiles import chi2_isf, norm_isf
 from wwcore.turbine_frames import TurbineFrame
 from wwcore.turbine_params import TurbineParams
 
@@ -76,9 +76,8 @@ class _Window:
 def actuator_whitener(p: TurbineParams) -> tuple[np.ndarray, np.ndarray]:
     """(b, a) of (1 + G_d)⁻¹ for the nominal pitch actuator G_d (zero-order hold), as a difference equation."""
     wn, zeta = p.pitch.omega_n, p.pitch.zeta
-    num, den, _ = cont2discrete(([wn**2], [1.0, 2.0 * zeta * wn, wn**2]), p.dt, method="zoh")
-    num = np.trim_zeros(np.ravel(num), "f")
-    num = np.concatenate([np.zeros(len(den) - len(num)), num])
+    phi, gamma = zoh(np.array([[0.0, 1.0], [-(wn**2), -2.0 * zeta * wn]]), np.array([[0.0], [wn**2]]), p.dt)
+    num, den = second_order_tf(phi, gamma)
     return den / (den + num)[0], (den + num) / (den + num)[0]  # (1 + N/D)⁻¹ = D / (D + N)
 
 
@@ -92,11 +91,11 @@ class ComponentFDI:
         self.sigma_beta = sigma["beta_1_m1"]
         self.sigma_tau = sigma["tau_g_m"]
         # pitch-sensor parity: a two-sided single-tick test and a two-sided window-mean test, α/2 each, 3 blades
-        self.z_single = norm.isf(alpha / 12.0)
-        self.z_clear = norm.isf(settings.clear_alpha / 2.0)
-        self.h_actuator = chi2.isf(alpha / 3.0, settings.actuator_window)
-        self.h_actuator_clear = chi2.isf(settings.clear_alpha, settings.actuator_window)
-        self.z_converter = norm.isf(alpha / 4.0)
+        self.z_single = norm_isf(alpha / 12.0)
+        self.z_clear = norm_isf(settings.clear_alpha / 2.0)
+        self.h_actuator = chi2_isf(alpha / 3.0, settings.actuator_window)
+        self.h_actuator_clear = chi2_isf(settings.clear_alpha, settings.actuator_window)
+        self.z_converter = norm_isf(alpha / 4.0)
         self.parity = _Window(settings.parity_window, (n, 3))
         self.actuator = _Window(settings.actuator_window, (n, 3))
         self.converter = _Window(settings.converter_window, (n,))

@@ -24,7 +24,7 @@ anemometer does not measure any state of this model, so the paper's observers 1 
 anemometer only seeds the wind inversion at start-up (the paper's own finding, Fig. 3: "the wind speed
 measurement is not required for the estimator anyway").
 
-Discretised with a zero-order hold on u and d (``scipy.signal.cont2discrete``) at the controller's Ts.
+Discretised with a zero-order hold on u and d (``wwcore.lti.zoh``, the matrix exponential) at the controller's Ts.
 """
 
 from __future__ import annotations
@@ -32,8 +32,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.signal import cont2discrete
 
+from wwcore.lti import zoh
 from wwcore.turbine_params import TurbineParams
 
 STATE_NAMES = ("omega_r", "omega_g", "theta", "tau_g")
@@ -79,5 +79,5 @@ def design_model(p: TurbineParams, eta_dt: float | None = None) -> DesignModel:
     )
     B = np.array([[0.0], [0.0], [0.0], [p.alpha_gc]])
     E = np.array([[1.0 / p.J_r], [0.0], [0.0], [0.0]])
-    A_d, BE_d, _, _, _ = cont2discrete((A, np.hstack([B, E]), np.eye(4), np.zeros((4, 2))), p.dt, method="zoh")
+    A_d, BE_d = zoh(A, np.hstack([B, E]), p.dt)
     return DesignModel(A=A, B=B, E=E, A_d=A_d, B_d=BE_d[:, :1], E_d=BE_d[:, 1:], dt=p.dt)

@@ -32,10 +32,10 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.stats import chi2
 
 from service.turbine.bank import BankDesign
 from wwcore.channels import SPEED_SENSORS
+from wwcore.quantiles import chi2_isf
 
 N_SPEED = len(SPEED_SENSORS)
 _BITS = 1 << np.arange(N_SPEED)
@@ -61,7 +61,7 @@ def window_threshold(autocov: np.ndarray, window: int, alpha: float) -> float:
     lag_power = [2.0 * float(np.trace(autocov[k] @ autocov[k].T)) for k in range(window)]
     var = sum(lag_power[abs(i - j)] for i in range(window) for j in range(window))
     c, nu = var / (2.0 * mean), 2.0 * mean**2 / var
-    return float(c * chi2.isf(alpha, nu))
+    return float(c * chi2_isf(alpha, nu))
 
 
 def _mask(left_out: frozenset[str]) -> int:
@@ -78,7 +78,7 @@ class SpeedSensorFDI:
         alpha = settings.false_alarms_per_1000s * dt / 1000.0
         ranks = bank.ranks[: bank.n_isolating]
         observers = bank.observers[: bank.n_isolating]
-        self.h_detect = chi2.isf(alpha / 2.0, ranks)
+        self.h_detect = chi2_isf(alpha / 2.0, ranks)
         self.h_window = np.array([window_threshold(o.autocov, settings.window, alpha / 2.0) for o in observers])
         self.h_clear = np.array([window_threshold(o.autocov, settings.window, settings.clear_alpha) for o in observers])
         self._history = np.zeros((settings.window, n, bank.n_isolating))  # ring of the last χ² statistics

@@ -26,10 +26,10 @@ in observers without a generator-speed sensor; there ω̂_g = N_g ω̂_r.
 from __future__ import annotations
 
 import numpy as np
-from scipy.signal import butter, cont2discrete, lfilter_zi
 
 from service.turbine.bank import BankDesign
 from wwcore import aero
+from wwcore.lti import biquad_steady_state, butter2_lowpass, zoh
 from wwcore.turbine_params import TurbineParams
 
 
@@ -38,12 +38,12 @@ class Biquad:
     column has its own cutoff (``cutoffs_hz``, length m)."""
 
     def __init__(self, cutoffs_hz: np.ndarray, dt: float):
-        coeffs = [butter(2, fc, fs=1.0 / dt) for fc in cutoffs_hz]
+        coeffs = [butter2_lowpass(fc, dt) for fc in cutoffs_hz]
         self.b = np.array([b for b, _ in coeffs]).T  # (3, m)
         if not np.allclose(self.b[1], 2.0 * self.b[0]) or not np.allclose(self.b[2], self.b[0]):
             raise ValueError("expected Butterworth low-pass numerators b0·[1, 2, 1]")
         self.a = np.array([a for _, a in coeffs]).T
-        self.zi = np.array([lfilter_zi(b, a) for b, a in coeffs]).T  # (2, m)
+        self.zi = np.array([biquad_steady_state(b, a) for b, a in coeffs]).T  # (2, m)
         self.s1: np.ndarray | None = None
         self.s2: np.ndarray | None = None
 
@@ -67,7 +67,7 @@ class PitchModel:
         wn, zeta = p.pitch.omega_n, p.pitch.zeta
         A = np.array([[0.0, 1.0], [-(wn**2), -2.0 * zeta * wn]])
         B = np.array([[0.0], [wn**2]])
-        Ad, Bd, *_ = cont2discrete((A, B, np.eye(2), np.zeros((2, 1))), p.dt, method="zoh")
+        Ad, Bd = zoh(A, B, p.dt)
         self.Ad, self.Bd = Ad, Bd.ravel()
         self.x = (np.zeros(n), np.zeros(n))  # (β, β̇)
 

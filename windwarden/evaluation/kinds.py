@@ -32,6 +32,7 @@ class EvalOptions:
     accommodation: bool = True  # farm: fault accommodation of eqs. (23)–(26)
     compensation: bool = True  # hydro: virtual actuator of eq. (36)
     compare: bool = False  # write the paper-comparison tables where the kind has them
+    twins: bool = True  # turbine: run a fault-free twin of every run for the "fault-free RMSE" references
     workers: int | None = None  # processes; None uses every core
     progress: bool = True
 

@@ -56,9 +56,16 @@ def _window_of_tick(scenario: Scenario, n_steps: int, dt: float) -> tuple[np.nda
 
 
 def simulate_chunk(
-    run_ids: list[int], progress, scenario: Scenario, seed: int, detector: str, estimator: str, options: dict
+    run_ids: list[int],
+    progress,
+    scenario: Scenario,
+    seed: int,
+    detector: str,
+    estimator: str,
+    options: dict,
+    twins: bool = True,
 ) -> ChunkResult:
-    twins = bool(scenario.faults)
+    twins = twins and bool(scenario.faults)
     plant = TurbineBatch(
         scenario.plant, scenario.wind, scenario.faults, seed=seed, runs=run_ids, fault_free_twins=twins
     )
@@ -125,7 +132,7 @@ def evaluate(scenario: Scenario, runs: int, seed: int, options: EvalOptions) -> 
         simulate_chunk,
         runs,
         scenario.duration_s,
-        args=(scenario, seed, detector, estimator, dict(scenario.supervisor.params)),
+        args=(scenario, seed, detector, estimator, dict(scenario.supervisor.params), options.twins),
         workers=options.workers,
         show_progress=options.progress,
         label=scenario.name,
@@ -141,7 +148,8 @@ def evaluate(scenario: Scenario, runs: int, seed: int, options: EvalOptions) -> 
     for i, label in enumerate(labels):
         if counts[i] == 0:
             continue
-        keys = ("fte", "nfte", "anemometer", "fte_fault_free") if scenario.faults else ("fte", "nfte", "anemometer")
+        twins = options.twins and scenario.faults
+        keys = ("fte", "nfte", "anemometer", "fte_fault_free") if twins else ("fte", "nfte", "anemometer")
         wind_rmse[label] = {key: float(np.sqrt(sum(r.sq_err[key][i] for r in results) / counts[i])) for key in keys}
     scorecard = {
         "scenario": scenario.name,
@@ -152,7 +160,7 @@ def evaluate(scenario: Scenario, runs: int, seed: int, options: EvalOptions) -> 
         "estimator": estimator,
         "false_alarms_per_1000s": fa_rate,
         "false_alarms": fa_raw,
-        **(_twin_false_alarms(twin_events, runs, scenario.duration_s) if scenario.faults else {}),
+        **(_twin_false_alarms(twin_events, runs, scenario.duration_s) if options.twins and scenario.faults else {}),
         "faults": faults,
         "metrics": {"wind_rmse": wind_rmse},
     }

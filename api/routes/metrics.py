@@ -1,0 +1,117 @@
+"""GET /metrics: Prometheus text format, from the plant's and supervisor's status and the API's own counters."""
+
+from __future__ import annotations
+
+import asyncio
+from typing import Any
+
+from fastapi import APIRouter
+from fastapi.responses import PlainTextResponse
+
+from api.bridge import Bridge, QueryFailedError
+from api.deps import BridgeDep
+from wwcore.wire import Process
+
+router = APIRouter(tags=["metrics"])
+STATUS_TIMEOUT_S = 0.5
+
+
+def _escape(value: Any) -> str:
+    return str(value).replace("\\", "\\\\").replace('"', '\\"').replace("\n", "\\n")
+
+
+class Exposition:
+    def __init__(self) -> None:
+        self.lines: list[str] = []
+
+    def metric(self, name: str, kind: str, help_: str, samples: list[tuple[dict[str, Any], float | None]]) -> None:
+        self.lines += [f"# HELP windwarden_{name} {help_}", f"# TYPE windwarden_{name} {kind}"]
+        for labels, value in samples:
+            if value is None:
+                continue
+            label_text = ",".join(f'{k}="{_escape(v)}"' for k, v in labels.items())
+            self.lines.append(
+                f"windwarden_{name}{{{label_text}}} {float(value):.9g}"
+                if label_text
+                else f"windwarden_{name} {float(value):.9g}"
+            )
+
+    def text(self) -> str:
+        return "\n".join(self.lines) + "\n"
+
+
+def _gather(bridge: Bridge) -> tuple[dict[str, Any] | None, dict[str, Any] | None]:
+    plant = sup = None
+    if bridge.alive(Process.PLANT):
+        try:
+            plant = bridge.plant_status(STATUS_TIMEOUT_S)
+        except QueryFailedError:
+            plant = None
+    if bridge.alive(Process.SUPERVISOR):
+        try:
+            sup = bridge.supervisor_status(STATUS_TIMEOUT_S)
+        except QueryFailedError:
+            sup = None
+    return plant, sup
+
+
+@router.get("/metrics", response_class=PlainTextResponse)
+async def metrics(bridge: BridgeDep) -> PlainTextResponse:
+    plant, sup = await asyncio.to_thread(_gather, bridge)
+    out = Exposition()
+    out.metric(
+        "up",
+        "gauge",
+        "1 if the process holds its liveliness token",
+        [({"process": p.value}, float(bridge.alive(p))) for p in Process],
+    )
+    if plant is not None:
+        out.metric("sim_time_seconds", "gauge", "simulation time of the run", [({}, plant["t"])])
+        out.metric("real_time_factor", "gauge", "simulated seconds per wall second", [({}, plant["real_time_factor"])])
+        out.metric("ticks_total", "counter", "plant ticks run", [({}, plant["ticks"])])
+        out.metric(
+            "overruns_total", "counter", "ticks whose work ended after their deadline", [({}, plant["overruns"])]
+        )
+        lat = plant["latency"]
+        out.metric(
+            "loop_latency_seconds",
+            "summary",
+            "sensor to refs round trip over the run",
+            [
+                ({"quantile": "0.5"}, None if lat["p50_ms"] is None else lat["p50_ms"] / 1e3),
+                ({"quantile": "0.99"}, None if lat["p99_ms"] is None else lat["p99_ms"] / 1e3),
+            ],
+        )
+        out.metric("refs_received_total", "counter", "refs the plant received", [({}, plant["refs_received"])])
+    if sup is not None:
+        out.metric("supervisor_frames_total", "counter", "sensor ticks the supervisor stepped", [({}, sup["frames"])])
+        out.metric(
+            "supervisor_flagged",
+            "gauge",
+            "targets flagged as faulty",
+            [({"turbine": t["turbine"]}, len(t.get("flagged", []))) for t in sup.get("turbines", [])],
+        )
+    dropped = [
+        ({"process": name, "stream": k}, v)
+        for name, status in (("plant", plant), ("supervisor", sup))
+        if status is not None
+        for k, v in status.get("dropped", {}).items()
+    ]
+    dropped += [({"process": "api", "stream": k}, v) for k, v in bridge.drops.as_dict().items()]
+    out.metric("wire_dropped_total", "counter", "messages dropped on receipt (unknown version, bad length, …)", dropped)
+    out.metric("events_total", "counter", "events the API has seen", [({}, bridge.events.count())])
+    out.metric(
+        "injections_total",
+        "counter",
+        "fault injections by outcome",
+        [({"outcome": k}, v) for k, v in sorted(bridge.injections.items())],
+    )
+    with bridge.requests_lock:
+        requests = sorted(bridge.requests.items())
+    out.metric(
+        "api_requests_total",
+        "counter",
+        "HTTP requests by method, route and status",
+        [({"method": m, "route": r, "status": s}, n) for (m, r, s), n in requests],
+    )
+    return PlainTextResponse(out.text(), media_type="text/plain; version=0.0.4")

@@ -1,0 +1,5 @@
+"""The API's settings: ``WINDWARDEN_*`` environment variables (pydantic-settings), see ``ApiSettings``."""
+
+from windwarden.live.config import ApiSettings
+
+__all__ = ["ApiSettings"]

@@ -1,0 +1,145 @@
+"""The adapter interface and the run description the supervisor receives."""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass, field
+from typing import Any, Protocol
+
+import numpy as np
+
+from wwcore.events import Event
+from wwcore.scenario import FaultSpec, Scenario
+from wwcore.stepping import Plant, Supervisor
+from wwcore.wire import MessageSchema
+
+
+@dataclass(frozen=True)
+class RunInfo:
+    """What the supervisor may know of a run: the plant's published parameters and the supervisor's algorithms.
+
+    Never the fault schedule, the wind or any truth: the supervisor learns about faults from the sensors only.
+    Served by the plant on the ``plant/run`` queryable.
+    """
+
+    run_id: str
+    kind: str
+    scenario: str
+    turbines: tuple[int, ...]
+    dt: float
+    duration_s: float
+    mode: str
+    speed: float
+    plant: dict[str, Any]  # scenario.plant (kind, noise convention, rated power, …)
+    supervisor: dict[str, Any]  # scenario.supervisor (detector, estimator, params)
+    recording_id: str = ""
+    extra: dict[str, Any] = field(default_factory=dict)
+
+    @classmethod
+    def of(
+        cls,
+        scenario: Scenario,
+        turbines: list[int],
+        dt: float,
+        run_id: str = "batch",
+        mode: str = "batch",
+        speed: float = 1.0,
+    ) -> RunInfo:
+        return cls(
+            run_id=run_id,
+            kind=scenario.plant.kind,
+            scenario=scenario.name,
+            turbines=tuple(int(t) for t in turbines),
+            dt=float(dt),
+            duration_s=scenario.duration_s,
+            mode=mode,
+            speed=speed,
+            plant=scenario.plant.model_dump(mode="json"),
+            supervisor=scenario.supervisor.model_dump(mode="json"),
+            recording_id=run_id,
+        )
+
+    def to_json(self) -> dict[str, Any]:
+        out = asdict(self)
+        out["turbines"] = list(self.turbines)
+        return out
+
+    @classmethod
+    def from_json(cls, data: dict[str, Any]) -> RunInfo:
+        fields = {k: data[k] for k in cls.__dataclass_fields__ if k in data}
+        fields["turbines"] = tuple(int(t) for t in fields["turbines"])
+        return cls(**fields)
+
+
+class ScoreAccumulator(Protocol):
+    """Continuous metrics of one run, fed tick by tick by the plant node (or the batch loop)."""
+
+    def on_tick(self, k: int, frame: Any, plant: Plant) -> None:
+        """Tick k after ``control`` and before ``advance``: keep what the metrics need from truth and sensors."""
+
+    def on_refs(self, k: int, refs: np.ndarray) -> None:
+        """The supervisor's refs computed from tick k (wire records, one per turbine) arrived."""
+
+    def result(self, faults: list[FaultSpec]) -> dict[str, Any]:
+        """The metrics for the faults as they acted."""
+
+
+class KindAdapter(Protocol):
+    """Everything the live system needs to know about one plant kind."""
+
+    kind: str
+    example_fault: dict[str, Any]  # a valid injection body, for the docs and the start-up banner
+    sensors: MessageSchema
+    refs: MessageSchema
+    truth: MessageSchema
+
+    def make_plant(self, scenario: Scenario, seed: int) -> Plant:
+        """Run 0 of ``windwarden eval SCENARIO --seed seed``: the same constructor and random streams."""
+
+    def make_supervisor(self, info: RunInfo) -> Supervisor:
+        """The supervisor ``windwarden eval`` builds for this run, from the run description alone."""
+
+    def turbines(self, plant: Plant) -> list[int]:
+        """Turbine number of each row of the plant batch."""
+
+    def frame_records(self, frame: Any, turbines: list[int]) -> np.ndarray:
+        """``plant.measure()``'s frame as sensor records, one per turbine."""
+
+    def frame_from_records(self, records: np.ndarray) -> Any:
+        """Sensor records (one per turbine, in row order) back into the frame ``supervisor.step`` takes."""
+
+    def refs_records(self, refs: Any, supervisor: Supervisor, turbines: list[int]) -> np.ndarray:
+        """``supervisor.step``'s refs as refs records, one per turbine (with display extras)."""
+
+    def refs_from_records(self, records: np.ndarray) -> Any:
+        """Refs records back into what ``plant.control`` takes."""
+
+    def truth_records(self, plant: Plant, frame: Any, turbines: list[int]) -> np.ndarray:
+        """Ground truth at the current tick as truth records (display only)."""
+
+    def inject(self, plant: Plant, fault: FaultSpec) -> None: ...
+
+    def clear(self, plant: Plant, label: str) -> None: ...
+
+    def status(self, supervisor: Supervisor, refs: np.ndarray | None, turbines: list[int]) -> list[dict[str, Any]]:
+        """Per turbine: flagged targets, selected observer, estimates, residual margins to their thresholds."""
+
+    def score(self, scenario: Scenario, n_steps: int, dt: float) -> ScoreAccumulator: ...
+
+    def scorecard(
+        self, scenario: Scenario, seed: int, faults: list[FaultSpec], events: list[Event], metrics: dict[str, Any]
+    ) -> dict[str, Any]:
+        """The kind's scorecard from events and accumulated metrics (the batch evaluator's schema)."""
+
+
+def records_from_batch(schema: MessageSchema, values: dict[str, Any], turbines: list[int]) -> np.ndarray:
+    """n records of ``schema`` with each field taken from ``values`` (scalars broadcast, arrays row by row)."""
+    rec = schema.empty(len(turbines))
+    rec["turbine"] = turbines
+    for name, value in values.items():
+        rec[name] = value
+    return rec
+
+
+def finite_or_none(x: float) -> float | None:
+    x = float(x)
+    return x if np.isfinite(x) else None

@@ -1,0 +1,42 @@
+"""The live adapters' step loop in one process, with no transport: the reference a lockstep run must match.
+
+It is the batch loop of ``wwcore.stepping`` (measure, control, step, advance) driven through a kind's adapter,
+fed to the same score accumulator the plant node uses, and scored by the same ``adapter.scorecard``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+from windwarden.live.adapters import adapter_for
+from windwarden.live.adapters.base import RunInfo
+from wwcore.events import Event
+from wwcore.scenario import Scenario
+
+
+@dataclass
+class BatchResult:
+    events: list[Event]
+    scorecard: dict[str, Any]
+
+
+def run_batch(scenario: Scenario, seed: int) -> BatchResult:
+    adapter = adapter_for(scenario.plant.kind)
+    plant = adapter.make_plant(scenario, seed)
+    turbines = adapter.turbines(plant)
+    supervisor = adapter.make_supervisor(RunInfo.of(scenario, turbines, plant.dt))
+    n_steps = round(scenario.duration_s / plant.dt)
+    score = adapter.score(scenario, n_steps, plant.dt)
+    events: list[Event] = []
+    refs = None
+    for k in range(n_steps):
+        frame = plant.measure()
+        plant.control(refs)
+        score.on_tick(k, frame, plant)
+        refs = supervisor.step(frame)
+        score.on_refs(k, adapter.refs_records(refs, supervisor, turbines))
+        plant.advance()
+        events += plant.drain_events() + supervisor.drain_events()
+    metrics = score.result(list(scenario.faults))
+    return BatchResult(events, adapter.scorecard(scenario, seed, list(scenario.faults), events, metrics))

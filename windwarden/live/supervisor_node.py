@@ -1,0 +1,287 @@
+"""The supervisor process: observers and FDI behind Zenoh, one ``supervisor.step`` per complete sensor tick.
+
+It learns the run from the plant's ``plant/run`` queryable (kind, turbines, published parameters, algorithms;
+never faults or truth), builds the supervisor with the constructor batch mode uses, and then, per tick:
+``frame`` from the sensor records → ``refs = supervisor.step(frame)`` → the supervisor's events appended to
+``events.jsonl`` and published → ``refs`` published (reliable, blocking). Events go out before refs, so when the
+plant holds ``refs_k`` every event up to tick k is in the log.
+
+Degradation (DESIGN.md): when no sensors arrive for ``stale_after_s`` or the plant's liveliness token goes, the
+stream is marked stale (an event) and nothing more is published from it; when sensors come back after a gap of
+more than ``max_gap_ticks`` (or from a new run) the observers start afresh instead of publishing estimates built
+on the old state.
+"""
+
+from __future__ import annotations
+
+import gc
+import logging
+import queue
+import threading
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import zenoh
+
+from windwarden.live.adapters import adapter_for
+from windwarden.live.adapters.base import KindAdapter, RunInfo
+from windwarden.live.config import SupervisorSettings
+from windwarden.live.mailbox import TickMailbox
+from windwarden.live.runfolder import EVENTS, EventLog
+from windwarden.live.timing import LatencyStats
+from windwarden.live.transport import JsonQueryable, LivenessWatch, QueryFailedError, declare_publisher, query_json
+from wwcore.events import Event, EventType
+from wwcore.wire import COMMAND_QOS, EVENT_QOS, DropCounter, Process, WireError, decode_json, encode_json
+
+log = logging.getLogger(__name__)
+
+
+class SupervisorNode:
+    """Serves one plant (and the next one, if the plant restarts) until ``stop()``."""
+
+    def __init__(self, session: zenoh.Session, settings: SupervisorSettings, display_factory: Any | None = None):
+        self.session = session
+        self.settings = settings
+        self.keys = settings.keys
+        self.display_factory = display_factory
+        self.display: Any | None = None
+        self.drops = DropCounter()
+        self.step_time = LatencyStats()
+        self._stop = threading.Event()
+        self._lock = threading.Lock()  # step vs status queries
+        self._inbox: queue.SimpleQueue[bytes] = queue.SimpleQueue()
+        self._run_ended = threading.Event()
+        self.info: RunInfo | None = None
+        self.adapter: KindAdapter | None = None
+        self.supervisor: Any | None = None
+        self.events: EventLog | None = None
+        self.last_tick: int | None = None
+        self.last_t = 0.0
+        self.last_refs: np.ndarray | None = None
+        self.fresh: bool | None = None
+        self.frames = 0
+        self.resets = 0
+        self.gaps = 0
+        self._last_status = 0.0
+        s = session
+        self._events_pub = declare_publisher(s, self.keys.events, EVENT_QOS)
+        self._status_pub = declare_publisher(s, self.keys.supervisor_status, EVENT_QOS)  # carries the handshake
+        self._refs_pubs: dict[int, zenoh.Publisher] = {}
+        self._sensors_sub: zenoh.Subscriber | None = None  # declared once the supervisor is built (see _start_run)
+        self._events_sub = s.declare_subscriber(self.keys.events, self._on_event_sample)
+        self._status_q = JsonQueryable(
+            s, self.keys.supervisor_status, "supervisor.status", lambda body: self.status(), self.drops
+        )
+        self.watch = LivenessWatch(s, self.keys.alive_all, self._on_liveliness)
+        self._token = s.liveliness().declare_token(self.keys.alive(Process.SUPERVISOR))
+
+    def stop(self) -> None:
+        self._stop.set()
+
+    def close(self) -> None:
+        self._status_q.close()
+        self._token.undeclare()
+        self.watch.undeclare()
+        if self._sensors_sub is not None:
+            self._sensors_sub.undeclare()
+        self._events_sub.undeclare()
+        if self.events is not None:
+            self.events.close()
+        if self.display is not None:
+            self.display.close()
+
+    # -- events -----------------------------------------------------------------------------------------------------
+    def _publish_event(self, event: Event) -> None:
+        self._events_pub.put(encode_json("events", event.to_json()))
+        if self.display is not None:
+            self.display.event(event)
+
+    def _write(self, events: list[Event]) -> None:
+        if events and self.events is not None:
+            self.events.write(events)
+
+    def _on_liveliness(self, process: str, alive: bool) -> None:
+        if process != Process.PLANT:
+            return
+        self._write(
+            [
+                Event(
+                    self.last_t,
+                    EventType.LIVELINESS,
+                    detail={"process": process, "alive": alive, "noticed_by": Process.SUPERVISOR.value},
+                )
+            ]
+        )
+        if not alive:
+            self._mark(False)
+
+    def _on_event_sample(self, sample: zenoh.Sample) -> None:
+        try:
+            body = decode_json("events", sample.payload.to_bytes())
+        except WireError as error:
+            self.drops.add("events", error.reason)
+            return
+        detail = body.get("detail") or {}
+        ended = body.get("type") == EventType.RUN.value and detail.get("phase") == "end"
+        if ended and self.info is not None and detail.get("run_id") == self.info.run_id:
+            self._run_ended.set()
+
+    def _mark(self, fresh: bool, reset: bool = False) -> None:
+        """Stream freshness transitions, logged once each."""
+        if fresh == self.fresh:
+            return
+        if self.fresh is not None or not fresh:
+            detail = {"stream": "sensors", "fresh": fresh, "noticed_by": Process.SUPERVISOR.value}
+            if reset:
+                detail["observers_restarted"] = True
+            self._write([Event(self.last_t, EventType.STREAM, detail=detail)])
+        self.fresh = fresh
+
+    # -- run set-up -------------------------------------------------------------------------------------------------
+    def _fetch_info(self) -> RunInfo | None:
+        """The run description from the plant; waits for a plant (for ever if ``plant_wait_s`` is 0)."""
+        wait = self.settings.plant_wait_s
+        deadline = None if wait == 0 else time.monotonic() + wait
+        while not self._stop.is_set():
+            if self.watch.is_alive(Process.PLANT):
+                try:
+                    return RunInfo.from_json(query_json(self.session, self.keys.run, "plant.run", timeout=2.0))
+                except (QueryFailedError, KeyError, TypeError, ValueError) as error:
+                    log.info("waiting for the plant's run description: %s", error)
+            if deadline is not None and time.monotonic() > deadline:
+                return None
+            self.watch.wait_for(Process.PLANT, True, timeout=0.5)
+            self._stop.wait(0.1)
+        return None
+
+    def _start_run(self, info: RunInfo) -> None:
+        """(Re)build the supervisor, its event log and its display for the run ``info``."""
+        new_run = self.info is None or info.run_id != self.info.run_id
+        self.info = info
+        self.adapter = adapter_for(info.kind)
+        with self._lock:
+            self.supervisor = self.adapter.make_supervisor(info)
+            self.last_refs = None
+        self.turbines = list(info.turbines)
+        self.mailbox = TickMailbox(self.adapter.sensors, self.turbines, self.drops, "sensors")
+        if new_run:
+            if self.events is not None:
+                self.events.close()
+            folder: Path = self.settings.folder(info.run_id)
+            self.events = EventLog(folder / EVENTS, self._publish_event)
+            self._run_ended.clear()
+            if self.display_factory is not None:
+                if self.display is not None:
+                    self.display.close()
+                self.display = self.display_factory(info)
+        for turbine in dict.fromkeys(self.turbines):
+            if turbine not in self._refs_pubs:
+                self._refs_pubs[turbine] = declare_publisher(self.session, self.keys.refs(turbine), COMMAND_QOS)
+        self.last_tick = None
+        gc.collect()
+        gc.freeze()  # what was built so far is never collected: shorter GC pauses while stepping
+        if self._sensors_sub is None:
+            # Subscribing last tells the plant (its publishers match) that this supervisor is ready for tick 0.
+            self._sensors_sub = self.session.declare_subscriber(
+                self.keys.sensors("*"), lambda sample: self._inbox.put(sample.payload.to_bytes())
+            )
+        # The handshake: this status (sent after the subscription, on the same link) tells the plant that
+        # its next sensor sample reaches a built supervisor. Zenoh's matching status alone does not
+        # guarantee that: a sample sent right after it turns true can still be lost.
+        self._publish_status(force=True)
+
+    # -- status -----------------------------------------------------------------------------------------------------
+    def status(self) -> dict[str, Any]:
+        with self._lock:
+            turbines = (
+                self.adapter.status(self.supervisor, self.last_refs, self.turbines)
+                if self.supervisor is not None
+                else []
+            )
+        return {
+            "run_id": None if self.info is None else self.info.run_id,
+            "ready": self._sensors_sub is not None and self.supervisor is not None,
+            "kind": None if self.info is None else self.info.kind,
+            "tick": self.last_tick,
+            "t": self.last_t,
+            "stream_fresh": bool(self.fresh),
+            "plant_alive": self.watch.is_alive(Process.PLANT),
+            "frames": self.frames,
+            "gaps": self.gaps,
+            "observer_restarts": self.resets,
+            "step": self.step_time.summary(recent=1000),
+            "dropped": self.drops.as_dict(),
+            "turbines": turbines,
+        }
+
+    def _publish_status(self, force: bool = False) -> None:
+        now = time.monotonic()
+        if force or now - self._last_status >= self.settings.status_every_s:
+            self._last_status = now
+            self._status_pub.put(encode_json("supervisor.status", self.status()))
+
+    # -- the loop ---------------------------------------------------------------------------------------------------
+    def run(self) -> int:
+        info = self._fetch_info()
+        if info is None:
+            return 0 if self._stop.is_set() else 1
+        self._start_run(info)
+        while not self._stop.is_set():
+            if self.settings.exit_with_run and self._run_ended.is_set() and self._inbox.empty():
+                break
+            try:
+                payload = self._inbox.get(timeout=self.settings.stale_after_s)
+            except queue.Empty:
+                self._mark(False)
+                self._publish_status()
+                continue
+            self.mailbox.put(payload)
+            for arrival in self.mailbox.drain():
+                self._on_frame(arrival.records)
+            self._publish_status()
+        return 0
+
+    def _on_frame(self, records: np.ndarray) -> None:
+        adapter = self.adapter
+        tick = int(records["tick"][0])
+        restart = False
+        if self.last_tick is not None and not (0 < tick - self.last_tick <= self.settings.max_gap_ticks):
+            restart = True
+            if tick <= self.last_tick:  # the plant started over: maybe a new run
+                info = self._fetch_info()
+                if info is None:
+                    return
+                self._start_run(info)
+            else:
+                self._start_run(self.info)
+            self.resets += 1
+        elif self.last_tick is not None and tick - self.last_tick > 1:
+            self.gaps += 1
+        backlog = self._inbox.qsize()
+        if backlog > self.settings.max_backlog_ticks:  # far behind: skip to the newest, start afresh on the next
+            self.drops.add("sensors", "backlog")
+            while not self._inbox.empty():
+                self._inbox.get_nowait()
+        self._mark(True, reset=restart)
+        frame = adapter.frame_from_records(records)
+        started = time.perf_counter()
+        with self._lock:
+            refs = self.supervisor.step(frame)
+            events = self.supervisor.drain_events()
+            out = adapter.refs_records(refs, self.supervisor, self.turbines)
+            self.last_refs = out
+        self.step_time.add(time.perf_counter() - started)
+        self.last_tick, self.last_t = tick, float(records["t"][0])
+        self.frames += 1
+        self._write(events)  # before the refs: holding refs_k means the log has every event up to tick k
+        for i, turbine in enumerate(self.turbines):
+            self._refs_pubs[turbine].put(adapter.refs.encode(out[i]))
+        if self.display is not None:
+            if tick % self.settings.display_every == 0:
+                self.display.supervisor_rows(records, out, self.status_rows())
+            self.display.pump()
+
+    def status_rows(self) -> list[dict[str, Any]]:
+        return self.adapter.status(self.supervisor, self.last_refs, self.turbines)

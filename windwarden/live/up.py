@@ -1,0 +1,372 @@
+"""``windwarden up``: the whole system on one machine, no Docker.
+
+One process (this one) holds the embedded Zenoh router (or connects to an existing one), starts the Rerun
+recorder (and a viewer on request), then the API, the supervisor and the plant as child processes of
+``windwarden`` with their settings in ``WINDWARDEN_*`` variables, each in its own session with its output in
+``runs/<id>/logs/``. It prints the events as they happen, restarts the supervisor or the API if one dies
+(``--restart``), and shuts everything down in order at the scenario's end or on Ctrl-C: plant, supervisor, API,
+then the recorder; finally it recomputes the scorecard from ``events.jsonl`` and closes the recording.
+
+Exit code: 0 when the scenario ran to its end and no child failed; 1 when a child failed (even if restarted);
+130 on Ctrl-C.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import os
+import secrets
+import signal
+import subprocess
+import sys
+import threading
+import time
+import urllib.error
+import urllib.request
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from rich.console import Console
+
+from windwarden.live.adapters import adapter_for
+from windwarden.live.config import new_run_id
+from windwarden.live.finalize import finalize_recording, finalize_scorecard, verify_recording
+from windwarden.live.recorder import recorder_command
+from windwarden.live.recorder import start as start_rerun
+from windwarden.live.recorder import stop as stop_rerun
+from windwarden.live.router import DEFAULT_PORT, free_port, open_router
+from windwarden.live.runfolder import EVENTS, RECORDING, SCENARIO, write_json
+from windwarden.live.transport import open_session
+from wwcore.events import Event, EventType
+from wwcore.scenario import Scenario, dump_scenario
+from wwcore.wire import KeyTree, WireError, decode_json
+
+console = Console(stderr=True, highlight=False, soft_wrap=True)
+STOP_TIMEOUT_S = 15.0
+MAX_RESTARTS = 3
+
+
+@dataclass
+class UpOptions:
+    scenario: Scenario
+    mode: str = "realtime"
+    speed: float = 1.0
+    seed: int = 0
+    connect: str | None = None  # an existing router; None embeds one
+    listen: str | None = None  # the embedded router's endpoint; None: tcp/127.0.0.1:7447 or a free port
+    farm: str = "default"
+    api: bool = True
+    api_host: str = "127.0.0.1"
+    api_port: int | None = None  # None: 8000 if free, else a free port
+    viewer: str = "none"  # none | web | spawn
+    runs_root: Path = Path("runs")
+    run_id: str | None = None
+    restart: bool = True
+    quiet: bool = False
+    nice: int | None = None  # niceness of plant and supervisor (WINDWARDEN_NICE)
+
+
+@dataclass
+class Child:
+    name: str
+    argv: list[str]
+    env: dict[str, str]
+    log: Path
+    restartable: bool
+    nice: int = 0  # niceness added to the child: the real-time pair (plant, supervisor) keeps the CPU first
+    proc: subprocess.Popen | None = None
+    restarts: int = 0
+    failed: bool = False
+    started_at: list[float] = field(default_factory=list)
+
+    def start(self) -> None:
+        out = self.log.open("ab")
+        self.proc = subprocess.Popen(
+            self.argv,
+            env=self.env,
+            stdout=out,
+            stderr=subprocess.STDOUT,
+            stdin=subprocess.DEVNULL,
+            start_new_session=True,
+        )
+        out.close()
+        lower_priority(self.proc.pid, self.nice)
+        self.started_at.append(time.time())
+
+    def stop(self, timeout: float = STOP_TIMEOUT_S) -> int | None:
+        if self.proc is None or self.proc.poll() is not None:
+            return None if self.proc is None else self.proc.returncode
+        self.proc.terminate()
+        try:
+            return self.proc.wait(timeout)
+        except subprocess.TimeoutExpired:
+            self.proc.kill()
+            return self.proc.wait(5.0)
+
+
+def lower_priority(pid: int, nice: int) -> None:
+    """Raise a child's niceness (allowed without privileges); the plant and supervisor stay at 0."""
+    if nice > 0:
+        with contextlib.suppress(OSError):
+            os.setpriority(os.PRIO_PROCESS, pid, os.getpriority(os.PRIO_PROCESS, pid) + nice)
+
+
+def _port_free(port: int, host: str = "127.0.0.1") -> bool:
+    import socket
+
+    with socket.socket() as s:
+        try:
+            s.bind((host, port))
+        except OSError:
+            return False
+    return True
+
+
+def _wait_http(url: str, timeout: float, alive: Any) -> bool:
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        if alive() is not None:
+            return False
+        try:
+            with urllib.request.urlopen(url, timeout=1.0) as response:
+                if response.status == 200:
+                    return True
+        except (urllib.error.URLError, ConnectionError, TimeoutError):
+            pass
+        time.sleep(0.1)
+    return False
+
+
+class Up:
+    def __init__(self, options: UpOptions):
+        self.o = options
+        self.scenario = options.scenario
+        self.run_id = options.run_id or new_run_id(self.scenario.name)
+        self.run_dir = options.runs_root / self.run_id
+        self.logs = self.run_dir / "logs"
+        self.children: list[Child] = []
+        self.rerun: list[subprocess.Popen] = []
+        self.interrupted = threading.Event()
+        self.token = os.environ.get("WINDWARDEN_API_TOKEN") or secrets.token_urlsafe(24)
+        self.info: dict[str, Any] = {}
+
+    # -- set-up ---------------------------------------------------------------------------------------------------
+    def _endpoint(self) -> str:
+        if self.o.connect:
+            return self.o.connect
+        if self.o.listen:
+            return self.o.listen
+        port = DEFAULT_PORT if _port_free(DEFAULT_PORT) else free_port()
+        return f"tcp/127.0.0.1:{port}"
+
+    def _child(self, name: str, args: list[str], env: dict[str, str], restartable: bool, nice: int = 0) -> Child:
+        argv = [sys.executable, "-m", "windwarden.cli", *args]
+        return Child(name, argv, env, self.logs / f"{name}.log", restartable, nice)
+
+    def _env(self, endpoint: str, rerun_url: str) -> dict[str, str]:
+        env = {k: v for k, v in os.environ.items() if not k.startswith("WINDWARDEN_")}
+        env |= {
+            "WINDWARDEN_CONNECT": endpoint,
+            "WINDWARDEN_ZENOH_MODE": "client",
+            "WINDWARDEN_FARM": self.o.farm,
+            "WINDWARDEN_RUNS_ROOT": str(self.o.runs_root),
+            "WINDWARDEN_RUN_ID": self.run_id,
+            "WINDWARDEN_RERUN_URL": rerun_url,
+            "PYTHONUNBUFFERED": "1",
+            "WINDWARDEN_PARENT_PID": str(os.getpid()),  # the services stop if `up` dies (cli.exit_with_parent)
+        }
+        if "WINDWARDEN_LOG_LEVEL" in os.environ:
+            env["WINDWARDEN_LOG_LEVEL"] = os.environ["WINDWARDEN_LOG_LEVEL"]
+        return env
+
+    def run(self) -> int:
+        self.logs.mkdir(parents=True, exist_ok=True)
+        (self.run_dir / SCENARIO).write_text(dump_scenario(self.scenario))
+        endpoint = self._endpoint()
+        router = None if self.o.connect else open_router([endpoint])
+        try:
+            return self._run(endpoint, router)
+        finally:
+            if router is not None:
+                router.close()
+
+    def _run(self, endpoint: str, router: Any) -> int:
+        o = self.o
+        rec = recorder_command(self.run_dir / RECORDING, o.viewer)
+        self.rerun.append(start_rerun(rec.recorder, self.logs / "recorder.log"))
+        if rec.viewer is not None:
+            self.rerun.append(start_rerun(rec.viewer, self.logs / "viewer.log"))
+        for proc in self.rerun:
+            lower_priority(proc.pid, 10)
+        env = self._env(endpoint, rec.url)
+        api_port = o.api_port or (8000 if _port_free(8000, o.api_host) else free_port(o.api_host))
+        api_url = f"http://{o.api_host}:{api_port}"
+        scenario_file = str(self.run_dir / SCENARIO)
+        if o.api:
+            api_env = env | {"WINDWARDEN_API_TOKEN": self.token, "WINDWARDEN_RUN_DIR": str(self.run_dir)}
+            self.children.append(
+                self._child("api", ["api", "--host", o.api_host, "--port", str(api_port)], api_env, True, nice=5)
+            )
+        rt_env = env | ({"WINDWARDEN_NICE": str(o.nice)} if o.nice is not None else {})
+        self.children.append(self._child("supervisor", ["supervise"], rt_env, True))
+        plant_args = ["plant", scenario_file, "--mode", o.mode, "--speed", str(o.speed), "--seed", str(o.seed)]
+        self.children.append(self._child("plant", plant_args, rt_env, False))
+        self.info = {
+            "run_id": self.run_id,
+            "run_dir": str(self.run_dir),
+            "zenoh": endpoint,
+            "embedded_router": router is not None,
+            "rerun_url": rec.url,
+            "web_viewer": rec.web_url,
+            "api": api_url if o.api else None,
+            "docs": f"{api_url}/docs" if o.api else None,
+            "events": str(self.run_dir / EVENTS),
+            "recording": str(self.run_dir / RECORDING),
+            "started": time.time(),
+        }
+        write_json(self.run_dir / "up.json", self.info)
+        previous = {
+            sig: signal.signal(sig, lambda *_: self.interrupted.set()) for sig in (signal.SIGINT, signal.SIGTERM)
+        }
+        session = open_session(self._watch_settings(endpoint))
+        sub = session.declare_subscriber(KeyTree(o.farm).events, self._on_event)
+        try:
+            for child in self.children:
+                child.start()
+                if child.name == "api" and not _wait_http(f"{api_url}/health", 30.0, child.proc.poll):
+                    console.print(f"[red]the API did not come up; see {child.log}[/red]")
+                    child.failed = True
+                    break
+            else:
+                self._banner()
+                self._watch()
+        finally:
+            sub.undeclare()
+            session.close()
+            self._shutdown()
+            for sig, handler in previous.items():
+                signal.signal(sig, handler)
+        return self._report()
+
+    def _watch_settings(self, endpoint: str) -> Any:
+        from windwarden.live.config import ZenohSettings
+
+        return ZenohSettings(connect=endpoint, farm=self.o.farm)
+
+    # -- running --------------------------------------------------------------------------------------------------
+    def _banner(self) -> None:
+        i, o = self.info, self.o
+        if o.quiet:
+            return
+        console.print(
+            f"[bold]windwarden up[/bold]: {self.scenario.name} ({self.scenario.plant.kind}), {o.mode} "
+            f"×{o.speed:g}, {self.scenario.duration_s:g} s, seed {o.seed}, run {self.run_id}"
+        )
+        console.print(f"  zenoh      {i['zenoh']}" + (" (embedded router)" if i["embedded_router"] else ""))
+        if o.api:
+            console.print(f"  API        {i['api']}   docs {i['docs']}")
+            console.print(f"  API token  {self.token}")
+            example = json.dumps(adapter_for(self.scenario.plant.kind).example_fault)
+            console.print(
+                f"  inject     curl -X POST {i['api']}/faults -H 'Authorization: Bearer {self.token}' "
+                f"-H 'content-type: application/json' -d '{example}'"
+            )
+        if i["web_viewer"]:
+            console.print(f"  watch live {i['web_viewer']}")
+        else:
+            console.print(
+                f"  watch live rerun --connect {i['rerun_url']}    (or later: windwarden open {self.run_dir})"
+            )
+        console.print(f"  recording  {i['recording']}")
+        console.print(f"  events     {i['events']}      logs {self.logs}/")
+
+    def _on_event(self, sample: Any) -> None:
+        if self.o.quiet:
+            return
+        try:
+            event = Event.from_json(decode_json("events", sample.payload.to_bytes()))
+        except (WireError, KeyError, ValueError):
+            return
+        if event.type in (
+            EventType.FAULT_INJECTED,
+            EventType.FAULT_CLEARED,
+            EventType.DETECTION,
+            EventType.RECOVERY,
+            EventType.OBSERVER_SWITCH,
+            EventType.LIVELINESS,
+            EventType.STREAM,
+        ):
+            detail = " ".join(f"{k}={v}" for k, v in event.detail.items() if k not in ("noticed_by",))
+            color = {"detection": "yellow", "fault_injected": "red", "liveliness": "cyan"}.get(event.type.value, "")
+            text = f"t={event.t:8.2f} s  {event.type.value:16s} T{event.turbine} {event.target or ''} {detail}"
+            console.print(f"[{color}]{text}[/{color}]" if color else text)
+
+    def _watch(self) -> None:
+        plant = next(c for c in self.children if c.name == "plant")
+        while not self.interrupted.is_set():
+            code = plant.proc.poll()
+            if code is not None:
+                plant.failed = code != 0
+                return
+            for child in self.children:
+                if child is plant or child.proc.poll() is None:
+                    continue
+                child.failed = True
+                console.print(f"[red]{child.name} exited with {child.proc.returncode}; see {child.log}[/red]")
+                if not (self.o.restart and child.restartable and child.restarts < MAX_RESTARTS):
+                    return
+                child.restarts += 1
+                console.print(f"restarting {child.name} ({child.restarts}/{MAX_RESTARTS})")
+                child.start()
+            self.interrupted.wait(0.2)
+
+    # -- shutdown -------------------------------------------------------------------------------------------------
+    def _shutdown(self) -> None:
+        for name in ("plant", "supervisor", "api"):
+            for child in self.children:
+                if child.name == name and child.proc is not None:
+                    child.stop()
+        time.sleep(0.3)  # the recorder receives the last rows in flight
+        for proc in reversed(self.rerun):
+            stop_rerun(proc, STOP_TIMEOUT_S)
+
+    def _report(self) -> int:
+        card = finalize_scorecard(self.run_dir)
+        recording = self.run_dir / RECORDING
+        verified = finalize_recording(self.run_dir) or (recording.exists() and verify_recording(recording, False))
+        failed = [c.name for c in self.children if c.failed]
+        completed = bool(card and card["live"]["completed"])
+        if not self.o.quiet:
+            if card is not None:
+                from windwarden.evaluation.report import render
+
+                console.print(render({k: v for k, v in card.items() if k != "live"}))
+                live = card["live"]
+                lat = live["latency"]
+                console.print(
+                    f"live: {live['ticks']} ticks, overruns {live['overruns']} ({live['overrun_pct']:.2f} %), "
+                    f"latency p50 {lat['p50_ms'] or float('nan'):.2f} ms p99 {lat['p99_ms'] or float('nan'):.2f}"
+                    f" ms, real-time factor {live['real_time_factor'] or float('nan'):.2f}"
+                )
+            console.print(
+                f"run folder {self.run_dir}: scorecard.json, events.jsonl, recording.rrd "
+                f"({'verified' if verified else 'NOT verified'})"
+            )
+            if failed:
+                console.print(f"[red]failed: {', '.join(failed)} (logs in {self.logs})[/red]")
+        write_json(
+            self.run_dir / "up.json",
+            self.info
+            | {
+                "ended": time.time(),
+                "completed": completed,
+                "failed": failed,
+                "recording_verified": verified,
+                "restarts": {c.name: c.restarts for c in self.children},
+            },
+        )
+        if self.interrupted.is_set():
+            return 130
+        return 0 if completed and not failed else 1

@@ -1,0 +1,524 @@
+"""The wire contract, declared once: key expressions, message schemas with units, versions, and the codec.
+
+Pure (numpy and the standard library only): the Zenoh edges in ``windwarden.live`` and ``api`` put on the wire
+what this module encodes and refuse what it cannot decode. Nothing here opens a socket.
+
+Key-expression tree (``<farm>`` is one chunk, ``<id>`` the 1-based turbine number)::
+
+    windwarden/<farm>/turbine/<id>/sensors   plant → supervisor    binary  per tick     may drop (realtime)
+    windwarden/<farm>/turbine/<id>/refs      supervisor → plant    binary  per tick     reliable, blocking
+    windwarden/<farm>/turbine/<id>/truth     plant → display       binary  decimated    may drop; never read by
+                                                                                         the supervisor
+    windwarden/<farm>/metmast                plant → supervisor    binary  per tick     may drop (farm kind)
+    windwarden/<farm>/plant/status           plant → anyone        JSON    2 Hz + queryable (run status)
+    windwarden/<farm>/plant/run              queryable             JSON    what the supervisor may know of the run
+    windwarden/<farm>/plant/faults           queryable             JSON    inject / clear / list faults
+    windwarden/<farm>/supervisor/status      supervisor → anyone   JSON    2 Hz + queryable (per-turbine status)
+    windwarden/<farm>/events                 every process → all   JSON    reliable, blocking
+    windwarden/<farm>/alive/<process>        liveliness tokens (plant, supervisor, api)
+
+Binary messages (the per-tick streams): a 4-byte header ``b"WW"``, schema code (u8), schema version (u8), then
+one packed little-endian record whose layout is the schema's fields in order. Floats travel as float64, so a
+lockstep run sees bit for bit what the batch loop sees. JSON messages (the control plane, a few per second) are
+``{"schema": name, "v": version, "body": {...}}``. A message with an unknown schema or version, a bad length or a
+bad body raises ``WireError``; receivers drop it and count it (``DropCounter``), never crash.
+"""
+
+from __future__ import annotations
+
+import json
+import re
+import threading
+from collections import Counter
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from enum import StrEnum
+from typing import Any
+
+import numpy as np
+
+from wwcore.channels import N_SENSORS, SENSOR_NAMES, SENSORS
+from wwcore.hydro_params import FAULT_TARGETS, U_NAMES, X_NAMES, Y_NAMES, Y_UNITS
+
+MAGIC = b"WW"
+HEADER = np.dtype([("magic", "S2"), ("code", "u1"), ("version", "u1")])
+MAX_JSON_BYTES = 256 * 1024  # a control-plane message larger than this is refused unparsed
+
+
+class WireError(ValueError):
+    """A message that cannot be decoded. ``reason`` is one of the ``DropReason`` values."""
+
+    def __init__(self, reason: str, message: str):
+        self.reason = reason
+        super().__init__(message)
+
+
+class DropReason(StrEnum):
+    BAD_MAGIC = "bad_magic"
+    UNKNOWN_SCHEMA = "unknown_schema"
+    BAD_VERSION = "bad_version"
+    BAD_LENGTH = "bad_length"
+    BAD_BODY = "bad_body"
+    INCOMPLETE = "incomplete"  # a tick whose rows never all arrived (multi-turbine plants)
+
+
+# -- binary schemas ------------------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class WireField:
+    """One field of a binary message: numpy dtype code, shape per record, unit and meaning."""
+
+    name: str
+    dtype: str  # numpy dtype code, little-endian where it matters: "<f8", "<i8", "<u2", "i1", "?"
+    unit: str
+    doc: str
+    shape: tuple[int, ...] = ()
+    columns: tuple[str, ...] = ()  # names of the elements of a vector field, in order
+
+
+@dataclass(frozen=True)
+class MessageSchema:
+    """A binary message: a name, a one-byte code, a version and its fields. ``dtype`` is the packed layout."""
+
+    name: str
+    code: int
+    version: int
+    doc: str
+    fields: tuple[WireField, ...]
+
+    @property
+    def dtype(self) -> np.dtype:
+        return np.dtype([(f.name, f.dtype, f.shape) for f in self.fields])
+
+    @property
+    def size(self) -> int:
+        """Bytes on the wire, header included."""
+        return HEADER.itemsize + self.dtype.itemsize
+
+    def empty(self, n: int = 1) -> np.ndarray:
+        """n zeroed records to fill field by field (``rec["sensors"] = …``)."""
+        return np.zeros(n, dtype=self.dtype)
+
+    def encode(self, record: np.ndarray | np.void) -> bytes:
+        """One record (a 0-d or 1-element structured array of ``dtype``) as bytes with the header."""
+        rec = np.asarray(record, dtype=self.dtype).reshape(1)
+        head = np.array([(MAGIC, self.code, self.version)], dtype=HEADER)
+        return head.tobytes() + rec.tobytes()
+
+    def encode_rows(self, records: np.ndarray) -> list[bytes]:
+        """Each record of a structured array as its own message."""
+        return [self.encode(records[i]) for i in range(len(records))]
+
+    def decode(self, payload: bytes) -> np.void:
+        """The record in ``payload``; ``WireError`` when the header or the length does not match this schema."""
+        code, version = check_header(payload)
+        if code != self.code:
+            raise WireError(DropReason.UNKNOWN_SCHEMA, f"expected {self.name} (code {self.code}), got code {code}")
+        if version != self.version:
+            raise WireError(DropReason.BAD_VERSION, f"{self.name}: version {version} is not {self.version}")
+        if len(payload) != self.size:
+            raise WireError(DropReason.BAD_LENGTH, f"{self.name}: {len(payload)} bytes, expected {self.size}")
+        return np.frombuffer(payload, dtype=self.dtype, count=1, offset=HEADER.itemsize)[0]
+
+    def describe(self) -> list[dict[str, Any]]:
+        """The fields as a table (for docs and the API)."""
+        return [
+            {"field": f.name, "dtype": np.dtype(f.dtype).name, "shape": list(f.shape), "unit": f.unit, "doc": f.doc}
+            | ({"columns": list(f.columns)} if f.columns else {})
+            for f in self.fields
+        ]
+
+
+def check_header(payload: bytes) -> tuple[int, int]:
+    """(schema code, version) of a binary message; ``WireError`` when it has no valid header."""
+    if len(payload) < HEADER.itemsize:
+        raise WireError(DropReason.BAD_LENGTH, f"{len(payload)} bytes is shorter than the header")
+    if payload[:2] != MAGIC:
+        raise WireError(DropReason.BAD_MAGIC, "not a windwarden message")
+    return payload[2], payload[3]
+
+
+def stack_records(records: Sequence[np.void]) -> np.ndarray:
+    """Records of one schema (one per turbine) as a structured array of n rows, in the order given."""
+    return np.array(list(records), dtype=records[0].dtype) if records else np.zeros(0)
+
+
+def _tick_fields() -> tuple[WireField, ...]:
+    return (
+        WireField("tick", "<i8", "–", "tick index k of the samples (t = k·dt)"),
+        WireField("t", "<f8", "s", "simulation time of tick k"),
+        WireField("turbine", "<u2", "–", "turbine number, 1-based"),
+    )
+
+
+_SENSOR_UNITS = ", ".join(f"{c.name} [{c.unit}]" for c in SENSORS)
+
+TURBINE_SENSORS = MessageSchema(
+    "turbine.sensors",
+    1,
+    1,
+    "What a benchmark turbine measures at tick k, and its controller's outputs of tick k−1 (TurbineFrame row).",
+    (
+        *_tick_fields(),
+        WireField("sensors", "<f8", "per column", f"readings y_k: {_SENSOR_UNITS}", (N_SENSORS,), SENSOR_NAMES),
+        WireField("tau_g_ref", "<f8", "N m", "converter torque reference issued at tick k−1"),
+        WireField("beta_ref", "<f8", "deg", "collective pitch reference issued at tick k−1"),
+        WireField("power_ref", "<f8", "W", "power reference the controller used at tick k−1"),
+        WireField("zone", "i1", "–", "controller zone at tick k−1 (0 region 2, 1 region 3)"),
+    ),
+)
+
+TURBINE_REFS = MessageSchema(
+    "turbine.refs",
+    2,
+    1,
+    "The supervisor's references for one turbine, computed from sensors of tick ``tick`` (TurbineRefs row), "
+    "plus the non-fault-tolerant estimate and the selected observer for display and scoring.",
+    (
+        WireField("tick", "<i8", "–", "tick of the sensor frame these refs were computed from"),
+        WireField("turbine", "<u2", "–", "turbine number, 1-based"),
+        WireField("valid", "?", "–", "the estimates may be used by the controller"),
+        WireField("omega_g", "<f8", "rad/s", "fault-tolerant generator speed estimate"),
+        WireField("omega_r", "<f8", "rad/s", "fault-tolerant rotor speed estimate"),
+        WireField("wind", "<f8", "m/s", "fault-tolerant rotor-effective wind estimate (FTE)"),
+        WireField("power_ref_set", "?", "–", "power_ref carries a reference (farm dispatch); false keeps P_r"),
+        WireField("power_ref", "<f8", "W", "per-turbine power reference, when power_ref_set"),
+        WireField("nfte_set", "?", "–", "wind_nfte carries an estimate"),
+        WireField("wind_nfte", "<f8", "m/s", "non-fault-tolerant wind estimate (observer 1 throughout), display"),
+        WireField("selected", "<i2", "–", "index of the observer in use (−1 none)"),
+    ),
+)
+
+TURBINE_TRUTH = MessageSchema(
+    "turbine.truth",
+    3,
+    1,
+    "Ground truth of one turbine, for display and scoring only; the supervisor never subscribes to it.",
+    (
+        *_tick_fields(),
+        WireField("omega_r", "<f8", "rad/s", "rotor speed"),
+        WireField("omega_g", "<f8", "rad/s", "generator speed"),
+        WireField("pitch", "<f8", "deg", "blade pitch angles", (3,), ("beta_1", "beta_2", "beta_3")),
+        WireField("tau_g", "<f8", "N m", "generator torque"),
+        WireField("power", "<f8", "W", "electrical power"),
+        WireField("tau_aero", "<f8", "N m", "aerodynamic torque"),
+        WireField("wind_rotor", "<f8", "m/s", "true rotor-effective wind"),
+        WireField("wind_hub", "<f8", "m/s", "true hub-height wind"),
+        WireField("zone", "i1", "–", "controller zone"),
+    ),
+)
+
+HYDRO_SENSORS = MessageSchema(
+    "hydro.sensors",
+    4,
+    1,
+    "What the hydrostatic turbine measures at tick k and the commands it received over tick k−1 (HydroFrame row).",
+    (
+        *_tick_fields(),
+        WireField("y", "<f8", ", ".join(Y_UNITS), "measured outputs y_k (with noise)", (len(Y_NAMES),), Y_NAMES),
+        WireField("u", "<f8", "–, –, N m", "commands sent over tick k−1 (after correction)", (len(U_NAMES),), U_NAMES),
+    ),
+)
+
+HYDRO_REFS = MessageSchema(
+    "hydro.refs",
+    5,
+    1,
+    "The supervisor's virtual-actuator correction (eq. 36) and its reconstruction (HydroRefs row).",
+    (
+        *_tick_fields(),
+        WireField("correction", "<f8", "–", "f̂_a,filt to subtract from [u_p, u_M]", (2,), FAULT_TARGETS),
+        WireField("apply", "?", "–", "the correction is valid and compensation is on"),
+        WireField("f_hat", "<f8", "–", "unfiltered reconstruction, eq. (35)", (2,), FAULT_TARGETS),
+        WireField("x_hat", "<f8", "SI per state", "observer states", (len(X_NAMES),), X_NAMES),
+        WireField("flagged", "?", "–", "the detector flags [u_p, u_M] as faulty", (2,), FAULT_TARGETS),
+    ),
+)
+
+HYDRO_TRUTH = MessageSchema(
+    "hydro.truth",
+    6,
+    1,
+    "Ground truth of the hydrostatic turbine, for display and scoring only.",
+    (
+        *_tick_fields(),
+        WireField("x", "<f8", "SI per state", "true states", (len(X_NAMES),), X_NAMES),
+        WireField("f", "<f8", "–", "true actuator offsets f_a acting over [t_k, t_k+1)", (2,), FAULT_TARGETS),
+        WireField("v", "<f8", "m/s", "rotor-effective wind"),
+        WireField("P_g", "<f8", "W", "generator power"),
+        WireField("u_nominal", "<f8", "–, –, N m", "the baseline controller's commands", (3,), U_NAMES),
+        WireField("u_applied", "<f8", "–, –, N m", "what the actuators received (faults included)", (3,), U_NAMES),
+    ),
+)
+
+METMAST = MessageSchema(
+    "farm.metmast",
+    7,
+    1,
+    "The farm's met mast (farm kind).",
+    (
+        WireField("tick", "<i8", "–", "tick index"),
+        WireField("t", "<f8", "s", "simulation time"),
+        WireField("wind_speed", "<f8", "m/s", "measured wind speed"),
+        WireField("wind_direction", "<f8", "deg", "measured wind direction, from north, clockwise"),
+    ),
+)
+
+_FARM_TYPES = ("debris", "pitch_misalignment", "drivetrain")  # wwcore.scenario.farm.FARM_FAULT_TYPES
+
+FARM_SENSORS = MessageSchema(
+    "farm.sensors",
+    8,
+    1,
+    "One farm turbine's frame at tick k (FarmFrame row): its own sensors and controller outputs (as turbine.sensors), "
+    "and on 10 Hz farm samples its SCADA means, the met mast and the farm demand (the same on every turbine's row).",
+    (
+        *_tick_fields(),
+        WireField("sensors", "<f8", "per column", f"readings y_k: {_SENSOR_UNITS}", (N_SENSORS,), SENSOR_NAMES),
+        WireField("tau_g_ref", "<f8", "N m", "converter torque reference issued at tick k−1"),
+        WireField("beta_ref", "<f8", "deg", "collective pitch reference issued at tick k−1"),
+        WireField("power_ref", "<f8", "W", "power reference the controller used at tick k−1"),
+        WireField("zone", "i1", "–", "controller zone at tick k−1 (0 region 2, 1 region 3 / derated)"),
+        WireField("sample", "?", "–", "tick k closes a 10 Hz farm sample: the fields below are new"),
+        WireField("scada", "<f8", "per column", "means of the last ten readings", (N_SENSORS,), SENSOR_NAMES),
+        WireField("power_ref_used", "<f8", "W", "mean power reference of the last ten ticks"),
+        WireField("mast", "<f8", "m/s", "met-mast wind reading (10 Hz, held)"),
+        WireField("demand", "<f8", "W", "farm power demand P_ref,farm"),
+    ),
+)
+
+FARM_REFS = MessageSchema(
+    "farm.refs",
+    9,
+    1,
+    "The farm supervisor's power reference for one turbine (FarmRefs row), with its detector's view of the turbine.",
+    (
+        WireField("tick", "<i8", "–", "tick of the sensor frame these refs answer"),
+        WireField("turbine", "<u2", "–", "turbine number, 1-based"),
+        WireField("computed_tick", "<i8", "–", "tick of the 10 Hz farm sample the reference was computed from"),
+        WireField("power_ref", "<f8", "W", "per-turbine power reference P_ref,t"),
+        WireField("flags", "?", "–", "fault flagged, per fault type", (3,), _FARM_TYPES),
+        WireField(
+            "statistic", "<f8", "–", "test statistic per fault type (CUSUM g or 3P amplitude)", (3,), _FARM_TYPES
+        ),
+        WireField("threshold", "<f8", "–", "its alarm threshold (NaN: no test)", (3,), _FARM_TYPES),
+        WireField("mode", "i1", "–", "dispatch accommodation mode: 0 normal, 1 debris (23)–(24), 2 derated (26)"),
+    ),
+)
+
+FARM_TRUTH = MessageSchema(
+    "farm.truth",
+    10,
+    1,
+    "Ground truth of one farm turbine and of its farm, for display and scoring only.",
+    (
+        *_tick_fields(),
+        WireField("omega_r", "<f8", "rad/s", "rotor speed"),
+        WireField("omega_g", "<f8", "rad/s", "generator speed"),
+        WireField("pitch", "<f8", "deg", "blade pitch angles", (3,), ("beta_1", "beta_2", "beta_3")),
+        WireField("power", "<f8", "W", "electrical power output"),
+        WireField("power_ref", "<f8", "W", "the reference the turbine controller follows (ramp-limited)"),
+        WireField("shaft_torque", "<f8", "N m", "low-speed shaft torque"),
+        WireField("wind_rotor", "<f8", "m/s", "true rotor-effective wind"),
+        WireField("row_wind", "<f8", "m/s", "mean wind of the turbine's row (delayed mast wind, waked)"),
+        WireField("zone", "i1", "–", "controller zone"),
+        WireField("farm_power", "<f8", "W", "the farm's total output"),
+    ),
+)
+
+SCHEMAS: dict[str, MessageSchema] = {
+    s.name: s
+    for s in (
+        TURBINE_SENSORS,
+        TURBINE_REFS,
+        TURBINE_TRUTH,
+        HYDRO_SENSORS,
+        HYDRO_REFS,
+        HYDRO_TRUTH,
+        METMAST,
+        FARM_SENSORS,
+        FARM_REFS,
+        FARM_TRUTH,
+    )
+}
+if len({s.code for s in SCHEMAS.values()}) != len(SCHEMAS):  # pragma: no cover - a declaration error
+    raise RuntimeError("two wire schemas share a code")
+
+
+# -- JSON (control plane) ------------------------------------------------------------------------------------------
+JSON_SCHEMAS: dict[str, int] = {
+    "events": 1,  # body: wwcore.events.Event.to_json()
+    "plant.status": 1,  # body: run status (simulation time, speed, overruns, latency, liveliness)
+    "plant.run": 1,  # body: RunInfo, what the supervisor may know (no faults, no wind, no truth)
+    "plant.faults": 1,  # query body: {"op": "inject"|"clear"|"list", ...}; reply body: {"ok": …}
+    "supervisor.status": 1,  # body: {"t", "tick", "turbines": [per-turbine status]}
+}
+"""Name → current version of each JSON message."""
+
+
+def encode_json(schema: str, body: Mapping[str, Any]) -> bytes:
+    return json.dumps({"schema": schema, "v": JSON_SCHEMAS[schema], "body": body}, allow_nan=False).encode()
+
+
+def decode_json(schema: str, payload: bytes) -> dict[str, Any]:
+    """The body of a JSON message of ``schema``; ``WireError`` for anything else."""
+    if len(payload) > MAX_JSON_BYTES:
+        raise WireError(DropReason.BAD_LENGTH, f"{len(payload)} bytes is more than {MAX_JSON_BYTES}")
+    try:
+        message = json.loads(payload)
+    except (UnicodeDecodeError, json.JSONDecodeError) as error:
+        raise WireError(DropReason.BAD_BODY, f"not JSON: {error}") from None
+    if not isinstance(message, dict) or message.get("schema") != schema:
+        raise WireError(DropReason.UNKNOWN_SCHEMA, f"expected a {schema!r} message")
+    if message.get("v") != JSON_SCHEMAS[schema]:
+        raise WireError(DropReason.BAD_VERSION, f"{schema}: version {message.get('v')!r} is not {JSON_SCHEMAS[schema]}")
+    body = message.get("body")
+    if not isinstance(body, dict):
+        raise WireError(DropReason.BAD_BODY, f"{schema}: body is not an object")
+    return body
+
+
+class DropCounter:
+    """Messages dropped by a receiver, by (stream, reason). Safe to bump from any thread."""
+
+    def __init__(self) -> None:
+        self._lock = threading.Lock()
+        self.counts: Counter[tuple[str, str]] = Counter()
+
+    def add(self, stream: str, reason: str) -> None:
+        with self._lock:
+            self.counts[(stream, str(reason))] += 1
+
+    def total(self) -> int:
+        with self._lock:
+            return sum(self.counts.values())
+
+    def as_dict(self) -> dict[str, int]:
+        with self._lock:
+            return {f"{stream}:{reason}": n for (stream, reason), n in sorted(self.counts.items())}
+
+
+# -- the key-expression tree ---------------------------------------------------------------------------------------
+_CHUNK = re.compile(r"^[A-Za-z0-9_\-]+$")
+
+
+class Process(StrEnum):
+    """The processes that declare liveliness tokens."""
+
+    PLANT = "plant"
+    SUPERVISOR = "supervisor"
+    API = "api"
+
+
+@dataclass(frozen=True)
+class Qos:
+    """Quality of service of a stream, mapped onto Zenoh by the edges."""
+
+    reliable: bool  # reliable transport (retransmitted) rather than best effort
+    block: bool  # a full queue blocks the publisher rather than dropping the sample
+    priority: str  # Zenoh priority name: REAL_TIME, INTERACTIVE_HIGH, DATA_HIGH, DATA, …
+    express: bool = True  # sent at once, not batched
+
+
+SENSORS_QOS = Qos(reliable=False, block=False, priority="DATA_HIGH")
+"""Sensor streams may drop under congestion (realtime). Lockstep sends them with ``COMMAND_QOS``: the plant
+waits for every reply anyway, so nothing can queue up, and a lost sample would stall the step."""
+COMMAND_QOS = Qos(reliable=True, block=True, priority="REAL_TIME")
+"""References, fault commands and events never drop."""
+DISPLAY_QOS = Qos(reliable=False, block=False, priority="DATA_LOW", express=False)
+"""Truth and status: for display; the newest sample is what matters."""
+EVENT_QOS = Qos(reliable=True, block=True, priority="INTERACTIVE_HIGH")
+
+
+@dataclass(frozen=True)
+class KeySpec:
+    """One entry of the key-expression registry (for docs and the layering of who publishes what)."""
+
+    pattern: str
+    publisher: str
+    payload: str
+    qos: Qos | None
+    doc: str
+
+
+@dataclass(frozen=True)
+class KeyTree:
+    """Every key expression of one farm, built from the farm id. ``root`` is fixed by the protocol."""
+
+    farm: str = "default"
+    root: str = field(default="windwarden", init=False)
+
+    def __post_init__(self) -> None:
+        if not _CHUNK.match(self.farm):
+            raise ValueError(f"farm id {self.farm!r} must be letters, digits, '_' or '-' (one key chunk)")
+
+    @property
+    def base(self) -> str:
+        return f"{self.root}/{self.farm}"
+
+    def sensors(self, turbine: int | str) -> str:
+        return f"{self.base}/turbine/{turbine}/sensors"
+
+    def refs(self, turbine: int | str) -> str:
+        return f"{self.base}/turbine/{turbine}/refs"
+
+    def truth(self, turbine: int | str) -> str:
+        return f"{self.base}/turbine/{turbine}/truth"
+
+    @property
+    def metmast(self) -> str:
+        return f"{self.base}/metmast"
+
+    @property
+    def plant_status(self) -> str:
+        return f"{self.base}/plant/status"
+
+    @property
+    def run(self) -> str:
+        return f"{self.base}/plant/run"
+
+    @property
+    def faults(self) -> str:
+        return f"{self.base}/plant/faults"
+
+    @property
+    def supervisor_status(self) -> str:
+        return f"{self.base}/supervisor/status"
+
+    @property
+    def events(self) -> str:
+        return f"{self.base}/events"
+
+    def alive(self, process: Process | str) -> str:
+        return f"{self.base}/alive/{process}"
+
+    @property
+    def alive_all(self) -> str:
+        return f"{self.base}/alive/*"
+
+    def process_of(self, key: str) -> str:
+        """The process named by a liveliness key (``…/alive/<process>``)."""
+        return key.rsplit("/", 1)[-1]
+
+    def turbine_of(self, key: str) -> int:
+        """The turbine number in a ``…/turbine/<id>/…`` key; ``WireError`` when there is none."""
+        parts = key.split("/")
+        try:
+            return int(parts[parts.index("turbine") + 1])
+        except (ValueError, IndexError):
+            raise WireError(DropReason.BAD_BODY, f"no turbine number in {key!r}") from None
+
+    def registry(self) -> list[KeySpec]:
+        """The whole tree as data: what is published where, how, with which payload."""
+        t = "<id>"
+        return [
+            KeySpec(self.sensors(t), "plant", "turbine.sensors | hydro.sensors", SENSORS_QOS, "per tick"),
+            KeySpec(self.refs(t), "supervisor", "turbine.refs | hydro.refs", COMMAND_QOS, "per received tick"),
+            KeySpec(self.truth(t), "plant", "turbine.truth | hydro.truth", DISPLAY_QOS, "decimated; display only"),
+            KeySpec(self.metmast, "plant (farm)", "farm.metmast", SENSORS_QOS, "per tick"),
+            KeySpec(self.plant_status, "plant", "JSON plant.status", DISPLAY_QOS, "2 Hz; also a queryable"),
+            KeySpec(self.run, "plant (queryable)", "JSON plant.run", None, "what the supervisor may know"),
+            KeySpec(self.faults, "plant (queryable)", "JSON plant.faults", None, "inject, clear, list"),
+            KeySpec(self.supervisor_status, "supervisor", "JSON supervisor.status", DISPLAY_QOS, "2 Hz; queryable"),
+            KeySpec(self.events, "every process", "JSON events", EVENT_QOS, "append-only event stream"),
+            KeySpec(self.alive("<process>"), "every process", "liveliness token", None, "plant, supervisor, api"),
+        ]
