@@ -33,9 +33,9 @@ tick's state and wind and held over the step, like the controller outputs and th
 from __future__ import annotations
 
 import numpy as np
-from scipy.linalg import expm
 
 from wwcore import aero
+from wwcore.lti import zoh
 from wwcore.turbine_params import TurbineParams
 
 OMEGA_R, OMEGA_G, THETA, TAU_G, AZIMUTH = 0, 1, 2, 3, 4
@@ -78,16 +78,6 @@ def pitch_matrices(a0: np.ndarray, a1: np.ndarray) -> tuple[np.ndarray, np.ndarr
     B = np.zeros((*a0.shape, 2, 1))
     B[..., 1, 0] = a0
     return A, B
-
-
-def zoh(A: np.ndarray, B: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray]:
-    """Exact zero-order-hold discretisation of batched (…, n, n), (…, n, m): expm([[A, B], [0, 0]] dt)."""
-    n, m = A.shape[-1], B.shape[-1]
-    M = np.zeros((*A.shape[:-2], n + m, n + m))
-    M[..., :n, :n] = A * dt
-    M[..., :n, n:] = B * dt
-    E = expm(M)
-    return E[..., :n, :n], E[..., :n, n:]
 
 
 class TurbineDynamics:
