@@ -52,12 +52,13 @@ class ComponentSettings:
     parity_window: int = 10  # ticks averaged by the pitch-sensor window test
     actuator_window: int = 200  # ticks summed by the pitch-actuator χ² test (2 s)
     converter_window: int = 100  # ticks averaged by the converter test (1 s)
+    block: int = 10  # the actuator and converter tests decide every this many ticks, on every tick's residual
     frozen_ticks: int = 3
     warmup_s: float = 5.0
 
 
 class _Window:
-    """Running sum over the last ``size`` ticks of an (n, m) statistic."""
+    """Running sum over the last ``size`` pushes of an (n, m) statistic."""
 
     def __init__(self, size: int, shape: tuple[int, ...]):
         self.size = size
@@ -72,6 +73,10 @@ class _Window:
         self.count += 1
         return self.total
 
+    @property
+    def full(self) -> bool:
+        return self.count >= self.size
+
 
 def actuator_whitener(p: TurbineParams) -> tuple[np.ndarray, np.ndarray]:
     """(b, a) of (1 + G_d)⁻¹ for the nominal pitch actuator G_d (zero-order hold), as a difference equation."""
@@ -81,10 +86,16 @@ def actuator_whitener(p: TurbineParams) -> tuple[np.ndarray, np.ndarray]:
     return den / (den + num)[0], (den + num) / (den + num)[0]  # (1 + N/D)⁻¹ = D / (D + N)
 
 
+CROSS_BLADE = np.array([[1.0, -0.5, -0.5], [-0.5, 1.0, -0.5], [-0.5, -0.5, 1.0]])
+"""e = m̄ @ CROSS_BLADE: each blade's pair mean minus the mean of the other two blades' (symmetric)."""
+
+
 class ComponentFDI:
     """Flags pitch sensors, pitch actuators and the converter for n turbines (DIAGNOSIS_TARGETS columns)."""
 
     def __init__(self, p: TurbineParams, n: int, sigma: dict[str, float], settings: ComponentSettings):
+        if settings.actuator_window % settings.block or settings.converter_window % settings.block:
+            raise ValueError("the actuator and converter windows must be whole numbers of blocks")
         self.s = settings
         self.n = n
         alpha = settings.false_alarms_per_1000s * p.dt / 1000.0
@@ -93,20 +104,24 @@ class ComponentFDI:
         # pitch-sensor parity: a two-sided single-tick test and a two-sided window-mean test, α/2 each, 3 blades
         self.z_single = norm_isf(alpha / 12.0)
         self.z_clear = norm_isf(settings.clear_alpha / 2.0)
-        self.h_actuator = chi2_isf(alpha / 3.0, settings.actuator_window)
+        # the block tests decide once per block: their per-decision budget is a block's worth of ticks
+        block_alpha = alpha * settings.block
+        self.h_actuator = chi2_isf(block_alpha / 3.0, settings.actuator_window)
         self.h_actuator_clear = chi2_isf(settings.clear_alpha, settings.actuator_window)
-        self.z_converter = norm_isf(alpha / 4.0)
+        self.z_converter = norm_isf(block_alpha / 2.0)
         self.parity = _Window(settings.parity_window, (n, 3))
-        self.actuator = _Window(settings.actuator_window, (n, 3))
-        self.converter = _Window(settings.converter_window, (n,))
+        self.actuator = _Window(settings.actuator_window // settings.block, (n, 3))
+        self.converter = _Window(settings.converter_window // settings.block, (n,))
         self.whiten_b, self.whiten_a = actuator_whitener(p)
         if len(self.whiten_b) != 3 or len(self.whiten_a) != 3:
             raise ValueError("the nominal pitch actuator should give a second-order whitening filter")
         self._w_state = (np.zeros((n, 3)), np.zeros((n, 3)))  # transposed direct form II
+        self._e_block = np.zeros((settings.block, n, 3))
+        self._tau_block = np.zeros((settings.block, 2, n))  # τ_g,m[k], τ_g,r[k−1]
         self._tau_hat: np.ndarray | None = None
-        self._actuator_rest = np.zeros(n, dtype=np.int64)  # ticks until the actuator test may flag again
-        self._actuator_quiet = np.zeros((n, 3), dtype=np.int64)  # consecutive ticks below the clearing threshold
         self._converter_gain = float(np.exp(-p.alpha_gc * p.dt))
+        self._actuator_rest = np.zeros(n, dtype=np.int64)  # blocks until the actuator test may flag again
+        self._actuator_quiet = np.zeros((n, 3), dtype=np.int64)  # consecutive blocks below the clearing threshold
         self._prev_beta: np.ndarray | None = None
         self._same = np.zeros((n, 6), dtype=np.int64)
         self.flags = np.zeros((n, len(TARGET_INDEX)), dtype=bool)
@@ -117,9 +132,14 @@ class ComponentFDI:
         y = frame.sensors
         m1, m2 = y[:, M1], y[:, M2]
         self._pitch_sensors(m1, m2)
-        self._actuators(m1, m2)
-        self._converter(y[:, TAU_G_M], frame.tau_g_ref)
+        j = self.ticks % self.s.block
+        self._e_block[j] = (0.5 * (m1 + m2)) @ CROSS_BLADE
+        self._tau_block[j, 0] = y[:, TAU_G_M]
+        self._tau_block[j, 1] = frame.tau_g_ref
         self.ticks += 1
+        if j == self.s.block - 1:
+            self._actuators()
+            self._converter()
         if self.ticks <= self.warmup_ticks:
             self.flags[:] = False
         return self.flags
@@ -130,12 +150,16 @@ class ComponentFDI:
         if self._prev_beta is not None:
             self._same = (self._same + 1) * (beta == self._prev_beta)
         self._prev_beta = beta
+        parity = (m1 - m2) * (1.0 / (np.sqrt(2.0) * self.sigma_beta))
+        window = self.parity.push(parity) * (1.0 / np.sqrt(self.s.parity_window))
         frozen = self._same >= self.s.frozen_ticks - 1
-        parity = (m1 - m2) / (np.sqrt(2.0) * self.sigma_beta)
-        window = self.parity.push(parity) / np.sqrt(self.s.parity_window)
-        fault = (np.abs(parity) > self.z_single) | (np.abs(window) > self.z_single) | frozen[:, :3] | frozen[:, 3:]
-        healthy = (np.abs(window) < self.z_clear) & ~frozen[:, :3] & ~frozen[:, 3:]
+        suspicious = np.maximum(np.abs(parity), np.abs(window)) > self.z_single
+        pair_frozen = frozen[:, :3] | frozen[:, 3:]
         flagged_1, flagged_2 = self.flags[:, M1_TARGET], self.flags[:, M2_TARGET]
+        if not (suspicious.any() or pair_frozen.any() or flagged_1.any() or flagged_2.any()):
+            return  # the healthy fast path
+        fault = suspicious | pair_frozen
+        healthy = (np.abs(window) < self.z_clear) & ~pair_frozen
         new = fault & ~(flagged_1 | flagged_2)
         if new.any():
             # the sensor farther from the other two blades' sensors (or a frozen one) is the faulty one
@@ -146,41 +170,42 @@ class ComponentFDI:
         self.flags[:, M1_TARGET] = flagged_1 & ~healthy
         self.flags[:, M2_TARGET] = flagged_2 & ~healthy
 
-    # -- pitch actuators ----------------------------------------------------------------------------------------
-    def _actuators(self, m1: np.ndarray, m2: np.ndarray) -> None:
-        mean = 0.5 * (m1 + m2)
-        e = mean - 0.5 * mean[:, OTHERS].sum(axis=2)
-        # w = (1 + G)⁻¹ e, a normalised (a0 = 1) second-order section in transposed direct form II
+    # -- pitch actuators (once per block) -----------------------------------------------------------------------
+    def _actuators(self) -> None:
+        # w = (1 + G)⁻¹ e, a normalised (a0 = 1) second-order section in transposed direct form II, tick by tick
         (b0, b1, b2), (_, a1, a2) = self.whiten_b, self.whiten_a
         s1, s2 = self._w_state
-        w = b0 * e + s1
-        self._w_state = (b1 * e - a1 * w + s2, b2 * e - a2 * w)
-        z2 = w * w / (0.75 * self.sigma_beta**2)
-        total = self.actuator.push(z2)
+        z2 = np.zeros((self.n, 3))
+        for e in self._e_block:
+            w = b0 * e + s1
+            s1, s2 = b1 * e - a1 * w + s2, b2 * e - a2 * w
+            z2 += w * w
+        self._w_state = (s1, s2)
+        total = self.actuator.push(z2 * (1.0 / (0.75 * self.sigma_beta**2)))
         sensor_flagged = self.flags[:, M1_TARGET].any(axis=1) | self.flags[:, M2_TARGET].any(axis=1)
-        self._actuator_rest = np.where(sensor_flagged, self.s.actuator_window, np.maximum(self._actuator_rest - 1, 0))
-        if self.actuator.count < self.s.actuator_window:
+        rest = self.actuator.size
+        self._actuator_rest = np.where(sensor_flagged, rest, np.maximum(self._actuator_rest - 1, 0))
+        if not self.actuator.full:
             return
         worst = np.argmax(total, axis=1)
         fault = (total[np.arange(self.n), worst] > self.h_actuator) & (self._actuator_rest == 0)
         flagged = self.flags[:, ACTUATOR_TARGET]
         flagged[np.flatnonzero(fault), worst[fault]] = True
         # An actuator shows its dynamics only while the pitch moves, so health needs a whole window of evidence:
-        # the flag clears after ``actuator_window`` consecutive ticks below the clearing threshold.
+        # the flag clears after a window's worth of consecutive blocks below the clearing threshold.
         self._actuator_quiet = np.where(total <= self.h_actuator_clear, self._actuator_quiet + 1, 0)
-        flagged &= (self._actuator_quiet < self.s.actuator_window) & (self._actuator_rest == 0)[:, None]
+        flagged &= (self._actuator_quiet < self.actuator.size) & (self._actuator_rest == 0)[:, None]
         self.flags[:, ACTUATOR_TARGET] = flagged
 
-    # -- converter ----------------------------------------------------------------------------------------------
-    def _converter(self, tau_g_m: np.ndarray, tau_g_ref_prev: np.ndarray) -> None:
-        if self._tau_hat is None:
-            self._tau_hat = tau_g_m.copy()
-        else:
-            a = self._converter_gain
-            self._tau_hat = a * self._tau_hat + (1.0 - a) * tau_g_ref_prev
-        r = (tau_g_m - self._tau_hat) / self.sigma_tau
-        mean = self.converter.push(r) / np.sqrt(self.s.converter_window)
-        if self.converter.count < self.s.converter_window:
+    # -- converter (once per block) -----------------------------------------------------------------------------
+    def _converter(self) -> None:
+        a = self._converter_gain
+        r = np.zeros(self.n)
+        for tau_g_m, tau_g_ref_prev in self._tau_block:
+            self._tau_hat = tau_g_m.copy() if self._tau_hat is None else a * self._tau_hat + (1.0 - a) * tau_g_ref_prev
+            r += tau_g_m - self._tau_hat
+        mean = self.converter.push(r) * (1.0 / (self.sigma_tau * np.sqrt(self.s.converter_window)))
+        if not self.converter.full:
             return
         flagged = self.flags[:, CONVERTER_TARGET]
         self.flags[:, CONVERTER_TARGET] = (flagged | (np.abs(mean) > self.z_converter)) & (np.abs(mean) > self.z_clear)
