@@ -89,6 +89,7 @@ class TurbineBatch:
         self.n = len(self.run_of_row)
         streams = [row_streams(seed, int(r), int(t)) for r, t in zip(self.run_of_row, self.turbine_of_row, strict=True)]
         self._noise_rngs = [noise for _, noise in streams]
+        self._noise_rows = self.n // copies  # rows that draw noise; twins reuse their run's
         self.wind = wind_field if wind_field is not None else WindField(wind, params, [w for w, _ in streams], self.dt)
         self.dynamics = TurbineDynamics(params)
         self.discrete = DiscreteStep(params, self.n)
@@ -159,7 +160,7 @@ class TurbineBatch:
             x[:, OMEGA_R], pitch + self.faults.pitch_offset, ws.blades, self.faults.aero_factor
         )
         self.tau_aero = self.blade_torque.sum(axis=1)
-        quantities = np.column_stack((x[:, OMEGA_R], x[:, OMEGA_G], ws.hub, pitch, x[:, TAU_G], self._power_output(x)))
+        quantities = np.column_stack((x[:, OMEGA_R], x[:, OMEGA_G], ws.hub, pitch, x[:, TAU_G], self.power_output(x)))
         noise = self._next_noise()  # already σ-scaled
         f = self.faults
         if f.sensor_faults_active:
@@ -211,7 +212,7 @@ class TurbineBatch:
             "theta": x[:, THETA].copy(),
             "tau_g": x[:, TAU_G].copy(),
             "pitch": x[:, PITCH].copy(),
-            "power": self._power_output(x),
+            "power": self.power_output(x),
             "tau_aero": self.tau_aero.copy(),
             "wind_rotor": ws.rotor.copy(),
             "wind_hub": ws.hub.copy(),
@@ -228,8 +229,9 @@ class TurbineBatch:
         return events
 
     # -- internals ----------------------------------------------------------------------------------------------
-    def _power_output(self, x: np.ndarray) -> np.ndarray:
-        """Electrical power output P_g = η_gc ω_g τ_g, W, times the farm debris fault's output factor."""
+    def power_output(self, x: np.ndarray | None = None) -> np.ndarray:
+        """Electrical power output P_g = η_gc ω_g τ_g, W, times the farm debris fault's output factor (truth)."""
+        x = self.x if x is None else x
         return (self.p.eta_gc * self.faults.power_factor) * x[:, OMEGA_G] * x[:, TAU_G]
 
     def shaft_torque(self) -> np.ndarray:
@@ -243,8 +245,15 @@ class TurbineBatch:
         j = self.k % self.noise_chunk
         if j == 0 or len(self._noise) == 0:
             size = (self.noise_chunk, len(SENSORS))
-            self._noise = np.stack([rng.standard_normal(size) for rng in self._noise_rngs], axis=1) * self.sigma
-        return self._noise[j]
+            # Twin rows (second half) share their run's streams, hence its numbers: draw the first half only.
+            rngs = self._noise_rngs[: self._noise_rows]
+            block = np.empty((len(rngs), *size))
+            for i, rng in enumerate(rngs):
+                block[i] = rng.standard_normal(size)
+            self._noise = np.empty((size[0], len(rngs), size[1]))
+            np.multiply(block.transpose(1, 0, 2), self.sigma, out=self._noise)
+        noise = self._noise[j]
+        return noise if self._noise_rows == self.n else np.concatenate((noise, noise))
 
     def _update_faults(self) -> None:
         k, dt = self.k, self.dt

@@ -1,23 +1,200 @@
-"""Plant section of a wind-farm scenario (seed 001). Filled in by the farm work."""
+"""Plant section of a wind-farm scenario (seed 001, PARAMETERS.md b), its geometry, and the rules its faults follow.
+
+The farm is nine benchmark turbines on a 3 × 3 grid numbered row by row (1 2 3 / 4 5 6 / 7 8 9), spacing
+``spacing_m`` in both directions. The wind comes from one of two directions (the paper's two wind cases):
+
+* case 1, along the grid lines: the rows facing the wind are {1, 4, 7}, {2, 5, 8}, {3, 6, 9};
+* case 2, along the diagonal: the rows are {1}, {2, 4}, {3, 5, 7}, {6, 8}, {9} (turbines 1 and 9 stand alone).
+
+A row is a set of turbines at the same distance along the wind. The met mast stands ``mast_distance_m`` upwind
+of the front row, on the wind axis, in both cases. The scenario's top-level ``[wind]`` section describes the
+free stream at the mast (mean profile) and each turbine's own turbulence (``turbulence_intensity``); the farm
+adds a slow turbulence common to all turbines (``coherent_ti``, ``coherent_time_s``) that travels from the mast
+to each row (``docs/farm.md``).
+
+Farm faults name their turbine with ``turbine`` (1–9); target and kind say what they do:
+
+===================  =================  =======================================================  ============
+target               kind               effect (value)                                           scorecard
+===================  =================  =======================================================  ============
+``rotor``            ``debris``         power output × value at unchanged rotor speed (0.97)     ``debris``
+``pitch_actuator_k`` ``offset``         blade k held value deg off the collective command;       ``pitch_misalignment``
+                                        its pitch encoders see the true angle (0.3)
+``pitch_actuator_k`` ``pitch_offset``   blade k's aerodynamic angle off by value deg, unseen by  ``pitch_misalignment``
+                                        its encoders (a hidden mounting error)
+``drivetrain``       ``drivetrain_wear`` planet-pass (3P) transmission error of amplitude value   ``drivetrain``
+                                        mrad on the low-speed shaft (5)
+===================  =================  =======================================================  ============
+
+Any fault a single benchmark turbine accepts (sensor faults, pitch dynamics, converter offset, efficiency) is
+accepted on a farm turbine too (``check_turbine_fault``). Why the farm faults are modelled this way is in
+``docs/farm.md`` (and next to the code in ``plant_sim.turbine.faults``).
+"""
 
 from __future__ import annotations
 
+import itertools
+import math
 from typing import Literal
 
-from pydantic import BaseModel, ConfigDict
+from pydantic import BaseModel, ConfigDict, Field, model_validator
 
-from wwcore.scenario.faults import FaultSpec
+from wwcore.scenario.faults import FaultKind, FaultSpec
+from wwcore.scenario.turbine import NoiseConvention, check_turbine_fault
+
+N_TURBINES = 9
+GRID = 3  # turbines per side of the square grid
+ROTOR_DIAMETER_M = 115.0  # m, 2R of the benchmark turbine (PARAMETERS.md a.1)
+FARM_DT_S = 0.1  # s, sample time of the farm controller, farm FDI and met mast [PAPER] Section 2 (10 Hz)
+
+FARM_FAULT_NAMES: dict[FaultKind, str] = {
+    FaultKind.DEBRIS: "debris",
+    FaultKind.OFFSET: "pitch_misalignment",
+    FaultKind.PITCH_OFFSET: "pitch_misalignment",
+    FaultKind.DRIVETRAIN_WEAR: "drivetrain",
+}
+"""Kind of a farm fault → the name the farm detectors flag and the scorecard uses (``wt<k>:<name>``)."""
+FARM_FAULT_TYPES: tuple[str, ...] = ("debris", "pitch_misalignment", "drivetrain")
+"""The paper's faults 1, 2 and 3, in that order."""
+
+
+class FarmDemand(BaseModel):
+    """The farm power demand P_ref,farm the grid operator sends, in one of two modes.
+
+    ``profile``: piecewise linear through ``points`` [(t in s, MW)], held after the last point (a constant is one
+    point; a step is two points 0.1 s apart). ``available_fraction``: a delta-control set point,
+    ``fraction`` × the farm's available power estimated from the met-mast wind averaged over ``averaging_s``
+    (first-order filter) with the static wake model, held for ``update_s`` between updates.
+    """
+
+    model_config = ConfigDict(extra="forbid")
+
+    mode: Literal["profile", "available_fraction"] = "available_fraction"
+    fraction: float | None = Field(default=0.8, gt=0.0, le=1.0, description="–, share of the available power")
+    averaging_s: float = Field(default=60.0, gt=0.0, le=3600.0, description="s, time constant of the mast average")
+    update_s: float = Field(default=30.0, ge=0.1, le=3600.0, description="s, the set point is held this long")
+    points: list[tuple[float, float]] | None = Field(
+        default=None, description="[(t in s, demand in MW)] for mode 'profile'"
+    )
+
+    @model_validator(mode="after")
+    def _mode_fields(self) -> FarmDemand:
+        if self.mode == "profile":
+            if not self.points:
+                raise ValueError("points: a 'profile' demand needs at least one (t_s, MW) point")
+            times = [t for t, _ in self.points]
+            if any(b <= a for a, b in itertools.pairwise(times)) or times[0] < 0.0:
+                raise ValueError("points: times must be ≥ 0 and increase strictly")
+            for _, mw in self.points:
+                if not 0.0 <= mw <= N_TURBINES * 4.8:
+                    raise ValueError(f"points: demand {mw} MW is outside 0 … {N_TURBINES * 4.8:g} MW")
+        elif self.points is not None:
+            raise ValueError("points: only a 'profile' demand takes points")
+        return self
 
 
 class FarmPlant(BaseModel):
+    """Nine benchmark turbines (PARAMETERS.md a) on the 3 × 3 grid of PARAMETERS.md b."""
+
     model_config = ConfigDict(extra="forbid")
 
     kind: Literal["farm"] = "farm"
+    wind_case: Literal[1, 2] = Field(default=1, description="1: wind along the grid lines; 2: along the diagonal")
+    spacing_m: float = Field(default=805.0, ge=230.0, le=3000.0, description="m, grid spacing (7 D) [PROPOSED]")
+    mast_distance_m: float = Field(
+        default=287.5, ge=0.0, le=3000.0, description="m, met mast upwind of the front row (5 D) [PROPOSED]"
+    )
+    mast_noise_mps: float = Field(default=0.5, ge=0.0, le=5.0, description="m/s, σ of the mast reading [PROPOSED]")
+    coherent_ti: float = Field(
+        default=0.05, ge=0.0, le=0.3, description="–, σ/mean of the slow turbulence all turbines share [PROPOSED]"
+    )
+    coherent_time_s: float = Field(
+        default=60.0, gt=0.0, le=3600.0, description="s, correlation time of the shared turbulence [PROPOSED]"
+    )
+    row_coherence: float = Field(
+        default=0.0,
+        ge=0.0,
+        le=1.0,
+        description="–, share of each turbine's turbulence variance common to its row: 0 independent turbines (7 D "
+        "apart, the physical choice), 1 identical rows (what the paper's row comparisons presume) [PROPOSED]",
+    )
+    wakes: bool = Field(default=True, description="Jensen wake deficits on downstream rows")
+    wake_expansion: float = Field(default=0.05, ge=0.0, le=0.2, description="–, Jensen wake decay k [PROPOSED]")
+    noise_convention: NoiseConvention = Field(
+        default="sigma", description="read the benchmark's sensor noise numbers as σ (papers) or as variances"
+    )
+    demand: FarmDemand = Field(default_factory=FarmDemand)
 
     @property
     def n_turbines(self) -> int:
-        return 9
+        return N_TURBINES
+
+    # -- geometry ---------------------------------------------------------------------------------------------
+    def position(self, turbine: int) -> tuple[float, float]:
+        """(x, y) in m of a turbine (1-based): x along the grid columns, y along the grid rows."""
+        col, row = (turbine - 1) % GRID, (turbine - 1) // GRID
+        return col * self.spacing_m, row * self.spacing_m
+
+    def along_wind_m(self, turbine: int) -> float:
+        """Distance in m of a turbine from the front row, along the wind (case 1: x; case 2: (x + y)/√2)."""
+        x, y = self.position(turbine)
+        return x if self.wind_case == 1 else (x + y) / math.sqrt(2.0)
+
+    def rows(self) -> list[tuple[int, ...]]:
+        """The rows of the wind case, front to back: turbines at the same distance along the wind."""
+        by_distance: dict[float, list[int]] = {}
+        for t in range(1, N_TURBINES + 1):
+            by_distance.setdefault(round(self.along_wind_m(t), 6), []).append(t)
+        return [tuple(by_distance[d]) for d in sorted(by_distance)]
+
+    def row_of(self) -> list[int]:
+        """Row index (0 = front) of turbines 1 … 9."""
+        out = [0] * N_TURBINES
+        for i, members in enumerate(self.rows()):
+            for t in members:
+                out[t - 1] = i
+        return out
+
+    def row_distances_m(self) -> list[float]:
+        """Distance in m of each row from the front row, along the wind."""
+        return [self.along_wind_m(members[0]) for members in self.rows()]
 
 
 def check_farm_fault(fault: FaultSpec, n_turbines: int) -> list[tuple[str, str]]:
-    return [("target", "farm faults are not available yet")]
+    """Problems with one fault on a farm turbine, as (field, message) pairs; empty when it is valid.
+
+    The farm's own faults (debris on the rotor, a pitch command offset, drive-train wear) are checked here; every
+    other fault is a fault of the single turbine and follows ``check_turbine_fault``.
+    """
+    pitch = {f"pitch_actuator_{i}" for i in (1, 2, 3)}
+    farm_kind = {FaultKind.DEBRIS: {"rotor"}, FaultKind.DRIVETRAIN_WEAR: {"drivetrain"}}
+    if fault.target == "rotor" and fault.kind is not FaultKind.DEBRIS:
+        return [("kind", f"{fault.kind.value!r} cannot act on the rotor; use 'debris'")]
+    if fault.kind in farm_kind and fault.target not in farm_kind[fault.kind]:
+        return [("target", f"a {fault.kind.value} fault acts on {sorted(farm_kind[fault.kind])[0]!r}")]
+    if fault.kind not in farm_kind and not (fault.kind is FaultKind.OFFSET and fault.target in pitch):
+        return check_turbine_fault(fault, n_turbines)
+    problems: list[tuple[str, str]] = []
+    if fault.turbine > n_turbines:
+        problems.append(("turbine", f"turbine {fault.turbine} does not exist (the farm has {n_turbines})"))
+    if fault.value is None:
+        problems.append(("value", f"a {fault.kind.value} fault needs a value"))
+        return problems
+    match fault.kind:
+        case FaultKind.DEBRIS:
+            if not 0.5 <= fault.value < 1.0:
+                problems.append(("value", f"{fault.value} is outside the range 0.5 … <1 (power output factor)"))
+        case FaultKind.OFFSET:
+            if not -5.0 <= fault.value <= 5.0 or fault.value == 0.0:
+                problems.append(("value", f"{fault.value} is outside the range −5 … 5 deg (nonzero)"))
+        case FaultKind.DRIVETRAIN_WEAR:
+            if not 0.0 < fault.value <= 20.0:
+                problems.append(("value", f"{fault.value} is outside the range 0 … 20 mrad (transmission error)"))
+    return problems
+
+
+def farm_fault_name(fault: FaultSpec) -> str:
+    """What a detector flags for this fault: a farm fault type, or the target of a turbine fault."""
+    if fault.kind in FARM_FAULT_NAMES and (fault.kind is not FaultKind.OFFSET or fault.target.startswith("pitch_")):
+        return FARM_FAULT_NAMES[fault.kind]
+    return fault.target

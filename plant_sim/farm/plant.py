@@ -1,0 +1,257 @@
+"""The nine-turbine farm following the step contract of ``wwcore.stepping``, batched over Monte Carlo runs.
+
+Rows are turbines of farms, farm-major (``wwcore.farm_frames``): the turbines are one ``TurbineBatch`` with
+``turbines = 1 … 9`` (each with its own controller, sensor noise and turbulence streams, ``row_streams``), driven by
+a ``FarmWindField`` (met mast, delays, wakes). With ``fault_free_twins`` every run has a second farm with the same
+wind and noise streams and no faults, for scoring what the faults cost (damage numbers).
+
+Tick k (100 Hz) of the farm:
+
+1. ``measure()``: at the start of each 10 Hz block (k mod 10 = 0) the wind field takes the turbines' aerodynamic
+   power and moves the wakes on; the turbines measure; their readings are summed into the block's SCADA means.
+   The last tick of a block (k mod 10 = 9) is a *farm sample*: SCADA means, a new met-mast reading (true mast wind
+   + noise) and the demand go out with the frame.
+2. ``control(refs)``: a newer ``FarmRefs`` sets each turbine's power reference (followed at the turbine's ramp
+   rate); the turbine controllers run.
+3. ``advance()``: the turbines integrate to k + 1.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+from scipy import signal
+
+from plant_sim.farm.controller import FarmTurbineController
+from plant_sim.farm.wind import (
+    CURVE_WINDS,
+    HISTORY_S,
+    MIN_MEAN_WIND,
+    FarmWindField,
+    MastSeries,
+    static_power_curve,
+    static_row_winds,
+)
+from plant_sim.turbine import TurbineBatch
+from plant_sim.turbine.dynamics import OMEGA_G, OMEGA_R, PITCH, TAU_G, THETA
+from plant_sim.turbine.plant import row_streams
+from plant_sim.turbine.trim import trim
+from wwcore.channels import N_SENSORS
+from wwcore.events import Event
+from wwcore.farm_frames import FarmFrame, FarmRefs
+from wwcore.scenario.farm import FARM_DT_S, N_TURBINES, FarmPlant
+from wwcore.scenario.faults import FaultSpec
+from wwcore.scenario.turbine import TurbinePlant
+from wwcore.scenario.wind import WindSpec
+from wwcore.turbine_params import BENCHMARK, TurbineParams
+
+MAST_TURBINE = 0  # turbine number of the met mast's random streams (row_streams(seed, run, 0))
+ROW_STREAM_BASE = 100  # row i's shared turbulence draws from row_streams(seed, run, 100 + i) (row_coherence > 0)
+TRIM_WINDS = np.arange(2.0, 35.01, 0.25)  # m/s, grid of the initial operating points
+
+
+def demand_series(plant: FarmPlant, params: TurbineParams, mast: MastSeries, duration_s: float) -> np.ndarray:
+    """P_ref,farm (W) of each run at every farm sample j (t = j·FARM_DT_S), shape (runs, samples)."""
+    n = int(np.ceil(duration_s / FARM_DT_S)) + 2
+    t = np.arange(n) * FARM_DT_S
+    spec = plant.demand
+    if spec.mode == "profile":
+        times, mw = zip(*spec.points, strict=True)
+        return np.broadcast_to(np.interp(t, times, mw) * 1e6, (mast.v.shape[0], n)).copy()
+    # Delta control: fraction × the farm's available power, from the free stream each row sees (the mast wind
+    # delayed by d_j/v̄, eq. (3)) averaged over ``averaging_s`` (first order) and the static wake model; set every
+    # ``update_s`` and held. Computed from the true wind: the demand is an exogenous signal, "below the available
+    # power" by construction up to the turbines' own turbulence.
+    runs = np.arange(mast.v.shape[0])[:, None, None]
+    d = plant.mast_distance_m + np.array(plant.row_distances_m())  # (rows,)
+    vbar = np.maximum(mast.vbar[:, mast.offset : mast.offset + n], MIN_MEAN_WIND)  # (runs, n)
+    delays = np.minimum(d[None, None, :] / vbar[:, :, None], HISTORY_S)  # (runs, n, rows)
+    rows_free = mast.at(np.broadcast_to(runs, delays.shape), t[None, :, None] - delays)
+    a = np.exp(-FARM_DT_S / spec.averaging_s)
+    avg, _ = signal.lfilter([1.0 - a], [1.0, -a], rows_free, axis=1, zi=rows_free[:, :1, :] * a)
+    held = np.minimum(np.rint(np.floor(t / spec.update_s) * spec.update_s / FARM_DT_S).astype(int), n - 1)
+    v_rows = static_row_winds(plant, params, avg[:, held, :])  # (runs, n, rows)
+    per_row = np.interp(v_rows, CURVE_WINDS, static_power_curve(params))
+    sizes = np.array([len(r) for r in plant.rows()], dtype=float)
+    return spec.fraction * (per_row @ sizes)
+
+
+class FarmBatch:
+    """``runs`` Monte Carlo runs of the farm (and their fault-free twins), one 100 Hz tick per step call."""
+
+    def __init__(
+        self,
+        plant: FarmPlant,
+        wind: WindSpec,
+        faults: Sequence[FaultSpec],
+        *,
+        seed: int,
+        duration_s: float,
+        runs: Sequence[int] = (0,),
+        params: TurbineParams = BENCHMARK,
+        fault_free_twins: bool = False,
+    ):
+        self.spec = plant
+        self.p = params
+        self.dt = params.dt
+        self.k = 0
+        self.runs = list(runs)
+        copies = 2 if fault_free_twins else 1
+        self.farms = copies * len(self.runs)
+        self.run_of_farm = np.tile(np.arange(len(self.runs)), copies)  # index into ``runs``
+        self.twin_of_farm = np.repeat(np.arange(copies) == 1, len(self.runs))
+        self.ticks_per_sample = round(FARM_DT_S / self.dt)
+        mast_streams = [row_streams(seed, int(r), MAST_TURBINE) for r in self.runs]
+        self.mast = MastSeries(plant, wind, [w for w, _ in mast_streams], duration_s)
+        self._mast_noise = [noise for _, noise in mast_streams]
+        self._mast_noise_chunk = np.empty((len(self.runs), 0))
+        self.demand = demand_series(plant, params, self.mast, duration_s)  # (runs, samples) W
+        wind_rngs = [
+            row_streams(seed, int(r), t)[0] for _ in range(copies) for r in self.runs for t in range(1, N_TURBINES + 1)
+        ]
+        n_rows = len(plant.rows())
+        row_rngs = [
+            row_streams(seed, int(r), ROW_STREAM_BASE + i)[0]
+            for _ in range(copies)
+            for r in self.runs
+            for i in range(n_rows)
+        ]
+        self.field = FarmWindField(
+            plant, wind, params, wind_rngs, self.mast, self.run_of_farm, self.dt, row_rngs=row_rngs
+        )
+        turbine_spec = TurbinePlant(noise_convention=plant.noise_convention, power_reference_w=params.rated_power)
+        self.turbines = TurbineBatch(
+            turbine_spec,
+            wind,
+            faults,
+            seed=seed,
+            runs=self.runs,
+            turbines=range(1, N_TURBINES + 1),
+            params=params,
+            wind_field=self.field,
+            fault_free_twins=fault_free_twins,
+        )
+        self.n = self.turbines.n
+        self.controller = FarmTurbineController(params, self.n, params.rated_power)
+        self.turbines.controller = self.controller
+        self._trim(self.field.row_wind[:, self.field.row_of_turbine].reshape(-1))
+        self._scada_sum = np.zeros((self.n, N_SENSORS))
+        self._power_ref_sum = np.zeros(self.n)
+        self.scada = np.zeros((self.n, N_SENSORS))
+        self.power_ref_used = np.full(self.n, params.rated_power)
+        self.mast_reading = self.mast.v[:, self.mast.offset].copy()
+        self._refs_tick = -1
+
+    # -- set-up -----------------------------------------------------------------------------------------------
+    def _trim(self, wind0: np.ndarray) -> None:
+        """Start every turbine at the steady operating point of its row's initial mean wind, at rated reference."""
+        points = [trim(self.p, float(v)) for v in TRIM_WINDS]
+        x = self.turbines.x
+        table = {name: np.array([getattr(op, name) for op in points]) for name in ("omega_r", "theta", "tau_g")}
+        x[:, OMEGA_R] = np.interp(wind0, TRIM_WINDS, table["omega_r"])
+        x[:, OMEGA_G] = x[:, OMEGA_R] * self.p.N_g
+        x[:, THETA] = np.interp(wind0, TRIM_WINDS, table["theta"])
+        x[:, TAU_G] = np.interp(wind0, TRIM_WINDS, table["tau_g"])
+        pitch = np.interp(wind0, TRIM_WINDS, [op.pitch for op in points])
+        zone = np.interp(wind0, TRIM_WINDS, [op.zone for op in points]) >= 0.5
+        x[:, PITCH] = pitch[:, None]
+        x[:, PITCH + 1] = 0.0
+        self.controller.initialise(zone.astype(np.int8), pitch, x[:, TAU_G].copy())
+
+    def row_of(self, farm: int, turbine: int) -> int:
+        return farm * N_TURBINES + turbine - 1
+
+    @property
+    def run_of_row(self) -> np.ndarray:
+        return self.turbines.run_of_row
+
+    @property
+    def turbine_of_row(self) -> np.ndarray:
+        return self.turbines.turbine_of_row
+
+    @property
+    def twin_of_row(self) -> np.ndarray:
+        return self.turbines.twin_of_row
+
+    def inject(self, fault: FaultSpec) -> None:
+        self.turbines.inject(fault)
+
+    def clear(self, label: str) -> bool:
+        return self.turbines.clear(label)
+
+    # -- the step contract ------------------------------------------------------------------------------------
+    @property
+    def t(self) -> float:
+        return self.k * self.dt
+
+    def measure(self) -> FarmFrame:
+        k, s = self.k, self.ticks_per_sample
+        tb = self.turbines
+        if k % s == 0:
+            self.field.update(k // s, tb.tau_aero * tb.x[:, OMEGA_R])
+            self._scada_sum[:] = 0.0
+            self._power_ref_sum[:] = 0.0
+        frame = tb.measure()
+        self._scada_sum += frame.sensors
+        self._power_ref_sum += frame.power_ref
+        sample = k % s == s - 1
+        if sample:
+            j = k // s + 1  # the sample closes at t = (k + 1)·dt = j·FARM_DT_S
+            self.scada = self._scada_sum * (1.0 / s)
+            self.power_ref_used = self._power_ref_sum * (1.0 / s)
+            self.mast_reading = self.mast.v[:, self.mast.offset + j] + self.spec.mast_noise_mps * self._mast_noise_now()
+        return FarmFrame(
+            k=k,
+            t=self.t,
+            turbines=frame,
+            sample=sample,
+            scada=self.scada,
+            power_ref_used=self.power_ref_used,
+            mast=self.mast_reading[self.run_of_farm],
+            demand=self.demand[self.run_of_farm, min((k + 1) // s, self.demand.shape[1] - 1)],
+        )
+
+    def control(self, refs: FarmRefs | None) -> None:
+        if refs is not None and refs.source_tick != self._refs_tick:
+            self._refs_tick = refs.source_tick
+            self.controller.set_reference(refs.power_ref)
+        self.turbines.control(None)
+
+    def advance(self) -> None:
+        self.turbines.advance()
+        self.k = self.turbines.k
+
+    def truth(self) -> dict[str, np.ndarray]:
+        """Ground truth for scoring and display only; the supervisor never reads it."""
+        out = self.turbines.truth()
+        out["shaft_torque"] = self.turbines.shaft_torque()
+        out["row_wind"] = self.field.row_wind[:, self.field.row_of_turbine].reshape(-1)
+        out["free_wind"] = self.field.free_wind[:, self.field.row_of_turbine].reshape(-1)
+        out["power_ref"] = self.controller.power_ref.copy()
+        return out
+
+    def drain_events(self) -> list[Event]:
+        return self.turbines.drain_events()
+
+    # -- truth for scoring (cheap, no copies) -----------------------------------------------------------------
+    def power_output(self) -> np.ndarray:
+        """True electrical power output of every turbine at this tick, W (n,)."""
+        return self.turbines.power_output()
+
+    def shaft_torque(self) -> np.ndarray:
+        """True low-speed shaft torque of every turbine at this tick, N m (n,)."""
+        return self.turbines.shaft_torque()
+
+    @property
+    def blade_torque(self) -> np.ndarray:
+        """True aerodynamic torque of each blade at this tick, N m (n, 3)."""
+        return self.turbines.blade_torque
+
+    # -- internals --------------------------------------------------------------------------------------------
+    def _mast_noise_now(self) -> np.ndarray:
+        """One unit-variance draw per run from the mast's own noise stream (drawn 1000 samples at a time)."""
+        if self._mast_noise_chunk.shape[1] == 0:
+            self._mast_noise_chunk = np.stack([rng.standard_normal(1000) for rng in self._mast_noise])
+        out, self._mast_noise_chunk = self._mast_noise_chunk[:, 0], self._mast_noise_chunk[:, 1:]
+        return out

@@ -1,0 +1,184 @@
+r"""The better farm detector, ``analytic``: residuals from each turbine's own measurements, no neighbour needed.
+
+The paper compares a turbine with its row, so it is blind where a turbine stands alone (wind case 2) and its
+residuals carry the turbulence difference between two rotors. Each of the three faults, however, breaks a
+relation *inside* one turbine whose only uncertainty is sensor noise of known size (PARAMETERS.md a.3, under the
+scenario's noise convention); so each residual below has a known distribution without the fault, and its alarm
+threshold follows from the false-alarm budget alone (no tuning on faulty runs). All residuals use the turbines'
+10 Hz SCADA means (mean of 10 readings; where a quantity has two sensors, of both).
+
+**Fault 1, debris** (the output falls to 0.97 of the generator's power at unchanged speed and torque):
+
+.. math::  z_1 = η_{gc}\,\bar ω_g\,\bar τ_g - \bar P_g,\qquad
+           σ_1^2 = \frac{σ_P^2}{10} + (η_{gc}\bar τ_g)^2\frac{σ_{ω_g}^2}{20} + (η_{gc}\bar ω_g)^2\frac{σ_τ^2}{10}
+
+Fault-free z_1 ~ N(0, σ_1²); with the fault z_1 = (1 − 0.97) η_gc ω̄_g τ̄_g =: μ_1. Page's CUSUM of the LLR
+increments (μ_1/σ_1²)(z_1 − μ_1/2) (the increments of the paper's eq. (7)).
+
+**Fault 2, pitch misalignment** (blade i held δ = 0.3 deg off the collective command): per blade,
+
+.. math::  z_{2,i} = \bar β_i - \tfrac12\sum_{j \ne i} \bar β_j
+
+with β̄_i the mean of blade i's two encoders. The collective command, the controller's compensation and the
+wind cancel; what is left is sensor noise, including the part that reaches the true pitch through the
+actuator (PARAMETERS.md a.2: the mean encoder error is added to the actuator's reference). Its variance σ_2² is
+computed from the published actuator and noise parameters (``pitch_residual_variance``). Two one-sided CUSUMs
+per blade, design shift ±δ.
+
+**Fault 3, drive train** (a 3P transmission error: the generator swings against the rotor at the planet-pass
+frequency): the torsion-rate residual
+
+.. math::  z_3 = \bar ω_g - N_g\,\bar ω_r,\qquad σ_3^2 = \frac{σ_{ω_g}^2}{20} + N_g^2 \frac{σ_{ω_r}^2}{20}
+
+is free of the wind (the rotor and the generator turn together below the 4.5 Hz torsion mode) and of the
+controller. Its 3P lock-in amplitude A (``signals.LockIn3P``, τ = 1.5 s) is Rayleigh-distributed without the
+fault (A/(2s) with s from σ_3), so the alarm is A ≥ h_3 with P(A > h_3) = p_3.
+
+**Thresholds from the budget.** With a budget of B false alarms per 1000 s of farm operation per fault type
+(``false_alarms_per_1000s``, default 0.01: ten times below the target 0.1, for the model's imperfections) and m
+one-sided tests per turbine (m = 1, 6, 1), each test may alarm once per ARL_0 = 10⁴ · 9 m / B samples. Page's CUSUM
+of LLRs has ARL_0 ≥ e^h (Lorden), so h = ln ARL_0 (faults 1, 2: h = 16.0, 17.8 at B = 0.01); for fault 3 the
+exceedance probability per sample is p_3 = B/(10⁴ · 9), a bound on the crossing rate (h_3 = 2s √(2 ln 1/p_3)).
+The end of a fault is decided by the reverse CUSUM (faults 1, 2; same h) or by A < h_3/2 for 3 s (fault 3).
+No test runs during the first ``warmup_s`` (filters settling).
+"""
+
+from __future__ import annotations
+
+import math
+from functools import lru_cache
+
+import numpy as np
+from scipy.signal import cont2discrete
+
+from service.farm.cusum import PageCusum, llr_increment, threshold_for
+from service.farm.interfaces import (
+    BETA,
+    N_TYPES,
+    OMEGA_G,
+    OMEGA_R,
+    P_G,
+    TAU_G,
+    FarmContext,
+    FarmDiagnosis,
+    FarmSample,
+)
+from service.farm.signals import LockIn3P, lockin_iq_std, rayleigh_threshold
+from wwcore.channels import SENSOR_INDEX
+from wwcore.scenario.farm import FARM_DT_S, N_TURBINES
+from wwcore.turbine_params import TurbineParams
+
+DEBRIS_FACTOR = 0.97  # design fault 1: output × 0.97 (PARAMETERS.md b)
+MISALIGNMENT_DEG = 0.3  # design fault 2 (PARAMETERS.md b)
+LOCKIN_TAU_S = 1.5  # s, 3P lock-in low-pass
+RELEASE_S = 3.0  # s, fault 3 ends after A < h_3/2 for this long
+TESTS_PER_TURBINE = (1, 6, 1)
+SAMPLES_PER_1000S = round(1000.0 / FARM_DT_S)
+
+
+@lru_cache(maxsize=8)
+def pitch_residual_variance(params: TurbineParams, sigma_beta: float, samples: int = 10) -> float:
+    """Variance (deg²) of z_2 = β̄_i − ½ Σ_{j≠i} β̄_j without faults, from the actuator and the encoder noise.
+
+    Per blade, the mean encoder error e_k (variance σ²/2, white at Ts) is read with the pitch and added to the
+    actuator's reference (PARAMETERS.md a.2), so the measured mean is y_k = e_k + Σ_{m≥1} h_m e_{k−m}, h the
+    zero-order-hold impulse response of ω_n²/(s² + 2ζω_n s + ω_n²). The variance of one block mean of y is
+    (σ²/2) Σ_k c_k², c = (1/10)·ones(10) * (δ + h); its long-run variance (what the CUSUM sums) is
+    (σ²/2)(Σ_k δ_k + h_k)²/10. We return the larger; the blades are independent, so var z_2 = (1 + 1/2) var ȳ.
+    """
+    wn, zeta, dt = params.pitch.omega_n, params.pitch.zeta, params.dt
+    a = np.array([[0.0, 1.0], [-(wn**2), -2.0 * zeta * wn]])
+    b = np.array([[0.0], [wn**2]])
+    ad, bd, *_ = cont2discrete((a, b, np.eye(2), np.zeros((2, 1))), dt, method="zoh")
+    length = 4000
+    h = np.zeros(length)
+    x = bd[:, 0].copy()  # state after one step of a unit reference pulse
+    for k in range(1, length):
+        h[k] = x[0]
+        x = ad @ x
+    impulse = h.copy()
+    impulse[0] += 1.0  # y_k = e_k + (h * e)_k
+    c = np.convolve(np.full(samples, 1.0 / samples), impulse)
+    var_mean = 0.5 * sigma_beta**2 * float(np.sum(c * c))
+    # Consecutive block means are correlated through the actuator (its 1.8 Hz bandwidth spans several samples),
+    # and a CUSUM adds them up: what governs its random walk is the long-run variance, the spectral density at
+    # zero frequency, (σ²/2)(Σ_k δ_k + h_k)²/10 per block mean (2.4 × the one-sample variance here).
+    long_run = 0.5 * sigma_beta**2 * float(np.sum(impulse)) ** 2 / samples
+    return 1.5 * max(var_mean, long_run)
+
+
+class AnalyticDetector:
+    """Per-turbine analytic-redundancy residuals with budget-derived thresholds (module docstring)."""
+
+    def __init__(self, *, context: FarmContext, options: dict | None = None):
+        options = options or {}
+        self.context = context
+        p = self.p = context.params
+        n = self.n = context.n
+        sig = context.sensor_sigma
+        self.var_p = sig[P_G] ** 2 / 10.0
+        self.var_w = sig[OMEGA_G[0]] ** 2 / 20.0
+        self.var_t = sig[TAU_G] ** 2 / 10.0
+        self.var_r = sig[OMEGA_R[0]] ** 2 / 20.0
+        beta_sigma = float(sig[SENSOR_INDEX["beta_1_m1"]])
+        self.var_2 = pitch_residual_variance(p, beta_sigma)
+        self.var_3 = self.var_w + p.N_g**2 * self.var_r
+        budget = float(options.get("false_alarms_per_1000s", 0.01))
+        self.budget = budget
+        arl = [SAMPLES_PER_1000S * N_TURBINES * m / budget for m in TESTS_PER_TURBINE]
+        self.h1, self.h2 = threshold_for(arl[0]), threshold_for(arl[1])
+        self.p3 = budget / (SAMPLES_PER_1000S * N_TURBINES)
+        self.s3 = float(lockin_iq_std(math.sqrt(self.var_3), LOCKIN_TAU_S))
+        self.h3 = float(rayleigh_threshold(self.s3, self.p3))
+        self.warmup = round(float(options.get("warmup_s", 10.0)) / FARM_DT_S)
+        self.cusum1 = PageCusum((n,), self.h1, self.h1)
+        self.cusum2 = PageCusum((n, 6), self.h2, self.h2)
+        self.lockin = LockIn3P(n, LOCKIN_TAU_S)
+        self.flag3 = np.zeros(n, dtype=bool)
+        self.quiet3 = np.zeros(n)  # s that A has been below h_3/2 while flagged
+        self.samples = 0
+        self.residuals = np.zeros((n, N_TYPES))
+
+    def thresholds(self) -> dict[str, float]:
+        return {"debris": self.h1, "pitch_misalignment": self.h2, "drivetrain": self.h3}
+
+    def step(self, sample: FarmSample) -> FarmDiagnosis:
+        p, n = self.p, self.n
+        y = sample.scada
+        omega_g = y[:, OMEGA_G].mean(axis=1)
+        omega_r = y[:, OMEGA_R].mean(axis=1)
+        tau_g = y[:, TAU_G]
+        # fault 1: z1 = η ω̄_g τ̄_g − P̄_g
+        p_gen = p.eta_gc * omega_g * tau_g
+        z1 = p_gen - y[:, P_G]
+        var1 = self.var_p + (p.eta_gc * tau_g) ** 2 * self.var_w + (p.eta_gc * omega_g) ** 2 * self.var_t
+        mu1 = (1.0 - DEBRIS_FACTOR) * np.abs(p_gen)
+        # fault 2: z2_i = β̄_i − ½ Σ_{j≠i} β̄_j, both signs
+        blades = y[:, BETA].mean(axis=2)
+        z2 = 1.5 * blades - 0.5 * blades.sum(axis=1, keepdims=True)
+        z2 = np.concatenate([z2, -z2], axis=1)  # (n, 6): +δ and −δ on each blade
+        # fault 3: 3P amplitude of z3 = ω̄_g − N ω̄_r
+        amplitude = self.lockin.step(omega_g - p.N_g * omega_r, omega_g / p.N_g)
+        self.samples += 1
+        self.residuals = np.column_stack([z1, np.abs(z2[:, :3]).max(axis=1), amplitude])
+        if self.samples <= self.warmup:
+            diagnosis = FarmDiagnosis(np.zeros((n, N_TYPES), dtype=bool), np.zeros((n, N_TYPES)), self._h(n))
+            diagnosis.extra = {"amplitude_3p": amplitude}
+            return diagnosis
+        f1 = self.cusum1.step(llr_increment(z1, 0.0, mu1, var1))
+        f2 = self.cusum2.step(llr_increment(z2, 0.0, MISALIGNMENT_DEG, self.var_2)).any(axis=1)
+        rise = amplitude >= self.h3
+        low = amplitude < 0.5 * self.h3
+        self.quiet3 = np.where(self.flag3 & low, self.quiet3 + FARM_DT_S, 0.0)
+        self.flag3 = (self.flag3 | rise) & ~(self.quiet3 >= RELEASE_S)
+        self.quiet3 = np.where(self.flag3, self.quiet3, 0.0)
+        diagnosis = FarmDiagnosis(
+            np.column_stack([f1, f2, self.flag3]),
+            np.column_stack([self.cusum1.g, self.cusum2.g.max(axis=1), amplitude]),
+            self._h(n),
+        )
+        diagnosis.extra = {"amplitude_3p": amplitude}
+        return diagnosis
+
+    def _h(self, n: int) -> np.ndarray:
+        return np.tile(np.array([self.h1, self.h2, self.h3]), (n, 1))

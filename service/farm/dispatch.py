@@ -1,0 +1,136 @@
+r"""Farm controllers: the load-distributing dispatch of seed 001 (``dispatch``) and the benchmark's PI (``pi``).
+
+**Available power** (eqs. (20)–(22)). Each turbine's wind is estimated from its pitch and power: in steady state
+the aerodynamic torque balances the drive train, τ̂_r = (N_g/η_dt)(τ̄_g + B_g ω̄_g) + B_r ω̂_r, and v solves
+½ρπR³ C_q(ω̂_r R/v, β̄) v² = τ̂_r (``wwcore.aero.wind_from_torque``; ω̂_r = ω̄_g/N_g, β̄ the mean of the six pitch
+encoders). That is eq. (20), "the wind from the pitch angle" through the C_q surface rather than the paper's
+lookup pair h⁻¹, g⁻¹, and with the measured torque instead of P_ref (equal in steady derated operation; the
+measured torque also holds when the turbine cannot reach its reference). Then
+
+.. math::
+
+    \hat P_a = \frac{τ_w}{s + α_w} P_a(w_{est}) \quad (21),\qquad
+    P_{avail} = \mathrm{pos}(\hat P_a - P_{ref}) + P_m \quad (22)
+
+with P_a(v) the steady available power (``power_curve``), α_w = τ_w = w_est/D [PROPOSED: the paper gives no
+values; one rotor transit time], P_ref the reference sent last and P_m the measured power.
+
+**Dispatch** (eqs. (18)–(19)): P_ref,t = P_avail,t / Σ P_avail · P_ref,farm, active only while
+P_ref,farm < Σ P_avail; otherwise every turbine gets rated power (it produces what it can).
+
+**Accommodation** (eqs. (23)–(26)), for turbines the detector flags (when accommodation is on):
+
+* debris: P_avail,f1 = 0.97 P_avail in the sum of (18), then P_ref,f1 = P_ref/0.97 (23)–(24);
+* pitch misalignment, drive train: P_over = Σ P_avail − P_ref,farm (25) and
+  P_avail,f = max(pos(P_avail − P_over), P_min), P_min = 50 kW (26), then (18) with P_avail,f. *Decision D-26*:
+  with several such turbines the headroom is shared out in turbine order, P_over shrinking by what each took.
+
+**PI** (the benchmark's reference controller, PARAMETERS.md b): e = (P_ref,farm − Σ P_m)/P_ref,farm,
+u = sat(K_p e + I), I = sat(I + K_i e Δt), sat = ±20 %; every turbine gets (1 + u) P_ref,farm / 9.
+K_p = 0.3, K_i = 0.05 1/s [PROPOSED].
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from service.farm.interfaces import BETA, OMEGA_G, P_G, TAU_G, FarmContext, FarmSample
+from service.farm.power_curve import available_power
+from wwcore import aero
+from wwcore.scenario.farm import FARM_DT_S, N_TURBINES, ROTOR_DIAMETER_M
+
+DEBRIS_FACTOR = 0.97  # eqs. (23)–(24)
+P_MIN_W = 50e3  # eq. (26)
+PI_KP, PI_KI, PI_LIMIT = 0.3, 0.05, 0.2  # PARAMETERS.md b [PROPOSED]
+DEBRIS, PITCH, DRIVETRAIN = 0, 1, 2  # columns of ``faulty``
+
+
+class Dispatch:
+    """Eqs. (18)–(26) for ``farms`` farms of nine turbines (module docstring)."""
+
+    def __init__(self, *, context: FarmContext, options: dict | None = None):
+        options = options or {}
+        self.context = context
+        self.p = context.params
+        # [PROPOSED] variant of eq. (26), off by default: never derate a faulty turbine below this share of its
+        # own available power (docs/farm.md, "graded accommodation"); 0 is the paper's P_min floor only.
+        self.floor = float(options.get("derate_floor", 0.0))
+        self.n = context.n
+        self.p_ref = np.full(self.n, self.p.rated_power)  # W, the references sent last
+        self.wind: np.ndarray | None = None  # m/s, w_est of eq. (20)
+        self.p_a_hat: np.ndarray | None = None  # W, eq. (21) state
+        self.p_avail = np.zeros(self.n)  # W, eq. (22), before accommodation
+        self.mode = np.zeros(self.n, dtype=np.int8)  # 0 normal, 1 debris (23)–(24), 2 derated (26)
+
+    def estimate_available(self, sample: FarmSample) -> np.ndarray:
+        """Eqs. (20)–(22): P_avail,t (n,) in W."""
+        p, y = self.p, sample.scada
+        omega_g = y[:, OMEGA_G].mean(axis=1)
+        omega_r = omega_g / p.N_g
+        pitch = y[:, BETA].mean(axis=(1, 2))
+        tau_r = p.N_g * (y[:, TAU_G] + p.B_g * omega_g) / p.eta_dt + p.B_r * omega_r
+        if self.wind is None:
+            guess = np.repeat(sample.mast, N_TURBINES)
+            self.wind = aero.wind_from_torque(tau_r, omega_r, pitch, guess, p, iterations=8)
+        else:
+            self.wind = aero.wind_from_torque(tau_r, omega_r, pitch, self.wind, p, iterations=3)  # eq. (20)
+        p_a = available_power(p, self.wind)
+        if self.p_a_hat is None:
+            self.p_a_hat = p_a.copy()
+        a = np.exp(-np.maximum(self.wind, 1.0) / ROTOR_DIAMETER_M * FARM_DT_S)
+        self.p_a_hat = a * self.p_a_hat + (1.0 - a) * p_a  # eq. (21), τ_w/(s + α_w) with τ_w = α_w
+        return np.maximum(self.p_a_hat - self.p_ref, 0.0) + y[:, P_G]  # eq. (22)
+
+    def step(self, sample: FarmSample, faulty: np.ndarray) -> np.ndarray:
+        farms = sample.farms
+        p_avail = self.estimate_available(sample)
+        self.p_avail = p_avail
+        avail = p_avail.reshape(farms, N_TURBINES).copy()
+        f = faulty.reshape(farms, N_TURBINES, -1)
+        demand = sample.demand
+        maximum = avail.sum(axis=1)  # the farm's theoretical maximum production, Σ P_avail (19)
+        debris = f[:, :, DEBRIS] & ~(f[:, :, PITCH] | f[:, :, DRIVETRAIN])
+        derate = f[:, :, PITCH] | f[:, :, DRIVETRAIN]
+        avail = np.where(debris, DEBRIS_FACTOR * avail, avail)  # eq. (23)
+        over = avail.sum(axis=1) - demand  # eq. (25)
+        for t in range(N_TURBINES):  # eq. (26), headroom shared out in turbine order (D-26)
+            hit = derate[:, t]
+            if hit.any():
+                reduced = np.maximum(np.maximum(avail[:, t] - np.maximum(over, 0.0), 0.0), P_MIN_W)
+                reduced = np.maximum(reduced, np.minimum(self.floor * avail[:, t], avail[:, t]))
+                taken = np.where(hit, avail[:, t] - reduced, 0.0)
+                avail[:, t] = np.where(hit, reduced, avail[:, t])
+                over = over - taken
+        total = avail.sum(axis=1)
+        active = demand < maximum  # the dispatch acts only below the farm's maximum production
+        share = avail / np.maximum(total, 1.0)[:, None] * demand[:, None]  # eq. (18)
+        share = np.where(debris, share / DEBRIS_FACTOR, share)  # eq. (24)
+        refs = np.where(active[:, None], share, self.p.rated_power)
+        refs = np.clip(refs, 0.0, self.p.rated_power).reshape(-1)
+        self.mode = np.where(derate, 2, np.where(debris, 1, 0)).astype(np.int8).reshape(-1)
+        self.p_ref = refs
+        return refs
+
+
+class PIFarmController:
+    """The benchmark's farm PI: equal shares of the demand, corrected by a PI on the farm power error."""
+
+    def __init__(self, *, context: FarmContext, options: dict | None = None):
+        options = options or {}
+        self.p = context.params
+        self.n = context.n
+        self.kp = float(options.get("pi_kp", PI_KP))
+        self.ki = float(options.get("pi_ki", PI_KI))
+        self.integral = np.zeros(context.farms)
+        self.mode = np.zeros(self.n, dtype=np.int8)
+        self.p_ref = np.full(self.n, self.p.rated_power)
+
+    def step(self, sample: FarmSample, faulty: np.ndarray) -> np.ndarray:
+        farm_power = sample.per_farm(sample.scada[:, P_G]).sum(axis=1)
+        demand = np.maximum(sample.demand, 1.0)
+        error = (demand - farm_power) / demand
+        self.integral = np.clip(self.integral + self.ki * error * FARM_DT_S, -PI_LIMIT, PI_LIMIT)
+        u = np.clip(self.kp * error + self.integral, -PI_LIMIT, PI_LIMIT)
+        refs = np.repeat(sample.demand * (1.0 + u) / N_TURBINES, N_TURBINES)
+        self.p_ref = np.clip(refs, 0.0, self.p.rated_power)
+        return self.p_ref

@@ -1,0 +1,92 @@
+r"""Signal processing shared by the farm detectors and the dispatch: the 3P lock-in and the met-mast processing.
+
+**3P lock-in amplitude.** The blade-passing (3P) content of a signal x at the rotor's own frequency: the phase
+φ_k = φ_{k−1} + 3 ω̂_r Δt follows the rotor (ω̂_r = ω̄_g/N_g, the generator encoders being the precise speed
+sensors), x is freed of its slow mean (first-order high-pass, ``hp_s``), demodulated and low-passed (first order,
+time constant τ):
+
+.. math::  I_k = \mathrm{LP}_τ\bigl(\tilde x_k \cos φ_k\bigr),\quad Q_k = \mathrm{LP}_τ\bigl(\tilde x_k \sin φ_k\bigr),
+           \qquad A_k = 2\sqrt{I_k^2 + Q_k^2}
+
+A sinusoid of amplitude a at 3P gives A → a. For white x of variance σ², I and Q are nearly independent Gaussians
+of variance s² = σ²(1 − e^{−Δt/τ}) / (2(1 + e^{−Δt/τ})), so A/(2s) is Rayleigh distributed:
+P(A > h) = exp(−h²/(8s²)) (``rayleigh_threshold``).
+
+**Met mast** (seed 001 eq. (3)). v̄ = H(s) v_mast with H(s) = 1/(s + 1), discretised exactly at 10 Hz; the wind
+at row j is the mast reading d_j/v̄ earlier (``MastDelays``).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from wwcore.scenario.farm import FARM_DT_S
+
+HISTORY_S = 1500.0  # s of mast readings kept for the delays d/v̄
+MIN_MEAN_WIND = 1.0  # m/s, floor of v̄ in d/v̄
+
+
+def rayleigh_threshold(s: float | np.ndarray, p: float) -> float | np.ndarray:
+    """h with P(A > h) = p for the lock-in amplitude A of white noise whose I/Q have standard deviation s."""
+    return 2.0 * s * np.sqrt(2.0 * math.log(1.0 / p))
+
+
+def lockin_iq_std(sigma: float | np.ndarray, tau_s: float, dt: float = FARM_DT_S) -> float | np.ndarray:
+    """s: standard deviation of I and Q for white input of standard deviation σ (module docstring)."""
+    a = math.exp(-dt / tau_s)
+    return sigma * np.sqrt((1.0 - a) / (2.0 * (1.0 + a)))
+
+
+class LockIn3P:
+    """3P lock-in amplitude of n signals (module docstring)."""
+
+    def __init__(self, n: int, tau_s: float, hp_s: float = 10.0, dt: float = FARM_DT_S):
+        self.dt = dt
+        self.a = math.exp(-dt / tau_s)
+        self.a_hp = math.exp(-dt / hp_s)
+        self.phase = np.zeros(n)
+        self.mean: np.ndarray | None = None
+        self.i = np.zeros(n)
+        self.q = np.zeros(n)
+        self.amplitude = np.zeros(n)
+
+    def step(self, x: np.ndarray, omega_r: np.ndarray) -> np.ndarray:
+        """Take x (n,) and the rotor speed ω_r (n,) rad/s of this sample; return the amplitude A (n,)."""
+        if self.mean is None:
+            self.mean = x.astype(float).copy()
+        self.mean = self.a_hp * self.mean + (1.0 - self.a_hp) * x
+        self.phase = np.mod(self.phase + 3.0 * omega_r * self.dt, 2.0 * math.pi)
+        xt = x - self.mean
+        self.i = self.a * self.i + (1.0 - self.a) * xt * np.cos(self.phase)
+        self.q = self.a * self.q + (1.0 - self.a) * xt * np.sin(self.phase)
+        self.amplitude = 2.0 * np.sqrt(self.i * self.i + self.q * self.q)
+        return self.amplitude
+
+
+class MastDelays:
+    """Eq. (3): the mean wind v̄ = H(s) v_mast and the mast reading delayed by d/v̄, for ``farms`` farms."""
+
+    def __init__(self, farms: int, dt: float = FARM_DT_S):
+        self.dt = dt
+        self.size = round(HISTORY_S / dt)
+        self.history = np.zeros((farms, self.size))
+        self.count = 0
+        self.vbar: np.ndarray | None = None
+        self._a = math.exp(-dt / 1.0)  # H(s) = 1/(s + 1): time constant 1 s
+
+    def step(self, mast: np.ndarray) -> None:
+        if self.vbar is None:
+            self.vbar = mast.astype(float).copy()
+            self.history[:] = mast[:, None]  # before the first reading: as the first reading
+        self.vbar = self._a * self.vbar + (1.0 - self._a) * mast
+        self.history[:, self.count % self.size] = mast
+        self.count += 1
+
+    def delayed(self, distances_m: np.ndarray) -> np.ndarray:
+        """Mast readings d/v̄ ago for each farm and distance, (farms, len(distances)), m/s."""
+        vbar = np.maximum(self.vbar, MIN_MEAN_WIND)
+        lag = np.minimum(np.rint(distances_m[None, :] / vbar[:, None] / self.dt).astype(np.intp), self.size - 1)
+        slot = (self.count - 1 - lag) % self.size
+        return self.history[np.arange(len(vbar))[:, None], slot]

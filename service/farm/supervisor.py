@@ -1,0 +1,101 @@
+"""The farm supervisor: a detector and a farm controller chosen by name, composed into the step contract.
+
+It runs on the plant's 10 Hz farm samples (``FarmFrame.sample``) and returns the same references in between.
+Events: DETECTION / RECOVERY when a turbine's flag of one of the three faults changes (target = the fault type,
+``wwcore.scenario.farm.FARM_FAULT_TYPES``), DISPATCH when a turbine's accommodation mode changes. Events carry
+``run`` = the farm index of the batch (the evaluator maps farms to Monte Carlo runs and twins).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from service.farm.interfaces import FarmContext, FarmDiagnosis, FarmSample
+from service.plugins import FARM_CONTROLLERS, FARM_DETECTORS
+from wwcore.events import Event, EventType
+from wwcore.farm_frames import FarmFrame, FarmRefs
+from wwcore.scenario.farm import FARM_FAULT_TYPES, N_TURBINES, FarmPlant
+from wwcore.turbine_params import BENCHMARK, TurbineParams
+
+DEFAULT_DETECTOR = "analytic"
+DEFAULT_CONTROLLER = "dispatch"
+MODES = ("normal", "debris", "derated")  # accommodation modes of the dispatch (DISPATCH event detail)
+
+
+class FarmSupervisor:
+    """Supervises ``n // 9`` farms of nine turbines (rows farm-major)."""
+
+    def __init__(
+        self,
+        plant: FarmPlant,
+        n: int,
+        *,
+        detector: str | None = None,
+        controller: str | None = None,
+        accommodation: bool = True,
+        options: dict | None = None,
+        params: TurbineParams = BENCHMARK,
+    ):
+        options = options or {}
+        self.context = FarmContext(plant, n, params)
+        self.detector = FARM_DETECTORS.create(detector or DEFAULT_DETECTOR, context=self.context, options=options)
+        self.controller = FARM_CONTROLLERS.create(
+            controller or DEFAULT_CONTROLLER, context=self.context, options=options
+        )
+        self.accommodation = accommodation
+        self.n = n
+        self.dt = params.dt
+        self.turbine_of_row = np.tile(np.arange(1, N_TURBINES + 1), n // N_TURBINES)
+        self.farm_of_row = np.repeat(np.arange(n // N_TURBINES), N_TURBINES)
+        self.flags = np.zeros((n, len(FARM_FAULT_TYPES)), dtype=bool)
+        self.mode = np.zeros(n, dtype=np.int8)
+        self.diagnosis: FarmDiagnosis | None = None
+        self.sample: FarmSample | None = None
+        self.refs: FarmRefs | None = None
+        self.last_tick = -1  # tick of the last frame stepped
+        self._events: list[Event] = []
+
+    def step(self, frame: FarmFrame) -> FarmRefs | None:
+        """Refs answering tick ``frame.k``: new on farm samples, the last ones (re-stamped) in between."""
+        self.last_tick = frame.k
+        if not frame.sample:
+            if self.refs is None:
+                return None
+            return FarmRefs(tick=frame.k, power_ref=self.refs.power_ref, computed_tick=self.refs.source_tick)
+        sample = FarmSample.from_frame(frame, self.dt)
+        diagnosis = self.detector.step(sample)
+        faulty = diagnosis.faulty if self.accommodation else np.zeros_like(diagnosis.faulty)
+        power_ref = self.controller.step(sample, faulty)
+        self._record(sample.t, diagnosis)
+        self.diagnosis, self.sample = diagnosis, sample
+        self.refs = FarmRefs(tick=frame.k, power_ref=power_ref)
+        return self.refs
+
+    def drain_events(self) -> list[Event]:
+        events, self._events = self._events, []
+        return events
+
+    def _record(self, t: float, diagnosis: FarmDiagnosis) -> None:
+        changed = diagnosis.faulty != self.flags
+        if changed.any():
+            for row, col in zip(*np.nonzero(changed), strict=True):
+                kind = EventType.DETECTION if diagnosis.faulty[row, col] else EventType.RECOVERY
+                self._events.append(self._event(t, kind, row, FARM_FAULT_TYPES[col]))
+            self.flags = diagnosis.faulty.copy()
+        mode = getattr(self.controller, "mode", None)
+        if mode is not None:
+            switched = mode != self.mode
+            for row in np.flatnonzero(switched):
+                detail = {"from": MODES[int(self.mode[row])], "to": MODES[int(mode[row])]}
+                self._events.append(self._event(t, EventType.DISPATCH, row, None, detail))
+            self.mode = mode.copy()
+
+    def _event(self, t: float, kind: EventType, row: int, target: str | None, detail: dict | None = None) -> Event:
+        return Event(
+            t=t,
+            type=kind,
+            turbine=int(self.turbine_of_row[row]),
+            target=target,
+            run=int(self.farm_of_row[row]),
+            detail=detail or {},
+        )

@@ -1,0 +1,112 @@
+"""Dispatch eqs. (18)–(26) and the PI farm controller on hand-computed numbers; eqs. (20)–(22) at a trim point."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from plant_sim.turbine.trim import trim
+from service.farm.dispatch import Dispatch, PIFarmController
+from service.farm.interfaces import BETA, OMEGA_G, OMEGA_R, P_G, TAU_G, FarmContext, FarmSample
+from wwcore.channels import N_SENSORS
+from wwcore.scenario.farm import FarmPlant
+from wwcore.turbine_params import BENCHMARK as P
+
+MW = 1e6
+
+
+def _sample(demand_mw: float, power_mw: np.ndarray | None = None) -> FarmSample:
+    scada = np.zeros((9, N_SENSORS))
+    if power_mw is not None:
+        scada[:, P_G] = power_mw * MW
+    return FarmSample(
+        j=1,
+        t=0.1,
+        scada=scada,
+        zone=np.zeros(9, dtype=np.int8),
+        power_ref_used=np.zeros(9),
+        mast=np.array([10.0]),
+        demand=np.array([demand_mw * MW]),
+    )
+
+
+def _dispatch(avail_mw: list[float]) -> Dispatch:
+    d = Dispatch(context=FarmContext(FarmPlant(), 9))
+    d.estimate_available = lambda sample: np.asarray(avail_mw, dtype=float) * MW  # eqs. (20)–(22) stubbed
+    return d
+
+
+def _faulty(**turbines_types) -> np.ndarray:
+    f = np.zeros((9, 3), dtype=bool)
+    for t, col in turbines_types.items():
+        f[int(t[1:]) - 1, col] = True
+    return f
+
+
+def test_eq_18_shares_the_demand_by_available_power():
+    refs = _dispatch([1, 2, 3, 1, 2, 3, 1, 2, 3]).step(_sample(12.0), _faulty())
+    assert refs / MW == pytest.approx(np.array([1, 2, 3] * 3) / 18.0 * 12.0)
+
+
+def test_no_dispatch_when_demand_exceeds_the_available_power():
+    refs = _dispatch([2.0] * 9).step(_sample(20.0), _faulty())
+    assert np.all(refs == P.rated_power)
+
+
+def test_eqs_23_24_debris_lowers_the_share_then_raises_the_reference():
+    refs = _dispatch([2.0] * 9).step(_sample(12.0), _faulty(t1=0)) / MW
+    # Σ = 8·2 + 0.97·2 = 17.94; t1: 1.94/17.94·12/0.97; others 2/17.94·12 (all equal to 1.337792…)
+    assert refs[0] == pytest.approx(1.94 / 17.94 * 12.0 / 0.97)
+    assert refs[1:] == pytest.approx(np.full(8, 2.0 / 17.94 * 12.0))
+    assert 8 * refs[1] + 0.97 * refs[0] == pytest.approx(12.0)  # the farm still makes its demand
+
+
+def test_eqs_25_26_derate_a_faulty_turbine_to_p_min_when_the_others_can_cover():
+    refs = _dispatch([2.0] * 9).step(_sample(12.0), _faulty(t2=2)) / MW
+    # P_over = 18 − 12 = 6 > 2 → P_avail,f = max(pos(2 − 6), 0.05) = 0.05; Σ = 16.05
+    assert refs[1] == pytest.approx(0.05 / 16.05 * 12.0)
+    assert refs[0] == pytest.approx(2.0 / 16.05 * 12.0)
+
+
+def test_eq_26_only_takes_the_headroom():
+    refs = _dispatch([2.0] * 9).step(_sample(17.0), _faulty(t2=1)) / MW
+    # P_over = 1 → P_avail,f = 2 − 1 = 1; Σ = 17 → refs = P_avail exactly
+    assert refs[1] == pytest.approx(1.0) and refs[0] == pytest.approx(2.0)
+
+
+def test_eq_26_with_two_faulty_turbines_shares_the_headroom_in_turbine_order():
+    refs = _dispatch([2.0] * 9).step(_sample(14.5), _faulty(t2=2, t5=1)) / MW
+    # P_over = 3.5: t2 → max(2 − 3.5, 0.05) = 0.05 (takes 1.95), P_over = 1.55: t5 → 2 − 1.55 = 0.45
+    total = 7 * 2.0 + 0.05 + 0.45
+    assert refs[1] == pytest.approx(0.05 / total * 14.5)
+    assert refs[4] == pytest.approx(0.45 / total * 14.5)
+    assert refs.sum() == pytest.approx(14.5)
+
+
+def test_eqs_20_22_recover_the_wind_and_the_available_power_at_a_steady_point():
+    op = trim(P, 14.0, 3.0 * MW)  # derated to 3 MW at 14 m/s: pitched, at Ω_nom
+    d = Dispatch(context=FarmContext(FarmPlant(), 9))
+    d.p_ref = np.full(9, 3.0 * MW)
+    scada = np.zeros((9, N_SENSORS))
+    scada[:, OMEGA_G] = op.omega_g
+    scada[:, OMEGA_R] = op.omega_r
+    scada[:, TAU_G] = op.tau_g
+    scada[:, BETA] = op.pitch
+    scada[:, P_G] = op.power
+    sample = FarmSample(
+        1, 0.1, scada, np.ones(9, dtype=np.int8), np.full(9, 3 * MW), np.array([14.0]), np.array([20 * MW])
+    )
+    avail = d.estimate_available(sample)
+    assert d.wind == pytest.approx(np.full(9, 14.0), rel=2e-3)  # eq. (20)
+    assert avail == pytest.approx(np.full(9, 4.8 * MW), rel=1e-3)  # eq. (22): pos(4.8 − 3) + 3
+
+
+def test_pi_controller_by_hand():
+    pi = PIFarmController(context=FarmContext(FarmPlant(), 9))
+    refs = pi.step(_sample(12.0, np.full(9, 10.0 / 9.0)), _faulty())
+    e = (12.0 - 10.0) / 12.0
+    u = 0.3 * e + 0.05 * e * 0.1
+    assert refs / MW == pytest.approx(np.full(9, 12.0 / 9.0 * (1.0 + u)))
+    for _ in range(2000):  # a persistent error saturates at +20 %
+        refs = pi.step(_sample(12.0, np.full(9, 5.0 / 9.0)), _faulty())
+    assert refs / MW == pytest.approx(np.full(9, 12.0 / 9.0 * 1.2))

@@ -1,0 +1,430 @@
+"""``windwarden eval`` for the nine-turbine farm (seed 001): Monte Carlo runs of the farm and its supervisor.
+
+Per run (``FarmBatch``), and when the scenario has faults also its fault-free twin farm (same wind and noise
+streams, no faults, same supervisor), in one batch. The scorecard has the schema of the turbine kind:
+
+* ``faults``: one entry per scheduled fault window (``scoring.score_faults``), target ``wt<k>:<type>``; a
+  detection counts on the window's turbine; *isolated* means the flagged fault type was the right one;
+* ``false_alarms_per_1000s``: detections outside every window of their turbine, per 1000 turbine-seconds;
+* ``metrics.detection``: Table 5 per fault type: detection rate and delay with the right type, false
+  positives of that type per 1000 s (farm-seconds, the paper's basis, and turbine-seconds), on these runs;
+* ``metrics.over_production`` / ``metrics.missing_power``: ∫ pos(P_farm − P_ref,farm) dt and
+  ∫ pos(P_ref,farm − P_farm) dt after the warm-up, P_farm the farm's true output (10 Hz block means), per run;
+* ``metrics.damage``: drive-train damage numbers (DEL of the shaft torque, rainflow, m = 4, over the fault-free
+  twin's; ``plant_sim.farm.damage``) per fault window and per farm, and the rotor imbalance of pitch faults.
+
+``--compare`` adds the companion runs Tables 5–7 need (the paper's detector; the fault-free farm with the
+dispatch and with the PI; no accommodation) and writes ``farm_tables.md`` (``farm_tables``) and the plots.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field, replace
+from typing import Any
+
+import numpy as np
+
+from plant_sim.farm import FarmBatch
+from plant_sim.farm.damage import (
+    ReversalRecorder,
+    damage_sums,
+    del_from_sums,
+    imbalance_phasor,
+)
+from service.farm.interfaces import N_TYPES
+from service.farm.supervisor import DEFAULT_CONTROLLER, DEFAULT_DETECTOR, FarmSupervisor
+from service.plugins import FARM_CONTROLLERS, FARM_DETECTORS
+from windwarden.evaluation.kinds import EvalOptions, Evaluation
+from windwarden.evaluation.parallel import run_chunks
+from windwarden.evaluation.scoring import FaultWindow, score_faults
+from wwcore.events import Event, EventType
+from wwcore.scenario import Scenario
+from wwcore.scenario.farm import FARM_DT_S, FARM_FAULT_TYPES, N_TURBINES, farm_fault_name
+
+WARMUP_S = 60.0  # s: the paper's wind-direction estimate (500 samples), filters and dispatch settle; not scored
+GRACE_S = 10.0  # s after a fault ends during which its detections still count and its end must be recognised
+DAMAGE_BIN_S = 10.0  # s, time resolution of the damage sums (Fig. 4)
+MAX_CHUNK = 50  # runs per process at most: 100 runs are two chunks of 50 (900 turbine rows and their twins)
+PROGRESS_EVERY = 1000  # ticks between progress reports
+TURBINES = tuple(range(1, N_TURBINES + 1))
+
+
+# ---- fault windows ------------------------------------------------------------------------------------------
+def farm_windows(scenario: Scenario) -> list[FaultWindow]:
+    """One window per fault, its target the flagged name (debris, pitch_misalignment, drivetrain, or a sensor)."""
+    out = []
+    for f in sorted(scenario.faults, key=lambda f: (f.start_s, f.turbine)):
+        end = scenario.duration_s if f.end_s is None else min(f.end_s, scenario.duration_s)
+        out.append(FaultWindow(f.label, (farm_fault_name(f),), f.turbine, f.start_s, end))
+    return out
+
+
+def scorecard_target(w: FaultWindow) -> str:
+    return f"wt{w.turbine}:{w.target}"
+
+
+# ---- one chunk of runs ------------------------------------------------------------------------------------------
+@dataclass
+class ChunkResult:
+    runs: list[int]
+    events: list[Event]  # run = Monte Carlo run; twin events have detail["twin"] = True
+    over_j: np.ndarray  # (farms,) J
+    missing_j: np.ndarray  # (farms,) J
+    demand_j: np.ndarray  # (farms,) J
+    damage: np.ndarray  # (farms, 9, bins) Σ n S^m per DAMAGE_BIN_S bin
+    imbalance: np.ndarray  # (farms, 9, windows) complex mean rotating-frame imbalance over each fault window
+    twins: bool
+    trace: dict[str, np.ndarray] = field(default_factory=dict)  # farm 0 (and its twin), 10 Hz
+
+
+def simulate_chunk(
+    run_ids: list[int],
+    progress,
+    scenario: Scenario,
+    seed: int,
+    detector: str,
+    controller: str,
+    accommodation: bool,
+    options: dict,
+    twins: bool,
+) -> ChunkResult:
+    plant = FarmBatch(
+        scenario.plant,
+        scenario.wind,
+        scenario.faults,
+        seed=seed,
+        duration_s=scenario.duration_s,
+        runs=run_ids,
+        fault_free_twins=twins,
+    )
+    sup = FarmSupervisor(
+        scenario.plant,
+        plant.n,
+        detector=detector,
+        controller=controller,
+        accommodation=accommodation,
+        options=options,
+    )
+    dt, farms, n = plant.dt, plant.farms, plant.n
+    n_steps = round(scenario.duration_s / dt)
+    per_sample = plant.ticks_per_sample
+    warm_sample = round(WARMUP_S / FARM_DT_S)
+    windows = farm_windows(scenario)
+    bins = np.arange(0, n_steps + 1, round(DAMAGE_BIN_S / dt))
+    if bins[-1] != n_steps:
+        bins = np.append(bins, n_steps)
+    recorder = ReversalRecorder(n)
+    power_sum = np.zeros(n)
+    over = np.zeros(farms)
+    missing = np.zeros(farms)
+    demand_e = np.zeros(farms)
+    imb_sum = np.zeros((n, len(windows)), dtype=complex)
+    imb_count = np.zeros(len(windows))
+    trace_on = 0 in run_ids
+    r0 = run_ids.index(0) if trace_on else 0
+    trace_farms = [r0] + ([r0 + len(run_ids)] if twins else [])
+    trace: dict[str, list] = {k: [] for k in ("t", "power", "demand", "power_t", "ref_t", "stat", "thr", "flags")}
+    events: list[Event] = []
+    refs = None
+    for k in range(n_steps):
+        frame = plant.measure()
+        plant.control(refs)
+        refs = sup.step(frame)
+        power_sum += plant.power_output()
+        recorder.step(k, plant.shaft_torque())
+        if frame.sample:
+            j = (k + 1) // per_sample
+            p_farm = (power_sum * (1.0 / per_sample)).reshape(farms, N_TURBINES).sum(axis=1)
+            power_sum[:] = 0.0
+            if j > warm_sample:
+                gap = p_farm - frame.demand
+                over += np.maximum(gap, 0.0) * FARM_DT_S
+                missing += np.maximum(-gap, 0.0) * FARM_DT_S
+                demand_e += frame.demand * FARM_DT_S
+            t = j * FARM_DT_S
+            for i, w in enumerate(windows):
+                if w.start_s <= t < w.end_s:
+                    imb_sum[:, i] += imbalance_phasor(plant.blade_torque)
+                    imb_count[i] += 1
+            if trace_on:
+                diag = sup.diagnosis
+                rows = np.concatenate([np.arange(f * N_TURBINES, (f + 1) * N_TURBINES) for f in trace_farms])
+                trace["t"].append(t)
+                trace["power"].append(p_farm[trace_farms])
+                trace["demand"].append(frame.demand[trace_farms])
+                trace["power_t"].append(frame.scada[rows, -1])
+                trace["ref_t"].append(refs.power_ref[rows] if refs is not None else np.full(len(rows), np.nan))
+                trace["stat"].append(diag.statistics[rows] if diag is not None else np.zeros((len(rows), N_TYPES)))
+                trace["thr"].append(diag.thresholds[rows] if diag is not None else np.zeros((len(rows), N_TYPES)))
+                trace["flags"].append(diag.faulty[rows] if diag is not None else np.zeros((len(rows), N_TYPES)))
+        plant.advance()
+        if (k + 1) % PROGRESS_EVERY == 0:
+            events += plant.drain_events() + sup.drain_events()
+            progress(PROGRESS_EVERY * dt)
+    events += plant.drain_events() + sup.drain_events()
+    progress((n_steps % PROGRESS_EVERY) * dt)
+    recorder.finish(n_steps)
+    damage = np.stack([damage_sums(tk, v, bins) for tk, v in recorder.sequences()]).reshape(farms, N_TURBINES, -1)
+    with np.errstate(invalid="ignore"):
+        imbalance = (imb_sum / np.maximum(imb_count, 1)).reshape(farms, N_TURBINES, -1)
+    return ChunkResult(
+        runs=list(run_ids),
+        events=[_relabel(e, plant.run_of_farm, plant.twin_of_farm, run_ids) for e in events],
+        over_j=over,
+        missing_j=missing,
+        demand_j=demand_e,
+        damage=damage,
+        imbalance=imbalance,
+        twins=twins,
+        trace={k: np.asarray(v) for k, v in trace.items()} if trace_on else {},
+    )
+
+
+def _relabel(event: Event, run_of_farm: np.ndarray, twin_of_farm: np.ndarray, run_ids: list[int]) -> Event:
+    """Supervisor events carry the farm index as ``run``; plant events the Monte Carlo run already."""
+    if event.type in (EventType.FAULT_INJECTED, EventType.FAULT_CLEARED):
+        return event
+    farm = event.run
+    detail = dict(event.detail)
+    if twin_of_farm[farm]:
+        detail["twin"] = True
+    return replace(event, run=int(run_ids[run_of_farm[farm]]), detail=detail)
+
+
+# ---- merging and scoring ------------------------------------------------------------------------------------------
+@dataclass
+class Variant:
+    """All runs of one configuration, merged in run order (farms: the runs, then their twins if any)."""
+
+    scenario: Scenario
+    runs: int
+    seed: int
+    detector: str
+    controller: str
+    accommodation: bool
+    events: list[Event]  # main farms
+    twin_events: list[Event]
+    over_j: np.ndarray  # (runs,)
+    missing_j: np.ndarray
+    demand_j: np.ndarray
+    damage: np.ndarray  # (runs, 9, bins)
+    twin_damage: np.ndarray | None
+    imbalance: np.ndarray  # (runs, 9, windows) complex
+    twin_imbalance: np.ndarray | None
+    trace: dict[str, np.ndarray]
+
+
+def run_variant(
+    scenario: Scenario,
+    runs: int,
+    seed: int,
+    options: EvalOptions,
+    *,
+    detector: str,
+    controller: str,
+    accommodation: bool,
+    twins: bool,
+    label: str | None = None,
+) -> Variant:
+    parts: list[ChunkResult] = run_chunks(
+        simulate_chunk,
+        runs,
+        scenario.duration_s * (2 if twins else 1),
+        args=(scenario, seed, detector, controller, accommodation, dict(scenario.supervisor.params), twins),
+        chunk=min(MAX_CHUNK, max(1, -(-runs // 2))),  # two chunks or more: both cores work; depends on runs only
+        workers=options.workers,
+        label=label or scenario.name,
+        show_progress=options.progress,
+    )
+    order = np.argsort(np.concatenate([p.runs for p in parts]))
+
+    def main(name: str) -> np.ndarray:
+        return np.concatenate([getattr(p, name)[: len(p.runs)] for p in parts])[order]
+
+    def twin(name: str) -> np.ndarray | None:
+        if not twins:
+            return None
+        return np.concatenate([getattr(p, name)[len(p.runs) :] for p in parts])[order]
+
+    events = sorted((e for p in parts for e in p.events), key=lambda e: (e.run, e.t))
+    return Variant(
+        scenario=scenario,
+        runs=runs,
+        seed=seed,
+        detector=detector,
+        controller=controller,
+        accommodation=accommodation,
+        events=[e for e in events if not e.detail.get("twin")],
+        twin_events=[e for e in events if e.detail.get("twin")],
+        over_j=main("over_j"),
+        missing_j=main("missing_j"),
+        demand_j=main("demand_j"),
+        damage=main("damage"),
+        twin_damage=twin("damage"),
+        imbalance=main("imbalance"),
+        twin_imbalance=twin("imbalance"),
+        trace=next((p.trace for p in parts if p.trace), {}),
+    )
+
+
+def detection_by_type(events: list[Event], windows: list[FaultWindow], runs: int, duration_s: float) -> dict:
+    """Table 5 per fault type: detected %, mean/max delay with the right type, false positives of that type."""
+    out = {}
+    farm_seconds = runs * (duration_s - WARMUP_S)
+    for name in FARM_FAULT_TYPES:
+        typed = [e for e in events if e.target == name]
+        wins = [w for w in windows if w.target == name]
+        entries, rate, raw = score_faults(typed, wins, runs, duration_s, GRACE_S, WARMUP_S, turbines=TURBINES)
+        delays = [e["delay_s_mean"] for e in entries if e["delay_s_mean"] is not None]
+        detected = [e["detected_pct"] for e in entries]
+        out[name] = {
+            "windows": len(wins),
+            "detected_pct": float(np.mean(detected)) if detected else None,
+            "missed_pct": float(100.0 - np.mean(detected)) if detected else None,
+            "delay_s_mean": float(np.mean(delays)) if delays else None,
+            "delay_s_max": max((e["delay_s_max"] for e in entries if e["delay_s_max"] is not None), default=None),
+            "false_positives": raw["count"],
+            "false_positives_per_1000s": 1000.0 * raw["count"] / farm_seconds if farm_seconds > 0 else 0.0,
+            "false_positives_per_1000_turbine_s": rate,
+        }
+    return out
+
+
+def damage_metrics(v: Variant, windows: list[FaultWindow]) -> dict[str, Any]:
+    """Damage numbers (DEL / twin DEL) per fault window and for the farm; imbalance of pitch faults."""
+    if v.twin_damage is None:
+        return {}
+    t_edges = np.arange(v.damage.shape[2] + 1) * DAMAGE_BIN_S
+    scored = t_edges[:-1] >= WARMUP_S  # the warm-up is left out, as everywhere
+    duration = scored.sum() * DAMAGE_BIN_S
+    if duration <= 0.0:
+        return {"note": f"the run is not longer than the {WARMUP_S:g} s warm-up"}
+    per_window, by_type = [], {name: [] for name in FARM_FAULT_TYPES}
+    for i, w in enumerate(windows):
+        t = w.turbine - 1
+        run_ratio = del_from_sums(v.damage[:, t, scored].sum(axis=1), duration) / del_from_sums(
+            v.twin_damage[:, t, scored].sum(axis=1), duration
+        )
+        inside = (t_edges[:-1] >= w.start_s) & (t_edges[:-1] < w.end_s)
+        span = max(inside.sum() * DAMAGE_BIN_S, DAMAGE_BIN_S)
+        win_ratio = del_from_sums(v.damage[:, t, inside].sum(axis=1), span) / del_from_sums(
+            v.twin_damage[:, t, inside].sum(axis=1), span
+        )
+        entry = {
+            "fault": w.name,
+            "target": scorecard_target(w),
+            "damage_number_run": float(np.mean(run_ratio)),
+            "damage_number_window": float(np.mean(win_ratio)),
+        }
+        if w.target == "pitch_misalignment":
+            imb = np.abs(v.imbalance[:, t, i])
+            imb_ff = np.abs(v.twin_imbalance[:, t, i])
+            entry["imbalance_nm"] = float(np.mean(imb))
+            entry["imbalance_fault_free_nm"] = float(np.mean(imb_ff))
+            entry["imbalance_ratio"] = float(np.mean(imb) / max(np.mean(imb_ff), 1e-12))
+        per_window.append(entry)
+        if w.target in by_type:
+            by_type[w.target].append(entry)
+    farm = del_from_sums(v.damage[:, :, scored].sum(axis=(1, 2)), duration) / del_from_sums(
+        v.twin_damage[:, :, scored].sum(axis=(1, 2)), duration
+    )
+    summary = {}
+    for name, entries in by_type.items():
+        if entries:
+            summary[name] = {
+                "damage_number_run": float(np.mean([e["damage_number_run"] for e in entries])),
+                "damage_number_window": float(np.mean([e["damage_number_window"] for e in entries])),
+            }
+            if name == "pitch_misalignment":
+                summary[name]["imbalance_nm"] = float(np.mean([e["imbalance_nm"] for e in entries]))
+                summary[name]["imbalance_ratio"] = float(np.mean([e["imbalance_ratio"] for e in entries]))
+    return {
+        "definition": "DEL of the low-speed shaft torque (rainflow, Wöhler m = 4, N_eq 1 Hz) of the faulty turbine "
+        "over the run ('run') or over the fault window ('window'), divided by the same turbine's DEL in the fault-"
+        "free twin run; imbalance: |mean rotating-frame phasor Σ τ_r,i e^(j2π(i−1)/3)| over the window, N m",
+        "by_type": summary,
+        "farm_damage_number": float(np.mean(farm)),
+        "per_fault": per_window,
+    }
+
+
+def power_metrics(v: Variant) -> dict[str, Any]:
+    """∫ pos(P_farm − P_ref,farm) dt and ∫ pos(P_ref,farm − P_farm) dt after the warm-up, MWh per run."""
+    mwh = 1.0 / 3.6e9
+    demand = float(np.sum(v.demand_j))
+    return {
+        "over_production": {
+            "mwh_per_run": float(np.mean(v.over_j) * mwh),
+            "fraction_of_demand": float(np.sum(v.over_j) / demand) if demand > 0 else None,
+        },
+        "missing_power": {
+            "mwh_per_run": float(np.mean(v.missing_j) * mwh),
+            "fraction_of_demand": float(np.sum(v.missing_j) / demand) if demand > 0 else None,
+        },
+    }
+
+
+def scorecard_of(v: Variant) -> dict[str, Any]:
+    scenario = v.scenario
+    windows = farm_windows(scenario)
+    entries, fa_rate, fa_raw = score_faults(
+        v.events, windows, v.runs, scenario.duration_s, GRACE_S, WARMUP_S, turbines=TURBINES
+    )
+    for entry, w in zip(entries, windows, strict=True):
+        entry["target"] = scorecard_target(w)
+    metrics: dict[str, Any] = power_metrics(v)
+    metrics["damage"] = damage_metrics(v, windows)
+    metrics["detection"] = detection_by_type(v.events, windows, v.runs, scenario.duration_s)
+    card = {
+        "scenario": scenario.name,
+        "runs": v.runs,
+        "seed": v.seed,
+        "duration_s": scenario.duration_s,
+        "wind_case": scenario.plant.wind_case,
+        "detector": v.detector,
+        "controller": v.controller,
+        "accommodation": v.accommodation,
+        "false_alarms_per_1000s": fa_rate,
+        "false_alarms": fa_raw,
+        "faults": entries,
+        "metrics": metrics,
+    }
+    if v.twin_events:
+        count = sum(1 for e in v.twin_events if e.type is EventType.DETECTION and e.t >= WARMUP_S)
+        observed = v.runs * (scenario.duration_s - WARMUP_S) * N_TURBINES
+        card["false_alarms_twin"] = {"count": count, "observed_s": observed, "per_1000s": 1000.0 * count / observed}
+    return card
+
+
+def evaluate(scenario: Scenario, runs: int, seed: int, options: EvalOptions) -> Evaluation:
+    detector = options.detector or scenario.supervisor.detector or DEFAULT_DETECTOR
+    controller = options.controller or scenario.supervisor.controller or DEFAULT_CONTROLLER
+    FARM_DETECTORS.factory(detector)  # unknown names are refused before anything runs
+    FARM_CONTROLLERS.factory(controller)
+    twins = bool(scenario.faults) and options.twins  # --no-twins: detection only, no damage numbers
+    main = run_variant(
+        scenario,
+        runs,
+        seed,
+        options,
+        detector=detector,
+        controller=controller,
+        accommodation=options.accommodation,
+        twins=twins,
+    )
+    card = scorecard_of(main)
+    extra: dict[str, str] = {}
+    companions: dict[str, Variant] = {}
+    if options.compare:
+        from windwarden.evaluation.farm_tables import comparison_runs, tables_markdown
+
+        companions = comparison_runs(scenario, runs, seed, options, main)
+        extra["farm_tables.md"] = tables_markdown(scenario, main, companions)
+        card["comparison"] = {name: scorecard_of(v)["metrics"] for name, v in companions.items()}
+
+    def plot(out_dir):
+        from windwarden.evaluation.farm_plots import write_plots
+
+        return write_plots(out_dir, scenario, main, companions)
+
+    return Evaluation(card, plot=plot, extra_files=extra)

@@ -1,0 +1,262 @@
+"""Live adapter of the nine-turbine wind farm (seed 001).
+
+Plant and supervisor are built as ``windwarden.evaluation.farm.simulate_chunk`` builds run 0 of
+``windwarden eval SCENARIO --seed S`` (``FarmBatch(..., seed=S, runs=[0])``; the supervisor with the scenario's
+detector and controller and accommodation on). The plant ticks at 100 Hz and publishes every turbine's frame each
+tick; every tenth tick carries the 10 Hz farm sample (SCADA means, met mast, demand) the supervisor computes on.
+The supervisor answers every tick (its references change on farm samples only).
+
+Scorecard of a live run: the batch schema, with detection figures from the event log and the farm's
+over-production and missing power from the truth the plant node feeds ``FarmScore``. Damage numbers need the
+fault-free twin farm and are batch-only.
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING, Any, ClassVar
+
+import numpy as np
+
+from windwarden.evaluation.scoring import score_faults
+from windwarden.live.adapters.base import RunInfo, finite_or_none, records_from_batch
+from wwcore.events import Event
+from wwcore.farm_frames import FarmFrame, FarmRefs
+from wwcore.scenario import FaultSpec, Scenario
+from wwcore.scenario.farm import FARM_DT_S, FARM_FAULT_TYPES, N_TURBINES, FarmPlant
+from wwcore.turbine_frames import TurbineFrame
+from wwcore.wire import FARM_REFS, FARM_SENSORS, FARM_TRUTH
+
+if TYPE_CHECKING:  # the plant process never imports the supervisor's code, nor the supervisor the plant's
+    from plant_sim.farm import FarmBatch
+    from service.farm.supervisor import FarmSupervisor
+
+MODES = ("normal", "debris", "derated")
+
+
+class FarmAdapter:
+    kind = "farm"
+    example_fault: ClassVar[dict[str, Any]] = {
+        "target": "drivetrain",
+        "kind": "drivetrain_wear",
+        "value": 5.0,
+        "turbine": 9,
+        "start_s": 0.0,
+        "end_s": 1e5,
+        "name": "drive-train wear on turbine 9",
+    }
+    sensors = FARM_SENSORS
+    refs = FARM_REFS
+    truth = FARM_TRUTH
+
+    def make_plant(self, scenario: Scenario, seed: int) -> FarmBatch:
+        from plant_sim.farm import FarmBatch
+
+        return FarmBatch(
+            scenario.plant, scenario.wind, scenario.faults, seed=seed, duration_s=scenario.duration_s, runs=[0]
+        )
+
+    def make_supervisor(self, info: RunInfo) -> FarmSupervisor:
+        from service.farm.supervisor import FarmSupervisor
+
+        sup = info.supervisor
+        return FarmSupervisor(
+            FarmPlant.model_validate(info.plant),
+            len(info.turbines),
+            detector=sup.get("detector"),
+            controller=sup.get("controller"),
+            options=dict(sup.get("params") or {}),
+        )
+
+    def turbines(self, plant: FarmBatch) -> list[int]:
+        return [int(t) for t in plant.turbine_of_row]
+
+    # -- wire -------------------------------------------------------------------------------------------------------
+    def frame_records(self, frame: FarmFrame, turbines: list[int]) -> np.ndarray:
+        f = frame.turbines
+        values = {
+            "tick": frame.k,
+            "t": frame.t,
+            "sensors": f.sensors,
+            "tau_g_ref": f.tau_g_ref,
+            "beta_ref": f.beta_ref,
+            "power_ref": f.power_ref,
+            "zone": f.zone,
+            "sample": frame.sample,
+            "scada": frame.scada,
+            "power_ref_used": frame.power_ref_used,
+            "mast": np.repeat(frame.mast, N_TURBINES),
+            "demand": np.repeat(frame.demand, N_TURBINES),
+        }
+        return records_from_batch(FARM_SENSORS, values, turbines)
+
+    def frame_from_records(self, records: np.ndarray) -> FarmFrame:
+        k, t = int(records["tick"][0]), float(records["t"][0])
+        farms = len(records) // N_TURBINES
+        first = np.arange(farms) * N_TURBINES
+        return FarmFrame(
+            k=k,
+            t=t,
+            turbines=TurbineFrame(
+                k,
+                t,
+                np.array(records["sensors"]),
+                np.array(records["tau_g_ref"]),
+                np.array(records["beta_ref"]),
+                np.array(records["power_ref"]),
+                np.array(records["zone"]),
+            ),
+            sample=bool(records["sample"][0]),
+            scada=np.array(records["scada"]),
+            power_ref_used=np.array(records["power_ref_used"]),
+            mast=np.array(records["mast"][first]),
+            demand=np.array(records["demand"][first]),
+        )
+
+    def refs_records(self, refs: FarmRefs | None, supervisor: FarmSupervisor, turbines: list[int]) -> np.ndarray:
+        n = len(turbines)
+        diag = supervisor.diagnosis
+        values: dict[str, Any] = {
+            "tick": supervisor.last_tick,
+            "computed_tick": -1 if refs is None else refs.source_tick,
+            "power_ref": np.full(n, np.nan) if refs is None else refs.power_ref,
+            "mode": supervisor.mode,
+        }
+        if diag is not None:
+            values |= {"flags": supervisor.flags, "statistic": diag.statistics, "threshold": diag.thresholds}
+        return records_from_batch(FARM_REFS, values, turbines)
+
+    def refs_from_records(self, records: np.ndarray) -> FarmRefs | None:
+        computed = int(records["computed_tick"][0])
+        if computed < 0:
+            return None  # no farm sample yet: the turbines keep their own reference
+        return FarmRefs(tick=int(records["tick"][0]), power_ref=np.array(records["power_ref"]), computed_tick=computed)
+
+    def truth_records(self, plant: FarmBatch, frame: FarmFrame, turbines: list[int]) -> np.ndarray:
+        truth = plant.truth()
+        farm_power = truth["power"].reshape(-1, N_TURBINES).sum(axis=1)
+        values = {
+            "tick": plant.k,
+            "t": plant.t,
+            "omega_r": truth["omega_r"],
+            "omega_g": truth["omega_g"],
+            "pitch": truth["pitch"],
+            "power": truth["power"],
+            "power_ref": truth["power_ref"],
+            "shaft_torque": truth["shaft_torque"],
+            "wind_rotor": truth["wind_rotor"],
+            "row_wind": truth["row_wind"],
+            "zone": truth["zone"],
+            "farm_power": np.repeat(farm_power, N_TURBINES),
+        }
+        return records_from_batch(FARM_TRUTH, values, turbines)
+
+    # -- faults -----------------------------------------------------------------------------------------------------
+    def inject(self, plant: FarmBatch, fault: FaultSpec) -> None:
+        plant.inject(fault)
+
+    def clear(self, plant: FarmBatch, label: str) -> None:
+        if not plant.clear(label):
+            raise KeyError(label)
+
+    # -- status -----------------------------------------------------------------------------------------------------
+    def status(self, supervisor: FarmSupervisor, refs: np.ndarray | None, turbines: list[int]) -> list[dict[str, Any]]:
+        diag = supervisor.diagnosis
+        controller = supervisor.controller
+        avail = getattr(controller, "p_avail", None)
+        out = []
+        for row, turbine in enumerate(turbines):
+            entry: dict[str, Any] = {
+                "turbine": turbine,
+                "flagged": [FARM_FAULT_TYPES[j] for j in np.flatnonzero(supervisor.flags[row])],
+                "dispatch_mode": MODES[int(supervisor.mode[row])],
+                "detector": type(supervisor.detector).__name__,
+            }
+            if diag is not None:
+                entry["margins"] = {
+                    name: finite_or_none(diag.margins[row, j]) for j, name in enumerate(FARM_FAULT_TYPES)
+                }
+            if supervisor.refs is not None:
+                entry["power_ref_w"] = finite_or_none(supervisor.refs.power_ref[row])
+            if avail is not None and len(avail) == len(turbines):
+                entry["available_power_w"] = finite_or_none(avail[row])
+            if refs is not None:
+                entry["tick"] = int(refs[row]["tick"])
+            out.append(entry)
+        return out
+
+    # -- scoring ----------------------------------------------------------------------------------------------------
+    def score(self, scenario: Scenario, n_steps: int, dt: float) -> FarmScore:
+        return FarmScore(scenario, n_steps, dt)
+
+    def scorecard(
+        self, scenario: Scenario, seed: int, faults: list[FaultSpec], events: list[Event], metrics: dict[str, Any]
+    ) -> dict[str, Any]:
+        from service.farm.supervisor import DEFAULT_CONTROLLER, DEFAULT_DETECTOR
+        from windwarden.evaluation.farm import GRACE_S, TURBINES, WARMUP_S, detection_by_type, farm_windows
+
+        live = scenario.model_copy(update={"faults": faults})
+        windows = farm_windows(live)
+        entries, fa_rate, fa_raw = score_faults(
+            events, windows, 1, scenario.duration_s, GRACE_S, WARMUP_S, turbines=TURBINES
+        )
+        for entry, w in zip(entries, windows, strict=True):
+            entry["target"] = f"wt{w.turbine}:{w.target}"
+        sup = scenario.supervisor
+        return {
+            "scenario": scenario.name,
+            "runs": 1,
+            "seed": seed,
+            "duration_s": scenario.duration_s,
+            "wind_case": scenario.plant.wind_case,
+            "detector": sup.detector or DEFAULT_DETECTOR,
+            "controller": sup.controller or DEFAULT_CONTROLLER,
+            "accommodation": True,
+            "false_alarms_per_1000s": fa_rate,
+            "false_alarms": fa_raw,
+            "faults": entries,
+            "metrics": {
+                "over_production": metrics.get("over_production", {}),
+                "missing_power": metrics.get("missing_power", {}),
+                "damage": {"note": "damage numbers need the fault-free twin farm: windwarden eval (batch) only"},
+                "detection": detection_by_type(events, windows, 1, scenario.duration_s),
+            },
+        }
+
+
+class FarmScore:
+    """Farm power (true, 10 Hz block means) against the demand, after the warm-up, as the batch evaluator sums it."""
+
+    def __init__(self, scenario: Scenario, n_steps: int, dt: float):
+        from windwarden.evaluation.farm import WARMUP_S
+
+        self.n_steps = n_steps
+        self.per_sample = round(FARM_DT_S / dt)
+        self.warm_sample = round(WARMUP_S / FARM_DT_S)
+        self.power_sum = 0.0
+        self.over = self.missing = self.demand = 0.0
+
+    def on_tick(self, k: int, frame: FarmFrame, plant: FarmBatch) -> None:
+        self.power_sum += float(plant.power_output().sum())
+        if frame.sample:
+            j = (k + 1) // self.per_sample
+            p_farm = self.power_sum / self.per_sample
+            self.power_sum = 0.0
+            if j > self.warm_sample:
+                gap = p_farm - float(frame.demand[0])
+                self.over += max(gap, 0.0) * FARM_DT_S
+                self.missing += max(-gap, 0.0) * FARM_DT_S
+                self.demand += float(frame.demand[0]) * FARM_DT_S
+
+    def on_refs(self, k: int, refs: np.ndarray) -> None:
+        """The references reach the plant through ``control``; nothing to score here."""
+
+    def result(self, faults: list[FaultSpec]) -> dict[str, Any]:
+        mwh = 1.0 / 3.6e9
+        frac = (lambda x: x / self.demand) if self.demand > 0 else (lambda x: None)
+        return {
+            "over_production": {"mwh_per_run": self.over * mwh, "fraction_of_demand": frac(self.over)},
+            "missing_power": {"mwh_per_run": self.missing * mwh, "fraction_of_demand": frac(self.missing)},
+        }
+
+
+ADAPTER = FarmAdapter()

@@ -1,0 +1,52 @@
+"""What the wind-farm plant sends to the farm supervisor each tick, and what the supervisor sends back.
+
+Rows are turbines of farms: row ``f·9 + (t − 1)`` is turbine t of farm f (a Monte Carlo run, or its fault-free
+twin). The plant ticks at the turbines' 100 Hz; the farm level works at 10 Hz (``wwcore.scenario.farm.FARM_DT_S``):
+every tenth tick is a *farm sample*, carrying the turbines' SCADA values (the means of their last ten sensor
+samples, an anti-aliasing average), a new met-mast reading and the demand. The supervisor computes on farm
+samples and holds its references in between.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from wwcore.turbine_frames import TurbineFrame
+
+
+@dataclass
+class FarmFrame:
+    """Tick k of the farm plant: every turbine's sensors, and on farm samples the 10 Hz farm-level signals."""
+
+    k: int  # tick index (100 Hz)
+    t: float  # s, k·dt
+    turbines: TurbineFrame  # (n, …) the turbines' own frames of this tick
+    sample: bool  # this tick closes a 10 Hz farm sample: the fields below are new
+    scada: np.ndarray  # (n, N_SENSORS) means of the last ten sensor readings, channel units
+    power_ref_used: np.ndarray  # (n,) W, the power reference each turbine's controller used
+    mast: np.ndarray  # (farms,) m/s, met-mast wind reading (10 Hz, held in between)
+    demand: np.ndarray  # (farms,) W, the farm power demand P_ref,farm
+
+    @property
+    def farms(self) -> int:
+        return len(self.mast)
+
+
+@dataclass
+class FarmRefs:
+    """Per-turbine power references P_ref,t (W), the supervisor's answer to the frame of tick ``tick``.
+
+    They were computed from the farm sample of tick ``computed_tick`` (≤ tick; the supervisor answers every tick
+    and computes every tenth). Each turbine's controller takes a reference when ``computed_tick`` is new and keeps
+    the last one it received while none arrives (a set point, not an estimate: it does not go stale).
+    """
+
+    tick: int
+    power_ref: np.ndarray  # (n,) W
+    computed_tick: int | None = None  # None: the same as ``tick``
+
+    @property
+    def source_tick(self) -> int:
+        return self.tick if self.computed_tick is None else self.computed_tick
