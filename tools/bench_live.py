@@ -28,7 +28,7 @@ import httpx
 from windwarden.live.router import free_port
 from wwcore.scenario import dump_scenario, load_scenario, parse_scenario
 
-SCENARIOS = {"turbine": "ftwse-2012", "hydro": "hydro-fig9"}
+SCENARIOS = {"turbine": "ftwse-2012", "hydro": "hydro-fig9", "farm": "farm-case1"}
 
 
 def bench_scenario(kind: str, seconds: float, folder: Path) -> Path:
