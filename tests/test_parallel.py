@@ -1,0 +1,40 @@
+"""The split of runs into process chunks changes no number: every row draws from its own streams."""
+
+from __future__ import annotations
+
+import tomllib
+
+import numpy as np
+import pytest
+
+from tests.live.helpers import TURBINE_SHORT
+from windwarden.evaluation.parallel import chunk_runs
+from windwarden.evaluation.turbine import simulate_chunk
+from wwcore.scenario import parse_scenario
+
+
+def test_chunks_cover_every_run_once_and_use_both_cores():
+    assert chunk_runs(1) == [[0]]
+    assert chunk_runs(2) == [[0], [1]]
+    assert chunk_runs(10) == [[0, 2, 4, 6, 8], [1, 3, 5, 7, 9]]
+    for runs in (3, 25, 50, 51, 100):
+        chunks = chunk_runs(runs)
+        assert len(chunks) >= 2
+        assert max(len(c) for c in chunks) <= 25
+        assert sorted(r for c in chunks for r in c) == list(range(runs))
+
+
+def _key(events) -> list[tuple]:
+    return sorted((e.run, round(e.t, 9), e.type.value, e.target, e.turbine) for e in events)
+
+
+def test_turbine_runs_give_the_same_events_and_errors_in_one_chunk_or_two():
+    scenario = parse_scenario(tomllib.loads(TURBINE_SHORT))
+    args = (scenario, 77, "benchmark", "uio-bank", {}, True)
+    together = simulate_chunk([0, 1], lambda s: None, *args)
+    apart = [simulate_chunk([r], lambda s: None, *args) for r in (0, 1)]
+    assert _key(together.events) == _key(apart[0].events + apart[1].events)
+    assert any(e.type.value == "detection" for e in together.events)  # the comparison has something to compare
+    for name, total in together.sq_err.items():
+        np.testing.assert_allclose(total, apart[0].sq_err[name] + apart[1].sq_err[name], rtol=1e-9, atol=1e-12)
+    assert together.counts == pytest.approx(apart[0].counts + apart[1].counts)
