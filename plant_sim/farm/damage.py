@@ -4,9 +4,9 @@ r"""Damage measures of the farm (PARAMETERS.md b: the benchmark's damage numbers
 (``TurbineBatch.shaft_torque``, 100 Hz truth), is reduced online to its turning points (``ReversalRecorder``;
 reversals smaller than ``GATE_NM`` are filtered out, the usual hysteresis gate of fatigue practice: a cycle of
 30 kN m carries 8e-8 of the damage of a 1 MN m cycle at m = 4; on the shipped farm the DEL moves by 0.06–0.15 %
-against a 10 kN m gate while the turning points, and the rainflow time, drop 2.5-fold). The turning points are rainflow counted
-(ASTM E1049, the maintained ``rainflow`` package; half cycles count ½) and the damage-equivalent load at
-N_eq = 1 cycle per second over the span T is
+against a 10 kN m gate while the turning points, and the rainflow time, drop 2.5-fold). The turning points are
+rainflow counted (ASTM E1049, the maintained ``rainflow`` package; half cycles count ½) and the damage-equivalent
+load at N_eq = 1 cycle per second over the span T is
 
 .. math::  \mathrm{DEL} = \Bigl(\frac{1}{T}\sum_i n_i S_i^{m}\Bigr)^{1/m},\qquad m = 4 \text{ (Wöhler exponent)}
 

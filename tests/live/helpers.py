@@ -70,6 +70,28 @@ start_s = 20.0
 end_s = 26.0
 """
 
+FARM_SHORT = """
+name = "farm-short"
+duration_s = 80.0
+[plant]
+kind = "farm"
+wind_case = 2
+[plant.demand]
+mode = "available_fraction"
+fraction = 0.8
+update_s = 10.0
+[wind]
+mean = [[0.0, 10.0], [80.0, 11.0]]
+[[faults]]
+name = "F1 debris wt5"
+target = "rotor"
+kind = "debris"
+value = 0.97
+turbine = 5
+start_s = 65.0
+end_s = 75.0
+"""
+
 
 def scenario(text: str, **update: object) -> Scenario:
     s = parse_scenario(tomllib.loads(text))

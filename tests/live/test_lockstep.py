@@ -14,7 +14,7 @@ import json
 
 import pytest
 
-from tests.live.helpers import HYDRO_SHORT, TURBINE_SHORT, LiveNodes, router, scenario
+from tests.live.helpers import FARM_SHORT, HYDRO_SHORT, TURBINE_SHORT, LiveNodes, router, scenario
 from windwarden.evaluation.kinds import EvalOptions, evaluator_for
 from windwarden.live.batch import run_batch
 from windwarden.live.finalize import finalize_scorecard
@@ -37,7 +37,9 @@ def _lockstep(tmp_path, text, seed):
     return scn, read_events(tmp_path / "run" / EVENTS), card
 
 
-@pytest.mark.parametrize("text, seed", [(HYDRO_SHORT, 1), (TURBINE_SHORT, 3)], ids=["hydro", "turbine"])
+@pytest.mark.parametrize(
+    "text, seed", [(HYDRO_SHORT, 1), (TURBINE_SHORT, 3), (FARM_SHORT, 5)], ids=["hydro", "turbine", "farm"]
+)
 def test_lockstep_equals_batch(tmp_path, text, seed):
     scn, events, card = _lockstep(tmp_path, text, seed)
     batch = run_batch(scn, seed)

@@ -234,6 +234,7 @@ class FarmScore:
         self.warm_sample = round(WARMUP_S / FARM_DT_S)
         self.power_sum = 0.0
         self.over = self.missing = self.demand = 0.0
+        self.have = np.zeros(n_steps, dtype=bool)  # ticks whose references reached the plant
 
     def on_tick(self, k: int, frame: FarmFrame, plant: FarmBatch) -> None:
         self.power_sum += float(plant.power_output().sum())
@@ -248,7 +249,9 @@ class FarmScore:
                 self.demand += float(frame.demand[0]) * FARM_DT_S
 
     def on_refs(self, k: int, refs: np.ndarray) -> None:
-        """The references reach the plant through ``control``; nothing to score here."""
+        """The references reach the plant through ``control``; here only counted, per tick."""
+        if 0 <= k < self.n_steps:
+            self.have[k] = True
 
     def result(self, faults: list[FaultSpec]) -> dict[str, Any]:
         mwh = 1.0 / 3.6e9
@@ -256,6 +259,7 @@ class FarmScore:
         return {
             "over_production": {"mwh_per_run": self.over * mwh, "fraction_of_demand": frac(self.over)},
             "missing_power": {"mwh_per_run": self.missing * mwh, "fraction_of_demand": frac(self.missing)},
+            "ticks_without_refs": int((~self.have).sum()),
         }
 
 
