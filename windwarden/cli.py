@@ -44,7 +44,9 @@ def _add_eval(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--no-accommodation", action="store_true", help="farm: dispatch without fault accommodation")
     p.add_argument("--no-compensation", action="store_true", help="hydro: do not apply the virtual actuator")
     p.add_argument("--compare", action="store_true", help="also write the paper-comparison tables and plots")
-    p.add_argument("--no-twins", action="store_true", help="turbine: no fault-free twin runs (as a live run)")
+    p.add_argument(
+        "--no-twins", action="store_true", help="no fault-free twins (turbine: as a live run; farm: no damage numbers)"
+    )
     p.add_argument("--plugin", action="append", default=[], help="import this module first (registers algorithms)")
     p.add_argument("--workers", type=_positive_int, default=None, help="processes (default: all cores)")
     p.add_argument("--no-plots", action="store_true", help="skip the PNG plots")
