@@ -13,14 +13,13 @@ from windwarden.evaluation.turbine import simulate_chunk
 from wwcore.scenario import parse_scenario
 
 
-def test_chunks_cover_every_run_once_and_use_both_cores():
+def test_chunks_cover_every_run_once_and_depend_on_the_run_count_only():
     assert chunk_runs(1) == [[0]]
-    assert chunk_runs(2) == [[0], [1]]
-    assert chunk_runs(10) == [[0, 2, 4, 6, 8], [1, 3, 5, 7, 9]]
-    for runs in (3, 25, 50, 51, 100):
-        chunks = chunk_runs(runs)
-        assert len(chunks) >= 2
-        assert max(len(c) for c in chunks) <= 25
+    assert chunk_runs(10, 5) == [[0, 2, 4, 6, 8], [1, 3, 5, 7, 9]]
+    for runs, chunk in ((3, 25), (25, 25), (51, 25), (100, 50), (100, 25)):
+        chunks = chunk_runs(runs, chunk)
+        assert len(chunks) == -(-runs // chunk)
+        assert max(len(c) for c in chunks) <= chunk
         assert sorted(r for c in chunks for r in c) == list(range(runs))
 
 

@@ -90,8 +90,8 @@ def bench_turbine(args: argparse.Namespace) -> int:
     console.print(
         f"batching {args.runs} runs: ×{speedup:.1f} run-seconds per wall second over one run; "
         f"one process would take {minutes:.1f} min for {args.runs} runs × 4400 s "
-        f"({'with' if args.twins else 'without'} fault-free twins). `windwarden eval` splits runs into chunks of "
-        "at most 25 and runs one chunk per core."
+        f"({'with' if args.twins else 'without'} fault-free twins). `windwarden eval` runs up to 50 turbine runs "
+        "(and their twins) in one process, one such chunk per core."
     )
     return 0
 

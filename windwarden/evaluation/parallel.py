@@ -24,13 +24,12 @@ DEFAULT_CHUNK = 25
 
 
 def chunk_runs(runs: int, chunk: int = DEFAULT_CHUNK) -> list[list[int]]:
-    """Run indices split into chunks of at most ``chunk`` runs, spread evenly; two chunks at least (from two runs).
+    """Run indices split into chunks of at most ``chunk`` runs, spread evenly.
 
-    A step's cost is mostly per tick, not per row, so two half batches on two cores take about half the time of
-    one. The split depends on the number of runs only, and every row draws from its own streams, so the numbers
-    do not depend on it (``tests/test_parallel.py``).
+    The split depends on the number of runs only, and every row draws from its own streams, so the numbers do not
+    depend on it (``tests/test_parallel.py``).
     """
-    n_chunks = max(min(2, runs), -(-runs // chunk))
+    n_chunks = max(1, -(-runs // chunk))
     return [list(range(runs))[i::n_chunks] for i in range(n_chunks)]
 
 
