@@ -245,15 +245,15 @@ class TurbineBatch:
         j = self.k % self.noise_chunk
         if j == 0 or len(self._noise) == 0:
             size = (self.noise_chunk, len(SENSORS))
-            # Twin rows (second half) share their run's streams, hence its numbers: draw the first half only.
+            # Twin rows (second half) share their run's streams, hence its numbers: draw the first half only and
+            # repeat it once per chunk, not per tick.
             rngs = self._noise_rngs[: self._noise_rows]
             block = np.empty((len(rngs), *size))
             for i, rng in enumerate(rngs):
                 block[i] = rng.standard_normal(size)
-            self._noise = np.empty((size[0], len(rngs), size[1]))
-            np.multiply(block.transpose(1, 0, 2), self.sigma, out=self._noise)
-        noise = self._noise[j]
-        return noise if self._noise_rows == self.n else np.concatenate((noise, noise))
+            scaled = block.transpose(1, 0, 2) * self.sigma
+            self._noise = scaled if self._noise_rows == self.n else np.concatenate((scaled, scaled), axis=1)
+        return self._noise[j]
 
     def _update_faults(self) -> None:
         k, dt = self.k, self.dt

@@ -123,6 +123,7 @@ def simulate_chunk(
     trace_on = 0 in run_ids
     r0 = run_ids.index(0) if trace_on else 0
     trace_farms = [r0] + ([r0 + len(run_ids)] if twins else [])
+    trace_rows = np.concatenate([np.arange(f * N_TURBINES, (f + 1) * N_TURBINES) for f in trace_farms])
     trace: dict[str, list] = {k: [] for k in ("t", "power", "demand", "power_t", "ref_t", "stat", "thr", "flags")}
     events: list[Event] = []
     refs = None
@@ -142,13 +143,13 @@ def simulate_chunk(
                 missing += np.maximum(-gap, 0.0) * FARM_DT_S
                 demand_e += frame.demand * FARM_DT_S
             t = j * FARM_DT_S
-            for i, w in enumerate(windows):
-                if w.start_s <= t < w.end_s:
-                    imb_sum[:, i] += imbalance_phasor(plant.blade_torque)
-                    imb_count[i] += 1
+            inside = [i for i, w in enumerate(windows) if w.start_s <= t < w.end_s]
+            if inside:
+                imb_sum[:, inside] += imbalance_phasor(plant.blade_torque)[:, None]
+                imb_count[inside] += 1
             if trace_on:
                 diag = sup.diagnosis
-                rows = np.concatenate([np.arange(f * N_TURBINES, (f + 1) * N_TURBINES) for f in trace_farms])
+                rows = trace_rows
                 trace["t"].append(t)
                 trace["power"].append(p_farm[trace_farms])
                 trace["demand"].append(frame.demand[trace_farms])

@@ -45,68 +45,33 @@ def fault_free(scenario: Scenario) -> Scenario:
 
 
 def comparison_runs(scenario: Scenario, runs: int, seed: int, options: EvalOptions, main: Variant) -> dict:
+    """The companion configurations of Tables 5–7, on the same runs and seed as ``main``."""
     from windwarden.evaluation.farm import run_variant
 
-    out: dict[str, Variant] = {}
     det, ctrl = main.detector, main.controller
     ff = fault_free(scenario)
+    # name: (scenario, detector, controller, accommodation, twins, label)
+    plan = {}
     if scenario.faults:
-        out["paper"] = run_variant(
-            scenario,
+        plan["paper"] = (scenario, "paper", ctrl, main.accommodation, False, "paper detector")
+        plan["no_accommodation"] = (scenario, det, "dispatch", False, True, "no accommodation")
+        plan["fault_free"] = (ff, det, "dispatch", True, False, "dispatch")
+    plan["fault_free_paper"] = (ff, "paper", "dispatch", True, False, "paper detector")
+    plan["fault_free_pi"] = (ff, det, "pi", True, False, "PI")
+    return {
+        name: run_variant(
+            scn,
             runs,
             seed,
             options,
-            detector="paper",
-            controller=ctrl,
-            accommodation=main.accommodation,
-            twins=False,
-            label=f"{scenario.name} (paper detector)",
+            detector=detector,
+            controller=controller,
+            accommodation=accommodation,
+            twins=twins,
+            label=f"{scn.name} ({label})",
         )
-        out["no_accommodation"] = run_variant(
-            scenario,
-            runs,
-            seed,
-            options,
-            detector=det,
-            controller="dispatch",
-            accommodation=False,
-            twins=True,
-            label=f"{scenario.name} (no accommodation)",
-        )
-        out["fault_free"] = run_variant(
-            ff,
-            runs,
-            seed,
-            options,
-            detector=det,
-            controller="dispatch",
-            accommodation=True,
-            twins=False,
-            label=f"{ff.name} (dispatch)",
-        )
-    out["fault_free_paper"] = run_variant(
-        ff,
-        runs,
-        seed,
-        options,
-        detector="paper",
-        controller="dispatch",
-        accommodation=True,
-        twins=False,
-        label=f"{ff.name} (paper detector)",
-    )
-    out["fault_free_pi"] = run_variant(
-        ff,
-        runs,
-        seed,
-        options,
-        detector=det,
-        controller="pi",
-        accommodation=True,
-        twins=False,
-        label=f"{ff.name} (PI)",
-    )
-    return out
+        for name, (scn, detector, controller, accommodation, twins, label) in plan.items()
+    }
 
 
 def _fmt(x: float | None, digits: int = 3) -> str:
