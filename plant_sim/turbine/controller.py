@@ -58,13 +58,16 @@ class BenchmarkController:
         # Zone logic with the previous zone held (unit delay).
         to_region3 = (p_g_m >= self.power_ref) | (omega_g >= p.omega_nom)
         stay_region3 = omega_g >= p.omega_nom - p.omega_delta
-        region3 = np.where(self.zone == 0, to_region3, stay_region3)
+        region3 = np.where(self.zone, stay_region3, to_region3)  # zone (0 or 1) as the condition
         self.zone = region3.view(np.int8)
-        # Region-3 PI on the generator speed error, integrator and output saturated to the pitch range.
+        # Region-3 PI on the generator speed error, integrator and output saturated to the pitch range (clipped
+        # in place: the same min(max(·, lo), hi), without temporaries).
         error = omega_g - p.omega_nom
         lo, hi = p.pitch_min_deg, p.pitch_max_deg
-        self.integrator = np.minimum(np.maximum(self.integrator + p.dt * error, lo), hi)
-        beta_pi = np.minimum(np.maximum(p.K_p * error + p.K_i * self.integrator, lo), hi)
+        integrator = self.integrator + p.dt * error
+        self.integrator = np.minimum(np.maximum(integrator, lo, out=integrator), hi, out=integrator)
+        beta_pi = p.K_p * error + p.K_i * self.integrator
+        np.minimum(np.maximum(beta_pi, lo, out=beta_pi), hi, out=beta_pi)
         self.beta_ref = np.where(region3, beta_pi, 0.0)
         safe_omega = np.maximum(omega_g, 1.0)  # the constant-power law must not divide by a failed sensor's 0
         tau_region3 = self.power_ref / (p.eta_gc * safe_omega)

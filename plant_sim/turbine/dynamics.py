@@ -115,6 +115,12 @@ class TurbineDynamics:
         return out
 
 
+def _distinct(keys: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(distinct rows of ``keys``, index of each row's distinct key): keys[i] == distinct[which[i]]."""
+    distinct, which = np.unique(keys, axis=0, return_inverse=True)
+    return distinct, which.ravel()
+
+
 class DiscreteStep:
     """x[k+1] = Φ x[k] + Γ u[k] per row, rebuilt for rows whose parameters change (faults).
 
@@ -141,18 +147,27 @@ class DiscreteStep:
         key_m = np.column_stack([faults.eta_dt, faults.stiffness_factor, faults.damping_factor])
         rows = np.arange(self.n) if self._key_m is None else np.flatnonzero((key_m != self._key_m).any(axis=1))
         if len(rows):
-            A, B = mechanical_matrices(self.p, key_m[rows, 0], key_m[rows, 1], key_m[rows, 2])
-            b_ext = np.zeros((len(rows), N_MECH, 1))
+            # The matrix exponential dominates (about 10 ms per matrix), and rows mostly share parameters: each
+            # distinct key is discretised once. ``expm`` treats every matrix of a batch on its own, so this is
+            # bit for bit what discretising every row gives.
+            keys, which = _distinct(key_m[rows])
+            A, B = mechanical_matrices(self.p, keys[:, 0], keys[:, 1], keys[:, 2])
+            b_ext = np.zeros((len(keys), N_MECH, 1))
             b_ext[:, OMEGA_G, 0] = 1.0 / self.p.J_g  # J_g ω̇_g = … + τ_ext
             phi, gamma = zoh(A, np.concatenate([B, b_ext], axis=2), self.p.dt)
+            phi, gamma = phi[which], gamma[which]
             self.phi_m[rows], self.gamma_m[rows], self.gamma_ext[rows] = phi, gamma[..., :2], gamma[..., 2]
         self._key_m = key_m
         key_p = np.concatenate([faults.pitch_a0, faults.pitch_a1], axis=1)
         rows = np.arange(self.n) if self._key_p is None else np.flatnonzero((key_p != self._key_p).any(axis=1))
         if len(rows):
-            A, B = pitch_matrices(faults.pitch_a0[rows], faults.pitch_a1[rows])
+            # one (a0, a1) pair per row and blade; distinct pairs discretised once, as above
+            pairs = np.stack([faults.pitch_a0[rows], faults.pitch_a1[rows]], axis=-1).reshape(-1, 2)
+            keys, which = _distinct(pairs)
+            A, B = pitch_matrices(keys[:, 0], keys[:, 1])
             phi, gamma = zoh(A, B, self.p.dt)
-            self.phi_p[rows], self.gamma_p[rows] = phi, gamma[..., 0]
+            self.phi_p[rows] = phi[which].reshape(len(rows), 3, 2, 2)
+            self.gamma_p[rows] = gamma[which, :, 0].reshape(len(rows), 3, 2)
         self._key_p = key_p
         alike = (key_m == key_m[0]).all() and (key_p == key_p[0]).all()
         if alike:

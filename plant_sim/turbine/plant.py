@@ -44,6 +44,7 @@ _QUANTITIES = ("omega_r", "omega_g", "v_hub", "beta_1", "beta_2", "beta_3", "tau
 _PICK = np.array([_QUANTITIES.index(c.quantity) for c in SENSORS])
 _BETA_M1 = np.array([SENSOR_INDEX[f"beta_{i}_m1"] for i in (1, 2, 3)])
 _BETA_M2 = np.array([SENSOR_INDEX[f"beta_{i}_m2"] for i in (1, 2, 3)])
+_BETA_M12 = np.concatenate([_BETA_M1, _BETA_M2])
 _OMEGA_G_M1 = SENSOR_INDEX["omega_g_m1"]
 _P_G_M = SENSOR_INDEX["p_g_m"]
 ERROR_ONSET_S = 0.5  # s, time constant with which a drive-train transmission error develops (farm fault 3)
@@ -96,7 +97,12 @@ class TurbineBatch:
         self.sigma = np.array([noise_std(c, plant.noise_convention) for c in SENSORS])
         self.bias = np.array([c.noise_mean for c in SENSORS])
         self.noise_chunk = noise_chunk
-        self._noise = np.empty((0, self.n, len(SENSORS)))
+        # Noise blocks of noise_chunk ticks, refilled in place (a fresh 10-MB array per block costs page faults):
+        # the draws of the rows with their own stream, and the σ-scaled noise of every row (twins repeat them).
+        self._draws = np.empty((self._noise_rows, noise_chunk, len(SENSORS)))
+        self._noise = np.empty((noise_chunk, self.n, len(SENSORS)))
+        self._noise_drawn = False
+        self._quantities = np.empty((self.n, len(_QUANTITIES)))  # refilled every tick, read through _PICK
         self.faults = FaultState(self.n, params)
         self.schedule: list[ScheduledFault] = []
         self._next_change = 0  # tick at which the fault arrays may next change
@@ -156,13 +162,19 @@ class TurbineBatch:
         ws = self.wind.sample(self.k, x[:, AZIMUTH])
         self._wind_sample = ws
         pitch = x[:, PITCH]
-        self.blade_torque = self.dynamics.blade_torques(
-            x[:, OMEGA_R], pitch + self.faults.pitch_offset, ws.blades, self.faults.aero_factor
-        )
-        self.tau_aero = self.blade_torque.sum(axis=1)
-        quantities = np.column_stack((x[:, OMEGA_R], x[:, OMEGA_G], ws.hub, pitch, x[:, TAU_G], self.power_output(x)))
-        noise = self._next_noise()  # already σ-scaled
         f = self.faults
+        self.blade_torque = torque = self.dynamics.blade_torques(
+            x[:, OMEGA_R], pitch + f.pitch_offset, ws.blades, f.aero_factor
+        )
+        self.tau_aero = (torque[:, 0] + torque[:, 1]) + torque[:, 2]  # Σ_i τ_r,i, in the order sum(axis=1) adds
+        # [ω_r, ω_g, v_hub, β_1..3, τ_g, P_g] (``_QUANTITIES``) written into a reused buffer: cheaper than stacking
+        quantities = self._quantities
+        quantities[:, :2] = x[:, OMEGA_R : OMEGA_G + 1]
+        quantities[:, 2] = ws.hub
+        quantities[:, 3:6] = pitch
+        quantities[:, 6] = x[:, TAU_G]
+        quantities[:, 7] = self.power_output(x)
+        noise = self._next_noise()  # already σ-scaled
         if f.sensor_faults_active:
             y = (quantities[:, _PICK] + self.bias + noise * f.noise_scale) * f.gain + f.offset
             if f.drift_active:
@@ -176,7 +188,8 @@ class TurbineBatch:
         # to actuator i's reference, as the benchmark's Blade & Pitch "Add" blocks do (signs ++). An inner loop
         # that drove the measured mean to β_ref would subtract it instead; we follow the implementation, with
         # which every published FDI result on this benchmark was obtained (docs/turbine.md).
-        self._pitch_error = 0.5 * (y[:, _BETA_M1] + y[:, _BETA_M2]) - pitch
+        beta_m = y[:, _BETA_M12]
+        self._pitch_error = 0.5 * (beta_m[:, :3] + beta_m[:, 3:]) - pitch
         c = self.controller
         return TurbineFrame(self.k, self.t, y, c.tau_g_ref.copy(), c.beta_ref.copy(), c.power_ref.copy(), c.zone.copy())
 
@@ -242,17 +255,19 @@ class TurbineBatch:
         return stiffness * twist + (p.B_dt * f.damping_factor) * (x[:, OMEGA_R] - x[:, OMEGA_G] / p.N_g)
 
     def _next_noise(self) -> np.ndarray:
+        """σ-scaled sensor noise of the current tick (n, N_SENSORS): a view into the block, valid for this tick."""
         j = self.k % self.noise_chunk
-        if j == 0 or len(self._noise) == 0:
-            size = (self.noise_chunk, len(SENSORS))
-            # Twin rows (second half) share their run's streams, hence its numbers: draw the first half only and
-            # repeat it once per chunk, not per tick.
-            rngs = self._noise_rngs[: self._noise_rows]
-            block = np.empty((len(rngs), *size))
-            for i, rng in enumerate(rngs):
-                block[i] = rng.standard_normal(size)
-            scaled = block.transpose(1, 0, 2) * self.sigma
-            self._noise = scaled if self._noise_rows == self.n else np.concatenate((scaled, scaled), axis=1)
+        if j == 0 or not self._noise_drawn:
+            # Each row with its own stream draws (noise_chunk, N_SENSORS) numbers, as one standard_normal call of
+            # that size would. Twin rows (second half) share their run's streams, hence its numbers: draw the first
+            # half only and repeat it once per chunk, not per tick.
+            rows = self._noise_rows
+            for i, rng in enumerate(self._noise_rngs[:rows]):
+                rng.standard_normal(out=self._draws[i])
+            np.multiply(self._draws.transpose(1, 0, 2), self.sigma, out=self._noise[:, :rows])
+            if rows < self.n:
+                self._noise[:, rows:] = self._noise[:, :rows]
+            self._noise_drawn = True
         return self._noise[j]
 
     def _update_faults(self) -> None:

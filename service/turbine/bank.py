@@ -170,6 +170,20 @@ class ObserverBank:
         ]
         self._output = np.block([[np.eye(width), -design.L_res.T], [design.H_blk.T, design.G_res.T]])
         self._width = width
+        # The left operands of the two products, [z, u, y_prev] and [z, y], refilled in place every tick
+        # (cheaper than concatenating; the same C-contiguous arrays, so the same products).
+        self._update_in = np.empty((n, width + 1 + design.K_blk.shape[1]))
+        self._output_in = np.empty((n, width + design.H_blk.shape[1]))
+        # χ²_j sums rank_j (1–3) squared residuals. ``np.add.reduceat`` adds a segment as w_0 + (w_1 + w_2) but
+        # costs a C call per row and observer; three gathers of the segments' first, second and third element (a
+        # zero column where the segment is shorter) add them in that order, for one call each.
+        if design.ranks.max() > 3:
+            raise ValueError("the χ² gather assumes whitened residuals of rank ≤ 3")
+        n_res = int(design.ranks.sum())
+        self._squares = np.zeros((n, n_res + 1))  # w², the last column stays 0
+        self._terms = np.concatenate(
+            [np.where(design.ranks > i, design.res_starts + i, n_res) for i in range(3)]
+        )  # (3 n_obs,) columns of _squares: first, second, third element of each segment
         self.z = np.zeros((n, width))
         self.x_hat = np.zeros((n, width))
         self.chi2 = np.zeros((n, len(design.names)))  # ‖W_j r_j‖², χ²-distributed with rank_j dof when healthy
@@ -188,16 +202,28 @@ class ObserverBank:
 
     def step(self, y: np.ndarray, u_prev: np.ndarray) -> None:
         """Advance with y[n] (n, 4 speed sensors) and u[n−1] (n,) the torque reference of the previous tick."""
+        width = self._width
         if self._y_prev is not None:
             update = self._update_transient[self.steps] if self.steps < len(self._update_transient) else self._update
             # (11) z[n] = F z[n−1] + T B_d u[n−1] + K y[n−1]
-            self.z = np.concatenate([self.z, u_prev[:, None], self._y_prev], axis=1) @ update
+            stacked = self._update_in
+            stacked[:, :width] = self.z
+            stacked[:, width] = u_prev
+            stacked[:, width + 1 :] = self._y_prev
+            self.z = stacked @ update
             self.steps += 1
         # (12) x̂[n] = z[n] + H y[n], and r_j = (I − C_j H_j) y_j − C_j z_j whitened by W_j: χ²_j = ‖W_j r_j‖²
-        out = np.concatenate([self.z, y], axis=1) @ self._output
-        self.x_hat = out[:, : self._width]
-        white = out[:, self._width :]
-        self.chi2 = np.add.reduceat(white * white, self.d.res_starts, axis=1)
+        stacked = self._output_in
+        stacked[:, :width] = self.z
+        stacked[:, width:] = y
+        out = stacked @ self._output
+        self.x_hat = out[:, :width]
+        white = out[:, width:]
+        squares = self._squares
+        np.multiply(white, white, out=squares[:, :-1])
+        terms = squares[:, self._terms]
+        m = len(self.d.ranks)
+        self.chi2 = terms[:, :m] + (terms[:, m : 2 * m] + terms[:, 2 * m :])  # = reduceat(w², res_starts)
         self._y_prev = y
 
     def states(self, j: int) -> np.ndarray:

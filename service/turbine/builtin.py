@@ -22,15 +22,19 @@ from service.turbine.interfaces import (
     static_state_guess,
 )
 from service.turbine.wind_recovery import WindRecovery
-from wwcore.channels import SENSOR_INDEX, SPEED_SENSORS, TARGET_INDEX
+from wwcore.channels import DIAGNOSIS_TARGETS, SENSOR_INDEX, SPEED_SENSORS, TARGET_INDEX
 from wwcore.turbine_frames import TurbineFrame
 
 SPEED_TARGETS = np.array([TARGET_INDEX[s] for s in SPEED_SENSORS])
 PITCH_M1 = np.array([SENSOR_INDEX[f"beta_{i}_m1"] for i in (1, 2, 3)])
 PITCH_M2 = np.array([SENSOR_INDEX[f"beta_{i}_m2"] for i in (1, 2, 3)])
+PITCH_M12 = np.concatenate([PITCH_M1, PITCH_M2])
 PITCH_M1_T = np.array([TARGET_INDEX[f"beta_{i}_m1"] for i in (1, 2, 3)])
 PITCH_M2_T = np.array([TARGET_INDEX[f"beta_{i}_m2"] for i in (1, 2, 3)])
 _MASK_WEIGHTS = 1 << np.arange(len(SPEED_SENSORS))
+# Diagnosis row of each speed-sensor bitmask (16, len(DIAGNOSIS_TARGETS)): one gather gives the whole verdict.
+_DIAGNOSIS_OF_MASK = np.zeros((1 << len(SPEED_SENSORS), len(DIAGNOSIS_TARGETS)), dtype=bool)
+_DIAGNOSIS_OF_MASK[:, SPEED_TARGETS] = (np.arange(1 << len(SPEED_SENSORS))[:, None] & _MASK_WEIGHTS) != 0
 
 
 def _settings(cls, options: dict):
@@ -50,13 +54,9 @@ class UIOBankDetector:
 
     def step(self, frame: TurbineFrame) -> Diagnosis:
         bank = self.context.bank(frame)
-        self.fdi.step(frame.sensors[:, SPEED_COLUMNS], bank.chi2)
-        faulty = self.fdi.faulty
-        diagnosis = empty_diagnosis(self.context.n)
-        diagnosis.faulty[:, SPEED_TARGETS] = faulty
-        diagnosis.margins = self.fdi.margins(bank.chi2)
-        diagnosis.margin_names = self._margin_names
-        return diagnosis
+        self.fdi.step(self.context.speed_readings(frame), bank.chi2)
+        # = empty_diagnosis with the speed-sensor columns set to fdi.faulty, and margins = fdi.margins(bank.chi2)
+        return Diagnosis(_DIAGNOSIS_OF_MASK[self.fdi.flagged], self.fdi.ratio, self._margin_names)
 
 
 @TURBINE_DETECTORS.register("benchmark")
@@ -116,6 +116,7 @@ class UIOBankEstimator:
             self.observer_of_mask[sum(1 << SPEED_SENSORS.index(s) for s in left_out)] = j
         self.reference = design.reference
         self._reference_columns = np.full(context.n, design.reference)
+        self._all_healthy = np.full(context.n, self.observer_of_mask[0])  # ``selected`` when nothing is flagged
         self._rows = np.arange(context.n)
         self.names = design.names
         self.ticks = 0
@@ -129,20 +130,30 @@ class UIOBankEstimator:
             tau_aero0 = p.N_g * (p.B_g * x0[:, 1] + x0[:, 3]) / p.eta_dt + p.B_r * x0[:, 0]
             self.recovery.start(bank.x_hat, frame.beta_ref, tau_aero0)
             self._winds = np.tile(np.maximum(frame.sensors[:, SENSOR_INDEX["v_hub_m"]], 3.0), (2, 1))
-        y = frame.sensors
-        self.recovery.step(
-            bank.x_hat, frame.beta_ref, y[:, PITCH_M1], y[:, PITCH_M2], ~faulty[:, PITCH_M1_T], ~faulty[:, PITCH_M2_T]
-        )
-        selected = self.observer_of_mask[faulty[:, SPEED_TARGETS] @ _MASK_WEIGHTS]
-        columns = np.maximum(selected, 0)
+        pitch = frame.sensors[:, PITCH_M12]  # [β_i,m1 | β_i,m2], one gather
+        pitch_m1, pitch_m2 = pitch[:, :3], pitch[:, 3:]
+        recovery = self.recovery
+        if faulty.any():
+            recovery.step(
+                bank.x_hat, frame.beta_ref, pitch_m1, pitch_m2, ~faulty[:, PITCH_M1_T], ~faulty[:, PITCH_M2_T]
+            )
+            selected = self.observer_of_mask[faulty[:, SPEED_TARGETS] @ _MASK_WEIGHTS]
+            columns = np.maximum(selected, 0)
+            rows = self._rows
+            omega_r, omega_g = recovery.omega_r[rows, columns], recovery.omega_g[rows, columns]
+        else:  # the common tick: every sensor healthy, every row on the observer that uses all four speed sensors
+            recovery.step(bank.x_hat, frame.beta_ref, pitch_m1, pitch_m2, None, None)
+            selected = self._all_healthy.copy()
+            columns = self._all_healthy
+            healthy = int(columns[0])
+            omega_r, omega_g = recovery.omega_r[:, healthy].copy(), recovery.omega_g[:, healthy].copy()
         if self.ticks % self.wind_every == 0:
-            self._winds = self.recovery.wind(np.stack([columns, self._reference_columns]), self._winds)
+            self._winds = recovery.wind(np.stack([columns, self._reference_columns]), self._winds)
         self.ticks += 1
-        rows = self._rows
         return Estimates(
             valid=(selected >= 0) & (self.ticks > self.warmup_ticks),
-            omega_r=self.recovery.omega_r[rows, columns],
-            omega_g=self.recovery.omega_g[rows, columns],
+            omega_r=omega_r,
+            omega_g=omega_g,
             wind=self._winds[0],
             selected=selected,
             observer_names=self.names,

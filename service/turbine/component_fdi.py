@@ -36,6 +36,7 @@ from wwcore.turbine_params import TurbineParams
 
 M1 = np.array([SENSOR_INDEX[f"beta_{i}_m1"] for i in (1, 2, 3)])
 M2 = np.array([SENSOR_INDEX[f"beta_{i}_m2"] for i in (1, 2, 3)])
+M12 = np.concatenate([M1, M2])
 M1_TARGET = np.array([TARGET_INDEX[f"beta_{i}_m1"] for i in (1, 2, 3)])
 M2_TARGET = np.array([TARGET_INDEX[f"beta_{i}_m2"] for i in (1, 2, 3)])
 _ACTUATORS = (Component.PITCH_ACTUATOR_1, Component.PITCH_ACTUATOR_2, Component.PITCH_ACTUATOR_3)
@@ -109,6 +110,9 @@ class ComponentFDI:
         self.h_actuator = chi2_isf(block_alpha / 3.0, settings.actuator_window)
         self.h_actuator_clear = chi2_isf(settings.clear_alpha, settings.actuator_window)
         self.z_converter = norm_isf(block_alpha / 2.0)
+        self._parity_scale = 1.0 / (np.sqrt(2.0) * self.sigma_beta)
+        self._window_scale = 1.0 / np.sqrt(settings.parity_window)
+        self._pitch_flagged = False  # whether any pitch-sensor flag is set (the healthy fast path needs none)
         self.parity = _Window(settings.parity_window, (n, 3))
         self.actuator = _Window(settings.actuator_window // settings.block, (n, 3))
         self.converter = _Window(settings.converter_window // settings.block, (n,))
@@ -117,23 +121,27 @@ class ComponentFDI:
             raise ValueError("the nominal pitch actuator should give a second-order whitening filter")
         self._w_state = (np.zeros((n, 3)), np.zeros((n, 3)))  # transposed direct form II
         self._e_block = np.zeros((settings.block, n, 3))
+        self._w_block = np.empty((settings.block, n, 3))  # the whitened e of the block's ticks
         self._tau_block = np.zeros((settings.block, 2, n))  # τ_g,m[k], τ_g,r[k−1]
+        self._tau_hat_block = np.empty((settings.block, n))  # τ̂_g of the block's ticks
         self._tau_hat: np.ndarray | None = None
         self._converter_gain = float(np.exp(-p.alpha_gc * p.dt))
         self._actuator_rest = np.zeros(n, dtype=np.int64)  # blocks until the actuator test may flag again
         self._actuator_quiet = np.zeros((n, 3), dtype=np.int64)  # consecutive blocks below the clearing threshold
         self._prev_beta: np.ndarray | None = None
         self._same = np.zeros((n, 6), dtype=np.int64)
+        self._counting = False  # False only while every ``_same`` count is 0
         self.flags = np.zeros((n, len(TARGET_INDEX)), dtype=bool)
         self.ticks = 0
         self.warmup_ticks = round(settings.warmup_s / p.dt)
 
     def step(self, frame: TurbineFrame) -> np.ndarray:
         y = frame.sensors
-        m1, m2 = y[:, M1], y[:, M2]
-        self._pitch_sensors(m1, m2)
+        beta = y[:, M12]  # [β_i,m1 | β_i,m2], one gather
+        m1, m2 = beta[:, :3], beta[:, 3:]
+        self._pitch_sensors(beta, m1, m2)
         j = self.ticks % self.s.block
-        self._e_block[j] = (0.5 * (m1 + m2)) @ CROSS_BLADE
+        np.matmul(0.5 * (m1 + m2), CROSS_BLADE, out=self._e_block[j])
         self._tau_block[j, 0] = y[:, TAU_G_M]
         self._tau_block[j, 1] = frame.tau_g_ref
         self.ticks += 1
@@ -142,22 +150,29 @@ class ComponentFDI:
             self._converter()
         if self.ticks <= self.warmup_ticks:
             self.flags[:] = False
+            self._pitch_flagged = False
         return self.flags
 
     # -- pitch sensors ------------------------------------------------------------------------------------------
-    def _pitch_sensors(self, m1: np.ndarray, m2: np.ndarray) -> None:
-        beta = np.concatenate([m1, m2], axis=1)
+    def _pitch_sensors(self, beta: np.ndarray, m1: np.ndarray, m2: np.ndarray) -> None:
+        """beta = [m1 | m2] (n, 6), the readings of the blades' first and second pitch sensors."""
         if self._prev_beta is not None:
-            self._same = (self._same + 1) * (beta == self._prev_beta)
+            same = beta == self._prev_beta
+            if self._counting or same.any():  # else every count is 0 and stays 0
+                self._same = (self._same + 1) * same
+                self._counting = bool(self._same.any())
         self._prev_beta = beta
-        parity = (m1 - m2) * (1.0 / (np.sqrt(2.0) * self.sigma_beta))
-        window = self.parity.push(parity) * (1.0 / np.sqrt(self.s.parity_window))
-        frozen = self._same >= self.s.frozen_ticks - 1
+        parity = (m1 - m2) * self._parity_scale
+        window = self.parity.push(parity) * self._window_scale
         suspicious = np.maximum(np.abs(parity), np.abs(window)) > self.z_single
+        maybe_frozen = self._counting or self.s.frozen_ticks < 2  # else no count can reach frozen_ticks − 1
+        if not (maybe_frozen or self._pitch_flagged or suspicious.any()):
+            return  # the healthy fast path: nothing suspicious, frozen or flagged
+        frozen = self._same >= self.s.frozen_ticks - 1
         pair_frozen = frozen[:, :3] | frozen[:, 3:]
+        if not (self._pitch_flagged or suspicious.any() or pair_frozen.any()):
+            return
         flagged_1, flagged_2 = self.flags[:, M1_TARGET], self.flags[:, M2_TARGET]
-        if not (suspicious.any() or pair_frozen.any() or flagged_1.any() or flagged_2.any()):
-            return  # the healthy fast path
         fault = suspicious | pair_frozen
         healthy = (np.abs(window) < self.z_clear) & ~pair_frozen
         new = fault & ~(flagged_1 | flagged_2)
@@ -169,18 +184,25 @@ class ComponentFDI:
             flagged_2 = flagged_2 | (new & ~first)
         self.flags[:, M1_TARGET] = flagged_1 & ~healthy
         self.flags[:, M2_TARGET] = flagged_2 & ~healthy
+        self._pitch_flagged = bool(self.flags[:, M1_TARGET].any() or self.flags[:, M2_TARGET].any())
 
     # -- pitch actuators (once per block) -----------------------------------------------------------------------
     def _actuators(self) -> None:
         # w = (1 + G)⁻¹ e, a normalised (a0 = 1) second-order section in transposed direct form II, tick by tick
+        # The input products b_i e of all the block's ticks are taken at once; only the recursion runs per tick.
         (b0, b1, b2), (_, a1, a2) = self.whiten_b, self.whiten_a
+        e = self._e_block
+        b0e, b1e, b2e = b0 * e, b1 * e, b2 * e
+        w = self._w_block
         s1, s2 = self._w_state
-        z2 = np.zeros((self.n, 3))
-        for e in self._e_block:
-            w = b0 * e + s1
-            s1, s2 = b1 * e - a1 * w + s2, b2 * e - a2 * w
-            z2 += w * w
+        for k in range(len(e)):
+            wk = np.add(b0e[k], s1, out=w[k])
+            s1, s2 = b1e[k] - a1 * wk + s2, b2e[k] - a2 * wk
         self._w_state = (s1, s2)
+        w *= w
+        z2 = w[0].copy()  # Σ_k w_k², added in tick order
+        for wk2 in w[1:]:
+            z2 += wk2
         total = self.actuator.push(z2 * (1.0 / (0.75 * self.sigma_beta**2)))
         sensor_flagged = self.flags[:, M1_TARGET].any(axis=1) | self.flags[:, M2_TARGET].any(axis=1)
         rest = self.actuator.size
@@ -199,11 +221,23 @@ class ComponentFDI:
 
     # -- converter (once per block) -----------------------------------------------------------------------------
     def _converter(self) -> None:
+        # τ̂_g[k] = a τ̂_g[k−1] + (1 − a) τ_g,r[k−1] tick by tick, the input term of all the block's ticks at once
         a = self._converter_gain
-        r = np.zeros(self.n)
-        for tau_g_m, tau_g_ref_prev in self._tau_block:
-            self._tau_hat = tau_g_m.copy() if self._tau_hat is None else a * self._tau_hat + (1.0 - a) * tau_g_ref_prev
-            r += tau_g_m - self._tau_hat
+        tau_g_m = self._tau_block[:, 0]
+        drive = (1.0 - a) * self._tau_block[:, 1]
+        tau_hat = self._tau_hat_block
+        previous = self._tau_hat
+        for k in range(len(tau_hat)):
+            if previous is None:
+                tau_hat[k] = tau_g_m[k]
+            else:
+                np.add(a * previous, drive[k], out=tau_hat[k])
+            previous = tau_hat[k]
+        self._tau_hat = tau_hat[-1].copy()
+        residual = tau_g_m - tau_hat
+        r = residual[0].copy()  # Σ_k (τ_g,m − τ̂_g), added in tick order
+        for rk in residual[1:]:
+            r += rk
         mean = self.converter.push(r) * (1.0 / (self.sigma_tau * np.sqrt(self.s.converter_window)))
         if not self.converter.full:
             return

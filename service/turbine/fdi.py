@@ -39,6 +39,7 @@ from wwcore.quantiles import chi2_isf
 
 N_SPEED = len(SPEED_SENSORS)
 _BITS = 1 << np.arange(N_SPEED)
+_SENSORS_OF_MASK = (np.arange(1 << N_SPEED)[:, None] >> np.arange(N_SPEED)) & 1 == 1  # (16, 4): bitmask → flags
 
 
 @dataclass(frozen=True)
@@ -97,10 +98,16 @@ class SpeedSensorFDI:
         self.ticks = 0
         self.ambiguous = np.zeros(n, dtype=bool)  # no consistent observer was found at the last search
         self._rows = np.arange(n)
+        # Cheap state for the common tick on which no sensor is flagged or frozen (each skips a few numpy calls):
+        self.ratio = np.zeros((n, bank.n_isolating))  # ``margins`` of the last step
+        self._maybe_flagged = False  # False only while no row has a flagged sensor
+        self._counting = False  # False only while every ``_same_count`` is 0
+        self._all_healthy = int(self.observer_of_mask[0])  # the observer that leaves nothing out
+        self._no_frozen = np.zeros(n, dtype=np.int64)
 
     @property
     def faulty(self) -> np.ndarray:
-        return (self.flagged[:, None] >> np.arange(N_SPEED)) & 1 == 1
+        return _SENSORS_OF_MASK[self.flagged]
 
     @property
     def selected(self) -> np.ndarray:
@@ -117,21 +124,31 @@ class SpeedSensorFDI:
         slot = self.ticks % self.s.window
         self._window_sum += chi2_stat - self._history[slot]
         self._history[slot] = chi2_stat
-        self._update_frozen(y)
+        any_frozen = self._update_frozen(y)
         self.ticks += 1
+        self.ratio = ratio = np.maximum(chi2_stat / self.h_detect, self._window_sum / self.h_window)
         if self.ticks <= self.warmup_ticks:
             return
-        frozen_mask = self.frozen @ _BITS
-        self.flagged |= frozen_mask
-        ratio = np.maximum(chi2_stat / self.h_detect, self._window_sum / self.h_window)
-        selected = self.observer_of_mask[self.flagged]
-        usable = np.maximum(selected, 0)
-        inconsistent = (ratio[self._rows, usable] > 1.0) | (selected < 0)
+        if any_frozen:
+            frozen_mask = self.frozen @ _BITS
+            self.flagged |= frozen_mask
+            self._maybe_flagged = True
+        else:
+            frozen_mask = self._no_frozen
+        if self._maybe_flagged:
+            selected = self.observer_of_mask[self.flagged]
+            usable = np.maximum(selected, 0)
+            inconsistent = (ratio[self._rows, usable] > 1.0) | (selected < 0)
+        else:  # every row selects the observer that uses all four sensors
+            inconsistent = ratio[:, self._all_healthy] > 1.0
         if inconsistent.any():
             for row in np.flatnonzero(inconsistent):
                 self._search(row, ratio[row], int(frozen_mask[row]))
-        if self.flagged.any():
-            self._clear(frozen_mask, inconsistent)
+            self._maybe_flagged = True
+        if self._maybe_flagged:
+            if self.flagged.any():
+                self._clear(frozen_mask, inconsistent)
+            self._maybe_flagged = bool(self.flagged.any())
 
     def _search(self, row: int, ratio: np.ndarray, frozen: int) -> None:
         """Select the consistent observer that leaves out the fewest sensors (and every frozen one)."""
@@ -159,8 +176,15 @@ class SpeedSensorFDI:
             done = rows[self._window_sum[rows, with_s] <= self.h_clear[with_s]]
             self.flagged[done] &= ~bit
 
-    def _update_frozen(self, y: np.ndarray) -> None:
+    def _update_frozen(self, y: np.ndarray) -> bool:
+        """Count identical consecutive readings; True when any reading is frozen now."""
+        any_frozen = False
         if self._y_prev is not None:
-            self._same_count = (self._same_count + 1) * (y == self._y_prev)
-            self.frozen = self._same_count >= self.s.frozen_ticks - 1
+            same = y == self._y_prev
+            if self._counting or self.s.frozen_ticks < 2 or same.any():  # else every count is and stays 0
+                self._same_count = (self._same_count + 1) * same
+                self.frozen = self._same_count >= self.s.frozen_ticks - 1
+                self._counting = bool(self._same_count.any())
+                any_frozen = bool(self.frozen.any())
         self._y_prev = y
+        return any_frozen

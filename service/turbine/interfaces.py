@@ -74,6 +74,7 @@ class TurbineContext:
         self.sensor_sigma = {c.name: noise_std(c, noise_convention) for c in SENSORS}
         self._bank: ObserverBank | None = None
         self._bank_tick: int | None = None
+        self._speed: np.ndarray | None = None  # the four speed readings of tick _bank_tick
 
     @cached_property
     def bank_design(self) -> BankDesign:
@@ -81,16 +82,22 @@ class TurbineContext:
 
     def bank(self, frame: TurbineFrame) -> ObserverBank:
         """The observer bank advanced to ``frame`` (initialised on the first frame)."""
-        y = frame.sensors[:, SPEED_COLUMNS]
         if self._bank is None:
+            y = self._speed = frame.sensors[:, SPEED_COLUMNS]
             self._bank = ObserverBank(self.bank_design, self.n)
             self._bank.initialise(static_state_guess(self.params, y, frame.tau_g_ref), y)
             self._bank_tick = frame.k
             self._bank.step(y, frame.tau_g_ref)
         elif self._bank_tick != frame.k:
+            y = self._speed = frame.sensors[:, SPEED_COLUMNS]
             self._bank.step(y, frame.tau_g_ref)
             self._bank_tick = frame.k
         return self._bank
+
+    def speed_readings(self, frame: TurbineFrame) -> np.ndarray:
+        """``frame.sensors[:, SPEED_COLUMNS]`` (n, 4), gathered once per tick with the bank's step (read-only)."""
+        self.bank(frame)
+        return self._speed
 
 
 def static_state_guess(p: TurbineParams, y_speed: np.ndarray, tau_g: np.ndarray) -> np.ndarray:

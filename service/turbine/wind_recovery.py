@@ -44,6 +44,7 @@ class Biquad:
             raise ValueError("expected Butterworth low-pass numerators b0·[1, 2, 1]")
         self.a = np.array([a for _, a in coeffs]).T
         self.zi = np.array([biquad_steady_state(b, a) for b, a in coeffs]).T  # (2, m)
+        self._b0, self._a1, self._a2 = self.b[0], self.a[1], self.a[2]  # rows used every call
         self.s1: np.ndarray | None = None
         self.s2: np.ndarray | None = None
 
@@ -52,11 +53,15 @@ class Biquad:
         self.s1, self.s2 = self.zi[0] * x0, self.zi[1] * x0
 
     def __call__(self, x: np.ndarray) -> np.ndarray:
-        # A Butterworth low-pass has b = b0·[1, 2, 1]: one product of x serves all three taps.
-        bx = self.b[0] * x
+        # A Butterworth low-pass has b = b0·[1, 2, 1]: one product of x serves all three taps. The states are
+        # updated in place (same operations as s1 ← (2 bx + s2) − a1 y, s2 ← bx − a2 y, fewer temporaries).
+        bx = self._b0 * x
         y = bx + self.s1
-        self.s1 = (bx + bx + self.s2) - self.a[1] * y
-        self.s2 = bx - self.a[2] * y
+        s1, s2 = self.s1, self.s2
+        twice = bx + bx
+        twice += s2
+        np.subtract(twice, np.multiply(self._a1, y, out=s1), out=s1)
+        np.subtract(bx, np.multiply(self._a2, y, out=s2), out=s2)
         return y
 
 
@@ -69,15 +74,17 @@ class PitchModel:
         B = np.array([[0.0], [wn**2]])
         Ad, Bd = zoh(A, B, p.dt)
         self.Ad, self.Bd = Ad, Bd.ravel()
+        # the six coefficients as Python floats (the same doubles; unpacking the arrays every tick costs more)
+        self._coef = (*(float(v) for v in Ad.ravel()), *(float(v) for v in self.Bd))
         self.x = (np.zeros(n), np.zeros(n))  # (β, β̇)
 
     def start(self, beta: np.ndarray) -> None:
         self.x = (beta.astype(float).copy(), np.zeros_like(beta, dtype=float))
 
     def step(self, beta_ref_prev: np.ndarray) -> np.ndarray:
-        (a, b), (c, d) = self.Ad
+        a, b, c, d, g0, g1 = self._coef
         beta, rate = self.x
-        self.x = (a * beta + b * rate + self.Bd[0] * beta_ref_prev, c * beta + d * rate + self.Bd[1] * beta_ref_prev)
+        self.x = (a * beta + b * rate + g0 * beta_ref_prev, c * beta + d * rate + g1 * beta_ref_prev)
         return self.x[0]
 
 
@@ -122,6 +129,10 @@ class WindRecovery:
         self.n_obs = m
         self._x_prev: np.ndarray | None = None
         self._filtered = np.zeros((n, 3 * m + 1))
+        # [x̂[n], x̂[n−1]] and [raw, β], the inputs of the map and the filter, refilled in place every tick
+        self._width = width
+        self._stacked = np.empty((n, 2 * width))
+        self._filter_in = np.empty((n, 3 * m + 1))
 
     @property
     def omega_r(self) -> np.ndarray:
@@ -151,19 +162,30 @@ class WindRecovery:
         beta_ref_prev: np.ndarray,
         pitch_m1: np.ndarray,
         pitch_m2: np.ndarray,
-        healthy_m1: np.ndarray,
-        healthy_m2: np.ndarray,
+        healthy_m1: np.ndarray | None,
+        healthy_m2: np.ndarray | None,
     ) -> None:
         """Update torque, speed and pitch estimates of every observer from the bank's x̂[n] and the pitch
-        sensors (n, 3 blades each) with their health flags."""
-        raw = np.concatenate([x_hat, self._x_prev], axis=1) @ self._map
+        sensors (n, 3 blades each) with their health flags (None and None: every pitch sensor is healthy)."""
+        width, stacked = self._width, self._stacked
+        stacked[:, :width] = x_hat
+        stacked[:, width:] = self._x_prev
+        raw = stacked @ self._map
         modelled = self.pitch.step(beta_ref_prev)
-        weight = healthy_m1.astype(float) + healthy_m2
-        per_blade = np.where(
-            weight > 0, (healthy_m1 * pitch_m1 + healthy_m2 * pitch_m2) / np.maximum(weight, 1.0), modelled[:, None]
-        )
-        beta = per_blade.mean(axis=1)
-        self._filtered = self.filter(np.column_stack([raw, beta]))
+        if healthy_m1 is None and healthy_m2 is None:
+            # both sensors of every blade: the weighted mean below with weights 1, 1 (the same operations)
+            per_blade = (pitch_m1 + pitch_m2) / 2.0
+        else:
+            weight = healthy_m1.astype(float) + healthy_m2
+            per_blade = np.where(
+                weight > 0,
+                (healthy_m1 * pitch_m1 + healthy_m2 * pitch_m2) / np.maximum(weight, 1.0),
+                modelled[:, None],
+            )
+        filter_in = self._filter_in
+        filter_in[:, :-1] = raw
+        filter_in[:, -1] = ((per_blade[:, 0] + per_blade[:, 1]) + per_blade[:, 2]) / 3.0  # β, mean(axis=1)'s sum
+        self._filtered = self.filter(filter_in)
         self._x_prev = x_hat
 
     def wind(self, columns: np.ndarray, v_guess: np.ndarray) -> np.ndarray:
