@@ -15,6 +15,8 @@ import numpy as np
 
 from wwcore.turbine_frames import TurbineFrame
 
+HOLD_TORQUE_MODE = 3  # accommodation mode (wire ``mode``) in which a turbine derates by speed at held torque
+
 
 @dataclass
 class FarmFrame:
@@ -46,6 +48,7 @@ class FarmRefs:
     tick: int
     power_ref: np.ndarray  # (n,) W
     computed_tick: int | None = None  # None: the same as ``tick``
+    hold_torque: np.ndarray | None = None  # (n,) bool: derate at held torque (drive-train accommodation)
 
     @property
     def source_tick(self) -> int:

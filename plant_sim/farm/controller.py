@@ -21,6 +21,26 @@ loop and the constant-power torque of the benchmark are used unchanged with Ω_n
     zone 0 → 1 when P_g ≥ P_r or ω_g ≥ ω_set;   zone 1 → 0 when ω_g < ω_set − Ω_Δ,set
     zone 0: β_ref = 0, τ_g,r = K_opt ω_g²;      zone 1: β_ref = PI(ω_g − ω_set), τ_g,r = P_r/(η_gc ω_g)
 
+**Derating at held torque** [PROPOSED], for a turbine whose reference comes with ``hold_torque`` (the dispatch's
+drive-train accommodation, ``service.farm.dispatch``). The sum S = τ_g,r + B_g ω_g (N_g S/η_dt is the shaft torque
+in steady state) is latched when the hold begins, and the speed set point carries the derating:
+
+.. math::
+
+    P_r = η_{gc} (S − B_g ω_{set})\, ω_{set}\ \text{(smaller root, clipped to } [ω_{min}, Ω_{nom}]),\qquad
+    τ_{g,r} = S − B_g ω_g\ \text{(zone 1)}
+
+so the power falls with the speed while the shaft torque stays where it was. Why: the drive-train fault's 3P
+torque swing grows with ω_r² (``plant_sim.turbine.plant``), and a rainflow count charges a derating that moves the
+mean torque with one cycle as large as the torque change. The set point moves at most ``SPEED_SLEW`` (the rotor's
+inertia torque while it slows stays ≈ 0.15 MN m on the shaft). Zone 1 is entered on speed only (a held torque above
+the set point makes more than P_r). A rotor that cannot hold the torque at its set point (too little wind for that
+speed) falls into zone 0, where the torque is (S − B_g ω_g)(ω_g/(ω_set − Ω_Δ,set))⁶ and settles with the torque at
+what the wind gives; the dispatch chooses the set point with torque in hand so that this stays rare. When the flag
+clears, the set point climbs back at ``SPEED_SLEW`` with the torque still held (in zone 0 too, at full aerodynamic
+torque, tapered the same way below the set point the hold had), and the hold ends once the speed has reached the
+set point of the law above (the torque then moves only by the difference between the held torque and that law's).
+
 The power reference a turbine receives is followed at most at ``RAMP_FRACTION_PER_S`` (10 % of rated per
 second, a usual curtailment ramp [PROPOSED]), so a sudden accommodation (eq. (26) may ask for 50 kW at once) does
 not throw the pitch to feather.
@@ -52,6 +72,7 @@ from wwcore.turbine_params import TurbineParams
 
 RAMP_FRACTION_PER_S = 0.1  # – of rated power per second, largest change of the followed reference [PROPOSED]
 MIN_SPEED_FRACTION = 0.5  # –, ω_min = 0.5 Ω_nom = 81 rad/s: lowest derated speed set point [PROPOSED]
+SPEED_SLEW = 0.02  # Ω_nom per second: a held turbine's speed set point moves at most 3.2 rad/s² [PROPOSED]
 DAMPER_HZ = 4.5  # Hz, centre of the drive-train damper: the torsion mode (PARAMETERS.md a.1) [PROPOSED]
 DAMPER_ZETA = 0.3  # –, damping of the band-pass (its width) [PROPOSED]
 DAMPER_GAIN = 1000.0  # N m s/rad on the generator side at the centre frequency [PROPOSED]
@@ -81,15 +102,50 @@ class FarmTurbineController(BenchmarkController):
         self._bp_state = np.zeros((2, n))  # transposed direct form II
         self._bp_ready = False
         self.damper_torque = np.zeros(n)  # N m, the damper's share of τ_g,r
+        self.hold = np.zeros(n, dtype=bool)  # derating at held torque (module docstring)
+        self.hold_asked = np.zeros(n, dtype=bool)  # the last reference asked for it
+        self.tau_hold = np.zeros(n)  # N m, generator side, the held sum S = τ_g + B_g ω_g
+        self._omega_g = np.zeros(n)  # rad/s, the last generator speed the controller used
+        self._hold_set = np.zeros(n)  # rad/s, ω_set while in the hold
+        self._release_from = np.zeros(n)  # rad/s, the hold's set point when the flag cleared
 
     def initialise(self, zone: np.ndarray, beta_ref: np.ndarray, tau_g_ref: np.ndarray) -> None:
         super().initialise(zone, beta_ref, tau_g_ref)
         self._bp_ready = False  # the damper's state is set from the first speed reading (steady state)
 
-    def set_reference(self, power_ref: np.ndarray) -> None:
-        """A new power reference per turbine (W) from the farm controller; followed at the ramp rate."""
+    def set_reference(self, power_ref: np.ndarray, hold_torque: np.ndarray | None = None) -> None:
+        """A new power reference per turbine (W) from the farm controller, followed at the ramp rate;
+        ``hold_torque`` (n,) bool asks for the derating at held torque (module docstring)."""
         self.power_ref_target = np.minimum(np.maximum(np.asarray(power_ref, dtype=float), 0.0), self.p.rated_power)
         self._ramping = True
+        asked = np.zeros(self.n, dtype=bool) if hold_torque is None else np.asarray(hold_torque, dtype=bool)
+        starting = asked & ~self.hold
+        if starting.any():  # S = τ_g + B_g ω_g: the shaft torque in steady state, N_g S/η_dt
+            omega_g = np.where(self._omega_g > 0.0, self._omega_g, self.setpoint)  # before the first step: trimmed
+            held = self.tau_g_ref - self.damper_torque + self.p.B_g * omega_g
+            self.tau_hold = np.where(starting, held, self.tau_hold)
+            self._hold_set = np.where(starting, self.setpoint, self._hold_set)
+        self.hold_asked = asked
+        self.hold = self.hold | starting
+
+    def _hold_setpoint(self, omega_g: np.ndarray) -> None:
+        """ω_set of turbines in the hold, slewed at SPEED_SLEW; on release it climbs back before the hold ends."""
+        p = self.p
+        normal = speed_setpoint(p, self.power_ref)
+        # P_r = η_gc (S − B_g ω) ω at the held sum S = τ_g + B_g ω_g: the smaller root
+        s_hold = np.maximum(self.tau_hold, 1.0)
+        disc = np.maximum(s_hold * s_hold - 4.0 * p.B_g * self.power_ref / p.eta_gc, 0.0)
+        held = 2.0 * self.power_ref / (p.eta_gc * (s_hold + np.sqrt(disc)))
+        slew = SPEED_SLEW * p.omega_nom * p.dt
+        held = np.clip(held, MIN_SPEED_FRACTION * p.omega_nom, p.omega_nom)
+        releasing = self.hold & ~self.hold_asked
+        self._release_from = np.where(releasing, self._release_from, self._hold_set)
+        target = np.where(releasing, normal, held)
+        self._hold_set = np.minimum(np.maximum(target, self._hold_set - slew), self._hold_set + slew)
+        back = releasing & (self._hold_set >= normal) & (omega_g >= normal - p.omega_delta * normal / p.omega_nom)
+        self.hold = self.hold & ~back
+        self.setpoint = np.where(self.hold, self._hold_set, normal)
+        self._hysteresis = p.omega_delta * self.setpoint / p.omega_nom
 
     def step(self, k: int, omega_g_m: np.ndarray, p_g_m: np.ndarray, refs: TurbineRefs | None) -> None:
         """τ_g,r and β_ref for tick k from the turbine's own sensors (``refs`` is not used by farm turbines)."""
@@ -101,8 +157,10 @@ class FarmTurbineController(BenchmarkController):
             self._ramping = bool(np.any(self.power_ref != self.power_ref_target))
             self.setpoint = speed_setpoint(p, self.power_ref)
             self._hysteresis = p.omega_delta * self.setpoint / p.omega_nom
+        if self.hold.any():
+            self._hold_setpoint(omega_g)
         setpoint, hysteresis = self.setpoint, self._hysteresis
-        to_region3 = (p_g_m >= self.power_ref) | (omega_g >= setpoint)
+        to_region3 = (omega_g >= setpoint) | ((p_g_m >= self.power_ref) & ~self.hold)
         stay_region3 = omega_g >= setpoint - hysteresis
         region3 = np.where(self.zone == 0, to_region3, stay_region3)
         self.zone = region3.view(np.int8)
@@ -112,6 +170,7 @@ class FarmTurbineController(BenchmarkController):
         beta_pi = np.minimum(np.maximum(p.K_p * error + p.K_i * self.integrator, lo), hi)
         self.beta_ref = np.where(region3, beta_pi, 0.0)
         safe_omega = np.maximum(omega_g, 1.0)
+        self._omega_g = omega_g
         # drive-train damper: band-pass of ω_g,m at the torsion mode (transposed direct form II; b1 = 0)
         b, a, z = self._bp_b, self._bp_a, self._bp_state
         if not self._bp_ready:  # steady state of the band-pass for a constant input: zero output
@@ -122,4 +181,12 @@ class FarmTurbineController(BenchmarkController):
         z[1] = b[2] * omega_g - a[2] * damper
         self.damper_torque = damper
         base = np.where(region3, self.power_ref / (p.eta_gc * safe_omega), p.k_opt * omega_g * omega_g)
+        if self.hold.any():
+            # zone 0 in the hold: too little wind for the set point (or, on the way back, for the climb): let the
+            # torque go steeply below the speed the rotor last held
+            held_speed = np.where(self.hold_asked, setpoint, self._release_from)
+            below = np.minimum(omega_g / np.maximum(held_speed - hysteresis, 1.0), 1.0)
+            below = below * below * below
+            torque = self.tau_hold - p.B_g * omega_g
+            base = np.where(self.hold, np.where(region3, torque, torque * below * below), base)
         self.tau_g_ref = base + damper

@@ -24,6 +24,21 @@ P_ref,farm < Σ P_avail; otherwise every turbine gets rated power (it produces w
 * pitch misalignment, drive train: P_over = Σ P_avail − P_ref,farm (25) and
   P_avail,f = max(pos(P_avail − P_over), P_min), P_min = 50 kW (26), then (18) with P_avail,f. *Decision D-26*:
   with several such turbines the headroom is shared out in turbine order, P_over shrinking by what each took.
+* drive train, rule ``hold-torque`` (the default) [PROPOSED]: the same (25)–(26) with the floor
+  P_min,f = max(P_min, η_gc (S_m − B_g ω_floor) ω_floor), S_m = τ_g,m + B_g ω̄_g — the power the turbine makes
+  at its present shaft torque and the lowest
+  speed at which its rotor can still deliver that torque — and the reference goes out with ``hold_torque``
+  (mode 3): the turbine derates by speed at held torque (``plant_sim.farm.controller``). ω_floor =
+  max(ω_min, N_g λ_f w_est/R), λ_f the tip-speed ratio on the rising branch of C_q(λ, 0) (below its peak at
+  λ ≈ 6.5) where ½ρπR³ C_q(λ_f, 0) w̄² = 1.2 τ̄_r: 20 % torque in hand for the turbulence (at or above the peak:
+  λ_f at the peak), and λ_f ≥ 5: below that the torque is largest at a pitch above 3 deg, and a controller that
+  goes to fine pitch to speed up stalls the rotor instead. The held turbine's reference is at least P_min,f; the
+  others share the rest of the demand as in (18). w̄, τ̄_r are w_est
+  and τ̂_r low-passed over 10 s and ω_floor is fixed when the hold begins: eq. (20) assumes steady state and
+  reads nonsense while the rotor slows down.
+  The paper's rule (``accommodation_rule = "paper"``) drops the
+  torque to what 50 kW needs, a rainflow cycle as large as the working torque that costs more damage than the
+  3P cycles it saves (docs/farm.md, Table 7); holding the torque removes the 3P swing (∝ ω_r²) without it.
 
 **PI** (the benchmark's reference controller, PARAMETERS.md b): e = (P_ref,farm − Σ P_m)/P_ref,farm,
 u = sat(K_p e + I), I = sat(I + K_i e Δt), sat = ±20 %; every turbine gets (1 + u) P_ref,farm / 9.
@@ -41,6 +56,14 @@ from wwcore.scenario.farm import FARM_DT_S, N_TURBINES, ROTOR_DIAMETER_M
 
 DEBRIS_FACTOR = 0.97  # eqs. (23)–(24)
 P_MIN_W = 50e3  # eq. (26)
+MIN_SPEED_FRACTION = 0.5  # –, ω_min/Ω_nom of the farm turbines (plant_sim.farm.controller; the supervisor's model)
+ACCOMMODATION_RULES = ("hold-torque", "paper")
+HOLD_MARGIN = 1.2  # –, rotor torque at fine pitch and the derated speed over the held torque [PROPOSED]
+HOLD_MIN_TSR = 5.0  # –, lowest tip-speed ratio of a hold: below it C_q peaks at β > 3 deg and fine pitch stalls
+HOLD_AVERAGING_S = 10.0  # s, low-pass of the wind and rotor torque the hold's speed floor is chosen from [PROPOSED]
+_TSR = np.linspace(1.5, 12.0, 211)
+_CQ_FINE = aero.torque_coefficient(_TSR, np.zeros_like(_TSR))
+_RISING = slice(0, int(np.argmax(_CQ_FINE)) + 1)  # C_q(λ, 0) rises with λ up to its peak
 PI_KP, PI_KI, PI_LIMIT = 0.3, 0.05, 0.2  # PARAMETERS.md b [PROPOSED]
 DEBRIS, PITCH, DRIVETRAIN = 0, 1, 2  # columns of ``faulty``
 
@@ -55,12 +78,18 @@ class Dispatch:
         # [PROPOSED] variant of eq. (26), off by default: never derate a faulty turbine below this share of its
         # own available power (docs/farm.md, "graded accommodation"); 0 is the paper's P_min floor only.
         self.floor = float(options.get("derate_floor", 0.0))
+        self.rule = str(options.get("accommodation_rule", ACCOMMODATION_RULES[0]))
+        self.hold_margin = float(options.get("hold_margin", HOLD_MARGIN))
+        if self.rule not in ACCOMMODATION_RULES:
+            raise ValueError(f"accommodation_rule: {self.rule!r} is not one of {', '.join(ACCOMMODATION_RULES)}")
         self.n = context.n
         self.p_ref = np.full(self.n, self.p.rated_power)  # W, the references sent last
         self.wind: np.ndarray | None = None  # m/s, w_est of eq. (20)
         self.p_a_hat: np.ndarray | None = None  # W, eq. (21) state
         self.p_avail = np.zeros(self.n)  # W, eq. (22), before accommodation
-        self.mode = np.zeros(self.n, dtype=np.int8)  # 0 normal, 1 debris (23)–(24), 2 derated (26)
+        self._slow: np.ndarray | None = None  # (2, n) w_est (m/s) and τ̂_r (N m) over HOLD_AVERAGING_S
+        self.speed_floor = np.full(self.n, np.nan)  # rad/s, ω_floor of turbines in the hold (NaN: none)
+        self.mode = np.zeros(self.n, dtype=np.int8)  # 0 normal, 1 debris (23)–(24), 2 derated (26), 3 held torque
 
     def estimate_available(self, sample: FarmSample) -> np.ndarray:
         """Eqs. (20)–(22): P_avail,t (n,) in W."""
@@ -74,12 +103,25 @@ class Dispatch:
             self.wind = aero.wind_from_torque(tau_r, omega_r, pitch, guess, p, iterations=8)
         else:
             self.wind = aero.wind_from_torque(tau_r, omega_r, pitch, self.wind, p, iterations=3)  # eq. (20)
+        if self._slow is None:
+            self._slow = np.stack([self.wind, tau_r])
+        else:
+            self._slow += (np.stack([self.wind, tau_r]) - self._slow) * (FARM_DT_S / HOLD_AVERAGING_S)
         p_a = available_power(p, self.wind)
         if self.p_a_hat is None:
             self.p_a_hat = p_a.copy()
         a = np.exp(-np.maximum(self.wind, 1.0) / ROTOR_DIAMETER_M * FARM_DT_S)
         self.p_a_hat = a * self.p_a_hat + (1.0 - a) * p_a  # eq. (21), τ_w/(s + α_w) with τ_w = α_w
         return np.maximum(self.p_a_hat - self.p_ref, 0.0) + y[:, P_G]  # eq. (22)
+
+    def hold_speed_floor(self) -> np.ndarray:
+        """ω_floor (n,) rad/s, generator side: the lowest speed at which each rotor holds its torque (docstring)."""
+        p = self.p
+        wind, tau_r = self._slow
+        need = self.hold_margin * tau_r / (p.aero_torque_gain * wind * wind)
+        tsr = np.maximum(np.interp(need, _CQ_FINE[_RISING], _TSR[_RISING]), HOLD_MIN_TSR)
+        omega = p.N_g * tsr * wind / p.radius
+        return np.minimum(np.maximum(omega, MIN_SPEED_FRACTION * p.omega_nom), p.omega_nom)
 
     def step(self, sample: FarmSample, faulty: np.ndarray) -> np.ndarray:
         farms = sample.farms
@@ -93,10 +135,20 @@ class Dispatch:
         derate = f[:, :, PITCH] | f[:, :, DRIVETRAIN]
         avail = np.where(debris, DEBRIS_FACTOR * avail, avail)  # eq. (23)
         over = avail.sum(axis=1) - demand  # eq. (25)
+        hold = f[:, :, DRIVETRAIN] & (self.rule == "hold-torque")
+        floor = np.full(avail.shape, P_MIN_W)
+        if hold.any():
+            starting = hold.reshape(-1) & np.isnan(self.speed_floor)
+            if starting.any():
+                self.speed_floor = np.where(starting, self.hold_speed_floor(), self.speed_floor)
+            y, p = sample.scada, self.p
+            held_sum = y[:, TAU_G] + p.B_g * y[:, OMEGA_G].mean(axis=1)  # S of plant_sim.farm.controller
+            held = p.eta_gc * (held_sum - p.B_g * self.speed_floor) * self.speed_floor
+            floor = np.where(hold, np.maximum(held.reshape(farms, N_TURBINES), P_MIN_W), floor)
         for t in range(N_TURBINES):  # eq. (26), headroom shared out in turbine order (D-26)
             hit = derate[:, t]
             if hit.any():
-                reduced = np.maximum(np.maximum(avail[:, t] - np.maximum(over, 0.0), 0.0), P_MIN_W)
+                reduced = np.maximum(np.maximum(avail[:, t] - np.maximum(over, 0.0), 0.0), floor[:, t])
                 reduced = np.maximum(reduced, np.minimum(self.floor * avail[:, t], avail[:, t]))
                 taken = np.where(hit, avail[:, t] - reduced, 0.0)
                 avail[:, t] = np.where(hit, reduced, avail[:, t])
@@ -104,10 +156,16 @@ class Dispatch:
         total = avail.sum(axis=1)
         active = demand < maximum  # the dispatch acts only below the farm's maximum production
         share = avail / np.maximum(total, 1.0)[:, None] * demand[:, None]  # eq. (18)
+        if hold.any():  # a held turbine gets at least its floor; the others share the rest as in (18)
+            fixed = np.where(hold, np.maximum(share, floor), 0.0)
+            others = np.where(hold, 0.0, avail)
+            rest = np.maximum(demand - fixed.sum(axis=1), 0.0)
+            share = np.where(hold, fixed, others / np.maximum(others.sum(axis=1), 1.0)[:, None] * rest[:, None])
         share = np.where(debris, share / DEBRIS_FACTOR, share)  # eq. (24)
         refs = np.where(active[:, None], share, self.p.rated_power)
         refs = np.clip(refs, 0.0, self.p.rated_power).reshape(-1)
-        self.mode = np.where(derate, 2, np.where(debris, 1, 0)).astype(np.int8).reshape(-1)
+        self.speed_floor = np.where(hold.reshape(-1), self.speed_floor, np.nan)
+        self.mode = np.where(hold, 3, np.where(derate, 2, np.where(debris, 1, 0))).astype(np.int8).reshape(-1)
         self.p_ref = refs
         return refs
 

@@ -13,13 +13,13 @@ import numpy as np
 from service.farm.interfaces import FarmContext, FarmDiagnosis, FarmSample
 from service.plugins import FARM_CONTROLLERS, FARM_DETECTORS
 from wwcore.events import Event, EventType
-from wwcore.farm_frames import FarmFrame, FarmRefs
+from wwcore.farm_frames import HOLD_TORQUE_MODE, FarmFrame, FarmRefs
 from wwcore.scenario.farm import FARM_FAULT_TYPES, N_TURBINES, FarmPlant
 from wwcore.turbine_params import BENCHMARK, TurbineParams
 
 DEFAULT_DETECTOR = "analytic"
 DEFAULT_CONTROLLER = "dispatch"
-MODES = ("normal", "debris", "derated")  # accommodation modes of the dispatch (DISPATCH event detail)
+MODES = ("normal", "debris", "derated", "held torque")  # accommodation modes of the dispatch (DISPATCH event detail)
 
 
 class FarmSupervisor:
@@ -61,14 +61,21 @@ class FarmSupervisor:
         if not frame.sample:
             if self.refs is None:
                 return None
-            return FarmRefs(tick=frame.k, power_ref=self.refs.power_ref, computed_tick=self.refs.source_tick)
+            return FarmRefs(
+                tick=frame.k,
+                power_ref=self.refs.power_ref,
+                computed_tick=self.refs.source_tick,
+                hold_torque=self.refs.hold_torque,
+            )
         sample = FarmSample.from_frame(frame, self.dt)
         diagnosis = self.detector.step(sample)
         faulty = diagnosis.faulty if self.accommodation else np.zeros_like(diagnosis.faulty)
         power_ref = self.controller.step(sample, faulty)
         self._record(sample.t, diagnosis)
         self.diagnosis, self.sample = diagnosis, sample
-        self.refs = FarmRefs(tick=frame.k, power_ref=power_ref)
+        mode = getattr(self.controller, "mode", None)
+        hold = None if mode is None else mode == HOLD_TORQUE_MODE
+        self.refs = FarmRefs(tick=frame.k, power_ref=power_ref, hold_torque=hold)
         return self.refs
 
     def drain_events(self) -> list[Event]:

@@ -6,8 +6,9 @@ import numpy as np
 import pytest
 
 from plant_sim.turbine.trim import trim
-from service.farm.dispatch import Dispatch, PIFarmController
+from service.farm.dispatch import HOLD_MARGIN, HOLD_MIN_TSR, Dispatch, PIFarmController
 from service.farm.interfaces import BETA, OMEGA_G, OMEGA_R, P_G, TAU_G, FarmContext, FarmSample
+from wwcore import aero
 from wwcore.channels import N_SENSORS
 from wwcore.scenario.farm import FarmPlant
 from wwcore.turbine_params import BENCHMARK as P
@@ -30,8 +31,8 @@ def _sample(demand_mw: float, power_mw: np.ndarray | None = None) -> FarmSample:
     )
 
 
-def _dispatch(avail_mw: list[float]) -> Dispatch:
-    d = Dispatch(context=FarmContext(FarmPlant(), 9))
+def _dispatch(avail_mw: list[float], rule: str = "paper") -> Dispatch:
+    d = Dispatch(context=FarmContext(FarmPlant(), 9), options={"accommodation_rule": rule})
     d.estimate_available = lambda sample: np.asarray(avail_mw, dtype=float) * MW  # eqs. (20)–(22) stubbed
     return d
 
@@ -81,6 +82,61 @@ def test_eq_26_with_two_faulty_turbines_shares_the_headroom_in_turbine_order():
     assert refs[1] == pytest.approx(0.05 / total * 14.5)
     assert refs[4] == pytest.approx(0.45 / total * 14.5)
     assert refs.sum() == pytest.approx(14.5)
+
+
+def _held(wind: float, tau_r: float, tau_g: float) -> tuple[Dispatch, FarmSample]:
+    """A hold-torque dispatch whose low-passed wind and rotor torque are set by hand; SCADA torque τ_g."""
+    d = _dispatch([2.0] * 9, rule="hold-torque")
+    d._slow = np.stack([np.full(9, wind), np.full(9, tau_r)])
+    sample = _sample(12.0)
+    sample.scada[:, TAU_G] = tau_g
+    return d, sample
+
+
+def test_hold_torque_floor_is_the_held_torque_at_the_speed_where_the_rotor_still_delivers_it():
+    wind, tau_r, tau_g = 12.0, 2.4 * MW, 26e3
+    d, sample = _held(wind, tau_r, tau_g)
+    refs = d.step(sample, _faulty(t2=2)) / MW
+    omega_floor = d.speed_floor[1]
+    # on the rising branch of C_q(λ, 0) the rotor at ω_floor makes HOLD_MARGIN × τ̂_r at fine pitch
+    tsr = omega_floor / P.N_g * P.radius / wind
+    assert HOLD_MIN_TSR < tsr < 6.6  # below the C_q peak
+    assert P.aero_torque_gain * aero.torque_coefficient(np.array([tsr]), np.zeros(1))[0] * wind**2 == pytest.approx(
+        HOLD_MARGIN * tau_r, rel=2e-3
+    )
+    floor = P.eta_gc * (tau_g - P.B_g * omega_floor) * omega_floor / MW  # P_min,f: S held at ω_floor (ω̄_g = 0)
+    # P_over = 6 > 2 − floor: the turbine gets its floor, the other eight share the rest of the demand
+    assert refs[1] == pytest.approx(floor)
+    assert refs[[0, 2, 3, 4, 5, 6, 7, 8]] == pytest.approx(np.full(8, (12.0 - floor) / 8))
+    assert d.mode[1] == 3 and np.all(d.mode[np.arange(9) != 1] == 0)
+
+
+def test_hold_torque_floor_keeps_the_tip_speed_ratio_out_of_stall():
+    d, sample = _held(15.0, 3.0 * MW, 26e3)  # 20 % in hand would allow λ ≈ 4.1, where fine pitch stalls
+    d.step(sample, _faulty(t2=2))
+    assert d.speed_floor[1] / P.N_g * P.radius / 15.0 == pytest.approx(HOLD_MIN_TSR)
+
+
+def test_hold_torque_floor_is_fixed_while_the_hold_lasts_and_forgotten_after():
+    d, sample = _held(15.0, 3.0 * MW, 26e3)
+    d.step(sample, _faulty(t2=2))
+    first = d.speed_floor[1]
+    d._slow = np.stack([np.full(9, 25.0), np.full(9, 1.0 * MW)])  # eq. (20) reads nonsense while the rotor slows
+    d.step(sample, _faulty(t2=2))
+    assert d.speed_floor[1] == first
+    d.step(sample, _faulty())
+    assert np.isnan(d.speed_floor).all() and np.all(d.mode == 0)
+
+
+def test_hold_torque_applies_to_the_drive_train_only():
+    d, sample = _held(15.0, 3.0 * MW, 26e3)
+    refs = d.step(sample, _faulty(t2=1)) / MW  # pitch misalignment: eq. (26) as published
+    assert refs[1] == pytest.approx(0.05 / 16.05 * 12.0) and d.mode[1] == 2
+
+
+def test_an_unknown_accommodation_rule_is_refused():
+    with pytest.raises(ValueError, match="accommodation_rule"):
+        Dispatch(context=FarmContext(FarmPlant(), 9), options={"accommodation_rule": "magic"})
 
 
 def test_eqs_20_22_recover_the_wind_and_the_available_power_at_a_steady_point():

@@ -7,6 +7,7 @@ import numpy as np
 
 from windwarden.live.adapters import adapter_for
 from windwarden.live.adapters.base import RunInfo
+from wwcore.farm_frames import HOLD_TORQUE_MODE, FarmRefs
 from wwcore.scenario import parse_scenario
 
 SCENARIO = {
@@ -45,6 +46,19 @@ def test_frames_and_refs_round_trip_and_the_supervisor_answers_every_tick():
     assert truth["farm_power"][0] == truth["power"].sum()
     status = adapter.status(sup, records, turbines)
     assert {"flagged", "dispatch_mode", "margins", "power_ref_w"} <= set(status[0])
+
+
+def test_the_hold_torque_request_survives_the_wire_as_mode_3():
+    adapter = adapter_for("farm")
+    scenario = parse_scenario(SCENARIO)
+    plant = adapter.make_plant(scenario, seed=3)
+    turbines = adapter.turbines(plant)
+    sup = adapter.make_supervisor(RunInfo.of(scenario, turbines, plant.dt))
+    sup.mode = np.array([0, 3, 2, 1, 0, 0, 0, 0, 0], dtype=np.int8)  # as the dispatch leaves it
+    hold = sup.mode == HOLD_TORQUE_MODE
+    refs = FarmRefs(tick=9, power_ref=np.full(9, 1e6), hold_torque=hold)
+    back = adapter.refs_from_records(adapter.refs_records(refs, sup, turbines))
+    assert np.array_equal(back.hold_torque, hold) and np.array_equal(back.power_ref, refs.power_ref)
 
 
 def test_farm_blueprint_has_the_overview_tab():

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from plant_sim.farm import FarmBatch
-from plant_sim.farm.controller import speed_setpoint
+from plant_sim.farm.controller import MIN_SPEED_FRACTION, SPEED_SLEW, speed_setpoint
 from service.farm.interfaces import BETA
 from tests.farm.conftest import farm_spec, wind
 from wwcore.farm_frames import FarmRefs
@@ -66,6 +66,63 @@ def test_a_derated_turbine_follows_its_reference_at_its_speed_set_point():
     omega = np.array([b for _, b in rec])[-1000:].mean(axis=0)
     assert power == pytest.approx(ref, rel=0.01)
     assert omega == pytest.approx(speed_setpoint(P, ref), rel=0.01)
+
+
+def test_derating_at_held_torque_lowers_the_speed_not_the_shaft_torque():
+    """Above rated wind: the reference halves with ``hold_torque``; the speed set point carries the derating."""
+    plant = FarmBatch(farm_spec(1, coherent_ti=0.0), wind(16.0, ti=0.005), [], seed=2, duration_s=170.0)
+    hold = np.zeros(plant.n, dtype=bool)
+    hold[4] = True
+    rated = np.full(plant.n, P.rated_power)
+    before = np.array(_run(plant, 20.0, FarmRefs(0, rated), record=lambda p, f: p.shaft_torque().copy()))
+    torque0 = before[-500:].mean(axis=0)
+    derated = rated.copy()
+    derated[4] = 0.75 * P.rated_power
+    rec = _run(
+        plant,
+        90.0,
+        FarmRefs(1, derated, hold_torque=hold),
+        record=lambda p, f: (p.shaft_torque().copy(), p.turbines.x[:, 1].copy(), p.power_output().copy()),
+    )
+    torque = np.array([r[0] for r in rec])
+    omega = np.array([r[1] for r in rec])[-1000:, 4].mean()
+    power = np.array([r[2] for r in rec])[-1000:, 4].mean()
+    tau_hold = plant.controller.tau_hold[4]
+    torque_g = tau_hold - P.B_g * omega
+    assert derated[4] == pytest.approx(P.eta_gc * torque_g * omega, rel=0.01)  # ω_set from P_r = η_gc (S − B_g ω) ω
+    assert omega < 0.8 * P.omega_nom
+    assert power == pytest.approx(derated[4], rel=0.01)
+    # the shaft torque never leaves the band of its working level (a derating at constant speed would lose 40 %)
+    assert np.abs(torque[:, 4] / torque0[4] - 1.0).max() < 0.1
+    assert torque[-1000:, 4].mean() == pytest.approx(torque0[4], rel=0.02)
+    assert omega > MIN_SPEED_FRACTION * P.omega_nom
+    others = np.array([r[1] for r in rec])[-1000:, [0, 1, 2, 3, 5, 6, 7, 8]].mean(axis=0)
+    assert others == pytest.approx(P.omega_nom, rel=0.01)  # the others keep rated speed
+    # release: the flag clears, the set point climbs back at SPEED_SLEW with the torque still held
+    rec = _run(plant, 60.0, FarmRefs(2, rated), record=lambda p, f: (p.turbines.x[4, 1], p.controller.hold[4]))
+    speed = np.array([r[0] for r in rec])
+    held = np.array([r[1] for r in rec])
+    climb = (P.omega_nom - omega) / (SPEED_SLEW * P.omega_nom)  # s
+    assert held[: int(0.8 * climb / plant.dt)].all() and not held[-1]
+    assert speed[-500:].mean() == pytest.approx(P.omega_nom, rel=0.01)
+
+
+def test_a_hold_the_rotor_cannot_keep_settles_in_zone_0_instead_of_sliding_down_the_cq_curve():
+    """At 16 m/s the rotor cannot make its full torque at 55 % of Ω_nom (λ ≈ 3.3): it falls into zone 0, where the
+    held torque is let go with (ω_g/ω_b)⁶, and settles there (the dispatch's speed floor is there to avoid this)."""
+    plant = FarmBatch(farm_spec(1, coherent_ti=0.0), wind(16.0, ti=0.005), [], seed=2, duration_s=120.0)
+    hold = np.zeros(plant.n, dtype=bool)
+    hold[4] = True
+    derated = np.full(plant.n, P.rated_power)
+    derated[4] = 0.6 * P.rated_power
+    _run(plant, 5.0, FarmRefs(0, np.full(plant.n, P.rated_power)))
+    _run(plant, 75.0, FarmRefs(1, derated, hold_torque=hold))
+    rec = _run(plant, 20.0, FarmRefs(1, derated, hold_torque=hold), record=lambda p, f: p.turbines.x[4, 1])
+    c = plant.controller
+    assert c.hold[4] and c.zone[4] == 0
+    speed = np.array(rec)
+    assert abs(speed[-100:].mean() - speed[:100].mean()) < 0.01 * speed.mean()  # settled, not sliding
+    assert speed.mean() > 0.7 * c.setpoint[4]
 
 
 def test_fault_free_twins_see_the_same_wind_and_noise():

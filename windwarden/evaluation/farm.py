@@ -26,6 +26,7 @@ import numpy as np
 
 from plant_sim.farm import FarmBatch
 from plant_sim.farm.damage import (
+    WOHLER_M,
     ReversalRecorder,
     damage_sums,
     del_from_sums,
@@ -316,6 +317,8 @@ def damage_metrics(v: Variant, windows: list[FaultWindow]) -> dict[str, Any]:
             "target": scorecard_target(w),
             "damage_number_run": float(np.mean(run_ratio)),
             "damage_number_window": float(np.mean(win_ratio)),
+            "miner_ratio_run": float(np.mean(run_ratio**WOHLER_M)),  # Σ n S^m over the twin's: fatigue damage
+            "miner_ratio_window": float(np.mean(win_ratio**WOHLER_M)),
         }
         if w.target == "pitch_misalignment":
             imb = np.abs(v.imbalance[:, t, i])
@@ -335,6 +338,8 @@ def damage_metrics(v: Variant, windows: list[FaultWindow]) -> dict[str, Any]:
             summary[name] = {
                 "damage_number_run": float(np.mean([e["damage_number_run"] for e in entries])),
                 "damage_number_window": float(np.mean([e["damage_number_window"] for e in entries])),
+                "miner_ratio_run": float(np.mean([e["miner_ratio_run"] for e in entries])),
+                "miner_ratio_window": float(np.mean([e["miner_ratio_window"] for e in entries])),
             }
             if name == "pitch_misalignment":
                 summary[name]["imbalance_nm"] = float(np.mean([e["imbalance_nm"] for e in entries]))

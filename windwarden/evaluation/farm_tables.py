@@ -4,6 +4,8 @@ The companion runs (``comparison_runs``), all on the same seed and run indices a
 
 * ``paper``: the scenario with the paper's detector (Table 5);
 * ``no_accommodation``: the scenario with the main detector and the dispatch without accommodation (Table 7);
+* ``paper_accommodation``: the same with the accommodation of eq. (26) as published (the P_min floor, no torque
+  hold; Table 7), when the main run uses the default ``hold-torque`` rule;
 * the fault-free farm (the scenario without its faults): ``fault_free`` with the main detector and the dispatch,
   ``fault_free_paper`` with the paper's detector (false positives of both detectors, Table 5) and
   ``fault_free_pi`` with the PI farm controller (Table 6).
@@ -44,6 +46,17 @@ def fault_free(scenario: Scenario) -> Scenario:
     return scenario.model_copy(update={"faults": [], "name": f"{scenario.name}-fault-free"})
 
 
+def accommodation_rule(scenario: Scenario) -> str:
+    from service.farm.dispatch import ACCOMMODATION_RULES
+
+    return str(scenario.supervisor.params.get("accommodation_rule", ACCOMMODATION_RULES[0]))
+
+
+def with_rule(scenario: Scenario, rule: str) -> Scenario:
+    params = {**scenario.supervisor.params, "accommodation_rule": rule}
+    return scenario.model_copy(update={"supervisor": scenario.supervisor.model_copy(update={"params": params})})
+
+
 def comparison_runs(scenario: Scenario, runs: int, seed: int, options: EvalOptions, main: Variant) -> dict:
     """The companion configurations of Tables 5–7, on the same runs and seed as ``main``."""
     from windwarden.evaluation.farm import run_variant
@@ -55,6 +68,8 @@ def comparison_runs(scenario: Scenario, runs: int, seed: int, options: EvalOptio
     if scenario.faults:
         plan["paper"] = (scenario, "paper", ctrl, main.accommodation, False, "paper detector")
         plan["no_accommodation"] = (scenario, det, "dispatch", False, True, "no accommodation")
+        if main.accommodation and accommodation_rule(scenario) != "paper":
+            plan["paper_accommodation"] = (with_rule(scenario, "paper"), det, "dispatch", True, True, "eq. (26)")
         plan["fault_free"] = (ff, det, "dispatch", True, False, "dispatch")
     plan["fault_free_paper"] = (ff, "paper", "dispatch", True, False, "paper detector")
     plan["fault_free_pi"] = (ff, det, "pi", True, False, "PI")
@@ -174,10 +189,15 @@ def tables_markdown(scenario: Scenario, main: Variant, comp: dict) -> str:
             "ours: damage 3 window | ours: missing MWh/run |",
             "|---|---|---|---|---|---|---|",
         ]
-        rows = [
-            ("no accommodation", without, p2n, p3n, no_power),
-            ("with accommodation (eqs. (23)–(26))", with_acc, p2a, p3a, acc_power),
-        ]
+        rule = accommodation_rule(scenario)
+        rows = [("no accommodation", without, p2n, p3n, no_power)]
+        if "paper_accommodation" in comp:
+            published = scorecard_of(comp["paper_accommodation"])["metrics"]["damage"].get("by_type", {})
+            rows.append(
+                ("eqs. (23)–(26) as published", published, p2a, p3a, power_metrics(comp["paper_accommodation"]))
+            )
+        label = "eqs. (23)–(26) as published" if rule == "paper" else "eqs. (23)–(26), drive train at held torque"
+        rows.append((label, with_acc, p2a, p3a, acc_power))
         for label, d, paper2, paper3, pw in rows:
             lines.append(
                 f"| {label} | {_fmt(paper2)} | {_fmt(paper3, 5)} "
@@ -188,14 +208,17 @@ def tables_markdown(scenario: Scenario, main: Variant, comp: dict) -> str:
                 f"| {_fmt(pw['missing_power']['mwh_per_run'])} |"
             )
         lines.append("")
-        for span in ("run", "window"):
-            n3 = dn(without, "drivetrain", f"damage_number_{span}")
-            a3 = dn(with_acc, "drivetrain", f"damage_number_{span}")
-            if n3 is not None and a3 is not None and n3 > 1.0:
-                lines.append(
-                    f"Excess drive-train damage removed by the accommodation over the {span}: "
-                    f"{100.0 * (n3 - a3) / (n3 - 1.0):.0f} % of the damage number's excess, "
-                    f"{100.0 * (n3**4 - a3**4) / (n3**4 - 1.0):.0f} % of the Miner damage's (DEL⁴).  "
-                )
+        for label, d, *_ in rows[1:]:
+            for span in ("run", "window"):
+                n3 = dn(without, "drivetrain", f"damage_number_{span}")
+                a3 = dn(d, "drivetrain", f"damage_number_{span}")
+                nm = dn(without, "drivetrain", f"miner_ratio_{span}")
+                am = dn(d, "drivetrain", f"miner_ratio_{span}")
+                if None not in (n3, a3, nm, am) and n3 > 1.0 and nm > 1.0:
+                    lines.append(
+                        f"Excess drive-train damage removed by {label}, over the {span}: "
+                        f"{100.0 * (n3 - a3) / (n3 - 1.0):.0f} % of the damage number's (DEL ratio) excess, "
+                        f"{100.0 * (nm - am) / (nm - 1.0):.0f} % of the fatigue damage's (Miner, Σ n S⁴) excess.  "
+                    )
     lines.append("")
     return "\n".join(lines)

@@ -20,7 +20,7 @@ import numpy as np
 from windwarden.evaluation.scoring import score_faults
 from windwarden.live.adapters.base import RunInfo, finite_or_none, records_from_batch
 from wwcore.events import Event
-from wwcore.farm_frames import FarmFrame, FarmRefs
+from wwcore.farm_frames import HOLD_TORQUE_MODE, FarmFrame, FarmRefs
 from wwcore.scenario import FaultSpec, Scenario
 from wwcore.scenario.farm import FARM_DT_S, FARM_FAULT_TYPES, N_TURBINES, FarmPlant
 from wwcore.turbine_frames import TurbineFrame
@@ -129,7 +129,12 @@ class FarmAdapter:
         computed = int(records["computed_tick"][0])
         if computed < 0:
             return None  # no farm sample yet: the turbines keep their own reference
-        return FarmRefs(tick=int(records["tick"][0]), power_ref=np.array(records["power_ref"]), computed_tick=computed)
+        return FarmRefs(
+            tick=int(records["tick"][0]),
+            power_ref=np.array(records["power_ref"]),
+            computed_tick=computed,
+            hold_torque=np.array(records["mode"]) == HOLD_TORQUE_MODE,
+        )
 
     def truth_records(self, plant: FarmBatch, frame: FarmFrame, turbines: list[int]) -> np.ndarray:
         truth = plant.truth()
