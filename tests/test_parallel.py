@@ -9,7 +9,7 @@ import pytest
 
 from tests.live.helpers import TURBINE_SHORT
 from windwarden.evaluation.parallel import chunk_runs
-from windwarden.evaluation.turbine import simulate_chunk
+from windwarden.evaluation.turbine import TWIN_TURBINE, simulate_chunk
 from wwcore.scenario import parse_scenario
 
 
@@ -37,3 +37,19 @@ def test_turbine_runs_give_the_same_events_and_errors_in_one_chunk_or_two():
     for name, total in together.sq_err.items():
         np.testing.assert_allclose(total, apart[0].sq_err[name] + apart[1].sq_err[name], rtol=1e-9, atol=1e-12)
     assert together.counts == pytest.approx(apart[0].counts + apart[1].counts)
+
+
+def test_fault_free_twins_in_a_batch_of_their_own_match_the_twins_in_the_runs_batch():
+    scenario = parse_scenario(tomllib.loads(TURBINE_SHORT))
+    base = (scenario, 77, "benchmark", "uio-bank", {})
+    together = simulate_chunk([0, 1], lambda s: None, *base, True)
+    main = simulate_chunk([0, 1], lambda s: None, *base, False, "main")
+    twin = simulate_chunk([0, 1], lambda s: None, *base, False, "twin")
+    twin_turbine = {e.turbine for e in twin.events} | {TWIN_TURBINE}
+    assert _key(together.events) == _key(main.events + twin.events)
+    assert twin_turbine == {TWIN_TURBINE}  # the twins' detections are labelled as twins'
+    for name in ("fte", "nfte", "anemometer"):
+        np.testing.assert_allclose(main.sq_err[name], together.sq_err[name], rtol=1e-9, atol=1e-12)
+    np.testing.assert_allclose(twin.sq_err["fte_fault_free"], together.sq_err["fte_fault_free"], rtol=1e-9, atol=1e-12)
+    assert set(twin.sq_err) == {"fte_fault_free"} and not twin.counts.any()  # counted once, in the main chunk
+    assert main.counts == pytest.approx(together.counts)

@@ -49,25 +49,29 @@ def run_chunks(
     workers: int | None = None,
     label: str = "simulating",
     show_progress: bool = True,
+    variants: Sequence[tuple] | None = None,
 ) -> list[R]:
     """Call ``worker(run_ids, progress_hook, *args)`` for every chunk; results in chunk order.
 
-    ``total_seconds`` is the simulated time of one run; the bar counts run-seconds over all runs.
+    ``total_seconds`` is the simulated time of one run; the bar counts run-seconds over all runs. With
+    ``variants`` (argument tuples) every chunk runs once per variant: results variant by variant, chunks in order.
     """
     chunks = chunk_runs(runs, chunk)
-    workers = min(len(chunks), workers or os.cpu_count() or 1)
-    bar = tqdm(total=total_seconds * runs, unit="run-s", desc=label, disable=not show_progress, smoothing=0.1)
+    tasks = [(run_ids, a) for a in (variants or [args]) for run_ids in chunks]
+    workers = min(len(tasks), workers or os.cpu_count() or 1)
+    total = total_seconds * runs * len(variants or [args])
+    bar = tqdm(total=total, unit="run-s", desc=label, disable=not show_progress, smoothing=0.1)
     try:
         if workers == 1:
             results = []
-            for run_ids in chunks:
+            for run_ids, a in tasks:
                 size = len(run_ids)
-                results.append(worker(run_ids, lambda seconds, size=size: bar.update(seconds * size), *args))
+                results.append(worker(run_ids, lambda seconds, size=size: bar.update(seconds * size), *a))
             return results
         ctx = mp.get_context("fork")
         with ctx.Manager() as manager, ProcessPoolExecutor(workers, mp_context=ctx) as pool:
             queue = manager.Queue()
-            futures = [pool.submit(_call, worker, run_ids, queue, args) for run_ids in chunks]
+            futures = [pool.submit(_call, worker, run_ids, queue, a) for run_ids, a in tasks]
             while not all(f.done() for f in futures):
                 with contextlib.suppress(queue_module.Empty):
                     bar.update(queue.get(timeout=0.2))
