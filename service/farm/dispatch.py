@@ -25,20 +25,19 @@ P_ref,farm < Σ P_avail; otherwise every turbine gets rated power (it produces w
   P_avail,f = max(pos(P_avail − P_over), P_min), P_min = 50 kW (26), then (18) with P_avail,f. *Decision D-26*:
   with several such turbines the headroom is shared out in turbine order, P_over shrinking by what each took.
 * drive train, rule ``hold-torque`` (the default) [PROPOSED]: the same (25)–(26) with the floor
-  P_min,f = max(P_min, η_gc (S_m − B_g ω_floor) ω_floor), S_m = τ_g,m + B_g ω̄_g — the power the turbine makes
-  at its present shaft torque and the lowest
-  speed at which its rotor can still deliver that torque — and the reference goes out with ``hold_torque``
-  (mode 3): the turbine derates by speed at held torque (``plant_sim.farm.controller``). ω_floor =
-  max(ω_min, N_g λ_f w_est/R), λ_f the tip-speed ratio on the rising branch of C_q(λ, 0) (below its peak at
-  λ ≈ 6.5) where ½ρπR³ C_q(λ_f, 0) w̄² = 1.2 τ̄_r: 20 % torque in hand for the turbulence (at or above the peak:
-  λ_f at the peak), and λ_f ≥ 5: below that the torque is largest at a pitch above 3 deg, and a controller that
-  goes to fine pitch to speed up stalls the rotor instead. The held turbine's reference is at least P_min,f; the
-  others share the rest of the demand as in (18). w̄, τ̄_r are w_est
-  and τ̂_r low-passed over 10 s and ω_floor is fixed when the hold begins: eq. (20) assumes steady state and
-  reads nonsense while the rotor slows down.
-  The paper's rule (``accommodation_rule = "paper"``) drops the
-  torque to what 50 kW needs, a rainflow cycle as large as the working torque that costs more damage than the
-  3P cycles it saves (docs/farm.md, Table 7); holding the torque removes the 3P swing (∝ ω_r²) without it.
+  P_min,f = max(P_min, η_gc (S_m − B_g ω_floor) ω_floor), S_m = τ_g,m + B_g ω̄_g: the power the turbine makes at
+  its present shaft torque and the lowest speed at which its rotor still delivers that torque. The reference goes
+  out with ``hold_torque`` (mode 3), and the turbine derates by speed at held torque
+  (``plant_sim.farm.controller``). ω_floor = max(ω_min, N_g λ_f w̄/R), λ_f the tip-speed ratio on the rising
+  branch of C_q(λ, 0) (below its peak at λ ≈ 6.5; at the peak when that is not enough) where
+  ½ρπR³ C_q(λ_f, 0) w̄² = 1.2 τ̄_r (option ``hold_margin``: torque in hand for the turbulence), and λ_f ≥ 5: below
+  that the torque is largest at a pitch above 3 deg, and a controller that goes to fine pitch to speed up stalls
+  the rotor instead. w̄, τ̄_r are w_est and τ̂_r low-passed over 10 s, and ω_floor is fixed when the hold begins:
+  eq. (20) assumes steady state and reads nonsense while the rotor slows down. The held turbine's reference is
+  at least P_min,f; the others share the rest of the demand as in (18). The paper's rule
+  (``accommodation_rule = "paper"``) drops the torque to what 50 kW needs, a rainflow cycle as large as the
+  working torque that costs more damage than the 3P cycles it saves (docs/farm.md, Table 7); holding the torque
+  lowers the 3P swing (∝ ω_r²) without it.
 
 **PI** (the benchmark's reference controller, PARAMETERS.md b): e = (P_ref,farm − Σ P_m)/P_ref,farm,
 u = sat(K_p e + I), I = sat(I + K_i e Δt), sat = ±20 %; every turbine gets (1 + u) P_ref,farm / 9.
