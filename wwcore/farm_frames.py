@@ -15,6 +15,7 @@ import numpy as np
 
 from wwcore.turbine_frames import TurbineFrame
 
+MIN_SPEED_FRACTION = 0.5  # –, ω_min = 0.5 Ω_nom: the lowest speed set point a farm turbine derates to [PROPOSED]
 HOLD_TORQUE_MODE = 3  # accommodation mode (wire ``mode``) in which a turbine derates by speed at held torque
 
 

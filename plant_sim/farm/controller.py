@@ -67,11 +67,11 @@ import numpy as np
 from scipy import signal
 
 from plant_sim.turbine.controller import BenchmarkController
+from wwcore.farm_frames import MIN_SPEED_FRACTION
 from wwcore.turbine_frames import TurbineRefs
 from wwcore.turbine_params import TurbineParams
 
 RAMP_FRACTION_PER_S = 0.1  # – of rated power per second, largest change of the followed reference [PROPOSED]
-MIN_SPEED_FRACTION = 0.5  # –, ω_min = 0.5 Ω_nom = 81 rad/s: lowest derated speed set point [PROPOSED]
 SPEED_SLEW = 0.02  # Ω_nom per second: a held turbine's speed set point moves at most 3.2 rad/s² [PROPOSED]
 DAMPER_HZ = 4.5  # Hz, centre of the drive-train damper: the torsion mode (PARAMETERS.md a.1) [PROPOSED]
 DAMPER_ZETA = 0.3  # –, damping of the band-pass (its width) [PROPOSED]
@@ -92,7 +92,7 @@ class FarmTurbineController(BenchmarkController):
         self.power_ref_target = np.full(n, float(power_reference))  # W, the last reference received
         self.ramp = RAMP_FRACTION_PER_S * params.rated_power * params.dt  # W per tick
         self.setpoint = speed_setpoint(params, self.power_ref)
-        self._hysteresis = params.omega_delta * self.setpoint / params.omega_nom
+        self._hysteresis = self._hysteresis_at(self.setpoint)
         self._ramping = False
         w0 = 2.0 * math.pi * DAMPER_HZ
         b, a, _ = signal.cont2discrete(
@@ -128,6 +128,10 @@ class FarmTurbineController(BenchmarkController):
         self.hold_asked = asked
         self.hold = self.hold | starting
 
+    def _hysteresis_at(self, setpoint: np.ndarray) -> np.ndarray:
+        """Ω_Δ,set = Ω_Δ ω_set/Ω_nom, rad/s."""
+        return self.p.omega_delta * setpoint / self.p.omega_nom
+
     def _hold_setpoint(self, omega_g: np.ndarray) -> None:
         """ω_set of turbines in the hold, slewed at SPEED_SLEW; on release it climbs back before the hold ends."""
         p = self.p
@@ -142,10 +146,10 @@ class FarmTurbineController(BenchmarkController):
         self._release_from = np.where(releasing, self._release_from, self._hold_set)
         target = np.where(releasing, normal, held)
         self._hold_set = np.minimum(np.maximum(target, self._hold_set - slew), self._hold_set + slew)
-        back = releasing & (self._hold_set >= normal) & (omega_g >= normal - p.omega_delta * normal / p.omega_nom)
+        back = releasing & (self._hold_set >= normal) & (omega_g >= normal - self._hysteresis_at(normal))
         self.hold = self.hold & ~back
         self.setpoint = np.where(self.hold, self._hold_set, normal)
-        self._hysteresis = p.omega_delta * self.setpoint / p.omega_nom
+        self._hysteresis = self._hysteresis_at(self.setpoint)
 
     def step(self, k: int, omega_g_m: np.ndarray, p_g_m: np.ndarray, refs: TurbineRefs | None) -> None:
         """τ_g,r and β_ref for tick k from the turbine's own sensors (``refs`` is not used by farm turbines)."""
@@ -156,7 +160,7 @@ class FarmTurbineController(BenchmarkController):
             self.power_ref = self.power_ref + step
             self._ramping = bool(np.any(self.power_ref != self.power_ref_target))
             self.setpoint = speed_setpoint(p, self.power_ref)
-            self._hysteresis = p.omega_delta * self.setpoint / p.omega_nom
+            self._hysteresis = self._hysteresis_at(self.setpoint)
         if self.hold.any():
             self._hold_setpoint(omega_g)
         setpoint, hysteresis = self.setpoint, self._hysteresis
@@ -186,7 +190,7 @@ class FarmTurbineController(BenchmarkController):
             # torque go steeply below the speed the rotor last held
             held_speed = np.where(self.hold_asked, setpoint, self._release_from)
             below = np.minimum(omega_g / np.maximum(held_speed - hysteresis, 1.0), 1.0)
-            below = below * below * below
+            cube = below * below * below
             torque = self.tau_hold - p.B_g * omega_g
-            base = np.where(self.hold, np.where(region3, torque, torque * below * below), base)
+            base = np.where(self.hold, np.where(region3, torque, torque * cube * cube), base)  # (ω_g/ω_b)⁶
         self.tau_g_ref = base + damper

@@ -51,11 +51,11 @@ import numpy as np
 from service.farm.interfaces import BETA, OMEGA_G, P_G, TAU_G, FarmContext, FarmSample
 from service.farm.power_curve import available_power
 from wwcore import aero
+from wwcore.farm_frames import MIN_SPEED_FRACTION
 from wwcore.scenario.farm import FARM_DT_S, N_TURBINES, ROTOR_DIAMETER_M
 
 DEBRIS_FACTOR = 0.97  # eqs. (23)–(24)
 P_MIN_W = 50e3  # eq. (26)
-MIN_SPEED_FRACTION = 0.5  # –, ω_min/Ω_nom of the farm turbines (plant_sim.farm.controller; the supervisor's model)
 ACCOMMODATION_RULES = ("hold-torque", "paper")
 HOLD_MARGIN = 1.2  # –, rotor torque at fine pitch and the derated speed over the held torque [PROPOSED]
 HOLD_MIN_TSR = 5.0  # –, lowest tip-speed ratio of a hold: below it C_q peaks at β > 3 deg and fine pitch stalls

@@ -28,6 +28,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from service.turbine.frozen import FrozenReadings
 from wwcore.channels import SENSOR_INDEX, TARGET_INDEX, Component
 from wwcore.lti import second_order_tf, zoh
 from wwcore.quantiles import chi2_isf, norm_isf
@@ -128,9 +129,7 @@ class ComponentFDI:
         self._converter_gain = float(np.exp(-p.alpha_gc * p.dt))
         self._actuator_rest = np.zeros(n, dtype=np.int64)  # blocks until the actuator test may flag again
         self._actuator_quiet = np.zeros((n, 3), dtype=np.int64)  # consecutive blocks below the clearing threshold
-        self._prev_beta: np.ndarray | None = None
-        self._same = np.zeros((n, 6), dtype=np.int64)
-        self._counting = False  # False only while every ``_same`` count is 0
+        self.readings = FrozenReadings((n, 6), settings.frozen_ticks)  # [β_i,m1 | β_i,m2]
         self.flags = np.zeros((n, len(TARGET_INDEX)), dtype=bool)
         self.ticks = 0
         self.warmup_ticks = round(settings.warmup_s / p.dt)
@@ -156,19 +155,14 @@ class ComponentFDI:
     # -- pitch sensors ------------------------------------------------------------------------------------------
     def _pitch_sensors(self, beta: np.ndarray, m1: np.ndarray, m2: np.ndarray) -> None:
         """beta = [m1 | m2] (n, 6), the readings of the blades' first and second pitch sensors."""
-        if self._prev_beta is not None:
-            same = beta == self._prev_beta
-            if self._counting or same.any():  # else every count is 0 and stays 0
-                self._same = (self._same + 1) * same
-                self._counting = bool(self._same.any())
-        self._prev_beta = beta
+        self.readings.push(beta)
         parity = (m1 - m2) * self._parity_scale
         window = self.parity.push(parity) * self._window_scale
         suspicious = np.maximum(np.abs(parity), np.abs(window)) > self.z_single
-        maybe_frozen = self._counting or self.s.frozen_ticks < 2  # else no count can reach frozen_ticks − 1
+        maybe_frozen = self.readings.counting or self.s.frozen_ticks < 2  # else nothing can be frozen
         if not (maybe_frozen or self._pitch_flagged or suspicious.any()):
             return  # the healthy fast path: nothing suspicious, frozen or flagged
-        frozen = self._same >= self.s.frozen_ticks - 1
+        frozen = self.readings.frozen
         pair_frozen = frozen[:, :3] | frozen[:, 3:]
         if not (self._pitch_flagged or suspicious.any() or pair_frozen.any()):
             return
@@ -200,9 +194,7 @@ class ComponentFDI:
             s1, s2 = b1e[k] - a1 * wk + s2, b2e[k] - a2 * wk
         self._w_state = (s1, s2)
         w *= w
-        z2 = w[0].copy()  # Σ_k w_k², added in tick order
-        for wk2 in w[1:]:
-            z2 += wk2
+        z2 = np.add.accumulate(w, axis=0)[-1]  # Σ_k w_k², added in tick order
         total = self.actuator.push(z2 * (1.0 / (0.75 * self.sigma_beta**2)))
         sensor_flagged = self.flags[:, M1_TARGET].any(axis=1) | self.flags[:, M2_TARGET].any(axis=1)
         rest = self.actuator.size
@@ -234,10 +226,7 @@ class ComponentFDI:
                 np.add(a * previous, drive[k], out=tau_hat[k])
             previous = tau_hat[k]
         self._tau_hat = tau_hat[-1].copy()
-        residual = tau_g_m - tau_hat
-        r = residual[0].copy()  # Σ_k (τ_g,m − τ̂_g), added in tick order
-        for rk in residual[1:]:
-            r += rk
+        r = np.add.accumulate(tau_g_m - tau_hat, axis=0)[-1]  # Σ_k (τ_g,m − τ̂_g), added in tick order
         mean = self.converter.push(r) * (1.0 / (self.sigma_tau * np.sqrt(self.s.converter_window)))
         if not self.converter.full:
             return

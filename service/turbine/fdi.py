@@ -34,6 +34,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from service.turbine.bank import BankDesign
+from service.turbine.frozen import FrozenReadings
 from wwcore.channels import SPEED_SENSORS
 from wwcore.quantiles import chi2_isf
 
@@ -92,16 +93,13 @@ class SpeedSensorFDI:
         self.masks = np.array(masks)
         self.sizes = np.array([len(s) for s in bank.left_out])
         self.flagged = np.zeros(n, dtype=np.int64)  # bitmask of flagged sensors per turbine
-        self.frozen = np.zeros((n, N_SPEED), dtype=bool)
-        self._same_count = np.zeros((n, N_SPEED), dtype=np.int64)
-        self._y_prev: np.ndarray | None = None
+        self.readings = FrozenReadings((n, N_SPEED), settings.frozen_ticks)
         self.ticks = 0
         self.ambiguous = np.zeros(n, dtype=bool)  # no consistent observer was found at the last search
         self._rows = np.arange(n)
         # Cheap state for the common tick on which no sensor is flagged or frozen (each skips a few numpy calls):
         self.ratio = np.zeros((n, bank.n_isolating))  # ``margins`` of the last step
         self._maybe_flagged = False  # False only while no row has a flagged sensor
-        self._counting = False  # False only while every ``_same_count`` is 0
         self._all_healthy = int(self.observer_of_mask[0])  # the observer that leaves nothing out
         self._no_frozen = np.zeros(n, dtype=np.int64)
 
@@ -124,13 +122,13 @@ class SpeedSensorFDI:
         slot = self.ticks % self.s.window
         self._window_sum += chi2_stat - self._history[slot]
         self._history[slot] = chi2_stat
-        any_frozen = self._update_frozen(y)
+        any_frozen = self.readings.push(y)
         self.ticks += 1
         self.ratio = ratio = np.maximum(chi2_stat / self.h_detect, self._window_sum / self.h_window)
         if self.ticks <= self.warmup_ticks:
             return
         if any_frozen:
-            frozen_mask = self.frozen @ _BITS
+            frozen_mask = self.readings.frozen @ _BITS
             self.flagged |= frozen_mask
             self._maybe_flagged = True
         else:
@@ -175,16 +173,3 @@ class SpeedSensorFDI:
             rows, with_s = rows[with_s >= 0], with_s[with_s >= 0]
             done = rows[self._window_sum[rows, with_s] <= self.h_clear[with_s]]
             self.flagged[done] &= ~bit
-
-    def _update_frozen(self, y: np.ndarray) -> bool:
-        """Count identical consecutive readings; True when any reading is frozen now."""
-        any_frozen = False
-        if self._y_prev is not None:
-            same = y == self._y_prev
-            if self._counting or self.s.frozen_ticks < 2 or same.any():  # else every count is and stays 0
-                self._same_count = (self._same_count + 1) * same
-                self.frozen = self._same_count >= self.s.frozen_ticks - 1
-                self._counting = bool(self._same_count.any())
-                any_frozen = bool(self.frozen.any())
-        self._y_prev = y
-        return any_frozen

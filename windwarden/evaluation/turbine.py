@@ -205,14 +205,13 @@ def evaluate(scenario: Scenario, runs: int, seed: int, options: EvalOptions) -> 
     TURBINE_DETECTORS.factory(detector)  # unknown names are refused before anything runs
     TURBINE_ESTIMATORS.factory(estimator)
     base = (scenario, seed, detector, estimator, dict(scenario.supervisor.params))
-    # The twins in processes of their own: the step's cost is per tick, nearly independent of the rows, so two
-    # batches of 50 rows on two cores take the time of one, where one batch of 100 rows takes that of two.
+    # The twins in processes of their own, next to the runs (TURBINE_CHUNK): the step's cost is mostly per tick.
     split = options.twins and bool(scenario.faults)
     results = run_chunks(
         simulate_chunk,
         runs,
         scenario.duration_s,
-        args=(*base, options.twins),
+        args=(*base, False),
         variants=[(*base, False, "main"), (*base, False, "twin")] if split else None,
         chunk=TURBINE_CHUNK,
         workers=options.workers,
