@@ -25,7 +25,7 @@ from typing import Any
 import numpy as np
 import zenoh
 
-from windwarden.live.adapters import adapter_for
+from windwarden.live.adapters import adapter_for, load_adapters
 from windwarden.live.adapters.base import KindAdapter, RunInfo
 from windwarden.live.config import SupervisorSettings
 from windwarden.live.mailbox import TickMailbox
@@ -75,6 +75,7 @@ class SupervisorNode:
             s, self.keys.supervisor_status, "supervisor.status", lambda body: self.status(), self.drops
         )
         self.watch = LivenessWatch(s, self.keys.alive_all, self._on_liveliness)
+        load_adapters()  # before the token: alive means able to build any kind's supervisor at once
         self._token = s.liveliness().declare_token(self.keys.alive(Process.SUPERVISOR))
 
     def stop(self) -> None:
