@@ -11,6 +11,8 @@ paper  observer instances          sensors used (``y_j``, eqs. (4)–(10))
 4      ``4``                       ω_g,m1 ω_g,m2 (no UIO exists: augmented Kalman filter, see ``uio``)
 5      ``5``                       ω_r,m1 ω_r,m2
 6      ``6-r1g1`` … ``6-r2g2``     one rotor- and one generator-speed sensor left out
+–      ``5-pe``                    ω_r,m1 ω_r,m2 and ω_g,pe = P_g,m/(η_gc τ_g,m) (not isolating; the estimate
+                                   when both generator-speed sensors are flagged, ``docs/turbine.md``)
 =====  ==========================  ===================================================
 
 All observers are computed at each sample (seed 000, after eq. (20)); their states are stacked into one array
@@ -35,6 +37,8 @@ from wwcore.channels import SPEED_SENSORS
 SHORT = {"omega_r_m1": "r1", "omega_r_m2": "r2", "omega_g_m1": "g1", "omega_g_m2": "g2"}
 ROTOR = ("omega_r_m1", "omega_r_m2")
 GENERATOR = ("omega_g_m1", "omega_g_m2")
+POWER_SPEED = "omega_g_pe"  # the power-speed channel P_g,m / (η_gc τ_g,m), rad/s (``interfaces.power_speed``)
+POWER_SPEED_OBSERVER = "5-pe"
 
 
 def paper_number(left_out: frozenset[str]) -> int:
@@ -65,18 +69,20 @@ class BankDesign:
     left_out: tuple[frozenset[str], ...]  # of the isolating observers 0 … n_isolating − 1
     names: tuple[str, ...]  # every observer, the NFTE copy of observer 1 last
     observers: tuple[ObserverDesign, ...]
+    inputs: tuple[str, ...]  # the bank's input columns: the 4 speed sensors, then POWER_SPEED if it has 5-pe
     offsets: np.ndarray  # start column of each observer's state block
     F_blk: np.ndarray  # steady-state block-diagonal F
-    K_blk: np.ndarray  # (Σn, 4): K_j M_j stacked
-    H_blk: np.ndarray  # (Σn, 4): H_j M_j stacked
+    K_blk: np.ndarray  # (Σn, n_inputs): K_j M_j stacked
+    H_blk: np.ndarray  # (Σn, n_inputs): H_j M_j stacked
     TB_blk: np.ndarray  # (Σn,)
     F_transient: np.ndarray  # (N, Σn, Σn)
-    K_transient: np.ndarray  # (N, Σn, 4)
-    G_res: np.ndarray  # (Σrank, 4): W_j (I − C_j H_j) M_j stacked
+    K_transient: np.ndarray  # (N, Σn, n_inputs)
+    G_res: np.ndarray  # (Σrank, n_inputs): W_j (I − C_j H_j) M_j stacked
     L_res: np.ndarray  # (Σrank, Σn): block-diag W_j C_j
     res_starts: np.ndarray  # start row of each observer's whitened residual
     ranks: np.ndarray  # (n_obs,)
     reference: int  # index of the NFTE copy of observer 1
+    power_speed: int  # index of observer 5-pe (rotor-speed sensors and the power-speed channel); −1 if absent
 
     @property
     def n_isolating(self) -> int:
@@ -86,28 +92,39 @@ class BankDesign:
         return self.left_out.index(left_out)
 
 
-def _selector(sensors: tuple[str, ...]) -> np.ndarray:
-    M = np.zeros((len(sensors), len(SPEED_SENSORS)))
+def _selector(sensors: tuple[str, ...], inputs: tuple[str, ...]) -> np.ndarray:
+    M = np.zeros((len(sensors), len(inputs)))
     for row, name in enumerate(sensors):
-        M[row, SPEED_SENSORS.index(name)] = 1.0
+        M[row, inputs.index(name)] = 1.0
     return M
 
 
 def design_bank(model: DesignModel, sigma: dict[str, float], Q: np.ndarray, q_unknown: float) -> BankDesign:
-    """Design every observer of the bank. ``sigma``: speed-sensor noise σ (same units as the channel)."""
+    """Design every observer of the bank. ``sigma``: noise σ of each speed channel (its own units); with a
+    ``POWER_SPEED`` entry the bank also runs observer 5-pe (not isolating: it serves the estimate only)."""
     left_outs = bank_subsets()
+    with_power_speed = POWER_SPEED in sigma
+    inputs = (*SPEED_SENSORS, POWER_SPEED) if with_power_speed else SPEED_SENSORS
+    sensor_sets = [tuple(s for s in SPEED_SENSORS if s not in left_out) for left_out in left_outs]
+    if with_power_speed:
+        sensor_sets.append((*ROTOR, POWER_SPEED))
+    sensor_sets.append(SPEED_SENSORS)  # the last one is the NFTE copy of observer 1
     observers = []
-    for left_out in [*left_outs, frozenset()]:  # the last one is the NFTE copy of observer 1
-        sensors = tuple(s for s in SPEED_SENSORS if s not in left_out)
+    for sensors in sensor_sets:
         R = np.diag([sigma[s] ** 2 for s in sensors])
         problem = existence_problem(model, sensors)
-        if problem is None:
+        if POWER_SPEED in sensors:
+            # A UIO exists here but decouples τ_r through the noisy rotor-speed sensors; the Kalman form weighs
+            # all three channels by their noise (wind RMSE 0.21 against the UIO's 0.37 m/s, docs/turbine.md).
+            note = "Kalman form by choice: rotor-speed sensors plus the power-speed channel"
+            observers.append(design_augmented_kalman(model, sensors, R, Q, q_unknown, note=note))
+        elif problem is None:
             observers.append(design_uio(model, sensors, R, Q))
         else:
             observers.append(design_augmented_kalman(model, sensors, R, Q, q_unknown, note=problem))
     sizes = [o.n_states for o in observers]
     offsets = np.concatenate([[0], np.cumsum(sizes)[:-1]])
-    selectors = [_selector(o.sensors) for o in observers]
+    selectors = [_selector(o.sensors, inputs) for o in observers]
     n_transient = max(len(o.F_transient) for o in observers)
 
     reference = len(observers) - 1
@@ -132,8 +149,9 @@ def design_bank(model: DesignModel, sigma: dict[str, float], Q: np.ndarray, q_un
     ranks = np.array([o.rank for o in observers])
     return BankDesign(
         left_out=tuple(left_outs),
-        names=(*(observer_name(s) for s in left_outs), "1-nfte"),
+        names=(*(observer_name(s) for s in left_outs), *([POWER_SPEED_OBSERVER] * with_power_speed), "1-nfte"),
         observers=tuple(observers),
+        inputs=inputs,
         offsets=offsets,
         F_blk=F_blk,
         K_blk=K_blk,
@@ -146,6 +164,7 @@ def design_bank(model: DesignModel, sigma: dict[str, float], Q: np.ndarray, q_un
         res_starts=np.concatenate([[0], np.cumsum(ranks)[:-1]]),
         ranks=ranks,
         reference=reference,
+        power_speed=len(left_outs) if with_power_speed else -1,
     )
 
 
@@ -201,7 +220,8 @@ class ObserverBank:
         self.x_hat = self.z + y @ d.H_blk.T
 
     def step(self, y: np.ndarray, u_prev: np.ndarray) -> None:
-        """Advance with y[n] (n, 4 speed sensors) and u[n−1] (n,) the torque reference of the previous tick."""
+        """Advance with y[n] (n, n_inputs: the speed sensors, then the power-speed channel if any) and u[n−1]
+        (n,) the torque reference of the previous tick."""
         width = self._width
         if self._y_prev is not None:
             update = self._update_transient[self.steps] if self.steps < len(self._update_transient) else self._update

@@ -11,6 +11,7 @@ from __future__ import annotations
 import numpy as np
 
 from service.plugins import TURBINE_DETECTORS, TURBINE_ESTIMATORS
+from service.turbine.bank import GENERATOR
 from service.turbine.component_fdi import ComponentFDI, ComponentSettings
 from service.turbine.fdi import FDISettings, SpeedSensorFDI
 from service.turbine.interfaces import (
@@ -114,6 +115,9 @@ class UIOBankEstimator:
         self.observer_of_mask = np.full(1 << len(SPEED_SENSORS), -1)
         for j, left_out in enumerate(design.left_out):
             self.observer_of_mask[sum(1 << SPEED_SENSORS.index(s) for s in left_out)] = j
+        if bool(options.get("power_speed", True)) and design.power_speed >= 0:
+            both_generator = sum(1 << SPEED_SENSORS.index(s) for s in GENERATOR)
+            self.observer_of_mask[both_generator] = design.power_speed
         self.reference = design.reference
         self._reference_columns = np.full(context.n, design.reference)
         self._all_healthy = np.full(context.n, self.observer_of_mask[0])  # ``selected`` when nothing is flagged

@@ -37,7 +37,7 @@ from wwcore.lti import zoh
 from wwcore.turbine_params import TurbineParams
 
 STATE_NAMES = ("omega_r", "omega_g", "theta", "tau_g")
-SPEED_SENSOR_STATE = {"omega_r_m1": 0, "omega_r_m2": 0, "omega_g_m1": 1, "omega_g_m2": 1}
+SPEED_SENSOR_STATE = {"omega_r_m1": 0, "omega_r_m2": 0, "omega_g_m1": 1, "omega_g_m2": 1, "omega_g_pe": 1}
 
 
 @dataclass(frozen=True)

@@ -15,13 +15,20 @@ from functools import cached_property
 
 import numpy as np
 
-from service.turbine.bank import BankDesign, ObserverBank, design_bank
+from service.turbine.bank import POWER_SPEED, BankDesign, ObserverBank, design_bank
 from service.turbine.design_model import design_model
 from wwcore.channels import DIAGNOSIS_TARGETS, SENSOR_INDEX, SENSORS, SPEED_SENSORS, noise_std
 from wwcore.turbine_frames import TurbineFrame
 from wwcore.turbine_params import TurbineParams
 
 SPEED_COLUMNS = np.array([SENSOR_INDEX[s] for s in SPEED_SENSORS])
+POWER_COLUMNS = np.array([SENSOR_INDEX["p_g_m"], SENSOR_INDEX["tau_g_m"]])
+# Below this generator torque (fraction of rated) P_g,m/τ_g,m is mostly noise: the power-speed channel then
+# falls back to N_g × the mean rotor-speed reading.
+POWER_SPEED_MIN_TORQUE = 0.05
+# The power-speed channel's design noise is evaluated half-way up region 2: half the rated torque, at the
+# speed where the K ω² law gives it.
+POWER_SPEED_DESIGN_TORQUE = 0.5
 
 # Design process noise of the observers (per step): the drive-train model is exact up to the efficiency fault
 # and the converter's torque offset, so Q is small.
@@ -75,6 +82,7 @@ class TurbineContext:
         self._bank: ObserverBank | None = None
         self._bank_tick: int | None = None
         self._speed: np.ndarray | None = None  # the four speed readings of tick _bank_tick
+        self._min_torque = POWER_SPEED_MIN_TORQUE * params.rated_torque
 
     @cached_property
     def bank_design(self) -> BankDesign:
@@ -83,21 +91,60 @@ class TurbineContext:
     def bank(self, frame: TurbineFrame) -> ObserverBank:
         """The observer bank advanced to ``frame`` (initialised on the first frame)."""
         if self._bank is None:
-            y = self._speed = frame.sensors[:, SPEED_COLUMNS]
+            y = self._bank_inputs(frame)
             self._bank = ObserverBank(self.bank_design, self.n)
-            self._bank.initialise(static_state_guess(self.params, y, frame.tau_g_ref), y)
+            self._bank.initialise(static_state_guess(self.params, self._speed, frame.tau_g_ref), y)
             self._bank_tick = frame.k
             self._bank.step(y, frame.tau_g_ref)
         elif self._bank_tick != frame.k:
-            y = self._speed = frame.sensors[:, SPEED_COLUMNS]
-            self._bank.step(y, frame.tau_g_ref)
+            self._bank.step(self._bank_inputs(frame), frame.tau_g_ref)
             self._bank_tick = frame.k
         return self._bank
+
+    def _bank_inputs(self, frame: TurbineFrame) -> np.ndarray:
+        """The bank's input columns (``bank_design.inputs``) for this frame; keeps the speed readings aside."""
+        speed = frame.sensors[:, SPEED_COLUMNS]
+        if len(self.bank_design.inputs) == len(SPEED_SENSORS):
+            self._speed = speed
+            return speed
+        y = np.empty((self.n, len(SPEED_SENSORS) + 1))
+        y[:, :-1] = speed
+        power, torque = frame.sensors[:, POWER_COLUMNS].T
+        y[:, -1] = power_speed(power, torque, speed, self.params, self._min_torque)
+        self._speed = y[:, :-1]
+        return y
 
     def speed_readings(self, frame: TurbineFrame) -> np.ndarray:
         """``frame.sensors[:, SPEED_COLUMNS]`` (n, 4), gathered once per tick with the bank's step (read-only)."""
         self.bank(frame)
         return self._speed
+
+
+def power_speed(
+    power: np.ndarray, torque: np.ndarray, speed: np.ndarray, p: TurbineParams, min_torque: float
+) -> np.ndarray:
+    """Generator speed from the electrical power and torque readings, ω_g = P_g,m / (η_gc τ_g,m), rad/s.
+
+    P_g = η_gc ω_g τ_g (PARAMETERS.md a.2) holds whatever the speed sensors do, so this is an analytical
+    generator-speed channel that survives faults of both generator-speed sensors. Its noise is that of τ_g,m
+    relative to τ_g (plus P_g,m's): ≈ 0.6 % of ω_g half-way up region 2 against 1.6 % for one rotor-speed
+    sensor. Below ``min_torque`` (N m) the ratio is mostly noise and N_g × the mean rotor-speed reading
+    (``speed`` columns 0, 1) stands in.
+    """
+    low = torque < min_torque
+    if low.any():
+        fallback = p.N_g * 0.5 * (speed[:, 0] + speed[:, 1])
+        return np.where(low, fallback, power / (p.eta_gc * np.where(low, 1.0, torque)))
+    return power / (p.eta_gc * torque)
+
+
+def power_speed_sigma(sigma: dict[str, float], p: TurbineParams) -> float:
+    """Design noise σ of ``power_speed`` (rad/s) at ``POWER_SPEED_DESIGN_TORQUE`` × rated torque on the K ω²
+    law of region 2, from the σ of P_g,m and τ_g,m by first-order propagation."""
+    torque = POWER_SPEED_DESIGN_TORQUE * p.rated_torque
+    omega_g = p.omega_nom * np.sqrt(POWER_SPEED_DESIGN_TORQUE)
+    power = p.eta_gc * omega_g * torque
+    return float(omega_g * np.hypot(sigma["p_g_m"] / power, sigma["tau_g_m"] / torque))
 
 
 def static_state_guess(p: TurbineParams, y_speed: np.ndarray, tau_g: np.ndarray) -> np.ndarray:
@@ -115,6 +162,8 @@ _BANKS: dict[tuple, BankDesign] = {}
 def _cached_bank_design(params: TurbineParams, convention: str) -> BankDesign:
     key = (params, convention)
     if key not in _BANKS:
-        sigma = {c.name: noise_std(c, convention) for c in SENSORS if c.name in SPEED_SENSORS}
+        all_sigma = {c.name: noise_std(c, convention) for c in SENSORS}
+        sigma = {name: all_sigma[name] for name in SPEED_SENSORS}
+        sigma[POWER_SPEED] = power_speed_sigma(all_sigma, params)
         _BANKS[key] = design_bank(design_model(params), sigma, DESIGN_Q, DESIGN_Q_UNKNOWN)
     return _BANKS[key]

@@ -1,0 +1,111 @@
+"""Observer 5-pe: the rotor-speed sensors plus the power-speed channel P_g,m / (η_gc τ_g,m), the estimate used
+when both generator-speed sensors are flagged."""
+
+from __future__ import annotations
+
+import tomllib
+
+import numpy as np
+import pytest
+
+from plant_sim.turbine import TurbineBatch
+from service.turbine.bank import GENERATOR, POWER_SPEED, ObserverBank
+from service.turbine.interfaces import (
+    POWER_SPEED_MIN_TORQUE,
+    TurbineContext,
+    power_speed,
+    power_speed_sigma,
+)
+from service.turbine.supervisor import TurbineSupervisor
+from wwcore.channels import SENSORS, SPEED_SENSORS, noise_std
+from wwcore.scenario.loader import parse_scenario
+from wwcore.turbine_params import BENCHMARK as P
+
+DESIGN = TurbineContext(P, 1).bank_design
+PE = DESIGN.power_speed
+
+
+def test_power_speed_inverts_the_electrical_power_and_falls_back_at_low_torque():
+    omega_g = np.array([120.0, 150.0, 90.0])
+    torque = np.array([2.0e4, 3.1e4, 100.0])  # the last one below POWER_SPEED_MIN_TORQUE × rated
+    speed = np.column_stack([omega_g / P.N_g, omega_g / P.N_g + 0.02, omega_g, omega_g])
+    power = P.eta_gc * omega_g * torque
+    out = power_speed(power, torque, speed, P, POWER_SPEED_MIN_TORQUE * P.rated_torque)
+    np.testing.assert_allclose(out[:2], omega_g[:2], rtol=1e-12)
+    assert out[2] == pytest.approx(P.N_g * (omega_g[2] / P.N_g + 0.01), rel=1e-12)
+
+
+def test_power_speed_design_noise_is_the_first_order_propagation():
+    sigma = {c.name: noise_std(c, "sigma") for c in SENSORS}
+    torque = 0.5 * P.rated_torque
+    omega_g = P.omega_nom * np.sqrt(0.5)
+    rel = np.sqrt((sigma["p_g_m"] / (P.eta_gc * omega_g * torque)) ** 2 + (sigma["tau_g_m"] / torque) ** 2)
+    assert power_speed_sigma(sigma, P) == pytest.approx(omega_g * rel, rel=1e-12)
+    # 2.5× better than one rotor-speed sensor referred to the generator: the reason the channel exists
+    assert power_speed_sigma(sigma, P) < sigma["omega_r_m1"] * P.N_g / 2.5
+
+
+def test_observer_5pe_reads_no_generator_speed_sensor():
+    assert DESIGN.names[PE] == "5-pe" and DESIGN.n_isolating <= PE and DESIGN.reference == len(DESIGN.names) - 1
+    assert DESIGN.observers[PE].sensors == ("omega_r_m1", "omega_r_m2", POWER_SPEED)
+    block = slice(DESIGN.offsets[PE], DESIGN.offsets[PE] + DESIGN.observers[PE].n_states)
+    generator = [DESIGN.inputs.index(s) for s in GENERATOR]
+    for gains in (DESIGN.K_blk, DESIGN.H_blk, *DESIGN.K_transient):
+        assert not gains[block][:, generator].any()
+    # invariant: whatever the generator-speed sensors read, observer 5-pe's states do not move
+    rng = np.random.default_rng(3)
+    y = np.tile([1.2, 1.2, 1.2 * P.N_g, 1.2 * P.N_g, 1.2 * P.N_g], (400, 1)) + 0.02 * rng.standard_normal((400, 5))
+    wrecked = y.copy()
+    wrecked[:, 2] = 140.0
+    wrecked[:, 3] *= 0.9
+    states = []
+    for readings in (y, wrecked):
+        bank = ObserverBank(DESIGN, 1)
+        bank.initialise(np.array([[1.2, 1.2 * P.N_g, 1e-3, 2e4]]), readings[:1])
+        for k in range(len(readings)):
+            bank.step(readings[k : k + 1], np.array([2e4]))
+        states.append(bank.states(PE).copy())
+    np.testing.assert_array_equal(states[0], states[1])
+
+
+SHORT = """
+name = "power-speed"
+duration_s = 260.0
+[plant]
+kind = "turbine"
+[wind]
+mean = [[0.0, 8.5], [260.0, 10.0]]
+turbulence_intensity = 0.12
+"""
+
+
+@pytest.mark.parametrize("power_speed_option", [True, False])
+def test_both_generator_sensors_flagged_selects_5pe_unless_switched_off(power_speed_option):
+    estimator = TurbineSupervisor(1, options={"power_speed": power_speed_option}).estimator
+    both = sum(1 << SPEED_SENSORS.index(s) for s in GENERATOR)
+    assert estimator.names[estimator.observer_of_mask[both]] == ("5-pe" if power_speed_option else "5")
+    # every other flag pattern keeps its observer of seed 000 (5-pe is never selected for anything else)
+    others = np.delete(estimator.observer_of_mask, both)
+    assert DESIGN.power_speed not in others
+
+
+def test_5pe_wind_estimate_is_close_to_observer_1_and_better_than_observer_5():
+    """Fault-free closed loop, every observer's wind inverted from the same data: RMSE against the true wind."""
+    scenario = parse_scenario(tomllib.loads(SHORT))
+    plant = TurbineBatch(scenario.plant, scenario.wind, [], seed=11, runs=[0, 1])
+    supervisor = TurbineSupervisor(plant.n)
+    names = supervisor.estimator.names
+    columns = np.array([[names.index(name)] * plant.n for name in ("1", "5", "5-pe")])
+    errors, refs = [], None
+    for k in range(round(scenario.duration_s / plant.dt)):
+        frame = plant.measure()
+        plant.control(refs)
+        refs = supervisor.step(frame)
+        if k >= 6000 and k % 20 == 0:  # after a minute: observers and filters settled
+            wind = supervisor.estimator.recovery.wind(columns, np.tile(supervisor.estimates.wind, (3, 1)))
+            errors.append(wind - plant.true_rotor_wind())
+        plant.advance()
+    rmse_1, rmse_5, rmse_pe = np.sqrt(np.mean(np.square(errors), axis=(0, 2)))
+    print(f"wind RMSE observer 1 {rmse_1:.3f}, 5 {rmse_5:.3f}, 5-pe {rmse_pe:.3f} m/s")
+    assert rmse_pe < rmse_5
+    assert rmse_pe < 1.10 * rmse_1
