@@ -23,6 +23,7 @@ from wwcore.turbine_params import TurbineParams
 
 SPEED_COLUMNS = np.array([SENSOR_INDEX[s] for s in SPEED_SENSORS])
 POWER_COLUMNS = np.array([SENSOR_INDEX["p_g_m"], SENSOR_INDEX["tau_g_m"]])
+BANK_COLUMNS = np.concatenate([SPEED_COLUMNS, POWER_COLUMNS])  # one gather: the 4 speeds, P_g,m, τ_g,m
 # Below this generator torque (fraction of rated) P_g,m/τ_g,m is mostly noise: the power-speed channel then
 # falls back to N_g × the mean rotor-speed reading.
 POWER_SPEED_MIN_TORQUE = 0.05
@@ -103,16 +104,17 @@ class TurbineContext:
 
     def _bank_inputs(self, frame: TurbineFrame) -> np.ndarray:
         """The bank's input columns (``bank_design.inputs``) for this frame; keeps the speed readings aside."""
-        speed = frame.sensors[:, SPEED_COLUMNS]
         if len(self.bank_design.inputs) == len(SPEED_SENSORS):
-            self._speed = speed
+            self._speed = speed = frame.sensors[:, SPEED_COLUMNS]
             return speed
-        y = np.empty((self.n, len(SPEED_SENSORS) + 1))
-        y[:, :-1] = speed
-        power, torque = frame.sensors[:, POWER_COLUMNS].T
-        y[:, -1] = power_speed(power, torque, speed, self.params, self._min_torque)
-        self._speed = y[:, :-1]
-        return y
+        read = frame.sensors.take(BANK_COLUMNS, axis=1)  # (n, 6); column 4 becomes the power-speed channel
+        power, torque = read[:, 4], read[:, 5]
+        if (torque < self._min_torque).any():
+            read[:, 4] = power_speed(power, torque, read, self.params, self._min_torque)
+        else:  # power_speed's formula, in place
+            np.divide(power, self.params.eta_gc * torque, out=power)
+        self._speed = read[:, :4]
+        return read[:, :5]
 
     def speed_readings(self, frame: TurbineFrame) -> np.ndarray:
         """``frame.sensors[:, SPEED_COLUMNS]`` (n, 4), gathered once per tick with the bank's step (read-only)."""
