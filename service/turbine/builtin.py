@@ -96,7 +96,9 @@ class UIOBankEstimator:
 
     Options: ``wind_cutoff_hz`` (default 0.3), ``speed_cutoff_hz`` (2.0), ``warmup_s`` (5.0),
     ``wind_every`` (20): the wind is inverted every that many ticks (5 Hz) and held in between; the torque it
-    inverts is low-pass filtered at ``wind_cutoff_hz``, far below the 5 Hz this resolves.
+    inverts is low-pass filtered at ``wind_cutoff_hz``, far below the 5 Hz this resolves. ``power_speed``
+    (true): with both generator-speed sensors flagged, use observer 5-pe (the rotor-speed sensors and the
+    power-speed channel, ``docs/turbine.md``) instead of seed 000's observer 5.
     """
 
     def __init__(self, *, context: TurbineContext, options: dict | None = None):
