@@ -5,9 +5,10 @@ for the fault-free time and each fault window, the RMSE of the fault-tolerant es
 non-fault-tolerant estimate (NFTE, observer 1 throughout) and the raw anemometer reading against the true
 rotor-effective wind, pooled over runs. The first ``WARMUP_S`` seconds of each run are left out.
 
-When the scenario has faults, every run also has a fault-free twin in the same batch (same wind, same noise,
-no faults), and ``fte_fault_free`` is the twin's FTE RMSE over the same window: "the FTE's fault-free RMSE"
-that a fault window is compared with. The twins' detections are counted as ``false_alarms_twin``.
+When the scenario has faults, every run also has a fault-free twin (same wind, same noise, no faults; a batch
+of its own, see ``TURBINE_CHUNK``), and ``fte_fault_free`` is the twin's FTE RMSE over the same window: "the
+FTE's fault-free RMSE" that a fault window is compared with. The twins' detections are counted as
+``false_alarms_twin``.
 """
 
 from __future__ import annotations
