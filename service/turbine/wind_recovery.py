@@ -7,7 +7,8 @@
    The rotor acceleration is taken from Ω̂ = ω̂_g/N_g where the observer uses a generator-speed sensor: below
    the 4.5 Hz torsion mode the shaft is rigid (the low-frequency part of θ̇_Δ = ω_r − ω_g/N_g is ~1e-4 rad/s),
    and the generator encoder is ~50× less noisy than the rotor-speed sensors once referred to the rotor side.
-   Observers without one (observer 5) use Ω̂ = ω̂_r.
+   A UIO without one would use Ω̂ = ω̂_r; the bank has none (observers 4, 5 and 5-pe are Kalman filters whose
+   fifth state is τ̂_r itself).
 2. τ̂_r and the pitch are low-pass filtered by the same second-order Butterworth filter (cutoff
    ``wind_cutoff_hz``), so both carry the same delay, then
 3. v̂ solves τ̂_r = ½ρπR³ C_q(ω̂_r R / v, β̂) v² (``wwcore.aero.wind_from_torque``), started from the previous
