@@ -11,8 +11,9 @@ paper  observer instances          sensors used (``y_j``, eqs. (4)–(10))
 4      ``4``                       ω_g,m1 ω_g,m2 (no UIO exists: augmented Kalman filter, see ``uio``)
 5      ``5``                       ω_r,m1 ω_r,m2
 6      ``6-r1g1`` … ``6-r2g2``     one rotor- and one generator-speed sensor left out
-–      ``5-pe``                    ω_r,m1 ω_r,m2 and ω_g,pe = P_g,m/(η_gc τ_g,m) (not isolating; the estimate
-                                   when both generator-speed sensors are flagged, ``docs/turbine.md``)
+–      ``5-pe15`` … ``5-pe80``     ω_r,m1 ω_r,m2 and ω_g,pe = P_g,m/(η_gc τ_g,m), one per design torque (not
+                                   isolating; the estimate when both generator-speed sensors are flagged,
+                                   ``docs/turbine.md``)
 =====  ==========================  ===================================================
 
 All observers are computed at each sample (seed 000, after eq. (20)); their states are stacked into one array
@@ -25,6 +26,7 @@ The non-fault-tolerant estimate of seed 000 ("observer 1 throughout") is a separ
 from __future__ import annotations
 
 import itertools
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -38,7 +40,6 @@ SHORT = {"omega_r_m1": "r1", "omega_r_m2": "r2", "omega_g_m1": "g1", "omega_g_m2
 ROTOR = ("omega_r_m1", "omega_r_m2")
 GENERATOR = ("omega_g_m1", "omega_g_m2")
 POWER_SPEED = "omega_g_pe"  # the power-speed channel P_g,m / (η_gc τ_g,m), rad/s (``interfaces.power_speed``)
-POWER_SPEED_OBSERVER = "5-pe"
 
 
 def paper_number(left_out: frozenset[str]) -> int:
@@ -82,7 +83,7 @@ class BankDesign:
     res_starts: np.ndarray  # start row of each observer's whitened residual
     ranks: np.ndarray  # (n_obs,)
     reference: int  # index of the NFTE copy of observer 1
-    power_speed: int  # index of observer 5-pe (rotor-speed sensors and the power-speed channel); −1 if absent
+    power_speed: tuple[int, ...]  # indices of the 5-pe observers (rotor-speed sensors and the power-speed channel)
 
     @property
     def n_isolating(self) -> int:
@@ -99,19 +100,26 @@ def _selector(sensors: tuple[str, ...], inputs: tuple[str, ...]) -> np.ndarray:
     return M
 
 
-def design_bank(model: DesignModel, sigma: dict[str, float], Q: np.ndarray, q_unknown: float) -> BankDesign:
-    """Design every observer of the bank. ``sigma``: noise σ of each speed channel (its own units); with a
-    ``POWER_SPEED`` entry the bank also runs observer 5-pe (not isolating: it serves the estimate only)."""
+def design_bank(
+    model: DesignModel,
+    sigma: dict[str, float],
+    Q: np.ndarray,
+    q_unknown: float,
+    power_speed: Sequence[tuple[str, float]] = (),
+) -> BankDesign:
+    """Design every observer of the bank. ``sigma``: noise σ of each speed sensor (its own units);
+    ``power_speed``: (name, σ of the power-speed channel in rad/s) of each 5-pe observer to add (not isolating:
+    they serve the estimate only)."""
     left_outs = bank_subsets()
-    with_power_speed = POWER_SPEED in sigma
-    inputs = (*SPEED_SENSORS, POWER_SPEED) if with_power_speed else SPEED_SENSORS
+    inputs = (*SPEED_SENSORS, POWER_SPEED) if power_speed else SPEED_SENSORS
     sensor_sets = [tuple(s for s in SPEED_SENSORS if s not in left_out) for left_out in left_outs]
-    if with_power_speed:
-        sensor_sets.append((*ROTOR, POWER_SPEED))
+    sensor_sets += [(*ROTOR, POWER_SPEED)] * len(power_speed)
     sensor_sets.append(SPEED_SENSORS)  # the last one is the NFTE copy of observer 1
+    pe_sigma = [s for _, s in power_speed]
     observers = []
     for sensors in sensor_sets:
-        R = np.diag([sigma[s] ** 2 for s in sensors])
+        channel_sigma = {**sigma, POWER_SPEED: pe_sigma.pop(0)} if POWER_SPEED in sensors else sigma
+        R = np.diag([channel_sigma[s] ** 2 for s in sensors])
         problem = existence_problem(model, sensors)
         if POWER_SPEED in sensors:
             # A UIO exists here but decouples τ_r through the noisy rotor-speed sensors; the Kalman form weighs
@@ -149,7 +157,7 @@ def design_bank(model: DesignModel, sigma: dict[str, float], Q: np.ndarray, q_un
     ranks = np.array([o.rank for o in observers])
     return BankDesign(
         left_out=tuple(left_outs),
-        names=(*(observer_name(s) for s in left_outs), *([POWER_SPEED_OBSERVER] * with_power_speed), "1-nfte"),
+        names=(*(observer_name(s) for s in left_outs), *(name for name, _ in power_speed), "1-nfte"),
         observers=tuple(observers),
         inputs=inputs,
         offsets=offsets,
@@ -164,7 +172,7 @@ def design_bank(model: DesignModel, sigma: dict[str, float], Q: np.ndarray, q_un
         res_starts=np.concatenate([[0], np.cumsum(ranks)[:-1]]),
         ranks=ranks,
         reference=reference,
-        power_speed=len(left_outs) if with_power_speed else -1,
+        power_speed=tuple(range(len(left_outs), len(left_outs) + len(power_speed))),
     )
 
 

@@ -20,6 +20,7 @@ from service.turbine.interfaces import (
     Estimates,
     TurbineContext,
     empty_diagnosis,
+    power_speed_band,
     static_state_guess,
 )
 from service.turbine.wind_recovery import WindRecovery
@@ -98,7 +99,8 @@ class UIOBankEstimator:
     ``wind_every`` (20): the wind is inverted every that many ticks (5 Hz) and held in between; the torque it
     inverts is low-pass filtered at ``wind_cutoff_hz``, far below the 5 Hz this resolves. ``power_speed``
     (true): with both generator-speed sensors flagged, use observer 5-pe (the rotor-speed sensors and the
-    power-speed channel, ``docs/turbine.md``) instead of seed 000's observer 5.
+    power-speed channel, ``docs/turbine.md``), the design nearest the torque reference, instead of seed 000's
+    observer 5.
     """
 
     def __init__(self, *, context: TurbineContext, options: dict | None = None):
@@ -117,9 +119,11 @@ class UIOBankEstimator:
         self.observer_of_mask = np.full(1 << len(SPEED_SENSORS), -1)
         for j, left_out in enumerate(design.left_out):
             self.observer_of_mask[sum(1 << SPEED_SENSORS.index(s) for s in left_out)] = j
-        if bool(options.get("power_speed", True)) and design.power_speed >= 0:
+        # With both generator-speed sensors flagged: the 5-pe observer designed nearest the torque (step)
+        self._power_speed = np.array(design.power_speed if bool(options.get("power_speed", True)) else ())
+        if len(self._power_speed):
             both_generator = sum(1 << SPEED_SENSORS.index(s) for s in GENERATOR)
-            self.observer_of_mask[both_generator] = design.power_speed
+            self.observer_of_mask[both_generator] = self._power_speed[0]
         self.reference = design.reference
         self._reference_columns = np.full(context.n, design.reference)
         self._all_healthy = np.full(context.n, self.observer_of_mask[0])  # ``selected`` when nothing is flagged
@@ -144,6 +148,11 @@ class UIOBankEstimator:
                 bank.x_hat, frame.beta_ref, pitch_m1, pitch_m2, ~faulty[:, PITCH_M1_T], ~faulty[:, PITCH_M2_T]
             )
             selected = self.observer_of_mask[faulty[:, SPEED_TARGETS] @ _MASK_WEIGHTS]
+            if len(self._power_speed):
+                on_pe = selected == self._power_speed[0]
+                if on_pe.any():
+                    band = power_speed_band(frame.tau_g_ref, self.context.params)
+                    selected = np.where(on_pe, self._power_speed[band], selected)
             columns = np.maximum(selected, 0)
             rows = self._rows
             omega_r, omega_g = recovery.omega_r[rows, columns], recovery.omega_g[rows, columns]

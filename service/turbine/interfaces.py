@@ -15,7 +15,7 @@ from functools import cached_property
 
 import numpy as np
 
-from service.turbine.bank import POWER_SPEED, BankDesign, ObserverBank, design_bank
+from service.turbine.bank import BankDesign, ObserverBank, design_bank
 from service.turbine.design_model import design_model
 from wwcore.channels import DIAGNOSIS_TARGETS, SENSOR_INDEX, SENSORS, SPEED_SENSORS, noise_std
 from wwcore.turbine_frames import TurbineFrame
@@ -27,9 +27,10 @@ BANK_COLUMNS = np.concatenate([SPEED_COLUMNS, POWER_COLUMNS])  # one gather: the
 # Below this generator torque (fraction of rated) P_g,m/τ_g,m is mostly noise: the power-speed channel then
 # falls back to N_g × the mean rotor-speed reading.
 POWER_SPEED_MIN_TORQUE = 0.05
-# The power-speed channel's design noise is evaluated half-way up region 2: half the rated torque, at the
-# speed where the K ω² law gives it.
-POWER_SPEED_DESIGN_TORQUE = 0.5
+# The power-speed channel's noise is mostly τ_g,m's relative to τ_g, so it falls as the torque rises: observer
+# 5-pe is designed at these torques (fractions of rated, on the K ω² law of region 2), and the estimator uses the
+# design nearest the torque reference (``power_speed_band``).
+POWER_SPEED_DESIGN_TORQUES = (0.15, 0.35, 0.8)
 
 # Design process noise of the observers (per step): the drive-train model is exact up to the efficiency fault
 # and the converter's torque offset, so Q is small.
@@ -140,11 +141,22 @@ def power_speed(
     return power / (p.eta_gc * torque)
 
 
-def power_speed_sigma(sigma: dict[str, float], p: TurbineParams) -> float:
-    """Design noise σ of ``power_speed`` (rad/s) at ``POWER_SPEED_DESIGN_TORQUE`` × rated torque on the K ω²
-    law of region 2, from the σ of P_g,m and τ_g,m by first-order propagation."""
-    torque = POWER_SPEED_DESIGN_TORQUE * p.rated_torque
-    omega_g = p.omega_nom * np.sqrt(POWER_SPEED_DESIGN_TORQUE)
+def power_speed_name(torque_fraction: float) -> str:
+    """Name of the 5-pe observer designed at ``torque_fraction`` × rated torque: "5-pe35" at 0.35."""
+    return f"5-pe{round(100 * torque_fraction)}"
+
+
+def power_speed_band(torque: np.ndarray, p: TurbineParams) -> np.ndarray:
+    """Index into ``POWER_SPEED_DESIGN_TORQUES`` of the design nearest each torque (N m), on a log scale."""
+    edges = np.sqrt(np.multiply(POWER_SPEED_DESIGN_TORQUES[:-1], POWER_SPEED_DESIGN_TORQUES[1:])) * p.rated_torque
+    return np.searchsorted(edges, torque)
+
+
+def power_speed_sigma(sigma: dict[str, float], p: TurbineParams, torque_fraction: float) -> float:
+    """Noise σ of ``power_speed`` (rad/s) at ``torque_fraction`` × rated torque on the K ω² law of region 2, from
+    the σ of P_g,m and τ_g,m by first-order propagation."""
+    torque = torque_fraction * p.rated_torque
+    omega_g = p.omega_nom * np.sqrt(torque_fraction)
     power = p.eta_gc * omega_g * torque
     return float(omega_g * np.hypot(sigma["p_g_m"] / power, sigma["tau_g_m"] / torque))
 
@@ -166,6 +178,7 @@ def _cached_bank_design(params: TurbineParams, convention: str) -> BankDesign:
     if key not in _BANKS:
         all_sigma = {c.name: noise_std(c, convention) for c in SENSORS}
         sigma = {name: all_sigma[name] for name in SPEED_SENSORS}
-        sigma[POWER_SPEED] = power_speed_sigma(all_sigma, params)
-        _BANKS[key] = design_bank(design_model(params), sigma, DESIGN_Q, DESIGN_Q_UNKNOWN)
+        torques = POWER_SPEED_DESIGN_TORQUES
+        power_speed = [(power_speed_name(t), power_speed_sigma(all_sigma, params, t)) for t in torques]
+        _BANKS[key] = design_bank(design_model(params), sigma, DESIGN_Q, DESIGN_Q_UNKNOWN, power_speed)
     return _BANKS[key]
