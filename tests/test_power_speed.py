@@ -12,7 +12,6 @@ from plant_sim.turbine import TurbineBatch
 from service.turbine.bank import GENERATOR, POWER_SPEED, ObserverBank
 from service.turbine.interfaces import (
     POWER_SPEED_DESIGN_TORQUES,
-    POWER_SPEED_MIN_TORQUE,
     TurbineContext,
     power_speed,
     power_speed_band,
@@ -32,7 +31,7 @@ def test_power_speed_inverts_the_electrical_power_and_falls_back_at_low_torque()
     torque = np.array([2.0e4, 3.1e4, 100.0])  # the last one below POWER_SPEED_MIN_TORQUE × rated
     speed = np.column_stack([omega_g / P.N_g, omega_g / P.N_g + 0.02, omega_g, omega_g])
     power = P.eta_gc * omega_g * torque
-    out = power_speed(power, torque, speed, P, POWER_SPEED_MIN_TORQUE * P.rated_torque)
+    out = power_speed(power, torque, speed, P)
     np.testing.assert_allclose(out[:2], omega_g[:2], rtol=1e-12)
     assert out[2] == pytest.approx(P.N_g * (omega_g[2] / P.N_g + 0.01), rel=1e-12)
 

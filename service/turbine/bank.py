@@ -112,24 +112,23 @@ def design_bank(
     they serve the estimate only)."""
     left_outs = bank_subsets()
     inputs = (*SPEED_SENSORS, POWER_SPEED) if power_speed else SPEED_SENSORS
-    sensor_sets = [tuple(s for s in SPEED_SENSORS if s not in left_out) for left_out in left_outs]
-    sensor_sets += [(*ROTOR, POWER_SPEED)] * len(power_speed)
-    sensor_sets.append(SPEED_SENSORS)  # the last one is the NFTE copy of observer 1
-    pe_sigma = [s for _, s in power_speed]
-    observers = []
-    for sensors in sensor_sets:
-        channel_sigma = {**sigma, POWER_SPEED: pe_sigma.pop(0)} if POWER_SPEED in sensors else sigma
-        R = np.diag([channel_sigma[s] ** 2 for s in sensors])
+
+    def seed_observer(sensors: tuple[str, ...]) -> ObserverDesign:
+        """The UIO of eqs. (11)–(20), or the augmented Kalman filter where it does not exist."""
+        R = np.diag([sigma[s] ** 2 for s in sensors])
         problem = existence_problem(model, sensors)
-        if POWER_SPEED in sensors:
-            # A UIO exists here but decouples τ_r through the noisy rotor-speed sensors; the Kalman form weighs
-            # all three channels by their noise (wind RMSE 0.21 against the UIO's 0.37 m/s, docs/turbine.md).
-            note = "Kalman form by choice: rotor-speed sensors plus the power-speed channel"
-            observers.append(design_augmented_kalman(model, sensors, R, Q, q_unknown, note=note))
-        elif problem is None:
-            observers.append(design_uio(model, sensors, R, Q))
-        else:
-            observers.append(design_augmented_kalman(model, sensors, R, Q, q_unknown, note=problem))
+        if problem is None:
+            return design_uio(model, sensors, R, Q)
+        return design_augmented_kalman(model, sensors, R, Q, q_unknown, note=problem)
+
+    observers = [seed_observer(tuple(s for s in SPEED_SENSORS if s not in left_out)) for left_out in left_outs]
+    # 5-pe: a UIO exists here but decouples τ_r through the noisy rotor-speed sensors; the Kalman form weighs all
+    # three channels by their noise (wind RMSE 0.21 against the UIO's 0.37 m/s, docs/turbine.md).
+    note = "Kalman form by choice: rotor-speed sensors plus the power-speed channel"
+    for _, pe_sigma in power_speed:
+        R = np.diag([sigma[s] ** 2 for s in ROTOR] + [pe_sigma**2])
+        observers.append(design_augmented_kalman(model, (*ROTOR, POWER_SPEED), R, Q, q_unknown, note=note))
+    observers.append(seed_observer(SPEED_SENSORS))  # the NFTE copy of observer 1, last
     sizes = [o.n_states for o in observers]
     offsets = np.concatenate([[0], np.cumsum(sizes)[:-1]])
     selectors = [_selector(o.sensors, inputs) for o in observers]

@@ -84,7 +84,6 @@ class TurbineContext:
         self._bank: ObserverBank | None = None
         self._bank_tick: int | None = None
         self._speed: np.ndarray | None = None  # the four speed readings of tick _bank_tick
-        self._min_torque = POWER_SPEED_MIN_TORQUE * params.rated_torque
 
     @cached_property
     def bank_design(self) -> BankDesign:
@@ -104,16 +103,10 @@ class TurbineContext:
         return self._bank
 
     def _bank_inputs(self, frame: TurbineFrame) -> np.ndarray:
-        """The bank's input columns (``bank_design.inputs``) for this frame; keeps the speed readings aside."""
-        if len(self.bank_design.inputs) == len(SPEED_SENSORS):
-            self._speed = speed = frame.sensors[:, SPEED_COLUMNS]
-            return speed
+        """The bank's input columns (``bank_design.inputs``: 4 speeds, the power-speed channel) for this frame;
+        keeps the speed readings aside."""
         read = frame.sensors.take(BANK_COLUMNS, axis=1)  # (n, 6); column 4 becomes the power-speed channel
-        power, torque = read[:, 4], read[:, 5]
-        if (torque < self._min_torque).any():
-            read[:, 4] = power_speed(power, torque, read, self.params, self._min_torque)
-        else:  # power_speed's formula, in place
-            np.divide(power, self.params.eta_gc * torque, out=power)
+        read[:, 4] = power_speed(read[:, 4], read[:, 5], read, self.params)
         self._speed = read[:, :4]
         return read[:, :5]
 
@@ -123,18 +116,16 @@ class TurbineContext:
         return self._speed
 
 
-def power_speed(
-    power: np.ndarray, torque: np.ndarray, speed: np.ndarray, p: TurbineParams, min_torque: float
-) -> np.ndarray:
+def power_speed(power: np.ndarray, torque: np.ndarray, speed: np.ndarray, p: TurbineParams) -> np.ndarray:
     """Generator speed from the electrical power and torque readings, ω_g = P_g,m / (η_gc τ_g,m), rad/s.
 
     P_g = η_gc ω_g τ_g (PARAMETERS.md a.2) holds whatever the speed sensors do, so this is an analytical
     generator-speed channel that survives faults of both generator-speed sensors. Its noise is that of τ_g,m
     relative to τ_g (plus P_g,m's): ≈ 0.6 % of ω_g half-way up region 2 against 1.6 % for one rotor-speed
-    sensor. Below ``min_torque`` (N m) the ratio is mostly noise and N_g × the mean rotor-speed reading
-    (``speed`` columns 0, 1) stands in.
+    sensor. Below ``POWER_SPEED_MIN_TORQUE`` × rated torque the ratio is mostly noise and N_g × the mean
+    rotor-speed reading (``speed`` columns 0, 1) stands in.
     """
-    low = torque < min_torque
+    low = torque < POWER_SPEED_MIN_TORQUE * p.rated_torque
     if low.any():
         fallback = p.N_g * 0.5 * (speed[:, 0] + speed[:, 1])
         return np.where(low, fallback, power / (p.eta_gc * np.where(low, 1.0, torque)))

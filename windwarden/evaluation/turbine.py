@@ -207,13 +207,13 @@ def evaluate(scenario: Scenario, runs: int, seed: int, options: EvalOptions) -> 
     TURBINE_ESTIMATORS.factory(estimator)
     base = (scenario, seed, detector, estimator, dict(scenario.supervisor.params))
     # The twins in processes of their own, next to the runs (TURBINE_CHUNK): the step's cost is mostly per tick.
-    split = options.twins and bool(scenario.faults)
+    twins = options.twins and bool(scenario.faults)
     results = run_chunks(
         simulate_chunk,
         runs,
         scenario.duration_s,
         args=(*base, False),
-        variants=[(*base, False, "main"), (*base, False, "twin")] if split else None,
+        variants=[(*base, False, "main"), (*base, False, "twin")] if twins else None,
         chunk=TURBINE_CHUNK,
         workers=options.workers,
         show_progress=options.progress,
@@ -227,11 +227,10 @@ def evaluate(scenario: Scenario, runs: int, seed: int, options: EvalOptions) -> 
     labels = ["fault_free"] + [w.name for w in windows]
     counts = sum(r.counts for r in results)
     wind_rmse = {}
+    keys = ("fte", "nfte", "anemometer", "fte_fault_free") if twins else ("fte", "nfte", "anemometer")
     for i, label in enumerate(labels):
         if counts[i] == 0:
             continue
-        twins = options.twins and scenario.faults
-        keys = ("fte", "nfte", "anemometer", "fte_fault_free") if twins else ("fte", "nfte", "anemometer")
         wind_rmse[label] = {
             key: float(np.sqrt(sum(r.sq_err[key][i] for r in results if key in r.sq_err) / counts[i])) for key in keys
         }
@@ -244,7 +243,7 @@ def evaluate(scenario: Scenario, runs: int, seed: int, options: EvalOptions) -> 
         "estimator": estimator,
         "false_alarms_per_1000s": fa_rate,
         "false_alarms": fa_raw,
-        **(_twin_false_alarms(twin_events, runs, scenario.duration_s) if options.twins and scenario.faults else {}),
+        **(_twin_false_alarms(twin_events, runs, scenario.duration_s) if twins else {}),
         "faults": faults,
         "metrics": {"wind_rmse": wind_rmse},
     }
