@@ -50,6 +50,7 @@ class FarmRefs:
     power_ref: np.ndarray  # (n,) W
     computed_tick: int | None = None  # None: the same as ``tick``
     hold_torque: np.ndarray | None = None  # (n,) bool: derate at held torque (drive-train accommodation)
+    held_torque: np.ndarray | None = None  # (n,) N m, generator side: most torque sum S a hold keeps (NaN: its own)
 
     @property
     def source_tick(self) -> int:

@@ -307,6 +307,9 @@ FARM_REFS = MessageSchema(
         WireField(
             "mode", "i1", "–", "accommodation: 0 none, 1 debris (23)–(24), 2 derated (26), 3 derated at held torque"
         ),
+        WireField(
+            "held_torque", "<f8", "N m", "mode 3: the most generator-side torque sum S = τ_g + B_g ω_g the hold keeps"
+        ),
     ),
 )
 

@@ -23,23 +23,26 @@ loop and the constant-power torque of the benchmark are used unchanged with Ω_n
 
 **Derating at held torque** [PROPOSED], for a turbine whose reference comes with ``hold_torque`` (the dispatch's
 drive-train accommodation, ``service.farm.dispatch``). The sum S = τ_g,r + B_g ω_g (N_g S/η_dt is the shaft torque
-in steady state) is latched when the hold begins, and the speed set point carries the derating:
+in steady state) is latched when the hold begins, capped by ``held_torque`` when the reference carries one (S then
+slews down to the cap at the torque equivalent of ``RAMP_FRACTION_PER_S``), and the speed set point carries the
+derating:
 
 .. math::
 
     P_r = η_{gc} (S − B_g ω_{set})\, ω_{set}\ \text{(smaller root, clipped to } [ω_{min}, Ω_{nom}]),\qquad
     τ_{g,r} = S − B_g ω_g\ \text{(zone 1)}
 
-so the power falls with the speed while the shaft torque stays where it was. Why: the drive-train fault's 3P
-torque swing grows with ω_r² (``plant_sim.turbine.plant``), and a rainflow count charges a derating that moves the
-mean torque with one cycle as large as the torque change. The set point moves at most ``SPEED_SLEW`` (the rotor's
-inertia torque while it slows stays ≈ 0.15 MN m on the shaft). Zone 1 is entered on speed only (a held torque above
-the set point makes more than P_r). A rotor that cannot hold the torque at its set point (too little wind for that
-speed) falls into zone 0, where the torque is (S − B_g ω_g)(ω_g/(ω_set − Ω_Δ,set))⁶ and settles with the torque at
-what the wind gives; the dispatch chooses the set point with torque in hand so that this stays rare. When the flag
-clears, the set point climbs back at ``SPEED_SLEW`` with the torque still held (in zone 0 too, at full aerodynamic
-torque, tapered the same way below the set point the hold had), and the hold ends once the speed has reached the
-set point of the law above (the torque then moves only by the difference between the held torque and that law's).
+so the power falls with the speed while the shaft torque stays where it was (or moves once, to the cap). Why: the
+drive-train fault's 3P torque swing grows with ω_r² (``plant_sim.turbine.plant``), and a rainflow count charges a
+derating that moves the mean torque with one cycle as large as the torque change. The set point moves at most
+``SPEED_SLEW`` (the generator's inertia torque while it slows stays ≈ 0.15 MN m on the shaft). Zone 1 is entered on
+speed only (a held torque above the set point makes more than P_r). A rotor that cannot hold the torque at its set
+point (too little wind for that speed) falls into zone 0, where the torque is (S − B_g ω_g)(ω_g/(ω_set −
+Ω_Δ,set))⁶ and settles with the torque at what the wind gives; the dispatch chooses the set point and the cap with
+torque in hand so that this stays rare. When the flag clears, the set point climbs back at ``SPEED_SLEW`` and S
+moves from its held value to the normal law's, P_r/(η_gc ω_n) + B_g ω_n at the normal set point ω_n, in proportion
+to the speed the rotor has regained (in zone 0 too, tapered the same way below the set point the hold had); the
+hold ends once the speed has reached ω_n, where S already is the normal law's, so the torque does not step.
 
 The power reference a turbine receives is followed at most at ``RAMP_FRACTION_PER_S`` (10 % of rated per
 second, a usual curtailment ramp [PROPOSED]), so a sudden accommodation (eq. (26) may ask for 50 kW at once) does
@@ -108,14 +111,20 @@ class FarmTurbineController(BenchmarkController):
         self._omega_g = np.zeros(n)  # rad/s, the last generator speed the controller used
         self._hold_set = np.zeros(n)  # rad/s, ω_set while in the hold
         self._release_from = np.zeros(n)  # rad/s, the hold's set point when the flag cleared
+        self._hold_target = np.zeros(n)  # N m, the held sum S that tau_hold slews down to
+        self._release_sum = np.zeros(n)  # N m, the held sum when the flag cleared
+        self.torque_slew = RAMP_FRACTION_PER_S * params.rated_power / (params.eta_gc * params.omega_nom) * params.dt
 
     def initialise(self, zone: np.ndarray, beta_ref: np.ndarray, tau_g_ref: np.ndarray) -> None:
         super().initialise(zone, beta_ref, tau_g_ref)
         self._bp_ready = False  # the damper's state is set from the first speed reading (steady state)
 
-    def set_reference(self, power_ref: np.ndarray, hold_torque: np.ndarray | None = None) -> None:
+    def set_reference(
+        self, power_ref: np.ndarray, hold_torque: np.ndarray | None = None, held_torque: np.ndarray | None = None
+    ) -> None:
         """A new power reference per turbine (W) from the farm controller, followed at the ramp rate;
-        ``hold_torque`` (n,) bool asks for the derating at held torque (module docstring)."""
+        ``hold_torque`` (n,) bool asks for the derating at held torque, ``held_torque`` (n,) N m caps the torque
+        sum it holds (NaN: no cap; module docstring)."""
         self.power_ref_target = np.minimum(np.maximum(np.asarray(power_ref, dtype=float), 0.0), self.p.rated_power)
         self._ramping = True
         asked = np.zeros(self.n, dtype=bool) if hold_torque is None else np.asarray(hold_torque, dtype=bool)
@@ -124,6 +133,8 @@ class FarmTurbineController(BenchmarkController):
             omega_g = np.where(self._omega_g > 0.0, self._omega_g, self.setpoint)  # before the first step: trimmed
             held = self.tau_g_ref - self.damper_torque + self.p.B_g * omega_g
             self.tau_hold = np.where(starting, held, self.tau_hold)
+            cap = np.full(self.n, np.inf) if held_torque is None else np.asarray(held_torque, dtype=float)
+            self._hold_target = np.where(starting, np.fmin(held, cap), self._hold_target)
             self._hold_set = np.where(starting, self.setpoint, self._hold_set)
         self.hold_asked = asked
         self.hold = self.hold | starting
@@ -133,19 +144,28 @@ class FarmTurbineController(BenchmarkController):
         return self.p.omega_delta * setpoint / self.p.omega_nom
 
     def _hold_setpoint(self, omega_g: np.ndarray) -> None:
-        """ω_set of turbines in the hold, slewed at SPEED_SLEW; on release it climbs back before the hold ends."""
+        """ω_set and S of turbines in the hold: ω_set slewed at SPEED_SLEW, S slewed to the dispatch's cap; on
+        release both climb back (S in proportion to the speed regained) and the hold ends at the normal law's point."""
         p = self.p
         normal = speed_setpoint(p, self.power_ref)
+        releasing = self.hold & ~self.hold_asked
+        self._release_from = np.where(releasing, self._release_from, self._hold_set)
+        self._release_sum = np.where(releasing, self._release_sum, self.tau_hold)
         # P_r = η_gc (S − B_g ω) ω at the held sum S = τ_g + B_g ω_g: the smaller root
         s_hold = np.maximum(self.tau_hold, 1.0)
         disc = np.maximum(s_hold * s_hold - 4.0 * p.B_g * self.power_ref / p.eta_gc, 0.0)
         held = 2.0 * self.power_ref / (p.eta_gc * (s_hold + np.sqrt(disc)))
         slew = SPEED_SLEW * p.omega_nom * p.dt
         held = np.clip(held, MIN_SPEED_FRACTION * p.omega_nom, p.omega_nom)
-        releasing = self.hold & ~self.hold_asked
-        self._release_from = np.where(releasing, self._release_from, self._hold_set)
         target = np.where(releasing, normal, held)
         self._hold_set = np.minimum(np.maximum(target, self._hold_set - slew), self._hold_set + slew)
+        normal_sum = self.power_ref / (p.eta_gc * normal) + p.B_g * normal
+        climbed = np.clip((omega_g - self._release_from) / np.maximum(normal - self._release_from, 1e-6), 0.0, 1.0)
+        self.tau_hold = np.where(
+            releasing,
+            self._release_sum + (normal_sum - self._release_sum) * climbed,
+            np.clip(self._hold_target, self.tau_hold - self.torque_slew, self.tau_hold + self.torque_slew),
+        )
         back = releasing & (self._hold_set >= normal) & (omega_g >= normal - self._hysteresis_at(normal))
         self.hold = self.hold & ~back
         self.setpoint = np.where(self.hold, self._hold_set, normal)

@@ -215,7 +215,7 @@ class FarmBatch:
     def control(self, refs: FarmRefs | None) -> None:
         if refs is not None and refs.source_tick != self._refs_tick:
             self._refs_tick = refs.source_tick
-            self.controller.set_reference(refs.power_ref, refs.hold_torque)
+            self.controller.set_reference(refs.power_ref, refs.hold_torque, refs.held_torque)
         self.turbines.control(None)
 
     def advance(self) -> None:

@@ -47,7 +47,7 @@ _BETA_M2 = np.array([SENSOR_INDEX[f"beta_{i}_m2"] for i in (1, 2, 3)])
 _BETA_M12 = np.concatenate([_BETA_M1, _BETA_M2])
 _OMEGA_G_M1 = SENSOR_INDEX["omega_g_m1"]
 _P_G_M = SENSOR_INDEX["p_g_m"]
-ERROR_ONSET_S = 0.5  # s, time constant with which a drive-train transmission error develops (farm fault 3)
+ERROR_ONSET_S = 0.25  # s, time constant of each of the two lags through which a transmission error develops (fault 3)
 
 
 def row_streams(seed: int, run: int, turbine: int) -> tuple[np.random.Generator, np.random.Generator]:
@@ -118,6 +118,7 @@ class TurbineBatch:
         self._pitch_error = np.zeros((self.n, 3))
         self.blade_torque = np.zeros((self.n, 3))  # N m, τ_r,i of each blade at the current tick
         self._error_level = np.zeros(self.n)  # rad, transmission error amplitude acting now (farm fault 3)
+        self._error_stage = np.zeros(self.n)  # rad, first stage of its onset filter
         self._error_active = False
         self._wind_sample = None
 
@@ -207,11 +208,17 @@ class TurbineBatch:
         if f.mesh_active or self._error_active:
             # Drive-train wear (farm fault 3): the shaft twists by θ_Δ − e(ψ), e = e_0 cos 3ψ, so the error acts as
             # an internal torque pair T = K_dt e(ψ) (N m, low-speed shaft): +T on the rotor, −η_dt T/N_g on the
-            # generator, held over the step like τ_r. e_0 follows the fault's size with a 0.5 s lag: a step of
-            # several mrad would ring the 4.5 Hz torsion mode at several times rated torque (docs/farm.md).
-            self._error_level += (f.transmission_error - self._error_level) * (self.dt / ERROR_ONSET_S)
-            self._error_active = f.mesh_active or bool(np.any(self._error_level > 1e-9))
-            pair = (self.p.K_dt * f.stiffness_factor) * self._error_level * np.cos(3.0 * x[:, AZIMUTH])
+            # generator, held over the step like τ_r. T is taken at the step's mid-azimuth: K_dt e_0 is ≈ 13 MN m,
+            # and a pair held from the step's start lags e by Δt/2, which puts a spurious K_dt e_0 3ω_r Δt/2
+            # (0.35 MN m at rated speed) into the shaft torque. e_0 develops through two 0.25 s lags: a step, or a
+            # single lag's kink, rings the 4.5 Hz torsion mode (docs/farm.md, D-F3).
+            gain = self.dt / ERROR_ONSET_S
+            self._error_stage += (f.transmission_error - self._error_stage) * gain
+            self._error_level += (self._error_stage - self._error_level) * gain
+            residue = np.abs(self._error_level) + np.abs(self._error_stage)
+            self._error_active = f.mesh_active or bool(np.any(residue > 1e-9))
+            mid_step = x[:, AZIMUTH] + (0.5 * self.dt) * x[:, OMEGA_R]
+            pair = (self.p.K_dt * f.stiffness_factor) * self._error_level * np.cos(3.0 * mid_step)
             tau_r, tau_ext = tau_r + pair, -f.eta_dt * pair / self.p.N_g
         self.x = self.discrete.step(x, tau_r, c.tau_g_ref + f.torque_offset, pitch_ref, tau_ext)
         self.k += 1

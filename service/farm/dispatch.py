@@ -24,20 +24,22 @@ P_ref,farm < Σ P_avail; otherwise every turbine gets rated power (it produces w
 * pitch misalignment, drive train: P_over = Σ P_avail − P_ref,farm (25) and
   P_avail,f = max(pos(P_avail − P_over), P_min), P_min = 50 kW (26), then (18) with P_avail,f. *Decision D-26*:
   with several such turbines the headroom is shared out in turbine order, P_over shrinking by what each took.
-* drive train, rule ``hold-torque`` (the default) [PROPOSED]: the same (25)–(26) with the floor
-  P_min,f = max(P_min, η_gc (S_m − B_g ω_floor) ω_floor), S_m = τ_g,m + B_g ω̄_g: the power the turbine makes at
-  its present shaft torque and the lowest speed at which its rotor still delivers that torque. The reference goes
-  out with ``hold_torque`` (mode 3), and the turbine derates by speed at held torque
-  (``plant_sim.farm.controller``). ω_floor = max(ω_min, N_g λ_f w̄/R), λ_f the tip-speed ratio on the rising
-  branch of C_q(λ, 0) (below its peak at λ ≈ 6.5; at the peak when that is not enough) where
-  ½ρπR³ C_q(λ_f, 0) w̄² = 1.2 τ̄_r (option ``hold_margin``: torque in hand for the turbulence), and λ_f ≥ 5: below
-  that the torque is largest at a pitch above 3 deg, and a controller that goes to fine pitch to speed up stalls
-  the rotor instead. w̄, τ̄_r are w_est and τ̂_r low-passed over 10 s, and ω_floor is fixed when the hold begins:
-  eq. (20) assumes steady state and reads nonsense while the rotor slows down. The held turbine's reference is
-  at least P_min,f; the others share the rest of the demand as in (18). The paper's rule
-  (``accommodation_rule = "paper"``) drops the torque to what 50 kW needs, a rainflow cycle as large as the
-  working torque that costs more damage than the 3P cycles it saves (docs/farm.md, Table 7); holding the torque
-  lowers the 3P swing (∝ ω_r²) without it.
+* drive train, rule ``hold-torque`` (the default) [PROPOSED]: the turbine is derated by speed, not by torque.
+  When the hold begins the dispatch fixes its speed floor ω_floor = clip(N_g λ_f w̄/R, ω_min, Ω_nom) at the
+  tip-speed ratio λ_f = 5 (the lowest at which fine pitch still gives the rotor's largest torque; below it that
+  takes a pitch above 3 deg, and a controller that goes to fine pitch to speed up stalls the rotor instead) and a
+  cap S_max = η_dt (½ρπR³ C_q(λ, 0) w̄²/1.2 − B_r ω_r)/N_g on the held generator-side sum S = τ_g + B_g ω_g: what
+  the rotor makes there at fine pitch with 20 % in hand for the turbulence (option ``hold_margin``). w̄ is w_est
+  low-passed over 10 s; both stay fixed while the hold lasts, since eq. (20) assumes steady state and reads
+  nonsense while the rotor slows down. The reference is the floor P_min,f = max(P_min, η_gc (min(S_m, S_max) −
+  B_g ω_floor) ω_floor), S_m = τ_g,m + B_g ω̄_g, sent with ``hold_torque`` (mode 3) and ``held_torque`` = S_max
+  (``plant_sim.farm.controller``); the other turbines share the rest of the demand as in (18). The held turbine
+  keeps its floor when the farm cannot meet the demand too (the others then run at rated): a hold released by a
+  lull would swing the torque through the cycles it exists to avoid. Why: the fault's 3P torque swing grows with
+  ω_r² and its rainflow damage with about ω_r⁹ at m = 4, while lowering the mean torque costs one cycle of the
+  torque change. The paper's rule (``accommodation_rule = "paper"``) drops the torque to what 50 kW needs at
+  unchanged speed: a cycle as large as the working torque, and a 3P swing as large as before (docs/farm.md,
+  Table 7).
 
 **PI** (the benchmark's reference controller, PARAMETERS.md b): e = (P_ref,farm − Σ P_m)/P_ref,farm,
 u = sat(K_p e + I), I = sat(I + K_i e Δt), sat = ±20 %; every turbine gets (1 + u) P_ref,farm / 9.
@@ -57,12 +59,9 @@ from wwcore.scenario.farm import FARM_DT_S, N_TURBINES, ROTOR_DIAMETER_M
 DEBRIS_FACTOR = 0.97  # eqs. (23)–(24)
 P_MIN_W = 50e3  # eq. (26)
 ACCOMMODATION_RULES = ("hold-torque", "paper")
-HOLD_MARGIN = 1.2  # –, rotor torque at fine pitch and the derated speed over the held torque [PROPOSED]
-HOLD_MIN_TSR = 5.0  # –, lowest tip-speed ratio of a hold: below it C_q peaks at β > 3 deg and fine pitch stalls
-HOLD_AVERAGING_S = 10.0  # s, low-pass of the wind and rotor torque the hold's speed floor is chosen from [PROPOSED]
-_TSR = np.linspace(1.5, 12.0, 211)
-_CQ_FINE = aero.torque_coefficient(_TSR, np.zeros_like(_TSR))
-_RISING = slice(0, int(np.argmax(_CQ_FINE)) + 1)  # C_q(λ, 0) rises with λ up to its peak
+HOLD_MARGIN = 1.2  # –, rotor torque at fine pitch and the hold's speed over the held torque cap [PROPOSED]
+HOLD_MIN_TSR = 5.0  # –, tip-speed ratio of a hold: the lowest at which fine pitch gives the most torque (below, stall)
+HOLD_AVERAGING_S = 10.0  # s, low-pass of the wind the hold's speed floor and torque cap are chosen from [PROPOSED]
 PI_KP, PI_KI, PI_LIMIT = 0.3, 0.05, 0.2  # PARAMETERS.md b [PROPOSED]
 DEBRIS, PITCH, DRIVETRAIN = 0, 1, 2  # columns of ``faulty``
 
@@ -86,8 +85,9 @@ class Dispatch:
         self.wind: np.ndarray | None = None  # m/s, w_est of eq. (20)
         self.p_a_hat: np.ndarray | None = None  # W, eq. (21) state
         self.p_avail = np.zeros(self.n)  # W, eq. (22), before accommodation
-        self._slow: np.ndarray | None = None  # (2, n) w_est (m/s) and τ̂_r (N m) over HOLD_AVERAGING_S
+        self._slow_wind: np.ndarray | None = None  # (n,) m/s, w_est low-passed over HOLD_AVERAGING_S
         self.speed_floor = np.full(self.n, np.nan)  # rad/s, ω_floor of turbines in the hold (NaN: none)
+        self.held_torque = np.full(self.n, np.nan)  # N m, S_max of turbines in the hold (NaN: none)
         self.mode = np.zeros(self.n, dtype=np.int8)  # 0 normal, 1 debris (23)–(24), 2 derated (26), 3 held torque
 
     def estimate_available(self, sample: FarmSample) -> np.ndarray:
@@ -102,10 +102,10 @@ class Dispatch:
             self.wind = aero.wind_from_torque(tau_r, omega_r, pitch, guess, p, iterations=8)
         else:
             self.wind = aero.wind_from_torque(tau_r, omega_r, pitch, self.wind, p, iterations=3)  # eq. (20)
-        if self._slow is None:
-            self._slow = np.stack([self.wind, tau_r])
+        if self._slow_wind is None:
+            self._slow_wind = self.wind.copy()
         else:
-            self._slow += (np.stack([self.wind, tau_r]) - self._slow) * (FARM_DT_S / HOLD_AVERAGING_S)
+            self._slow_wind += (self.wind - self._slow_wind) * (FARM_DT_S / HOLD_AVERAGING_S)
         p_a = available_power(p, self.wind)
         if self.p_a_hat is None:
             self.p_a_hat = p_a.copy()
@@ -113,14 +113,16 @@ class Dispatch:
         self.p_a_hat = a * self.p_a_hat + (1.0 - a) * p_a  # eq. (21), τ_w/(s + α_w) with τ_w = α_w
         return np.maximum(self.p_a_hat - self.p_ref, 0.0) + y[:, P_G]  # eq. (22)
 
-    def hold_speed_floor(self) -> np.ndarray:
-        """ω_floor (n,) rad/s, generator side: the lowest speed at which each rotor holds its torque (docstring)."""
+    def hold_point(self) -> tuple[np.ndarray, np.ndarray]:
+        """(ω_floor, S_max) (n,) of a hold begun now: generator speed (rad/s) at tip-speed ratio λ_f and the
+        generator-side torque sum (N m) the rotor makes there at fine pitch with ``hold_margin`` in hand."""
         p = self.p
-        wind, tau_r = self._slow
-        need = self.hold_margin * tau_r / (p.aero_torque_gain * wind * wind)
-        tsr = np.maximum(np.interp(need, _CQ_FINE[_RISING], _TSR[_RISING]), HOLD_MIN_TSR)
-        omega = p.N_g * tsr * wind / p.radius
-        return np.minimum(np.maximum(omega, MIN_SPEED_FRACTION * p.omega_nom), p.omega_nom)
+        wind = np.maximum(self._slow_wind, 1.0)
+        omega = np.clip(p.N_g * HOLD_MIN_TSR * wind / p.radius, MIN_SPEED_FRACTION * p.omega_nom, p.omega_nom)
+        omega_r = omega / p.N_g
+        tsr = omega_r * p.radius / wind
+        rotor = p.aero_torque_gain * aero.torque_coefficient(tsr, np.zeros_like(tsr)) * wind * wind / self.hold_margin
+        return omega, p.eta_dt * (rotor - p.B_r * omega_r) / p.N_g
 
     def step(self, sample: FarmSample, faulty: np.ndarray) -> np.ndarray:
         farms = sample.farms
@@ -139,9 +141,12 @@ class Dispatch:
         if hold.any():
             starting = hold.reshape(-1) & np.isnan(self.speed_floor)
             if starting.any():
-                self.speed_floor = np.where(starting, self.hold_speed_floor(), self.speed_floor)
+                omega, most = self.hold_point()
+                self.speed_floor = np.where(starting, omega, self.speed_floor)
+                self.held_torque = np.where(starting, most, self.held_torque)
             y, p = sample.scada, self.p
             held_sum = y[:, TAU_G] + p.B_g * y[:, OMEGA_G].mean(axis=1)  # S of plant_sim.farm.controller
+            held_sum = np.minimum(held_sum, self.held_torque)
             held = p.eta_gc * (held_sum - p.B_g * self.speed_floor) * self.speed_floor
             floor = np.where(hold, np.maximum(held.reshape(farms, N_TURBINES), P_MIN_W), floor)
         for t in range(N_TURBINES):  # eq. (26), headroom shared out in turbine order (D-26)
@@ -155,15 +160,17 @@ class Dispatch:
         total = avail.sum(axis=1)
         active = demand < maximum  # the dispatch acts only below the farm's maximum production
         share = avail / np.maximum(total, 1.0)[:, None] * demand[:, None]  # eq. (18)
-        if hold.any():  # a held turbine gets at least its floor; the others share the rest as in (18)
-            fixed = np.where(hold, np.maximum(share, floor), 0.0)
+        if hold.any():  # a held turbine gets its floor; the others share the rest as in (18)
+            fixed = np.where(hold, floor, 0.0)
             others = np.where(hold, 0.0, avail)
             rest = np.maximum(demand - fixed.sum(axis=1), 0.0)
             share = np.where(hold, fixed, others / np.maximum(others.sum(axis=1), 1.0)[:, None] * rest[:, None])
         share = np.where(debris, share / DEBRIS_FACTOR, share)  # eq. (24)
-        refs = np.where(active[:, None], share, self.p.rated_power)
+        # beyond the farm's maximum every turbine runs at rated, but a held one stays at its floor
+        refs = np.where(active[:, None], share, np.where(hold, floor, self.p.rated_power))
         refs = np.clip(refs, 0.0, self.p.rated_power).reshape(-1)
         self.speed_floor = np.where(hold.reshape(-1), self.speed_floor, np.nan)
+        self.held_torque = np.where(hold.reshape(-1), self.held_torque, np.nan)
         self.mode = np.where(hold, 3, np.where(derate, 2, np.where(debris, 1, 0))).astype(np.int8).reshape(-1)
         self.p_ref = refs
         return refs

@@ -66,6 +66,7 @@ class FarmSupervisor:
                 power_ref=self.refs.power_ref,
                 computed_tick=self.refs.source_tick,
                 hold_torque=self.refs.hold_torque,
+                held_torque=self.refs.held_torque,
             )
         sample = FarmSample.from_frame(frame, self.dt)
         diagnosis = self.detector.step(sample)
@@ -75,7 +76,8 @@ class FarmSupervisor:
         self.diagnosis, self.sample = diagnosis, sample
         mode = getattr(self.controller, "mode", None)
         hold = None if mode is None else mode == HOLD_TORQUE_MODE
-        self.refs = FarmRefs(tick=frame.k, power_ref=power_ref, hold_torque=hold)
+        held = getattr(self.controller, "held_torque", None) if hold is not None and hold.any() else None
+        self.refs = FarmRefs(tick=frame.k, power_ref=power_ref, hold_torque=hold, held_torque=held)
         return self.refs
 
     def drain_events(self) -> list[Event]:

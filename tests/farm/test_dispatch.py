@@ -10,6 +10,7 @@ from service.farm.dispatch import HOLD_MARGIN, HOLD_MIN_TSR, Dispatch, PIFarmCon
 from service.farm.interfaces import BETA, OMEGA_G, OMEGA_R, P_G, TAU_G, FarmContext, FarmSample
 from wwcore import aero
 from wwcore.channels import N_SENSORS
+from wwcore.farm_frames import MIN_SPEED_FRACTION
 from wwcore.scenario.farm import FarmPlant
 from wwcore.turbine_params import BENCHMARK as P
 
@@ -84,52 +85,69 @@ def test_eq_26_with_two_faulty_turbines_shares_the_headroom_in_turbine_order():
     assert refs.sum() == pytest.approx(14.5)
 
 
-def _held(wind: float, tau_r: float, tau_g: float) -> tuple[Dispatch, FarmSample]:
-    """A hold-torque dispatch whose low-passed wind and rotor torque are set by hand; SCADA torque τ_g."""
+def _held(wind: float, tau_g: float) -> tuple[Dispatch, FarmSample]:
+    """A hold-torque dispatch whose low-passed wind is set by hand; SCADA torque τ_g."""
     d = _dispatch([2.0] * 9, rule="hold-torque")
-    d._slow = np.stack([np.full(9, wind), np.full(9, tau_r)])
+    d._slow_wind = np.full(9, wind)
     sample = _sample(12.0)
     sample.scada[:, TAU_G] = tau_g
     return d, sample
 
 
-def test_hold_torque_floor_is_the_held_torque_at_the_speed_where_the_rotor_still_delivers_it():
-    wind, tau_r, tau_g = 12.0, 2.4 * MW, 26e3
-    d, sample = _held(wind, tau_r, tau_g)
+def _hold_cap(wind: float, omega_g: float) -> float:
+    """S_max: the generator-side sum τ_g + B_g ω_g the rotor holds at fine pitch with HOLD_MARGIN in hand."""
+    omega_r = omega_g / P.N_g
+    cq = aero.torque_coefficient(np.array([omega_r * P.radius / wind]), np.zeros(1))[0]
+    return P.eta_dt * (P.aero_torque_gain * cq * wind**2 / HOLD_MARGIN - P.B_r * omega_r) / P.N_g
+
+
+@pytest.mark.parametrize("tau_g", [26e3, 15e3])  # above the rotor's cap at λ_f (lowered), below it (held)
+def test_hold_torque_floor_is_the_held_torque_at_the_hold_tip_speed_ratio(tau_g):
+    wind = 12.0
+    d, sample = _held(wind, tau_g)
     refs = d.step(sample, _faulty(t2=2)) / MW
     omega_floor = d.speed_floor[1]
-    # on the rising branch of C_q(λ, 0) the rotor at ω_floor makes HOLD_MARGIN × τ̂_r at fine pitch
-    tsr = omega_floor / P.N_g * P.radius / wind
-    assert HOLD_MIN_TSR < tsr < 6.6  # below the C_q peak
-    assert P.aero_torque_gain * aero.torque_coefficient(np.array([tsr]), np.zeros(1))[0] * wind**2 == pytest.approx(
-        HOLD_MARGIN * tau_r, rel=2e-3
-    )
-    floor = P.eta_gc * (tau_g - P.B_g * omega_floor) * omega_floor / MW  # P_min,f: S held at ω_floor (ω̄_g = 0)
+    assert omega_floor / P.N_g * P.radius / wind == pytest.approx(HOLD_MIN_TSR)
+    cap = _hold_cap(wind, omega_floor)
+    assert d.held_torque[1] == pytest.approx(cap)
+    held = min(tau_g, cap)  # S of the SCADA torque (ω̄_g = 0 in this sample), capped
+    floor = P.eta_gc * (held - P.B_g * omega_floor) * omega_floor / MW  # P_min,f
     # P_over = 6 > 2 − floor: the turbine gets its floor, the other eight share the rest of the demand
     assert refs[1] == pytest.approx(floor)
     assert refs[[0, 2, 3, 4, 5, 6, 7, 8]] == pytest.approx(np.full(8, (12.0 - floor) / 8))
     assert d.mode[1] == 3 and np.all(d.mode[np.arange(9) != 1] == 0)
+    assert np.isnan(np.delete(d.held_torque, 1)).all()
 
 
-def test_hold_torque_floor_keeps_the_tip_speed_ratio_out_of_stall():
-    d, sample = _held(15.0, 3.0 * MW, 26e3)  # 20 % in hand would allow λ ≈ 4.1, where fine pitch stalls
+def test_hold_torque_speed_floor_stays_at_the_lowest_set_point_in_low_wind():
+    d, sample = _held(6.0, 8e3)  # λ_f = 5 would ask for 0.31 Ω_nom
     d.step(sample, _faulty(t2=2))
-    assert d.speed_floor[1] / P.N_g * P.radius / 15.0 == pytest.approx(HOLD_MIN_TSR)
+    assert d.speed_floor[1] == pytest.approx(MIN_SPEED_FRACTION * P.omega_nom)
+    assert d.held_torque[1] == pytest.approx(_hold_cap(6.0, d.speed_floor[1]))
+
+
+def test_a_held_turbine_stays_at_its_floor_when_the_farm_cannot_meet_the_demand():
+    d, sample = _held(12.0, 15e3)
+    sample.demand[:] = 20.0 * MW  # above Σ P_avail = 18 MW: no dispatch, every other turbine at rated
+    refs = d.step(sample, _faulty(t2=2))
+    floor = P.eta_gc * (15e3 - P.B_g * d.speed_floor[1]) * d.speed_floor[1]
+    assert refs[1] == pytest.approx(floor)
+    assert np.all(np.delete(refs, 1) == P.rated_power)
 
 
 def test_hold_torque_floor_is_fixed_while_the_hold_lasts_and_forgotten_after():
-    d, sample = _held(15.0, 3.0 * MW, 26e3)
+    d, sample = _held(15.0, 26e3)
     d.step(sample, _faulty(t2=2))
-    first = d.speed_floor[1]
-    d._slow = np.stack([np.full(9, 25.0), np.full(9, 1.0 * MW)])  # eq. (20) reads nonsense while the rotor slows
+    first, cap = d.speed_floor[1], d.held_torque[1]
+    d._slow_wind = np.full(9, 25.0)  # eq. (20) reads nonsense while the rotor slows
     d.step(sample, _faulty(t2=2))
-    assert d.speed_floor[1] == first
+    assert d.speed_floor[1] == first and d.held_torque[1] == cap
     d.step(sample, _faulty())
-    assert np.isnan(d.speed_floor).all() and np.all(d.mode == 0)
+    assert np.isnan(d.speed_floor).all() and np.isnan(d.held_torque).all() and np.all(d.mode == 0)
 
 
 def test_hold_torque_applies_to_the_drive_train_only():
-    d, sample = _held(15.0, 3.0 * MW, 26e3)
+    d, sample = _held(15.0, 26e3)
     refs = d.step(sample, _faulty(t2=1)) / MW  # pitch misalignment: eq. (26) as published
     assert refs[1] == pytest.approx(0.05 / 16.05 * 12.0) and d.mode[1] == 2
 

@@ -48,7 +48,7 @@ def test_frames_and_refs_round_trip_and_the_supervisor_answers_every_tick():
     assert {"flagged", "dispatch_mode", "margins", "power_ref_w"} <= set(status[0])
 
 
-def test_the_hold_torque_request_survives_the_wire_as_mode_3():
+def test_the_hold_torque_request_and_its_torque_cap_survive_the_wire():
     adapter = adapter_for("farm")
     scenario = parse_scenario(SCENARIO)
     plant = adapter.make_plant(scenario, seed=3)
@@ -56,9 +56,13 @@ def test_the_hold_torque_request_survives_the_wire_as_mode_3():
     sup = adapter.make_supervisor(RunInfo.of(scenario, turbines, plant.dt))
     sup.mode = np.array([0, 3, 2, 1, 0, 0, 0, 0, 0], dtype=np.int8)  # as the dispatch leaves it
     hold = sup.mode == HOLD_TORQUE_MODE
-    refs = FarmRefs(tick=9, power_ref=np.full(9, 1e6), hold_torque=hold)
+    cap = np.where(hold, 21.5e3, np.nan)
+    refs = FarmRefs(tick=9, power_ref=np.full(9, 1e6), hold_torque=hold, held_torque=cap)
     back = adapter.refs_from_records(adapter.refs_records(refs, sup, turbines))
     assert np.array_equal(back.hold_torque, hold) and np.array_equal(back.power_ref, refs.power_ref)
+    assert np.array_equal(back.held_torque, cap, equal_nan=True)
+    plain = adapter.refs_from_records(adapter.refs_records(FarmRefs(tick=9, power_ref=np.full(9, 1e6)), sup, turbines))
+    assert np.isnan(plain.held_torque).all()  # no cap sent: NaN, which the turbine reads as its own torque
 
 
 def test_farm_blueprint_has_the_overview_tab():

@@ -196,7 +196,8 @@ def tables_markdown(scenario: Scenario, main: Variant, comp: dict) -> str:
             rows.append(
                 ("eqs. (23)–(26) as published", published, p2a, p3a, power_metrics(comp["paper_accommodation"]))
             )
-        label = "eqs. (23)–(26) as published" if rule == "paper" else "eqs. (23)–(26), drive train at held torque"
+        derated = "eqs. (23)–(26), drive train derated by speed (D-26b)"
+        label = "eqs. (23)–(26) as published" if rule == "paper" else derated
         rows.append((label, with_acc, p2a, p3a, acc_power))
         for label, d, paper2, paper3, pw in rows:
             lines.append(

@@ -120,6 +120,7 @@ class FarmAdapter:
             "computed_tick": -1 if refs is None else refs.source_tick,
             "power_ref": np.full(n, np.nan) if refs is None else refs.power_ref,
             "mode": supervisor.mode,
+            "held_torque": np.nan if refs is None or refs.held_torque is None else refs.held_torque,
         }
         if diag is not None:
             values |= {"flags": supervisor.flags, "statistic": diag.statistics, "threshold": diag.thresholds}
@@ -134,6 +135,7 @@ class FarmAdapter:
             power_ref=np.array(records["power_ref"]),
             computed_tick=computed,
             hold_torque=np.array(records["mode"]) == HOLD_TORQUE_MODE,
+            held_torque=np.array(records["held_torque"]),
         )
 
     def truth_records(self, plant: FarmBatch, frame: FarmFrame, turbines: list[int]) -> np.ndarray:
