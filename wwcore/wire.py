@@ -292,7 +292,7 @@ FARM_SENSORS = MessageSchema(
 FARM_REFS = MessageSchema(
     "farm.refs",
     9,
-    1,
+    2,  # v2: held_torque
     "The farm supervisor's power reference for one turbine (FarmRefs row), with its detector's view of the turbine.",
     (
         WireField("tick", "<i8", "–", "tick of the sensor frame these refs answer"),
