@@ -133,9 +133,13 @@ class FarmTurbineController(BenchmarkController):
             omega_g = np.where(self._omega_g > 0.0, self._omega_g, self.setpoint)  # before the first step: trimmed
             held = self.tau_g_ref - self.damper_torque + self.p.B_g * omega_g
             self.tau_hold = np.where(starting, held, self.tau_hold)
-            cap = np.full(self.n, np.inf) if held_torque is None else np.asarray(held_torque, dtype=float)
-            self._hold_target = np.where(starting, np.fmin(held, cap), self._hold_target)
+            target = held if held_torque is None else np.fmin(held, held_torque)
+            self._hold_target = np.where(starting, target, self._hold_target)
             self._hold_set = np.where(starting, self.setpoint, self._hold_set)
+        releasing = self.hold & self.hold_asked & ~asked  # the climb back starts from where the hold stands
+        if releasing.any():
+            self._release_from = np.where(releasing, self._hold_set, self._release_from)
+            self._release_sum = np.where(releasing, self.tau_hold, self._release_sum)
         self.hold_asked = asked
         self.hold = self.hold | starting
 
@@ -149,8 +153,6 @@ class FarmTurbineController(BenchmarkController):
         p = self.p
         normal = speed_setpoint(p, self.power_ref)
         releasing = self.hold & ~self.hold_asked
-        self._release_from = np.where(releasing, self._release_from, self._hold_set)
-        self._release_sum = np.where(releasing, self._release_sum, self.tau_hold)
         # P_r = η_gc (S − B_g ω) ω at the held sum S = τ_g + B_g ω_g: the smaller root
         s_hold = np.maximum(self.tau_hold, 1.0)
         disc = np.maximum(s_hold * s_hold - 4.0 * p.B_g * self.power_ref / p.eta_gc, 0.0)
@@ -159,13 +161,13 @@ class FarmTurbineController(BenchmarkController):
         held = np.clip(held, MIN_SPEED_FRACTION * p.omega_nom, p.omega_nom)
         target = np.where(releasing, normal, held)
         self._hold_set = np.minimum(np.maximum(target, self._hold_set - slew), self._hold_set + slew)
-        normal_sum = self.power_ref / (p.eta_gc * normal) + p.B_g * normal
-        climbed = np.clip((omega_g - self._release_from) / np.maximum(normal - self._release_from, 1e-6), 0.0, 1.0)
-        self.tau_hold = np.where(
-            releasing,
-            self._release_sum + (normal_sum - self._release_sum) * climbed,
-            np.clip(self._hold_target, self.tau_hold - self.torque_slew, self.tau_hold + self.torque_slew),
-        )
+        tau_hold = np.clip(self._hold_target, self.tau_hold - self.torque_slew, self.tau_hold + self.torque_slew)
+        if releasing.any():
+            normal_sum = self.power_ref / (p.eta_gc * normal) + p.B_g * normal
+            span = np.maximum(normal - self._release_from, 1e-6)
+            climbed = np.clip((omega_g - self._release_from) / span, 0.0, 1.0)
+            tau_hold = np.where(releasing, self._release_sum + (normal_sum - self._release_sum) * climbed, tau_hold)
+        self.tau_hold = tau_hold
         back = releasing & (self._hold_set >= normal) & (omega_g >= normal - self._hysteresis_at(normal))
         self.hold = self.hold & ~back
         self.setpoint = np.where(self.hold, self._hold_set, normal)
