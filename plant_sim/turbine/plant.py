@@ -97,10 +97,11 @@ class TurbineBatch:
         self.sigma = np.array([noise_std(c, plant.noise_convention) for c in SENSORS])
         self.bias = np.array([c.noise_mean for c in SENSORS])
         self.noise_chunk = noise_chunk
-        # Noise blocks of noise_chunk ticks, refilled in place (a fresh 10-MB array per block costs page faults):
-        # the draws of the rows with their own stream, and the σ-scaled noise of every row (twins repeat them).
+        # Noise blocks of noise_chunk ticks, refilled and σ-scaled in place: a fresh 10-MB array per block costs page
+        # faults, and scaling through a transposed view took half as long again as the drawing. The draws of the
+        # rows with their own stream; twin rows repeat their run's numbers tick by tick in ``_tick_noise``.
         self._draws = np.empty((self._noise_rows, noise_chunk, len(SENSORS)))
-        self._noise = np.empty((noise_chunk, self.n, len(SENSORS)))
+        self._tick_noise = np.empty((self.n, len(SENSORS)))
         self._noise_drawn = False
         self._quantities = np.empty((self.n, len(_QUANTITIES)))  # refilled every tick, read through _PICK
         self.faults = FaultState(self.n, params)
@@ -262,20 +263,22 @@ class TurbineBatch:
         return stiffness * twist + (p.B_dt * f.damping_factor) * (x[:, OMEGA_R] - x[:, OMEGA_G] / p.N_g)
 
     def _next_noise(self) -> np.ndarray:
-        """σ-scaled sensor noise of the current tick (n, N_SENSORS): a view into the block, valid for this tick."""
+        """σ-scaled sensor noise of the current tick (n, N_SENSORS): a view, valid for this tick only."""
         j = self.k % self.noise_chunk
         if j == 0 or not self._noise_drawn:
             # Each row with its own stream draws (noise_chunk, N_SENSORS) numbers, as one standard_normal call of
-            # that size would. Twin rows (second half) share their run's streams, hence its numbers: draw the first
-            # half only and repeat it once per chunk, not per tick.
-            rows = self._noise_rows
-            for i, rng in enumerate(self._noise_rngs[:rows]):
+            # that size would. Twin rows (second half) share their run's streams, hence its numbers.
+            for i, rng in enumerate(self._noise_rngs[: self._noise_rows]):
                 rng.standard_normal(out=self._draws[i])
-            np.multiply(self._draws.transpose(1, 0, 2), self.sigma, out=self._noise[:, :rows])
-            if rows < self.n:
-                self._noise[:, rows:] = self._noise[:, :rows]
+            self._draws *= self.sigma
             self._noise_drawn = True
-        return self._noise[j]
+        noise = self._draws[:, j]
+        if self._noise_rows == self.n:
+            return noise
+        rows = self._noise_rows
+        self._tick_noise[:rows] = noise
+        self._tick_noise[rows:] = noise
+        return self._tick_noise
 
     def _update_faults(self) -> None:
         k, dt = self.k, self.dt
