@@ -133,7 +133,7 @@ class FarmBatch:
             fault_free_twins=fault_free_twins,
         )
         self.n = self.turbines.n
-        self.controller = FarmTurbineController(params, self.n, params.rated_power)
+        self.controller = FarmTurbineController(params, self.n, params.rated_power, plant.cancel_3p_in_hold)
         self.turbines.controller = self.controller
         self._trim(self.field.row_wind[:, self.field.row_of_turbine].reshape(-1))
         self._scada_sum = np.zeros((self.n, N_SENSORS))

@@ -37,9 +37,10 @@ P_ref,farm < Σ P_avail; otherwise every turbine gets rated power (it produces w
   keeps its floor when the farm cannot meet the demand too (the others then run at rated): a hold released by a
   lull would swing the torque through the cycles it exists to avoid. Why: the fault's 3P torque swing grows with
   ω_r² and its rainflow damage with about ω_r⁹ at m = 4, while lowering the mean torque costs one cycle of the
-  torque change. The paper's rule (``accommodation_rule = "paper"``) drops the torque to what 50 kW needs at
-  unchanged speed: a cycle as large as the working torque, and a 3P swing as large as before (docs/farm.md,
-  Table 7).
+  torque change. In the hold the turbine also cancels the fault's 3P shaft torque with its converter
+  (``plant_sim.farm.controller``, D-C4). The paper's rule (``accommodation_rule = "paper"``) drops the torque to
+  what 50 kW needs at unchanged speed: a cycle as large as the working torque, and a 3P swing as large as before
+  (docs/farm.md, Table 7).
 
 **PI** (the benchmark's reference controller, PARAMETERS.md b): e = (P_ref,farm − Σ P_m)/P_ref,farm,
 u = sat(K_p e + I), I = sat(I + K_i e Δt), sat = ±20 %; every turbine gets (1 + u) P_ref,farm / 9.

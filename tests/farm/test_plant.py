@@ -92,6 +92,56 @@ def test_the_drive_train_fault_swings_the_shaft_torque_by_the_generator_inertia_
         assert abs(quadrature) < quadrature_limit * closed_form
 
 
+def test_the_holds_3p_cancellation_takes_the_generators_inertia_torque_off_the_shaft():
+    """With ``hold_torque`` the converter supplies the generator's 3P inertia torque, −J_g v̇ (v the 3P swing of
+    ω_g,m from the two SOGIs): the shaft's 3P swing falls from the closed form J_g N_g² (3ω_r)² e_0/η_dt to under
+    10 % of it, and the cancellation's torque is the generator-side inertia torque J_g N_g (3ω_r)² e_0. The hold
+    keeps the turbine's reference here, so its speed does not change. When the flag clears the cancellation fades
+    out and the filter stops (no cost on the fault-free farm)."""
+    fault = FaultSpec(target="drivetrain", kind="drivetrain_wear", value=5.0, turbine=3, start_s=0.0)
+    plant = FarmBatch(farm_spec(1), wind(12.0, ti=0.03), [fault], seed=2, duration_s=140.0)
+    refs = np.full(plant.n, 3.0e6)
+    hold = np.zeros(plant.n, dtype=bool)
+    hold[2] = True
+
+    def lock_in(rec):
+        azimuth = rec[:, 2]
+        out = []
+        for column in (0, 3):
+            x = rec[:, column] - rec[:, column].mean()
+            out.append(2.0 * np.hypot(np.mean(x * np.cos(3.0 * azimuth)), np.mean(x * np.sin(3.0 * azimuth))))
+        return out, rec[:, 1].mean()
+
+    def record(p, f):
+        return (p.shaft_torque()[2], *p.turbines.x[2, [0, 4]], p.controller.ripple_torque[2])
+
+    _run(plant, 30.0, FarmRefs(0, refs))
+    (free, _), omega_r = lock_in(np.array(_run(plant, 30.0, FarmRefs(0, refs), record=record)))
+    closed_form = P.J_g * P.N_g**2 * (3.0 * omega_r) ** 2 * 5e-3 / P.eta_dt
+    assert free == pytest.approx(closed_form, rel=0.15)
+    _run(plant, 10.0, FarmRefs(1, refs, hold_torque=hold))
+    (shaft, ripple), omega_r = lock_in(np.array(_run(plant, 30.0, FarmRefs(1, refs, hold_torque=hold), record=record)))
+    assert shaft < 0.1 * closed_form
+    assert ripple == pytest.approx(P.J_g * P.N_g * (3.0 * omega_r) ** 2 * 5e-3, rel=0.1)
+    _run(plant, 2.0, FarmRefs(2, refs))
+    assert not plant.controller._ripple_running
+    assert not plant.controller.ripple_torque.any()
+
+
+def test_a_hold_without_the_3p_cancellation_leaves_the_swing_on_the_shaft():
+    """``[plant] cancel_3p_in_hold = false``: the hold derates only; the converter adds nothing at 3P."""
+    fault = FaultSpec(target="drivetrain", kind="drivetrain_wear", value=5.0, turbine=3, start_s=0.0)
+    plant = FarmBatch(farm_spec(1, cancel_3p_in_hold=False), wind(12.0, ti=0.03), [fault], seed=2, duration_s=30.0)
+    hold = np.zeros(plant.n, dtype=bool)
+    hold[2] = True
+    _run(plant, 20.0, FarmRefs(0, np.full(plant.n, 3.0e6)))
+    rec = _run(
+        plant, 10.0, FarmRefs(1, np.full(plant.n, 3.0e6), hold_torque=hold), record=lambda p, f: p.shaft_torque()[2]
+    )
+    assert not plant.controller.ripple_torque.any() and not plant.controller._ripple_running
+    assert np.std(rec) > 0.15e6  # the 3P swing (≈ 0.27 MN m amplitude) is still on the shaft
+
+
 def test_the_drive_train_fault_develops_without_ringing_the_torsion_mode():
     """e_0 develops through two 0.25 s lags: the 4–5 Hz content of the shaft torque (faulty minus its twin) in the
     3 s after onset stays below 0.15 MN m std (measured 0.03; two 0.02 s lags, nearly a step, give 0.62). The

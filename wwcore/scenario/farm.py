@@ -123,6 +123,11 @@ class FarmPlant(BaseModel):
     noise_convention: NoiseConvention = Field(
         default="sigma", description="read the benchmark's sensor noise numbers as σ (papers) or as variances"
     )
+    cancel_3p_in_hold: bool = Field(
+        default=True,
+        description="a turbine asked to hold also cancels the drive-train fault's 3P shaft torque with its converter "
+        "(docs/farm.md D-C4) [PROPOSED]",
+    )
     demand: FarmDemand = Field(default_factory=FarmDemand)
 
     @property
