@@ -115,7 +115,7 @@ def simulate_chunk(
     if bins[-1] != n_steps:
         bins = np.append(bins, n_steps)
     # Damage numbers are ratios to the fault-free twin, so without twins nothing would read the shaft torque's
-    # reversals: not recording them saves ≈ 10 % of a detection-only run's CPU time.
+    # reversals (under cProfile they took ≈ 13 % of a detection-only run).
     recorder = ReversalRecorder(n) if twins else None
     power_sum = np.zeros(n)
     over = np.zeros(farms)
