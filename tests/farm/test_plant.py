@@ -69,6 +69,12 @@ def test_a_derated_turbine_follows_its_reference_at_its_speed_set_point():
     assert omega == pytest.approx(speed_setpoint(P, ref), rel=0.01)
 
 
+def _lock_in_3p(signal: np.ndarray, azimuth: np.ndarray) -> tuple[float, float]:
+    """(in-phase, quadrature) amplitude of ``signal`` at 3ψ, its mean removed: 2⟨x cos 3ψ⟩, 2⟨x sin 3ψ⟩."""
+    x = signal - signal.mean()
+    return 2.0 * np.mean(x * np.cos(3.0 * azimuth)), 2.0 * np.mean(x * np.sin(3.0 * azimuth))
+
+
 @pytest.mark.parametrize("power_mw, tolerance, quadrature_limit", [(4.8, 0.2, 0.3), (2.4, 0.1, None)])
 def test_the_drive_train_fault_swings_the_shaft_torque_by_the_generator_inertia_at_3p(
     power_mw, tolerance, quadrature_limit
@@ -83,9 +89,8 @@ def test_the_drive_train_fault_swings_the_shaft_torque_by_the_generator_inertia_
     refs = FarmRefs(0, np.full(plant.n, power_mw * 1e6))
     _run(plant, 40.0, refs)
     rec = np.array(_run(plant, 30.0, refs, record=lambda p, f: (p.shaft_torque()[2], *p.turbines.x[2, [0, 4]])))
-    torque, omega_r, azimuth = rec[:, 0] - rec[:, 0].mean(), rec[:, 1].mean(), rec[:, 2]
-    in_phase = 2.0 * np.mean(torque * np.cos(3.0 * azimuth))
-    quadrature = 2.0 * np.mean(torque * np.sin(3.0 * azimuth))
+    in_phase, quadrature = _lock_in_3p(rec[:, 0], rec[:, 2])
+    omega_r = rec[:, 1].mean()
     closed_form = P.J_g * P.N_g**2 * (3.0 * omega_r) ** 2 * 5e-3 / P.eta_dt
     assert in_phase == pytest.approx(closed_form, rel=tolerance)
     if quadrature_limit is not None:
@@ -105,12 +110,8 @@ def test_the_holds_3p_cancellation_takes_the_generators_inertia_torque_off_the_s
     hold[2] = True
 
     def lock_in(rec):
-        azimuth = rec[:, 2]
-        out = []
-        for column in (0, 3):
-            x = rec[:, column] - rec[:, column].mean()
-            out.append(2.0 * np.hypot(np.mean(x * np.cos(3.0 * azimuth)), np.mean(x * np.sin(3.0 * azimuth))))
-        return out, rec[:, 1].mean()
+        amplitudes = [np.hypot(*_lock_in_3p(rec[:, column], rec[:, 2])) for column in (0, 3)]
+        return amplitudes, rec[:, 1].mean()
 
     def record(p, f):
         return (p.shaft_torque()[2], *p.turbines.x[2, [0, 4]], p.controller.ripple_torque[2])

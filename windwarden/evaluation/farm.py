@@ -147,10 +147,11 @@ def simulate_chunk(
                 missing += np.maximum(-gap, 0.0) * FARM_DT_S
                 demand_e += frame.demand * FARM_DT_S
             t = j * FARM_DT_S
-            inside = [i for i, w in enumerate(windows) if w.start_s <= t < w.end_s]
-            if inside and twins:
-                imb_sum[:, inside] += imbalance_phasor(plant.blade_torque)[:, None]
-                imb_count[inside] += 1
+            if twins:  # the imbalance, like the damage, is read against the twin only
+                inside = [i for i, w in enumerate(windows) if w.start_s <= t < w.end_s]
+                if inside:
+                    imb_sum[:, inside] += imbalance_phasor(plant.blade_torque)[:, None]
+                    imb_count[inside] += 1
             if trace_on:
                 diag = sup.diagnosis
                 rows = trace_rows
