@@ -42,6 +42,21 @@ P_ref,farm < Σ P_avail; otherwise every turbine gets rated power (it produces w
   what 50 kW needs at unchanged speed: a cycle as large as the working torque, and a 3P swing as large as before
   (docs/farm.md, Table 7).
 
+**Farm-power trim** [PROPOSED; not in the paper]. Eq. (18) shares the demand in proportion to P_avail, which
+eq. (21) low-passes over a rotor transit: a turbine in a lull cannot make its share while one in a gust is held
+to its own, and the farm falls short although it has the power. A PI on the farm's measured power closes the loop:
+
+.. math::
+
+    e = (P_{ref,farm} − Σ P_m)/P_{ref,farm},\quad I ← \operatorname{sat}(I + K_i e Δt),\quad
+    u = \operatorname{sat}(K_p e + I),\qquad P_{ref,t} ← (1 + u)\,P_{ref,t}
+
+(sat = ±``trim_limit``) on every turbine the accommodation leaves alone (not derated by (26), not held); it acts
+only while the dispatch does (P_ref,farm < Σ P_avail), and I restarts from 0 otherwise. K_p = 0.5, K_i = 0.5 1/s,
+±10 % (options ``trim_kp``, ``trim_ki``, ``trim_limit``; K_p = K_i = 0 is the paper's open-loop dispatch).
+It does not follow the held turbine's 0.6–0.8 Hz power ripple (D-C4): the references move at most 10 % of rated
+per second.
+
 **PI** (the benchmark's reference controller, PARAMETERS.md b): e = (P_ref,farm − Σ P_m)/P_ref,farm,
 u = sat(K_p e + I), I = sat(I + K_i e Δt), sat = ±20 %; every turbine gets (1 + u) P_ref,farm / 9.
 K_p = 0.3, K_i = 0.05 1/s [PROPOSED].
@@ -64,6 +79,7 @@ HOLD_MARGIN = 1.2  # –, rotor torque at fine pitch and the hold's speed over t
 HOLD_MIN_TSR = 5.0  # –, tip-speed ratio of a hold: the lowest at which fine pitch gives the most torque (below, stall)
 HOLD_AVERAGING_S = 10.0  # s, low-pass of the wind the hold's speed floor and torque cap are chosen from [PROPOSED]
 PI_KP, PI_KI, PI_LIMIT = 0.3, 0.05, 0.2  # PARAMETERS.md b [PROPOSED]
+TRIM_KP, TRIM_KI, TRIM_LIMIT = 0.5, 0.5, 0.1  # –, 1/s, –: the dispatch's farm-power trim [PROPOSED]
 DEBRIS, PITCH, DRIVETRAIN = 0, 1, 2  # columns of ``faulty``
 
 
@@ -90,6 +106,10 @@ class Dispatch:
         self.speed_floor = np.full(self.n, np.nan)  # rad/s, ω_floor of turbines in the hold (NaN: none)
         self.held_torque = np.full(self.n, np.nan)  # N m, S_max of turbines in the hold (NaN: none)
         self.mode = np.zeros(self.n, dtype=np.int8)  # 0 normal, 1 debris (23)–(24), 2 derated (26), 3 held torque
+        self.trim_kp = float(options.get("trim_kp", TRIM_KP))
+        self.trim_ki = float(options.get("trim_ki", TRIM_KI))
+        self.trim_limit = float(options.get("trim_limit", TRIM_LIMIT))
+        self.trim = np.zeros(context.farms)  # –, the trim's integral I per farm
 
     def estimate_available(self, sample: FarmSample) -> np.ndarray:
         """Eqs. (20)–(22): P_avail,t (n,) in W."""
@@ -169,12 +189,23 @@ class Dispatch:
         share = np.where(debris, share / DEBRIS_FACTOR, share)  # eq. (24)
         # beyond the farm's maximum every turbine runs at rated, but a held one stays at its floor
         refs = np.where(active[:, None], share, np.where(hold, floor, self.p.rated_power))
+        if self.trim_kp > 0.0 or self.trim_ki > 0.0:
+            refs = self._trimmed(sample, refs, active, ~(derate | hold))
         refs = np.clip(refs, 0.0, self.p.rated_power).reshape(-1)
         self.speed_floor = np.where(hold.reshape(-1), self.speed_floor, np.nan)
         self.held_torque = np.where(hold.reshape(-1), self.held_torque, np.nan)
         self.mode = np.where(hold, 3, np.where(derate, 2, np.where(debris, 1, 0))).astype(np.int8).reshape(-1)
         self.p_ref = refs
         return refs
+
+    def _trimmed(self, sample: FarmSample, refs: np.ndarray, active: np.ndarray, free: np.ndarray) -> np.ndarray:
+        """The farm-power trim (module docstring): (1 + u) on the references of the turbines in ``free``."""
+        lim = self.trim_limit
+        farm_power = sample.per_farm(sample.scada[:, P_G]).sum(axis=1)
+        error = (sample.demand - farm_power) / np.maximum(sample.demand, 1.0)
+        self.trim = np.where(active, np.clip(self.trim + self.trim_ki * error * FARM_DT_S, -lim, lim), 0.0)
+        u = np.clip(self.trim_kp * error + self.trim, -lim, lim)
+        return np.where(free & active[:, None], refs * (1.0 + u[:, None]), refs)
 
 
 class PIFarmController:

@@ -32,8 +32,10 @@ def _sample(demand_mw: float, power_mw: np.ndarray | None = None) -> FarmSample:
     )
 
 
-def _dispatch(avail_mw: list[float], rule: str = "paper") -> Dispatch:
-    d = Dispatch(context=FarmContext(FarmPlant(), 9), options={"accommodation_rule": rule})
+def _dispatch(avail_mw: list[float], rule: str = "paper", trim: tuple[float, float] = (0.0, 0.0)) -> Dispatch:
+    """Eqs. (18)–(26) on stubbed available powers; the farm-power trim off unless ``trim`` = (K_p, K_i) says."""
+    options = {"accommodation_rule": rule, "trim_kp": trim[0], "trim_ki": trim[1]}
+    d = Dispatch(context=FarmContext(FarmPlant(), 9), options=options)
     d.estimate_available = lambda sample: np.asarray(avail_mw, dtype=float) * MW  # eqs. (20)–(22) stubbed
     return d
 
@@ -83,6 +85,40 @@ def test_eq_26_with_two_faulty_turbines_shares_the_headroom_in_turbine_order():
     assert refs[1] == pytest.approx(0.05 / total * 14.5)
     assert refs[4] == pytest.approx(0.45 / total * 14.5)
     assert refs.sum() == pytest.approx(14.5)
+
+
+def test_the_trim_moves_the_free_turbines_by_the_pi_of_the_farm_power_error():
+    kp, ki = 0.5, 0.5
+    d = _dispatch([2.0] * 9, trim=(kp, ki))
+    short = np.full(9, 12.0 / 9)
+    short[0] -= 0.3  # the farm makes 11.7 of 12 MW
+    e = 0.3 / 12.0
+    eq_18 = 12.0 / 16.05  # t2 derated to P_min (26): the others' share
+    for k in range(1, 4):
+        refs = d.step(_sample(12.0, short), _faulty(t2=2)) / MW
+        u = kp * e + k * ki * e * 0.1  # I after k samples of Δt = 0.1 s
+        assert refs[0] == pytest.approx(2.0 * eq_18 * (1.0 + u))
+        assert refs[1] == pytest.approx(0.05 * eq_18)  # the derated turbine is left alone
+    over = np.full(9, 13.0 / 9)  # 1 MW too much: the integral comes down again
+    refs = d.step(_sample(12.0, over), _faulty(t2=2)) / MW
+    u = kp * (-1.0 / 12.0) + (3 * e - 1.0 / 12.0) * ki * 0.1
+    assert refs[0] == pytest.approx(2.0 * eq_18 * (1.0 + u))
+
+
+def test_the_trim_saturates_and_restarts_when_the_farm_cannot_meet_the_demand():
+    d = _dispatch([2.0] * 9, trim=(0.5, 0.5))
+    nothing = np.zeros(9)
+    for _ in range(50):
+        refs = d.step(_sample(12.0, nothing), _faulty()) / MW
+    assert refs == pytest.approx(np.full(9, 12.0 / 9 * (1.0 + d.trim_limit)))  # u = +10 % at most
+    assert d.trim[0] == pytest.approx(d.trim_limit)
+    refs = d.step(_sample(20.0, nothing), _faulty())  # beyond Σ P_avail: rated, and the integral restarts
+    assert np.all(refs == P.rated_power) and d.trim[0] == 0.0
+
+
+def test_without_gains_the_trim_leaves_eq_18_alone():
+    refs = _dispatch([1, 2, 3, 1, 2, 3, 1, 2, 3]).step(_sample(12.0, np.zeros(9)), _faulty())
+    assert refs / MW == pytest.approx(np.array([1, 2, 3] * 3) / 18.0 * 12.0)
 
 
 def _held(wind: float, tau_g: float) -> tuple[Dispatch, FarmSample]:
