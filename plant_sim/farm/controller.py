@@ -42,7 +42,11 @@ point (too little wind for that speed) falls into zone 0, where the torque is (S
 torque in hand so that this stays rare. When the flag clears, the set point climbs back at ``SPEED_SLEW`` and S
 moves from its held value to the normal law's, P_r/(η_gc ω_n) + B_g ω_n at the normal set point ω_n, in proportion
 to the speed the rotor has regained (in zone 0 too, tapered the same way below the set point the hold had); the
-hold ends once the speed has reached ω_n, where S already is the normal law's, so the torque does not step.
+hold ends once the speed has reached ω_n, where S already is the normal law's, so the torque does not step. A
+rotor that is below the hold's set point when the flag clears (a lull during the hold left it in zone 0, where the
+steep law can hold it stalled: measured 60 rad/s at 12.5 m/s, λ ≈ 3, 0.5 MW) would meet the held torque again on
+that climb and stay there; it leaves the hold at once instead, and its torque fades from where it is to the normal
+laws' (K_opt ω_g² in zone 0, under which it speeds up to its best tip-speed ratio) over ``RELEASE_FADE_S``.
 
 **3P cancellation in the hold** [PROPOSED]. The drive-train fault's transmission error e(ψ) = e_0 cos 3ψ is
 kinematic: below the torsion mode the generator follows it, and the shaft carries the torque that accelerates the
@@ -103,6 +107,7 @@ DAMPER_ZETA = 0.3  # –, damping of the band-pass (its width) [PROPOSED]
 DAMPER_GAIN = 1000.0  # N m s/rad on the generator side at the centre frequency [PROPOSED]
 RIPPLE_SOGI_GAIN = 0.8  # –, k = 2ζ of each SOGI of the 3P filter (ζ = 0.4: settles in ≈ 1 s at 3P) [PROPOSED]
 RIPPLE_ENGAGE_S = 0.5  # s, the 3P cancellation fades in and out over this time [PROPOSED]
+RELEASE_FADE_S = 5.0  # s, a stalled hold hands its torque over to the normal laws in this time [PROPOSED]
 
 
 def speed_setpoint(params: TurbineParams, power_ref: np.ndarray) -> np.ndarray:
@@ -138,6 +143,9 @@ class FarmTurbineController(BenchmarkController):
         self._release_from = np.zeros(n)  # rad/s, the hold's set point when the flag cleared
         self._hold_target = np.zeros(n)  # N m, the held sum S that tau_hold slews down to
         self._release_sum = np.zeros(n)  # N m, the held sum when the flag cleared
+        self._handover = np.zeros(n)  # N m, the torque a stalled hold had when its flag cleared
+        self._handover_left = np.zeros(n)  # s left of the fade from ``_handover`` to the normal laws
+        self._handing_over = False
         self._ripple_state = np.zeros((4, n))  # v1, q1, v2, q2: the two SOGIs of the 3P filter
         self._ripple_running = False  # the filter runs while a turbine's cancellation is engaged or engaging
         self._ripple_on = np.zeros(n)  # – engagement of the cancellation, 0 … 1
@@ -172,6 +180,15 @@ class FarmTurbineController(BenchmarkController):
         if releasing.any():
             self._release_from = np.where(releasing, self._hold_set, self._release_from)
             self._release_sum = np.where(releasing, self.tau_hold, self._release_sum)
+            # a rotor below the hold's speed could not keep it (a lull): the climb's torque would keep it stalled,
+            # so it goes back to the normal laws now, its torque fading over from where it is
+            stalled = releasing & (self._omega_g < self._hold_set - self._hysteresis_at(self._hold_set))
+            if stalled.any():
+                own = self.tau_g_ref - self.damper_torque - self.ripple_torque
+                self._handover = np.where(stalled, own, self._handover)
+                self._handover_left = np.where(stalled, RELEASE_FADE_S, self._handover_left)
+                self._handing_over = True
+                self.hold = self.hold & ~stalled
         self.hold_asked = asked
         self.hold = self.hold | starting
 
@@ -252,6 +269,11 @@ class FarmTurbineController(BenchmarkController):
             cube = below * below * below
             torque = self.tau_hold - p.B_g * omega_g
             base = np.where(self.hold, np.where(region3, torque, torque * cube * cube), base)  # (ω_g/ω_b)⁶
+        if self._handing_over:
+            left = self._handover_left
+            base = base + (self._handover - base) * (left * (1.0 / RELEASE_FADE_S))
+            self._handover_left = np.maximum(left - p.dt, 0.0)
+            self._handing_over = bool(self._handover_left.any())
         self.tau_g_ref = base + damper
         if cancelling:
             self.tau_g_ref = self.tau_g_ref + self.ripple_torque

@@ -227,7 +227,7 @@ def test_a_capped_hold_lowers_the_torque_at_the_slew_and_its_release_climbs_back
 def test_a_hold_the_rotor_cannot_keep_settles_in_zone_0_instead_of_sliding_down_the_cq_curve():
     """At 16 m/s the rotor cannot make its full torque at 55 % of Ω_nom (λ ≈ 3.3): it falls into zone 0, where the
     held torque is let go with (ω_g/ω_b)⁶, and settles there (the dispatch's speed floor is there to avoid this)."""
-    plant = FarmBatch(farm_spec(1, coherent_ti=0.0), wind(16.0, ti=0.005), [], seed=2, duration_s=120.0)
+    plant = FarmBatch(farm_spec(1, coherent_ti=0.0), wind(16.0, ti=0.005), [], seed=2, duration_s=170.0)
     hold = np.zeros(plant.n, dtype=bool)
     hold[4] = True
     derated = np.full(plant.n, P.rated_power)
@@ -240,6 +240,12 @@ def test_a_hold_the_rotor_cannot_keep_settles_in_zone_0_instead_of_sliding_down_
     speed = np.array(rec)
     assert abs(speed[-100:].mean() - speed[:100].mean()) < 0.01 * speed.mean()  # settled, not sliding
     assert speed.mean() > 0.7 * c.setpoint[4]
+    # when the flag clears, zone 0 hands its torque over to K_opt ω_g² (RELEASE_FADE_S): the rotor escapes the
+    # low speed the held torque kept it at, the hold ends and the turbine makes its reference again
+    rated = np.full(plant.n, P.rated_power)
+    rec = _run(plant, 60.0, FarmRefs(2, rated), record=lambda p, f: (p.power_output()[4], p.controller.hold[4]))
+    assert not rec[-1][1]
+    assert np.mean([r[0] for r in rec[-500:]]) == pytest.approx(P.rated_power, rel=0.02)
 
 
 def test_fault_free_twins_see_the_same_wind_and_noise():
