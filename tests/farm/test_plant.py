@@ -240,11 +240,19 @@ def test_a_hold_the_rotor_cannot_keep_settles_in_zone_0_instead_of_sliding_down_
     speed = np.array(rec)
     assert abs(speed[-100:].mean() - speed[:100].mean()) < 0.01 * speed.mean()  # settled, not sliding
     assert speed.mean() > 0.7 * c.setpoint[4]
-    # when the flag clears, zone 0 hands its torque over to K_opt ω_g² (RELEASE_FADE_S): the rotor escapes the
-    # low speed the held torque kept it at, the hold ends and the turbine makes its reference again
+    # when the flag clears below the hold's set point, the turbine leaves the hold at once and its torque fades to
+    # the normal laws' over RELEASE_FADE_S (K_opt ω_g² in zone 0): no step, the rotor escapes the low speed the
+    # held torque kept it at, and it makes its reference again
+    held_torque = c.tau_g_ref[4] - c.damper_torque[4] - c.ripple_torque[4]
     rated = np.full(plant.n, P.rated_power)
-    rec = _run(plant, 60.0, FarmRefs(2, rated), record=lambda p, f: (p.power_output()[4], p.controller.hold[4]))
-    assert not rec[-1][1]
+
+    def record(p, f):
+        c = p.controller
+        return p.power_output()[4], c.hold[4], c.tau_g_ref[4] - c.damper_torque[4] - c.ripple_torque[4]
+
+    rec = _run(plant, 60.0, FarmRefs(2, rated), record=record)
+    assert not rec[0][1] and not rec[-1][1]
+    assert rec[0][2] == pytest.approx(held_torque, rel=0.01)
     assert np.mean([r[0] for r in rec[-500:]]) == pytest.approx(P.rated_power, rel=0.02)
 
 
