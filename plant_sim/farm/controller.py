@@ -137,6 +137,8 @@ class FarmTurbineController(BenchmarkController):
         self.damper_torque = np.zeros(n)  # N m, the damper's share of τ_g,r
         self.hold = np.zeros(n, dtype=bool)  # derating at held torque (module docstring)
         self.hold_asked = np.zeros(n, dtype=bool)  # the last reference asked for it
+        self._asked_level = np.zeros(n)  # hold_asked as 0/1: where the 3P cancellation's engagement heads
+        self._any_asked = False  # any turbine asked to hold (set with the reference, read every tick)
         self.tau_hold = np.zeros(n)  # N m, generator side, the held sum S = τ_g + B_g ω_g
         self._omega_g = np.zeros(n)  # rad/s, the last generator speed the controller used
         self._hold_set = np.zeros(n)  # rad/s, ω_set while in the hold
@@ -190,6 +192,8 @@ class FarmTurbineController(BenchmarkController):
                 self._handing_over = True
                 self.hold = self.hold & ~stalled
         self.hold_asked = asked
+        self._asked_level = asked.astype(float)
+        self._any_asked = bool(asked.any())
         self.hold = self.hold | starting
 
     def _hysteresis_at(self, setpoint: np.ndarray) -> np.ndarray:
@@ -226,7 +230,7 @@ class FarmTurbineController(BenchmarkController):
         """τ_g,r and β_ref for tick k from the turbine's own sensors (``refs`` is not used by farm turbines)."""
         p = self.p
         omega_g = omega_g_m
-        cancelling = self.cancel_3p and (self._ripple_running or bool(self.hold_asked.any()))
+        cancelling = self.cancel_3p and (self._ripple_running or self._any_asked)
         if cancelling:  # the control laws read ω_g,m and P_g,m without the 3P swing and its cancellation
             ripple = self._ripple(omega_g_m)
             omega_g = omega_g_m - self._ripple_on * ripple
@@ -295,7 +299,7 @@ class FarmTurbineController(BenchmarkController):
         v2 += dt * dv2
         q2 += dt * w3 * v2
         rate = dt / RIPPLE_ENGAGE_S
-        self._ripple_on = np.clip(self.hold_asked.astype(float), self._ripple_on - rate, self._ripple_on + rate)
+        self._ripple_on = np.clip(self._asked_level, self._ripple_on - rate, self._ripple_on + rate)
         self.ripple_torque = -p.J_g * self._ripple_on * dv2
         self._ripple_running = bool(self._ripple_on.any())
         return v2

@@ -83,6 +83,18 @@ TRIM_KP, TRIM_KI, TRIM_LIMIT = 0.5, 0.5, 0.1  # –, 1/s, –: the dispatch's fa
 DEBRIS, PITCH, DRIVETRAIN = 0, 1, 2  # columns of ``faulty``
 
 
+def farm_power_pi(
+    sample: FarmSample, integral: np.ndarray, kp: float, ki: float, limit: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """One step of a PI on each farm's relative power error e = (P_ref,farm − Σ P_m)/P_ref,farm: the new integral
+    I = sat(I + K_i e Δt) and the output u = sat(K_p e + I), sat = ±``limit`` (the PI and the dispatch's trim)."""
+    farm_power = sample.per_farm(sample.scada[:, P_G]).sum(axis=1)
+    demand = np.maximum(sample.demand, 1.0)
+    error = (demand - farm_power) / demand
+    integral = np.clip(integral + ki * error * FARM_DT_S, -limit, limit)
+    return integral, np.clip(kp * error + integral, -limit, limit)
+
+
 class Dispatch:
     """Eqs. (18)–(26) for ``farms`` farms of nine turbines (module docstring)."""
 
@@ -200,11 +212,8 @@ class Dispatch:
 
     def _trimmed(self, sample: FarmSample, refs: np.ndarray, active: np.ndarray, free: np.ndarray) -> np.ndarray:
         """The farm-power trim (module docstring): (1 + u) on the references of the turbines in ``free``."""
-        lim = self.trim_limit
-        farm_power = sample.per_farm(sample.scada[:, P_G]).sum(axis=1)
-        error = (sample.demand - farm_power) / np.maximum(sample.demand, 1.0)
-        self.trim = np.where(active, np.clip(self.trim + self.trim_ki * error * FARM_DT_S, -lim, lim), 0.0)
-        u = np.clip(self.trim_kp * error + self.trim, -lim, lim)
+        integral, u = farm_power_pi(sample, self.trim, self.trim_kp, self.trim_ki, self.trim_limit)
+        self.trim = np.where(active, integral, 0.0)
         return np.where(free & active[:, None], refs * (1.0 + u[:, None]), refs)
 
 
@@ -222,11 +231,7 @@ class PIFarmController:
         self.p_ref = np.full(self.n, self.p.rated_power)
 
     def step(self, sample: FarmSample, faulty: np.ndarray) -> np.ndarray:
-        farm_power = sample.per_farm(sample.scada[:, P_G]).sum(axis=1)
-        demand = np.maximum(sample.demand, 1.0)
-        error = (demand - farm_power) / demand
-        self.integral = np.clip(self.integral + self.ki * error * FARM_DT_S, -PI_LIMIT, PI_LIMIT)
-        u = np.clip(self.kp * error + self.integral, -PI_LIMIT, PI_LIMIT)
+        self.integral, u = farm_power_pi(sample, self.integral, self.kp, self.ki, PI_LIMIT)
         refs = np.repeat(sample.demand * (1.0 + u) / N_TURBINES, N_TURBINES)
         self.p_ref = np.clip(refs, 0.0, self.p.rated_power)
         return self.p_ref
