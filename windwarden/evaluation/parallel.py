@@ -50,16 +50,18 @@ def run_chunks(
     label: str = "simulating",
     show_progress: bool = True,
     variants: Sequence[tuple] | None = None,
+    variant_seconds: Sequence[float] | None = None,
 ) -> list[R]:
     """Call ``worker(run_ids, progress_hook, *args)`` for every chunk; results in chunk order.
 
     ``total_seconds`` is the simulated time of one run; the bar counts run-seconds over all runs. With
     ``variants`` (argument tuples) every chunk runs once per variant: results variant by variant, chunks in order.
+    ``variant_seconds`` is each variant's simulated time per run where it is not ``total_seconds``.
     """
     chunks = chunk_runs(runs, chunk)
     tasks = [(run_ids, a) for a in (variants or [args]) for run_ids in chunks]
     workers = min(len(tasks), workers or os.cpu_count() or 1)
-    total = total_seconds * runs * len(variants or [args])
+    total = runs * (sum(variant_seconds) if variant_seconds else total_seconds * len(variants or [args]))
     bar = tqdm(total=total, unit="run-s", desc=label, disable=not show_progress, smoothing=0.1)
     try:
         if workers == 1:

@@ -7,7 +7,8 @@ rotor-effective wind, pooled over runs. The first ``WARMUP_S`` seconds of each r
 
 When the scenario has faults, every run also has a fault-free twin (same wind, same noise, no faults; a batch
 of its own, see ``TURBINE_CHUNK``), and ``fte_fault_free`` is the twin's FTE RMSE over the same window: "the
-FTE's fault-free RMSE" that a fault window is compared with. The twins' detections are counted as
+FTE's fault-free RMSE" that a fault window is compared with. Nothing after the last fault window is scored
+on a twin, so the twins stop there (``twin_seconds``). Their detections until then are counted as
 ``false_alarms_twin``.
 """
 
@@ -65,6 +66,12 @@ def _window_of_tick(scenario: Scenario, n_steps: int, dt: float) -> tuple[np.nda
     return which, ["fault_free"] + [w.name for w in windows]
 
 
+def twin_seconds(scenario: Scenario) -> float:
+    """Simulated time of a fault-free twin: up to the end of the scenario's last fault window, s."""
+    windows = windows_from_faults(scenario.faults, scenario.duration_s)
+    return max((w.end_s for w in windows), default=scenario.duration_s)
+
+
 def simulate_chunk(
     run_ids: list[int],
     progress,
@@ -80,6 +87,7 @@ def simulate_chunk(
     "main" (the runs only) or "twin" (only the twins: the scenario without its faults, scored in its windows)."""
     twins = twins and bool(scenario.faults) and role == "both"
     faults = [] if role == "twin" else scenario.faults
+    duration_s = twin_seconds(scenario) if role == "twin" else scenario.duration_s
     plant = TurbineBatch(scenario.plant, scenario.wind, faults, seed=seed, runs=run_ids, fault_free_twins=twins)
     twin_rows = np.full(plant.n, role == "twin") | plant.twin_of_row
     supervisor = TurbineSupervisor(
@@ -92,7 +100,7 @@ def simulate_chunk(
         turbine_of_row=np.where(twin_rows, TWIN_TURBINE, plant.turbine_of_row),
     )
     half = len(run_ids)  # rows [0, half) are the runs, [half, 2·half) their fault-free twins (if any)
-    n_steps = round(scenario.duration_s / plant.dt)
+    n_steps = round(duration_s / plant.dt)
     which, labels = _window_of_tick(scenario, n_steps, plant.dt)
     errors = _ErrorSums(len(labels), PROGRESS_EVERY, plant.n, half)
     anemometer = SENSOR_INDEX["v_hub_m"]
@@ -214,6 +222,7 @@ def evaluate(scenario: Scenario, runs: int, seed: int, options: EvalOptions) -> 
         scenario.duration_s,
         args=(*base, False),
         variants=[(*base, False, "main"), (*base, False, "twin")] if twins else None,
+        variant_seconds=[scenario.duration_s, twin_seconds(scenario)] if twins else None,
         chunk=TURBINE_CHUNK,
         workers=options.workers,
         show_progress=options.progress,
@@ -227,10 +236,11 @@ def evaluate(scenario: Scenario, runs: int, seed: int, options: EvalOptions) -> 
     labels = ["fault_free"] + [w.name for w in windows]
     counts = sum(r.counts for r in results)
     wind_rmse = {}
-    keys = ("fte", "nfte", "anemometer", "fte_fault_free") if twins else ("fte", "nfte", "anemometer")
     for i, label in enumerate(labels):
         if counts[i] == 0:
             continue
+        # the twins stop after the last fault window: their fault-free time is not the runs'
+        keys = ("fte", "nfte", "anemometer", "fte_fault_free") if twins and i > 0 else ("fte", "nfte", "anemometer")
         wind_rmse[label] = {
             key: float(np.sqrt(sum(r.sq_err[key][i] for r in results if key in r.sq_err) / counts[i])) for key in keys
         }
@@ -243,7 +253,7 @@ def evaluate(scenario: Scenario, runs: int, seed: int, options: EvalOptions) -> 
         "estimator": estimator,
         "false_alarms_per_1000s": fa_rate,
         "false_alarms": fa_raw,
-        **(_twin_false_alarms(twin_events, runs, scenario.duration_s) if twins else {}),
+        **(_twin_false_alarms(twin_events, runs, twin_seconds(scenario)) if twins else {}),
         "faults": faults,
         "metrics": {"wind_rmse": wind_rmse},
     }
@@ -258,7 +268,7 @@ def evaluate(scenario: Scenario, runs: int, seed: int, options: EvalOptions) -> 
 
 
 def _twin_false_alarms(events: list[Event], runs: int, duration_s: float) -> dict:
-    """Detections in the fault-free twins over the whole run: a false-alarm count on the same wind."""
+    """Detections in the fault-free twins, which run for ``duration_s``: a false-alarm count on the same wind."""
     count = sum(1 for e in events if e.type is EventType.DETECTION and e.t >= WARMUP_S)
     observed = runs * (duration_s - WARMUP_S)
     return {"false_alarms_twin": {"count": count, "observed_s": observed, "per_1000s": 1000.0 * count / observed}}
