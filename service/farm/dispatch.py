@@ -25,22 +25,25 @@ P_ref,farm < Σ P_avail; otherwise every turbine gets rated power (it produces w
   P_avail,f = max(pos(P_avail − P_over), P_min), P_min = 50 kW (26), then (18) with P_avail,f. *Decision D-26*:
   with several such turbines the headroom is shared out in turbine order, P_over shrinking by what each took.
 * drive train, rule ``hold-torque`` (the default) [PROPOSED]: the turbine is derated by speed, not by torque.
-  When the hold begins the dispatch fixes its speed floor ω_floor = clip(N_g λ_f w̄/R, ω_min, Ω_nom) at the
-  tip-speed ratio λ_f = 5 (the lowest at which fine pitch still gives the rotor's largest torque; below it that
-  takes a pitch above 3 deg, and a controller that goes to fine pitch to speed up stalls the rotor instead) and a
-  cap S_max = η_dt (½ρπR³ C_q(λ, 0) w̄²/1.2 − B_r ω_r)/N_g on the held generator-side sum S = τ_g + B_g ω_g: what
-  the rotor makes there at fine pitch with 20 % in hand for the turbulence (option ``hold_margin``). w̄ is w_est
-  low-passed over 10 s; both stay fixed while the hold lasts, since eq. (20) assumes steady state and reads
-  nonsense while the rotor slows down. The reference is the floor P_min,f = max(P_min, η_gc (min(S_m, S_max) −
-  B_g ω_floor) ω_floor), S_m = τ_g,m + B_g ω̄_g, sent with ``hold_torque`` (mode 3) and ``held_torque`` = S_max
-  (``plant_sim.farm.controller``); the other turbines share the rest of the demand as in (18). The held turbine
-  keeps its floor when the farm cannot meet the demand too (the others then run at rated): a hold released by a
-  lull would swing the torque through the cycles it exists to avoid. Why: the fault's 3P torque swing grows with
-  ω_r² and its rainflow damage with about ω_r⁹ at m = 4, while lowering the mean torque costs one cycle of the
-  torque change. In the hold the turbine also cancels the fault's 3P shaft torque with its converter
-  (``plant_sim.farm.controller``, D-C4). The paper's rule (``accommodation_rule = "paper"``) drops the torque to
-  what 50 kW needs at unchanged speed: a cycle as large as the working torque, and a 3P swing as large as before
-  (docs/farm.md, Table 7).
+  When the hold begins the dispatch fixes its speed floor ω_floor = clip(N_g λ w̄/R, ω_min, Ω_nom) and a cap S_max(λ)
+  = η_dt (½ρπR³ C_q(λ, 0) w̄²/1.2 − B_r ω_r)/N_g on the held generator-side sum S = τ_g + B_g ω_g: what the rotor
+  makes at λ at fine pitch with 20 % in hand for the turbulence (option ``hold_margin``). λ is the smallest tip-speed
+  ratio on a 0.05 grid from λ_f = 5 to λ_q ≈ 6.55 with S_max(λ) ≥ S_m, the sum the turbine makes when the hold begins:
+  the slowest speed at which the rotor keeps its torque, so the hold moves the mean shaft torque by nothing (a cap
+  below S_m costs one rainflow cycle as large as the step, on entry and again on release). λ_f is the lowest λ at
+  which fine pitch still gives the rotor's largest torque (below it that takes a pitch above 3 deg, and a controller
+  that goes to fine pitch to speed up stalls the rotor instead); λ_q gives the most torque at fine pitch, so where no
+  λ keeps S_m the hold runs there with S capped at S_max(λ_q). w̄ is w_est low-passed over 10 s; ω_floor and S_max
+  stay fixed while the hold lasts, since eq. (20) assumes steady state and reads nonsense while the rotor slows down.
+  The reference is the floor P_min,f = max(P_min, η_gc (min(S_m, S_max) − B_g ω_floor) ω_floor), S_m = τ_g,m + B_g
+  ω̄_g, sent with ``hold_torque`` (mode 3) and ``held_torque`` = S_max (``plant_sim.farm.controller``); the other
+  turbines share the rest of the demand as in (18). The held turbine keeps its floor when the farm cannot meet the
+  demand too (the others then run at rated): a hold released by a lull would swing the torque through the cycles it
+  exists to avoid. Why: the fault's 3P torque swing grows with ω_r² and its rainflow damage with about ω_r⁹ at m = 4,
+  while lowering the mean torque costs one cycle of the torque change. In the hold the turbine also cancels the
+  fault's 3P shaft torque with its converter (``plant_sim.farm.controller``, D-C4). The paper's rule
+  (``accommodation_rule = "paper"``) drops the torque to what 50 kW needs at unchanged speed: a cycle as large as the
+  working torque, and a 3P swing as large as before (docs/farm.md, Table 7).
 
 **Farm-power trim** [PROPOSED; not in the paper]. Eq. (18) shares the demand in proportion to P_avail, which
 eq. (21) low-passes over a rotor transit: a turbine in a lull cannot make its share while one in a gust is held
@@ -78,6 +81,10 @@ ACCOMMODATION_RULES = ("hold-torque", "paper")
 HOLD_MARGIN = 1.2  # –, rotor torque at fine pitch and the hold's speed over the held torque cap [PROPOSED]
 HOLD_MIN_TSR = 5.0  # –, tip-speed ratio of a hold: the lowest at which fine pitch gives the most torque (below, stall)
 HOLD_AVERAGING_S = 10.0  # s, low-pass of the wind the hold's speed floor and torque cap are chosen from [PROPOSED]
+_TSR_GRID = np.arange(HOLD_MIN_TSR, 9.0 + 1e-9, 0.05)
+HOLD_MAX_TORQUE_TSR = float(_TSR_GRID[np.argmax(aero.torque_coefficient(_TSR_GRID, np.zeros_like(_TSR_GRID)))])
+"""λ_q, –: the tip-speed ratio of the most rotor torque at fine pitch for a given wind (≈ 6.5)"""
+HOLD_TSRS = _TSR_GRID[_TSR_GRID <= HOLD_MAX_TORQUE_TSR + 1e-9]  # the λ a hold may choose, slowest first
 PI_KP, PI_KI, PI_LIMIT = 0.3, 0.05, 0.2  # PARAMETERS.md b [PROPOSED]
 TRIM_KP, TRIM_KI, TRIM_LIMIT = 0.5, 0.5, 0.1  # –, 1/s, –: the dispatch's farm-power trim [PROPOSED]
 DEBRIS, PITCH, DRIVETRAIN = 0, 1, 2  # columns of ``faulty``
@@ -146,16 +153,21 @@ class Dispatch:
         self.p_a_hat = a * self.p_a_hat + (1.0 - a) * p_a  # eq. (21), τ_w/(s + α_w) with τ_w = α_w
         return np.maximum(self.p_a_hat - self.p_ref, 0.0) + y[:, P_G]  # eq. (22)
 
-    def hold_point(self) -> tuple[np.ndarray, np.ndarray]:
-        """(ω_floor, S_max) (n,) of a hold begun now: generator speed (rad/s) at tip-speed ratio λ_f and the
-        generator-side torque sum (N m) the rotor makes there at fine pitch with ``hold_margin`` in hand."""
+    def hold_point(self, held_sum: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(ω_floor, S_max) (n,) of a hold begun now with the generator-side torque sum ``held_sum`` (N m): the
+        slowest speed (rad/s) at a tip-speed ratio in [λ_f, λ_q] where the rotor makes that sum at fine pitch with
+        ``hold_margin`` in hand, and the sum it makes there (at λ_q, the most it can, if none keeps ``held_sum``)."""
         p = self.p
-        wind = np.maximum(self._slow_wind, 1.0)
-        omega = np.clip(p.N_g * HOLD_MIN_TSR * wind / p.radius, MIN_SPEED_FRACTION * p.omega_nom, p.omega_nom)
+        wind = np.maximum(self._slow_wind, 1.0)[:, None]
+        omega = np.clip(p.N_g * HOLD_TSRS * wind / p.radius, MIN_SPEED_FRACTION * p.omega_nom, p.omega_nom)
         omega_r = omega / p.N_g
         tsr = omega_r * p.radius / wind
         rotor = p.aero_torque_gain * aero.torque_coefficient(tsr, np.zeros_like(tsr)) * wind * wind / self.hold_margin
-        return omega, p.eta_dt * (rotor - p.B_r * omega_r) / p.N_g
+        most = p.eta_dt * (rotor - p.B_r * omega_r) / p.N_g  # (n, grid): S the rotor holds at each λ
+        keeps = most >= held_sum[:, None]
+        pick = np.where(keeps.any(axis=1), keeps.argmax(axis=1), len(HOLD_TSRS) - 1)
+        rows = np.arange(len(pick))
+        return omega[rows, pick], most[rows, pick]
 
     def step(self, sample: FarmSample, faulty: np.ndarray) -> np.ndarray:
         farms = sample.farms
@@ -172,13 +184,13 @@ class Dispatch:
         hold = f[:, :, DRIVETRAIN] & (self.rule == "hold-torque")
         floor = np.full(avail.shape, P_MIN_W)
         if hold.any():
-            starting = hold.reshape(-1) & np.isnan(self.speed_floor)
-            if starting.any():
-                omega, most = self.hold_point()
-                self.speed_floor = np.where(starting, omega, self.speed_floor)
-                self.held_torque = np.where(starting, most, self.held_torque)
             y, p = sample.scada, self.p
             held_sum = y[:, TAU_G] + p.B_g * y[:, OMEGA_G].mean(axis=1)  # S of plant_sim.farm.controller
+            starting = hold.reshape(-1) & np.isnan(self.speed_floor)
+            if starting.any():
+                omega, most = self.hold_point(held_sum)
+                self.speed_floor = np.where(starting, omega, self.speed_floor)
+                self.held_torque = np.where(starting, most, self.held_torque)
             held_sum = np.minimum(held_sum, self.held_torque)
             held = p.eta_gc * (held_sum - p.B_g * self.speed_floor) * self.speed_floor
             floor = np.where(hold, np.maximum(held.reshape(farms, N_TURBINES), P_MIN_W), floor)

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from plant_sim.turbine.trim import trim
-from service.farm.dispatch import HOLD_MARGIN, HOLD_MIN_TSR, Dispatch, PIFarmController
+from service.farm.dispatch import HOLD_MARGIN, HOLD_MAX_TORQUE_TSR, HOLD_MIN_TSR, Dispatch, PIFarmController
 from service.farm.interfaces import BETA, OMEGA_G, OMEGA_R, P_G, TAU_G, FarmContext, FarmSample
 from wwcore import aero
 from wwcore.channels import N_SENSORS
@@ -137,16 +137,34 @@ def _hold_cap(wind: float, omega_g: float) -> float:
     return P.eta_dt * (P.aero_torque_gain * cq * wind**2 / HOLD_MARGIN - P.B_r * omega_r) / P.N_g
 
 
-@pytest.mark.parametrize("tau_g", [26e3, 15e3])  # above the rotor's cap at λ_f (lowered), below it (held)
-def test_hold_torque_floor_is_the_held_torque_at_the_hold_tip_speed_ratio(tau_g):
+def _tsr(omega_g: float, wind: float) -> float:
+    return omega_g / P.N_g * P.radius / wind
+
+
+@pytest.mark.parametrize(
+    "tau_g, kept",
+    [(15e3, True), (26e3, True), (32e3, False)],  # kept at λ_f; kept at a faster speed; more than any λ gives
+)
+def test_hold_torque_keeps_the_torque_at_the_slowest_speed_that_holds_it(tau_g, kept):
     wind = 12.0
     d, sample = _held(wind, tau_g)
     refs = d.step(sample, _faulty(t2=2)) / MW
     omega_floor = d.speed_floor[1]
-    assert omega_floor / P.N_g * P.radius / wind == pytest.approx(HOLD_MIN_TSR)
+    tsr = _tsr(omega_floor, wind)
     cap = _hold_cap(wind, omega_floor)
     assert d.held_torque[1] == pytest.approx(cap)
-    held = min(tau_g, cap)  # S of the SCADA torque (ω̄_g = 0 in this sample), capped
+    assert HOLD_MIN_TSR <= tsr <= HOLD_MAX_TORQUE_TSR + 1e-9
+    slower = omega_floor * (tsr - 0.05) / tsr  # the next slower speed the hold could have chosen
+    if tau_g == 15e3:
+        assert tsr == pytest.approx(HOLD_MIN_TSR)  # the rotor holds it at λ_f already
+    elif kept:
+        assert tsr > HOLD_MIN_TSR and cap >= tau_g > _hold_cap(wind, slower)
+    else:
+        assert tsr == pytest.approx(HOLD_MAX_TORQUE_TSR) and cap < tau_g
+        speeds = np.linspace(HOLD_MIN_TSR, 9.0, 81) * P.N_g * wind / P.radius
+        assert cap == pytest.approx(max(_hold_cap(wind, w) for w in speeds), rel=2e-3)  # the most it can hold
+    held = min(tau_g, cap)  # S of the SCADA torque (ω̄_g = 0 in this sample), capped only if no λ keeps it
+    assert (held == tau_g) == kept
     floor = P.eta_gc * (held - P.B_g * omega_floor) * omega_floor / MW  # P_min,f
     # P_over = 6 > 2 − floor: the turbine gets its floor, the other eight share the rest of the demand
     assert refs[1] == pytest.approx(floor)
