@@ -153,6 +153,7 @@ class FarmTurbineController(BenchmarkController):
         self._ripple_state = np.zeros((4, n))  # v1, q1, v2, q2: the two SOGIs of the 3P filter
         self._ripple_running = False  # the 3P filter has been started (it then runs every tick)
         self._ripple_on = np.zeros(n)  # – engagement of the cancellation, 0 … 1
+        self._engaged = False  # any turbine's cancellation engaged or fading out (ripple_on > 0)
         self.ripple_torque = np.zeros(n)  # N m, generator side, the cancellation's share of τ_g,r
         self.torque_slew = RAMP_FRACTION_PER_S * params.rated_power / (params.eta_gc * params.omega_nom) * params.dt
 
@@ -161,6 +162,7 @@ class FarmTurbineController(BenchmarkController):
         self._bp_ready = False  # the damper's state is set from the first speed reading (steady state)
         self._ripple_running = False
         self._ripple_on[:] = 0.0
+        self._engaged = False
         self.ripple_torque = np.zeros(self.n)
 
     def set_reference(
@@ -232,9 +234,11 @@ class FarmTurbineController(BenchmarkController):
         """τ_g,r and β_ref for tick k from the turbine's own sensors (``refs`` is not used by farm turbines)."""
         p = self.p
         omega_g = omega_g_m
-        cancelling = self.cancel_3p
-        if cancelling:  # the control laws read ω_g,m and P_g,m without the 3P swing and its cancellation
+        cancelling = False
+        if self.cancel_3p:
             ripple = self._ripple(omega_g_m)
+            cancelling = self._engaged
+        if cancelling:  # the control laws read ω_g,m and P_g,m without the 3P swing and its cancellation
             omega_g = omega_g_m - self._ripple_on * ripple
             p_g_m = p_g_m - (p.eta_gc * omega_g_m) * self.ripple_torque
         if self._ramping:  # the reference moves towards the farm's at most ``ramp`` per tick
@@ -300,7 +304,9 @@ class FarmTurbineController(BenchmarkController):
         dv2 = kw * (v1 - v2) - w3 * q2  # v̇ of the second stage, from its states: no numerical derivative
         v2 += dt * dv2
         q2 += dt * w3 * v2
-        rate = dt / RIPPLE_ENGAGE_S
-        self._ripple_on = np.clip(self._asked_level, self._ripple_on - rate, self._ripple_on + rate)
-        self.ripple_torque = -p.J_g * self._ripple_on * dv2
+        if self._any_asked or self._engaged:  # otherwise nothing is engaged or engaging: no torque to add
+            rate = dt / RIPPLE_ENGAGE_S
+            self._ripple_on = np.clip(self._asked_level, self._ripple_on - rate, self._ripple_on + rate)
+            self.ripple_torque = -p.J_g * self._ripple_on * dv2
+            self._engaged = bool(self._ripple_on.any())
         return v2
