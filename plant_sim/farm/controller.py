@@ -58,19 +58,17 @@ hold, its converter supplies that torque instead, so the shaft does not have to:
     τ_{g,r} \mathrel{+}= −J_g\,\dot v,\qquad
     v = \mathrm{SOGI}_{ω_3}\bigl(\mathrm{SOGI}_{ω_3}(ω_{g,m})\bigr),\qquad ω_3 = 3\,ω_{g,m}/N_g
 
-Each SOGI (second-order generalised integrator: v̇ = kω_3(u − v) − ω_3 q, q̇ = ω_3 v, k = ``RIPPLE_SOGI_GAIN``) is a
-band-pass of unit gain and zero phase at ω_3; two in a row pass ω_g,m's 3P swing and give its derivative v̇ from their
-states, without differencing noise. Above ω_3 the pair rolls off as 1/s², so the 4.5 Hz torsion mode sees no negative
-damping. The control laws (zone logic, pitch PI, torque laws, the hold) read ω_g,m − v and P_g,m less the
-cancellation's power; the damper reads ω_g,m. The filter runs on every turbine all the time, so it is locked on the
-swing when a flag arrives (started at the flag, its two stages took ≈ 1 s to lock, on top of the detection delay);
-until a hold asks for it the cancellation adds nothing and the control laws read ω_g,m and P_g,m unchanged. The
-cancellation fades in and out over ``RIPPLE_ENGAGE_S``. Scenario option ``[plant] cancel_3p_in_hold = false`` leaves
-the hold without it (and the filter off). Measured with this plant (12 m/s, 10 % turbulence, 3 MW, one turbine): the
-shaft's 3P swing falls from 0.27 to 0.006 MN m and its rainflow damage (Σ S⁴ over 70 s) from 3.99 to 0.72 (MN m)⁴,
-against 0.52 without the fault. The price is a 3P ripple in the turbine's electrical power, η_gc ω_g J_g v̇ (≈ 0.3 MW
-at 12 m/s and 3 MW, 0.75 MW at rated speed): the power the shaft swung back and forth now goes through the converter.
-The farm's 10 Hz power carries it, so the missing-power figure counts it.
+Each SOGI (second-order generalised integrator: v̇ = kω_3(u − v) − ω_3 q, q̇ = ω_3 v, k = ``RIPPLE_SOGI_GAIN``)
+is a band-pass of unit gain and zero phase at ω_3; two in a row pass ω_g,m's 3P swing and give its derivative v̇
+from their states, without differencing noise. Above ω_3 the pair rolls off as 1/s², so the 4.5 Hz torsion mode
+sees no negative damping. The control laws (zone logic, pitch PI, torque laws, the hold) read ω_g,m − v and P_g,m
+less the cancellation's power; the damper reads ω_g,m. The cancellation fades in and out over
+``RIPPLE_ENGAGE_S``, and the filter runs only while it is engaged. Scenario option ``[plant] cancel_3p_in_hold =
+false`` leaves the hold without it. Measured with this plant (12 m/s, 10 % turbulence, 3 MW, one turbine): the
+shaft's 3P swing falls from 0.27 to 0.006 MN m and its rainflow damage (Σ S⁴ over 70 s) from 3.99 to 0.72
+(MN m)⁴, against 0.52 without the fault. The price is a 3P ripple in the turbine's electrical power,
+η_gc ω_g J_g v̇ (≈ 0.3 MW at 12 m/s and 3 MW, 0.75 MW at rated speed): the power the shaft swung back and forth
+now goes through the converter. The farm's 10 Hz power carries it, so the missing-power figure counts it.
 
 The power reference a turbine receives is followed at most at ``RAMP_FRACTION_PER_S`` (10 % of rated per
 second, a usual curtailment ramp [PROPOSED]), so a sudden accommodation (eq. (26) may ask for 50 kW at once) does
@@ -108,7 +106,7 @@ DAMPER_HZ = 4.5  # Hz, centre of the drive-train damper: the torsion mode (PARAM
 DAMPER_ZETA = 0.3  # –, damping of the band-pass (its width) [PROPOSED]
 DAMPER_GAIN = 1000.0  # N m s/rad on the generator side at the centre frequency [PROPOSED]
 RIPPLE_SOGI_GAIN = 0.8  # –, k = 2ζ of each SOGI of the 3P filter (ζ = 0.4: settles in ≈ 1 s at 3P) [PROPOSED]
-RIPPLE_ENGAGE_S = 0.1  # s, the 3P cancellation fades in and out over this time (its filter is locked) [PROPOSED]
+RIPPLE_ENGAGE_S = 0.5  # s, the 3P cancellation fades in and out over this time [PROPOSED]
 RELEASE_FADE_S = 5.0  # s, a stalled hold hands its torque over to the normal laws in this time [PROPOSED]
 
 
@@ -151,9 +149,8 @@ class FarmTurbineController(BenchmarkController):
         self._handover_left = np.zeros(n)  # s left of the fade from ``_handover`` to the normal laws
         self._handing_over = False
         self._ripple_state = np.zeros((4, n))  # v1, q1, v2, q2: the two SOGIs of the 3P filter
-        self._ripple_running = False  # the 3P filter has been started (it then runs every tick)
+        self._ripple_running = False  # the filter runs while a turbine's cancellation is engaged or engaging
         self._ripple_on = np.zeros(n)  # – engagement of the cancellation, 0 … 1
-        self._engaged = False  # any turbine's cancellation engaged or fading out (ripple_on > 0)
         self.ripple_torque = np.zeros(n)  # N m, generator side, the cancellation's share of τ_g,r
         self.torque_slew = RAMP_FRACTION_PER_S * params.rated_power / (params.eta_gc * params.omega_nom) * params.dt
 
@@ -162,7 +159,6 @@ class FarmTurbineController(BenchmarkController):
         self._bp_ready = False  # the damper's state is set from the first speed reading (steady state)
         self._ripple_running = False
         self._ripple_on[:] = 0.0
-        self._engaged = False
         self.ripple_torque = np.zeros(self.n)
 
     def set_reference(
@@ -234,11 +230,9 @@ class FarmTurbineController(BenchmarkController):
         """τ_g,r and β_ref for tick k from the turbine's own sensors (``refs`` is not used by farm turbines)."""
         p = self.p
         omega_g = omega_g_m
-        cancelling = False
-        if self.cancel_3p:
-            ripple = self._ripple(omega_g_m)
-            cancelling = self._engaged
+        cancelling = self.cancel_3p and (self._ripple_running or self._any_asked)
         if cancelling:  # the control laws read ω_g,m and P_g,m without the 3P swing and its cancellation
+            ripple = self._ripple(omega_g_m)
             omega_g = omega_g_m - self._ripple_on * ripple
             p_g_m = p_g_m - (p.eta_gc * omega_g_m) * self.ripple_torque
         if self._ramping:  # the reference moves towards the farm's at most ``ramp`` per tick
@@ -304,9 +298,8 @@ class FarmTurbineController(BenchmarkController):
         dv2 = kw * (v1 - v2) - w3 * q2  # v̇ of the second stage, from its states: no numerical derivative
         v2 += dt * dv2
         q2 += dt * w3 * v2
-        if self._any_asked or self._engaged:  # otherwise nothing is engaged or engaging: no torque to add
-            rate = dt / RIPPLE_ENGAGE_S
-            self._ripple_on = np.clip(self._asked_level, self._ripple_on - rate, self._ripple_on + rate)
-            self.ripple_torque = -p.J_g * self._ripple_on * dv2
-            self._engaged = bool(self._ripple_on.any())
+        rate = dt / RIPPLE_ENGAGE_S
+        self._ripple_on = np.clip(self._asked_level, self._ripple_on - rate, self._ripple_on + rate)
+        self.ripple_torque = -p.J_g * self._ripple_on * dv2
+        self._ripple_running = bool(self._ripple_on.any())
         return v2
