@@ -216,13 +216,14 @@ def evaluate(scenario: Scenario, runs: int, seed: int, options: EvalOptions) -> 
     base = (scenario, seed, detector, estimator, dict(scenario.supervisor.params))
     # The twins in processes of their own, next to the runs (TURBINE_CHUNK): the step's cost is mostly per tick.
     twins = options.twins and bool(scenario.faults)
+    twin_s = twin_seconds(scenario)
     results = run_chunks(
         simulate_chunk,
         runs,
         scenario.duration_s,
         args=(*base, False),
         variants=[(*base, False, "main"), (*base, False, "twin")] if twins else None,
-        variant_seconds=[scenario.duration_s, twin_seconds(scenario)] if twins else None,
+        variant_seconds=[scenario.duration_s, twin_s] if twins else None,
         chunk=TURBINE_CHUNK,
         workers=options.workers,
         show_progress=options.progress,
@@ -236,11 +237,13 @@ def evaluate(scenario: Scenario, runs: int, seed: int, options: EvalOptions) -> 
     labels = ["fault_free"] + [w.name for w in windows]
     counts = sum(r.counts for r in results)
     wind_rmse = {}
+    run_keys = ("fte", "nfte", "anemometer")
+    # the twins stop after the last fault window: their fault-free time (label 0) is not the runs'
+    window_keys = (*run_keys, "fte_fault_free") if twins else run_keys
     for i, label in enumerate(labels):
         if counts[i] == 0:
             continue
-        # the twins stop after the last fault window: their fault-free time is not the runs'
-        keys = ("fte", "nfte", "anemometer", "fte_fault_free") if twins and i > 0 else ("fte", "nfte", "anemometer")
+        keys = window_keys if i > 0 else run_keys
         wind_rmse[label] = {
             key: float(np.sqrt(sum(r.sq_err[key][i] for r in results if key in r.sq_err) / counts[i])) for key in keys
         }
@@ -253,7 +256,7 @@ def evaluate(scenario: Scenario, runs: int, seed: int, options: EvalOptions) -> 
         "estimator": estimator,
         "false_alarms_per_1000s": fa_rate,
         "false_alarms": fa_raw,
-        **(_twin_false_alarms(twin_events, runs, twin_seconds(scenario)) if twins else {}),
+        **(_twin_false_alarms(twin_events, runs, twin_s) if twins else {}),
         "faults": faults,
         "metrics": {"wind_rmse": wind_rmse},
     }
