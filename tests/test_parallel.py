@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 
 from tests.live.helpers import TURBINE_SHORT
-from windwarden.evaluation.parallel import chunk_runs
-from windwarden.evaluation.turbine import TWIN_TURBINE, simulate_chunk, twin_seconds
+from windwarden.evaluation.parallel import Branch, chunk_runs
+from windwarden.evaluation.turbine import simulate_chunk
 from wwcore.scenario import parse_scenario
 
 
@@ -39,23 +39,39 @@ def test_turbine_runs_give_the_same_events_and_errors_in_one_chunk_or_two():
     assert together.counts == pytest.approx(apart[0].counts + apart[1].counts)
 
 
-def test_fault_free_twins_in_a_batch_of_their_own_match_the_twins_in_the_runs_batch():
+def test_a_fault_free_twin_branches_off_its_window_from_the_runs_own_state():
+    """A window whose fault changes nothing (a gain of 1): its twin, forked at the window's start with the fault
+    ended, must reproduce the runs' FTE errors in that window bit for bit (same state, same streams)."""
+    text = TURBINE_SHORT.replace("value = 1.1", "value = 1.0").replace("value = 0.9", "value = 1.0")
+    scenario = parse_scenario(tomllib.loads(text))
+    result = simulate_chunk([0, 1], lambda s: None, scenario, 77, "benchmark", "uio-bank", {}, True)
+    harmless = 2  # the double fault, now two gains of 1
+    assert result.sq_err["fte"][harmless] > 0.0
+    assert result.sq_err["fte_fault_free"][harmless] == result.sq_err["fte"][harmless]
+    # the stuck sensor does change the readings: its twin's errors are its own
+    assert result.sq_err["fte_fault_free"][1] not in (0.0, result.sq_err["fte"][1])
+    assert result.sq_err["fte_fault_free"][0] == 0.0  # no twin outside the fault windows
+    assert result.twin_seconds == pytest.approx(5.0 + 6.0)
+    assert {e.turbine for e in result.events if e.type.value == "detection"} == {1}  # the twins raised none
+
+
+def test_fault_free_twins_add_nothing_to_the_runs_figures():
     scenario = parse_scenario(tomllib.loads(TURBINE_SHORT))
     base = (scenario, 77, "benchmark", "uio-bank", {})
-    together = simulate_chunk([0, 1], lambda s: None, *base, True)
-    main = simulate_chunk([0, 1], lambda s: None, *base, False, "main")
-    twin = simulate_chunk([0, 1], lambda s: None, *base, False, "twin")
-    end = twin_seconds(scenario)
-    assert end == 26.0  # a batch of twins stops at the end of the last fault window, 4 s before the runs
-    twin_turbine = {e.turbine for e in twin.events} | {TWIN_TURBINE}
-    kept = [e for e in together.events if e.turbine != TWIN_TURBINE or e.t < end]
-    assert _key(kept) == _key(main.events + twin.events)
-    assert twin_turbine == {TWIN_TURBINE}  # the twins' detections are labelled as twins'
+    with_twins = simulate_chunk([0, 1], lambda s: None, *base, True)
+    without = simulate_chunk([0, 1], lambda s: None, *base, False)
+    assert _key(with_twins.events) == _key(without.events)
     for name in ("fte", "nfte", "anemometer"):
-        np.testing.assert_allclose(main.sq_err[name], together.sq_err[name], rtol=1e-9, atol=1e-12)
-    # in every fault window (index 0 is the fault-free time, which the twins' batch does not cover)
-    np.testing.assert_allclose(
-        twin.sq_err["fte_fault_free"][1:], together.sq_err["fte_fault_free"][1:], rtol=1e-9, atol=1e-12
-    )
-    assert set(twin.sq_err) == {"fte_fault_free"} and not twin.counts.any()  # counted once, in the main chunk
-    assert main.counts == pytest.approx(together.counts)
+        np.testing.assert_array_equal(with_twins.sq_err[name], without.sq_err[name])
+    np.testing.assert_array_equal(with_twins.counts, without.counts)
+    assert not without.sq_err["fte_fault_free"].any() and without.twin_seconds == 0.0
+    assert with_twins.sq_err["fte_fault_free"][1:].all()
+
+
+def test_a_failing_branch_raises_in_the_parent_with_its_traceback():
+    def broken():
+        raise ValueError("no wind in the branch")
+
+    with pytest.raises(RuntimeError, match="no wind in the branch"):
+        Branch(broken).result()
+    assert Branch(lambda: {"value": 3}).result() == {"value": 3}

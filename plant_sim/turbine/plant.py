@@ -152,6 +152,15 @@ class TurbineBatch:
                 return True
         return False
 
+    def end_all_faults(self) -> None:
+        """End every active fault now and drop the pending ones: from this tick on the batch runs fault-free (a
+        fault-free twin that branches off a run, ``windwarden.evaluation.turbine``)."""
+        self.schedule = [s for s in self.schedule if s.start_tick < self.k]
+        for sched in self.schedule:
+            if sched.end_tick is None or sched.end_tick > self.k:
+                sched.end_tick = self.k
+        self._next_change = self.k
+
     # -- the step contract --------------------------------------------------------------------------------------
     @property
     def t(self) -> float:

@@ -4,8 +4,8 @@ The lockstep run crosses a real Zenoh router on loopback (plant and supervisor i
 reference is the adapters' one-process loop (``windwarden.live.batch``): the step contract with the constructors
 ``windwarden eval`` uses. For the hydrostatic kind the reconstruction figures also equal ``windwarden eval``'s
 compensated twin exactly. For the turbine kind ``windwarden eval --no-twins`` (a live run has no fault-free
-twin either; with twins the batch has two rows, which round differently in the last bits) gives the same
-detection figures and wind RMSE bit for bit.
+twin either; the twins add their own figures and change none of the runs') gives the same detection figures and
+wind RMSE bit for bit.
 """
 
 from __future__ import annotations

@@ -9,10 +9,14 @@ from __future__ import annotations
 import contextlib
 import multiprocessing as mp
 import os
+import pickle
 import queue as queue_module
+import signal
+import traceback
 from collections.abc import Callable, Sequence
 from concurrent.futures import ProcessPoolExecutor
-from typing import Any, TypeVar
+from multiprocessing.connection import Pipe
+from typing import Any, Generic, TypeVar
 
 from tqdm import tqdm
 
@@ -86,3 +90,49 @@ def run_chunks(
 
 def concat_runs(parts: Sequence[Sequence[int]]) -> list[int]:
     return [run for part in parts for run in part]
+
+
+class Branch(Generic[R]):
+    """``body()`` run in a forked copy of this process, which starts from this moment's state; ``result()``
+    returns its value (it must pickle) or raises its failure with the child's traceback.
+
+    Plain ``os.fork`` rather than ``multiprocessing.Process``: chunks already run in a process pool, whose daemonic
+    workers may not start ``multiprocessing`` children, and a fork needs no copy or pickle of the state it
+    continues from. The child leaves with ``os._exit``, so it runs none of the parent's exit handlers.
+    """
+
+    def __init__(self, body: Callable[[], R]):
+        receiver, sender = Pipe(duplex=False)
+        self.pid = os.fork()
+        if self.pid == 0:
+            receiver.close()
+            code = 0
+            try:
+                outcome: tuple[str, Any] = ("ok", body())
+            except BaseException:  # every failure goes back to the parent, which raises it
+                outcome, code = ("error", traceback.format_exc()), 1
+            try:
+                sender.send_bytes(pickle.dumps(outcome, protocol=pickle.HIGHEST_PROTOCOL))
+            finally:
+                os._exit(code)
+        sender.close()
+        self._receiver = receiver
+
+    def result(self) -> R:
+        try:
+            status, value = pickle.loads(self._receiver.recv_bytes())
+        except EOFError:
+            status, value = "error", f"the branch process {self.pid} ended without a result"
+        finally:
+            self._receiver.close()
+            os.waitpid(self.pid, 0)
+        if status != "ok":
+            raise RuntimeError(f"branch process failed:\n{value}")
+        return value
+
+    def abandon(self) -> None:
+        """Stop the child and reap it (after a failure in the parent)."""
+        with contextlib.suppress(ProcessLookupError):
+            os.kill(self.pid, signal.SIGKILL)
+        self._receiver.close()
+        os.waitpid(self.pid, 0)

@@ -5,16 +5,19 @@ for the fault-free time and each fault window, the RMSE of the fault-tolerant es
 non-fault-tolerant estimate (NFTE, observer 1 throughout) and the raw anemometer reading against the true
 rotor-effective wind, pooled over runs. The first ``WARMUP_S`` seconds of each run are left out.
 
-When the scenario has faults, every run also has a fault-free twin (same wind, same noise, no faults; a batch
-of its own, see ``TURBINE_CHUNK``), and ``fte_fault_free`` is the twin's FTE RMSE over the same window: "the
-FTE's fault-free RMSE" that a fault window is compared with. Nothing after the last fault window is scored
-on a twin, so the twins stop there (``twin_seconds``). Their detections until then are counted as
-``false_alarms_twin``.
+When the scenario has faults, each fault window of every run also has a fault-free twin: at the window's first
+tick the chunk forks (``parallel.Branch``), and the copy ends every fault and runs to the window's end with the
+same wind and noise streams, from the runs' own state (plant, controller, observers, flags). ``fte_fault_free``
+is the twins' FTE RMSE over the window: "the FTE's fault-free RMSE" that the window is compared with, on the
+same wind, from the same state, the fault being the only difference. Their detections are counted as
+``false_alarms_twin``. A twin costs its window's length, next to the runs; nothing outside a window is scored on
+one.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from functools import partial
 
 import numpy as np
 
@@ -22,7 +25,7 @@ from plant_sim.turbine import TurbineBatch
 from service.plugins import TURBINE_DETECTORS, TURBINE_ESTIMATORS
 from service.turbine.supervisor import DEFAULT_DETECTOR, DEFAULT_ESTIMATOR, TurbineSupervisor
 from windwarden.evaluation.kinds import EvalOptions, Evaluation
-from windwarden.evaluation.parallel import run_chunks
+from windwarden.evaluation.parallel import Branch, run_chunks
 from windwarden.evaluation.scoring import score_faults, windows_from_faults
 from wwcore.channels import SENSOR_INDEX
 from wwcore.events import Event, EventType
@@ -33,6 +36,7 @@ WARMUP_S = 10.0  # observer convergence and the supervisor's 5 s decision warm-u
 GRACE_S = 2.0  # after a fault ends, detections still belong to it for this long
 TRACE_EVERY = 10  # ticks between stored trace samples of run 0 (10 Hz)
 PROGRESS_EVERY = 1000  # ticks between progress reports
+_ANEMOMETER = SENSOR_INDEX["v_hub_m"]
 
 
 @dataclass
@@ -42,15 +46,13 @@ class ChunkResult:
     sq_err: dict[str, np.ndarray]  # estimate → (n_windows,) summed squared error over rows and ticks
     counts: np.ndarray  # (n_windows,) samples summed
     trace: dict[str, np.ndarray] = field(default_factory=dict)  # run 0 only
+    twin_seconds: float = 0.0  # simulated time of the fault-free twins after the warm-up, per run
 
 
 TURBINE_CHUNK = 50
 """Runs per process. The turbine's step is mostly per-tick interpreter work: splitting runs between processes does
 not shorten anyone's ticks (50 runs of ftwse-2012 with in-batch twins: 8 min 9 s in one process, 8 min 16 s in two
-of 25, before the step was trimmed). The fault-free twins run as a batch of their own instead (``role``), next to
-the runs: 50 runs of ftwse-2012 took 6 min 8 s wall (11.9 CPU-min) against 6 min 33 s (6.5 CPU-min) with the
-twins in the runs' batch; events identical, RMSEs equal to 2e-15 (the two vCPUs of the development machine share
-their core; on two real cores the gain is larger)."""
+of 25, before the step was trimmed), and the development machine's two vCPUs give ~1.3 times one's throughput."""
 
 
 def _window_of_tick(scenario: Scenario, n_steps: int, dt: float) -> tuple[np.ndarray, list[str]]:
@@ -66,10 +68,10 @@ def _window_of_tick(scenario: Scenario, n_steps: int, dt: float) -> tuple[np.nda
     return which, ["fault_free"] + [w.name for w in windows]
 
 
-def twin_seconds(scenario: Scenario) -> float:
-    """Simulated time of a fault-free twin: up to the end of the scenario's last fault window, s."""
+def _twin_spans(scenario: Scenario, n_steps: int, dt: float) -> list[tuple[int, int, int]]:
+    """(window index, first tick, end tick) of the fault-free twin of each fault window."""
     windows = windows_from_faults(scenario.faults, scenario.duration_s)
-    return max((w.end_s for w in windows), default=scenario.duration_s)
+    return [(i, round(w.start_s / dt), min(round(w.end_s / dt), n_steps)) for i, w in enumerate(windows, start=1)]
 
 
 def simulate_chunk(
@@ -81,15 +83,9 @@ def simulate_chunk(
     estimator: str,
     options: dict,
     twins: bool = True,
-    role: str = "both",
 ) -> ChunkResult:
-    """The runs ``run_ids``: ``role`` "both" (the runs and, with ``twins``, their fault-free twins in one batch),
-    "main" (the runs only) or "twin" (only the twins: the scenario without its faults, scored in its windows)."""
-    twins = twins and bool(scenario.faults) and role == "both"
-    faults = [] if role == "twin" else scenario.faults
-    duration_s = twin_seconds(scenario) if role == "twin" else scenario.duration_s
-    plant = TurbineBatch(scenario.plant, scenario.wind, faults, seed=seed, runs=run_ids, fault_free_twins=twins)
-    twin_rows = np.full(plant.n, role == "twin") | plant.twin_of_row
+    """The runs ``run_ids``, and with ``twins`` the fault-free twin of each fault window (module docstring)."""
+    plant = TurbineBatch(scenario.plant, scenario.wind, scenario.faults, seed=seed, runs=run_ids)
     supervisor = TurbineSupervisor(
         plant.n,
         detector=detector,
@@ -97,46 +93,96 @@ def simulate_chunk(
         options=options,
         noise_convention=scenario.plant.noise_convention,
         run_of_row=plant.run_of_row,
-        turbine_of_row=np.where(twin_rows, TWIN_TURBINE, plant.turbine_of_row),
+        turbine_of_row=plant.turbine_of_row,
     )
-    half = len(run_ids)  # rows [0, half) are the runs, [half, 2·half) their fault-free twins (if any)
-    n_steps = round(duration_s / plant.dt)
+    n_steps = round(scenario.duration_s / plant.dt)
     which, labels = _window_of_tick(scenario, n_steps, plant.dt)
-    errors = _ErrorSums(len(labels), PROGRESS_EVERY, plant.n, half)
-    anemometer = SENSOR_INDEX["v_hub_m"]
-    trace_rows = run_ids.index(0) if 0 in run_ids and role != "twin" else None
+    errors = _ErrorSums(len(labels), PROGRESS_EVERY, plant.n)
+    trace_row = run_ids.index(0) if 0 in run_ids else None
     trace: dict[str, list] = {k: [] for k in ("t", "wind", "fte", "nfte", "anemometer", "selected")}
+    branch_at: dict[int, list[tuple[int, int]]] = {}
+    for i, first, end in _twin_spans(scenario, n_steps, plant.dt) if twins and scenario.faults else []:
+        if first < end:
+            branch_at.setdefault(first, []).append((i, end))
+    branches: list[Branch] = []
     events: list[Event] = []
     refs = None
-    for k in range(n_steps):
-        frame = plant.measure()
-        plant.control(refs)
-        refs = supervisor.step(frame)
-        w = which[k]
-        est = supervisor.estimates
-        truth_wind = plant.true_rotor_wind()
-        if w >= 0:
-            errors.record(w, truth_wind, est.wind, est.wind_reference, frame.sensors[:half, anemometer])
-        if trace_rows is not None and k % TRACE_EVERY == 0:
-            r = trace_rows
-            trace["t"].append(frame.t)
-            trace["wind"].append(truth_wind[r])
-            trace["fte"].append(est.wind[r])
-            trace["nfte"].append(np.nan if est.wind_reference is None else est.wind_reference[r])
-            trace["anemometer"].append(frame.sensors[r, anemometer])
-            trace["selected"].append(est.selected[r])
-        plant.advance()
-        if (k + 1) % PROGRESS_EVERY == 0:
-            events += plant.drain_events() + supervisor.drain_events()
-            progress(PROGRESS_EVERY * plant.dt)
+    try:
+        for k in range(n_steps):
+            for i, end in branch_at.get(k, ()):
+                branches.append(Branch(partial(_fault_free_twin, plant, supervisor, refs, which, i, end, len(labels))))
+            frame = plant.measure()
+            plant.control(refs)
+            refs = supervisor.step(frame)
+            w = which[k]
+            est = supervisor.estimates
+            truth_wind = plant.true_rotor_wind()
+            if w >= 0:
+                errors.record(w, truth_wind, est.wind, est.wind_reference, frame.sensors[:, _ANEMOMETER])
+            if trace_row is not None and k % TRACE_EVERY == 0:
+                r = trace_row
+                trace["t"].append(frame.t)
+                trace["wind"].append(truth_wind[r])
+                trace["fte"].append(est.wind[r])
+                trace["nfte"].append(np.nan if est.wind_reference is None else est.wind_reference[r])
+                trace["anemometer"].append(frame.sensors[r, _ANEMOMETER])
+                trace["selected"].append(est.selected[r])
+            plant.advance()
+            if (k + 1) % PROGRESS_EVERY == 0:
+                events += plant.drain_events() + supervisor.drain_events()
+                progress(PROGRESS_EVERY * plant.dt)
+    except BaseException:
+        for branch in branches:
+            branch.abandon()
+        raise
     events += plant.drain_events() + supervisor.drain_events()
     progress((n_steps % PROGRESS_EVERY) * plant.dt)
     sq, counts = errors.totals()
-    if role == "twin":  # its rows are the twins of the main chunk's: their FTE errors only, counted there
-        sq, counts = {"fte_fault_free": sq["fte"]}, np.zeros_like(counts)
+    sq["fte_fault_free"] = np.zeros(len(labels))
+    twin_s = 0.0
+    for twin_sq, twin_events, seconds in (branch.result() for branch in branches):
+        sq["fte_fault_free"] += twin_sq
+        events += twin_events
+        twin_s += seconds
     return ChunkResult(
-        run_ids, events, sq, counts, {k: np.asarray(v) for k, v in trace.items()} if trace_rows is not None else {}
+        run_ids,
+        events,
+        sq,
+        counts,
+        {k: np.asarray(v) for k, v in trace.items()} if trace_row is not None else {},
+        twin_s,
     )
+
+
+def _fault_free_twin(
+    plant: TurbineBatch,
+    supervisor: TurbineSupervisor,
+    refs,
+    which: np.ndarray,
+    window: int,
+    end: int,
+    n_windows: int,
+) -> tuple[np.ndarray, list[Event], float]:
+    """The chunk's runs from the start of fault window ``window`` to its end tick ``end`` without any fault: a
+    forked copy of the chunk (``Branch``), so the twin starts from the runs' own state, with their wind and noise
+    streams. Returns its FTE's summed squared wind error in the window's ticks (one entry per window), its
+    supervisor's events (labelled ``TWIN_TURBINE``) and its simulated seconds."""
+    plant.end_all_faults()
+    supervisor.turbine_of_row = np.full(plant.n, TWIN_TURBINE)
+    supervisor.drain_events()  # the runs' own, already counted by the parent
+    plant.drain_events()
+    errors = _ErrorSums(n_windows, PROGRESS_EVERY, plant.n)
+    first = plant.k
+    for k in range(first, end):
+        frame = plant.measure()
+        plant.control(refs)
+        refs = supervisor.step(frame)
+        if which[k] == window:
+            errors.record(window, plant.true_rotor_wind(), supervisor.estimates.wind, None, None)
+        plant.advance()
+    sq, _ = errors.totals()
+    observed = max(end - max(first, round(WARMUP_S / plant.dt)), 0) * plant.dt  # detections count after warm-up
+    return sq["fte"], supervisor.drain_events(), observed
 
 
 class _ErrorSums:
@@ -148,52 +194,58 @@ class _ErrorSums:
     total in tick order (``np.add.accumulate`` adds left to right; ``np.sum`` would add them pairwise).
     """
 
-    def __init__(self, n_windows: int, block: int, rows: int, half: int):
-        self.half = half
+    def __init__(self, n_windows: int, block: int, rows: int):
         self.window = np.empty(block, dtype=int)
         self.truth = np.empty((block, rows))
         self.fte = np.empty((block, rows))
-        self.nfte = np.empty((block, half))
+        self.nfte = np.zeros((block, rows))  # zeros: the ticks without a reading are masked, not garbage
         self.has_nfte = np.zeros(block, dtype=bool)
-        self.anemometer = np.empty((block, half))
+        self.anemometer = np.zeros((block, rows))
+        self.has_anemometer = np.zeros(block, dtype=bool)
         self.used = 0
-        self.sq = {key: [0.0] * n_windows for key in ("fte", "nfte", "anemometer", "fte_fault_free")}
+        self.sq = {key: [0.0] * n_windows for key in ("fte", "nfte", "anemometer")}
         self.counts = np.zeros(n_windows)
+        self.rows = rows
 
     def record(self, window: int, truth: np.ndarray, fte: np.ndarray, nfte: np.ndarray | None, anemometer) -> None:
-        """Store one tick's true wind (n,), FTE (n,), NFTE (half,) or None and anemometer reading (half,)."""
+        """Store one tick's true wind, FTE, NFTE (or None) and anemometer reading (or None), each (rows,)."""
         j = self.used
         self.window[j] = window
         self.truth[j] = truth
         self.fte[j] = fte
         self.has_nfte[j] = nfte is not None
         if nfte is not None:
-            self.nfte[j] = nfte[: self.half]
-        self.anemometer[j] = anemometer
+            self.nfte[j] = nfte
+        self.has_anemometer[j] = anemometer is not None
+        if anemometer is not None:
+            self.anemometer[j] = anemometer
         self.used = j + 1
         if self.used == len(self.window):
             self._flush()
 
     def _flush(self) -> None:
-        used, half = self.used, self.half
+        used = self.used
         if used == 0:
             return
         truth = self.truth[:used]
         err = self.fte[:used] - truth
         err *= err
         rows = {
-            "fte": err[:, :half].sum(axis=1),
-            "fte_fault_free": err[:, half:].sum(axis=1),
-            "nfte": np.square(self.nfte[:used] - truth[:, :half]).sum(axis=1),
-            "anemometer": np.square(self.anemometer[:used] - truth[:, :half]).sum(axis=1),
+            "fte": err.sum(axis=1),
+            "nfte": np.square(self.nfte[:used] - truth).sum(axis=1),
+            "anemometer": np.square(self.anemometer[:used] - truth).sum(axis=1),
+        }
+        present = {
+            "fte": np.ones(used, dtype=bool),
+            "nfte": self.has_nfte[:used],
+            "anemometer": self.has_anemometer[:used],
         }
         window = self.window[:used]
         for w in np.unique(window):
             ticks = window == w
-            self.counts[w] += half * int(ticks.sum())
+            self.counts[w] += self.rows * int(ticks.sum())
             for key, per_tick in rows.items():
-                values = per_tick[ticks & self.has_nfte[:used]] if key == "nfte" else per_tick[ticks]
-                self.sq[key][w] = _add_in_order(self.sq[key][w], values)
+                self.sq[key][w] = _add_in_order(self.sq[key][w], per_tick[ticks & present[key]])
         self.used = 0
 
     def totals(self) -> tuple[dict[str, np.ndarray], np.ndarray]:
@@ -213,17 +265,12 @@ def evaluate(scenario: Scenario, runs: int, seed: int, options: EvalOptions) -> 
     estimator = options.estimator or scenario.supervisor.estimator or DEFAULT_ESTIMATOR
     TURBINE_DETECTORS.factory(detector)  # unknown names are refused before anything runs
     TURBINE_ESTIMATORS.factory(estimator)
-    base = (scenario, seed, detector, estimator, dict(scenario.supervisor.params))
-    # The twins in processes of their own, next to the runs (TURBINE_CHUNK): the step's cost is mostly per tick.
     twins = options.twins and bool(scenario.faults)
-    twin_s = twin_seconds(scenario)
     results = run_chunks(
         simulate_chunk,
         runs,
         scenario.duration_s,
-        args=(*base, False),
-        variants=[(*base, False, "main"), (*base, False, "twin")] if twins else None,
-        variant_seconds=[scenario.duration_s, twin_s] if twins else None,
+        args=(scenario, seed, detector, estimator, dict(scenario.supervisor.params), twins),
         chunk=TURBINE_CHUNK,
         workers=options.workers,
         show_progress=options.progress,
@@ -238,7 +285,7 @@ def evaluate(scenario: Scenario, runs: int, seed: int, options: EvalOptions) -> 
     counts = sum(r.counts for r in results)
     wind_rmse = {}
     run_keys = ("fte", "nfte", "anemometer")
-    # the twins stop after the last fault window: their fault-free time (label 0) is not the runs'
+    # the twins cover the fault windows only
     window_keys = (*run_keys, "fte_fault_free") if twins else run_keys
     for i, label in enumerate(labels):
         if counts[i] == 0:
@@ -256,7 +303,7 @@ def evaluate(scenario: Scenario, runs: int, seed: int, options: EvalOptions) -> 
         "estimator": estimator,
         "false_alarms_per_1000s": fa_rate,
         "false_alarms": fa_raw,
-        **(_twin_false_alarms(twin_events, runs, twin_s) if twins else {}),
+        **(_twin_false_alarms(twin_events, runs, results[0].twin_seconds) if twins else {}),
         "faults": faults,
         "metrics": {"wind_rmse": wind_rmse},
     }
@@ -271,7 +318,8 @@ def evaluate(scenario: Scenario, runs: int, seed: int, options: EvalOptions) -> 
 
 
 def _twin_false_alarms(events: list[Event], runs: int, duration_s: float) -> dict:
-    """Detections in the fault-free twins, which run for ``duration_s``: a false-alarm count on the same wind."""
+    """Detections in the fault-free twins, which run for ``duration_s`` per run in all: a false-alarm count on the
+    fault windows' own wind."""
     count = sum(1 for e in events if e.type is EventType.DETECTION and e.t >= WARMUP_S)
-    observed = runs * (duration_s - WARMUP_S)
+    observed = runs * duration_s
     return {"false_alarms_twin": {"count": count, "observed_s": observed, "per_1000s": 1000.0 * count / observed}}
