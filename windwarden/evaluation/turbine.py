@@ -52,7 +52,7 @@ class ChunkResult:
 TURBINE_CHUNK = 50
 """Runs per process. The turbine's step is mostly per-tick interpreter work: splitting runs between processes does
 not shorten anyone's ticks (50 runs of ftwse-2012 with in-batch twins: 8 min 9 s in one process, 8 min 16 s in two
-of 25, before the step was trimmed), and the development machine's two vCPUs give ~1.3 times one's throughput."""
+of 25, before the step was trimmed), and the development machine's two vCPUs give ~1.4 times one's throughput."""
 
 
 def _window_of_tick(scenario: Scenario, n_steps: int, dt: float) -> tuple[np.ndarray, list[str]]:
