@@ -124,6 +124,7 @@ class Dispatch:
         self._slow_wind: np.ndarray | None = None  # (n,) m/s, w_est low-passed over HOLD_AVERAGING_S
         self.speed_floor = np.full(self.n, np.nan)  # rad/s, ω_floor of turbines in the hold (NaN: none)
         self.held_torque = np.full(self.n, np.nan)  # N m, S_max of turbines in the hold (NaN: none)
+        self.held_sum = np.full(self.n, np.nan)  # N m, S_m latched when the hold began (NaN: none)
         self.mode = np.zeros(self.n, dtype=np.int8)  # 0 normal, 1 debris (23)–(24), 2 derated (26), 3 held torque
         self.trim_kp = float(options.get("trim_kp", TRIM_KP))
         self.trim_ki = float(options.get("trim_ki", TRIM_KI))
@@ -185,13 +186,17 @@ class Dispatch:
         floor = np.full(avail.shape, P_MIN_W)
         if hold.any():
             y, p = sample.scada, self.p
-            held_sum = y[:, TAU_G] + p.B_g * y[:, OMEGA_G].mean(axis=1)  # S of plant_sim.farm.controller
             starting = hold.reshape(-1) & np.isnan(self.speed_floor)
             if starting.any():
-                omega, most = self.hold_point(held_sum)
+                now = y[:, TAU_G] + p.B_g * y[:, OMEGA_G].mean(axis=1)  # S of plant_sim.farm.controller
+                omega, most = self.hold_point(now)
                 self.speed_floor = np.where(starting, omega, self.speed_floor)
                 self.held_torque = np.where(starting, most, self.held_torque)
-            held_sum = np.minimum(held_sum, self.held_torque)
+                self.held_sum = np.where(starting, now, self.held_sum)
+            # S_m as latched, not as measured now: in a lull the turbine's torque falls below its set point's
+            # (the controller's zone-0 taper), and a floor that followed it would lower the set point and with
+            # it the taper's knee, step by step, until the rotor stalled (docs/farm.md, D-26b)
+            held_sum = np.minimum(self.held_sum, self.held_torque)
             held = p.eta_gc * (held_sum - p.B_g * self.speed_floor) * self.speed_floor
             floor = np.where(hold, np.maximum(held.reshape(farms, N_TURBINES), P_MIN_W), floor)
         for t in range(N_TURBINES):  # eq. (26), headroom shared out in turbine order (D-26)
@@ -218,6 +223,7 @@ class Dispatch:
         refs = np.clip(refs, 0.0, self.p.rated_power).reshape(-1)
         self.speed_floor = np.where(hold.reshape(-1), self.speed_floor, np.nan)
         self.held_torque = np.where(hold.reshape(-1), self.held_torque, np.nan)
+        self.held_sum = np.where(hold.reshape(-1), self.held_sum, np.nan)
         self.mode = np.where(hold, 3, np.where(derate, 2, np.where(debris, 1, 0))).astype(np.int8).reshape(-1)
         self.p_ref = refs
         return refs

@@ -200,6 +200,21 @@ def test_hold_torque_floor_is_fixed_while_the_hold_lasts_and_forgotten_after():
     assert np.isnan(d.speed_floor).all() and np.isnan(d.held_torque).all() and np.all(d.mode == 0)
 
 
+def test_a_held_turbine_keeps_its_floor_when_its_torque_falls_in_a_lull():
+    """The floor is the torque sum latched when the hold began. One that followed the measured sum would lower
+    the set point as the controller's zone-0 taper lowers the torque in a lull, and the taper's knee with it,
+    until the rotor stalled (measured: λ 2.7, 0.7 MN m on the shaft for 200 s at 12 m/s)."""
+    d, sample = _held(12.0, 26e3)
+    first = d.step(sample, _faulty(t2=2))[1]
+    floor = P.eta_gc * (26e3 - P.B_g * d.speed_floor[1]) * d.speed_floor[1]
+    assert first == pytest.approx(floor)
+    sample.scada[:, TAU_G] = 15e3  # the rotor could not make the held torque: the taper gave it away
+    again = d.step(sample, _faulty(t2=2))[1]
+    assert again == first
+    d.step(sample, _faulty())
+    assert np.isnan(d.held_sum).all()  # forgotten with the hold
+
+
 def test_hold_torque_applies_to_the_drive_train_only():
     d, sample = _held(15.0, 26e3)
     refs = d.step(sample, _faulty(t2=1)) / MW  # pitch misalignment: eq. (26) as published
