@@ -2,6 +2,9 @@
 
 Chunks depend only on the number of runs (never on the number of cores), and every run draws its random
 numbers from its own stream, so the same scenario, runs and seed give the same numbers on any machine.
+
+``Branch`` forks a running chunk so that a copy continues from its state (the turbine evaluation's fault-free
+twins, which start at each fault window).
 """
 
 from __future__ import annotations
