@@ -124,7 +124,7 @@ class Dispatch:
         self._slow_wind: np.ndarray | None = None  # (n,) m/s, w_est low-passed over HOLD_AVERAGING_S
         self.speed_floor = np.full(self.n, np.nan)  # rad/s, ω_floor of turbines in the hold (NaN: none)
         self.held_torque = np.full(self.n, np.nan)  # N m, S_max of turbines in the hold (NaN: none)
-        self.held_sum = np.full(self.n, np.nan)  # N m, S_m latched when the hold began (NaN: none)
+        self.held_sum = np.full(self.n, np.nan)  # N m, min(S_m, S_max) latched when the hold began (NaN: none)
         self.mode = np.zeros(self.n, dtype=np.int8)  # 0 normal, 1 debris (23)–(24), 2 derated (26), 3 held torque
         self.trim_kp = float(options.get("trim_kp", TRIM_KP))
         self.trim_ki = float(options.get("trim_ki", TRIM_KI))
@@ -192,12 +192,11 @@ class Dispatch:
                 omega, most = self.hold_point(now)
                 self.speed_floor = np.where(starting, omega, self.speed_floor)
                 self.held_torque = np.where(starting, most, self.held_torque)
-                self.held_sum = np.where(starting, now, self.held_sum)
+                self.held_sum = np.where(starting, np.minimum(now, most), self.held_sum)
             # S_m as latched, not as measured now: in a lull the turbine's torque falls below its set point's
             # (the controller's zone-0 taper), and a floor that followed it would lower the set point and with
             # it the taper's knee, step by step, until the rotor stalled (docs/farm.md, D-26b)
-            held_sum = np.minimum(self.held_sum, self.held_torque)
-            held = p.eta_gc * (held_sum - p.B_g * self.speed_floor) * self.speed_floor
+            held = p.eta_gc * (self.held_sum - p.B_g * self.speed_floor) * self.speed_floor
             floor = np.where(hold, np.maximum(held.reshape(farms, N_TURBINES), P_MIN_W), floor)
         for t in range(N_TURBINES):  # eq. (26), headroom shared out in turbine order (D-26)
             hit = derate[:, t]

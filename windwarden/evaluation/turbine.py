@@ -114,11 +114,10 @@ def simulate_chunk(
             frame = plant.measure()
             plant.control(refs)
             refs = supervisor.step(frame)
-            w = which[k]
-            est = supervisor.estimates
             truth_wind = plant.true_rotor_wind()
-            if w >= 0:
-                errors.record(w, truth_wind, est.wind, est.wind_reference, frame.sensors[:, _ANEMOMETER])
+            est = supervisor.estimates
+            if which[k] >= 0:
+                _record(errors, which[k], frame, truth_wind, est)
             if trace_row is not None and k % TRACE_EVERY == 0:
                 r = trace_row
                 trace["t"].append(frame.t)
@@ -178,11 +177,15 @@ def _fault_free_twin(
         plant.control(refs)
         refs = supervisor.step(frame)
         if which[k] == window:
-            errors.record(window, plant.true_rotor_wind(), supervisor.estimates.wind, None, None)
+            _record(errors, window, frame, plant.true_rotor_wind(), supervisor.estimates)
         plant.advance()
     sq, _ = errors.totals()
     observed = max(end - max(first, round(WARMUP_S / plant.dt)), 0) * plant.dt  # detections count after warm-up
     return sq["fte"], supervisor.drain_events(), observed
+
+
+def _record(errors: _ErrorSums, window: int, frame, truth_wind: np.ndarray, est) -> None:
+    errors.record(window, truth_wind, est.wind, est.wind_reference, frame.sensors[:, _ANEMOMETER])
 
 
 class _ErrorSums:
@@ -198,17 +201,16 @@ class _ErrorSums:
         self.window = np.empty(block, dtype=int)
         self.truth = np.empty((block, rows))
         self.fte = np.empty((block, rows))
-        self.nfte = np.zeros((block, rows))  # zeros: the ticks without a reading are masked, not garbage
+        self.nfte = np.empty((block, rows))
         self.has_nfte = np.zeros(block, dtype=bool)
-        self.anemometer = np.zeros((block, rows))
-        self.has_anemometer = np.zeros(block, dtype=bool)
+        self.anemometer = np.empty((block, rows))
         self.used = 0
         self.sq = {key: [0.0] * n_windows for key in ("fte", "nfte", "anemometer")}
         self.counts = np.zeros(n_windows)
         self.rows = rows
 
     def record(self, window: int, truth: np.ndarray, fte: np.ndarray, nfte: np.ndarray | None, anemometer) -> None:
-        """Store one tick's true wind, FTE, NFTE (or None) and anemometer reading (or None), each (rows,)."""
+        """Store one tick's true wind, FTE, NFTE (or None) and anemometer reading, each (rows,)."""
         j = self.used
         self.window[j] = window
         self.truth[j] = truth
@@ -216,9 +218,7 @@ class _ErrorSums:
         self.has_nfte[j] = nfte is not None
         if nfte is not None:
             self.nfte[j] = nfte
-        self.has_anemometer[j] = anemometer is not None
-        if anemometer is not None:
-            self.anemometer[j] = anemometer
+        self.anemometer[j] = anemometer
         self.used = j + 1
         if self.used == len(self.window):
             self._flush()
@@ -235,17 +235,13 @@ class _ErrorSums:
             "nfte": np.square(self.nfte[:used] - truth).sum(axis=1),
             "anemometer": np.square(self.anemometer[:used] - truth).sum(axis=1),
         }
-        present = {
-            "fte": np.ones(used, dtype=bool),
-            "nfte": self.has_nfte[:used],
-            "anemometer": self.has_anemometer[:used],
-        }
         window = self.window[:used]
         for w in np.unique(window):
             ticks = window == w
             self.counts[w] += self.rows * int(ticks.sum())
             for key, per_tick in rows.items():
-                self.sq[key][w] = _add_in_order(self.sq[key][w], per_tick[ticks & present[key]])
+                values = per_tick[ticks & self.has_nfte[:used]] if key == "nfte" else per_tick[ticks]
+                self.sq[key][w] = _add_in_order(self.sq[key][w], values)
         self.used = 0
 
     def totals(self) -> tuple[dict[str, np.ndarray], np.ndarray]:
