@@ -47,7 +47,8 @@ _SENSORS_OF_MASK = (np.arange(1 << N_SPEED)[:, None] >> np.arange(N_SPEED)) & 1 
 class FDISettings:
     false_alarms_per_1000s: float = 0.01  # design rate of the detection tests (requirement: < 1, aim: none)
     clear_alpha: float = 0.01  # probability that a healthy sensor's window fails the clearing test
-    window: int = 4  # ticks summed by the window test (and the clearing test)
+    window: int = 4  # ticks summed by the window test
+    clear_window: int = 3  # ticks summed by the clearing test (≤ window): ends recognised a tick sooner
     frozen_ticks: int = 3  # identical consecutive readings that mark a sensor frozen
     warmup_s: float = 5.0  # no decisions while the observers converge from their initial state
 
@@ -82,7 +83,11 @@ class SpeedSensorFDI:
         observers = bank.observers[: bank.n_isolating]
         self.h_detect = chi2_isf(alpha / 2.0, ranks)
         self.h_window = np.array([window_threshold(o.autocov, settings.window, alpha / 2.0) for o in observers])
-        self.h_clear = np.array([window_threshold(o.autocov, settings.window, settings.clear_alpha) for o in observers])
+        if not 1 <= settings.clear_window <= settings.window:
+            raise ValueError(f"clear_window must be 1 … window ({settings.window}), not {settings.clear_window}")
+        self.h_clear = np.array(
+            [window_threshold(o.autocov, settings.clear_window, settings.clear_alpha) for o in observers]
+        )
         self._history = np.zeros((settings.window, n, bank.n_isolating))  # ring of the last χ² statistics
         self._window_sum = np.zeros((n, bank.n_isolating))
         self.warmup_ticks = round(settings.warmup_s / dt)
@@ -171,5 +176,6 @@ class SpeedSensorFDI:
                 continue
             with_s = self.observer_of_mask[self.flagged[rows] & ~bit]
             rows, with_s = rows[with_s >= 0], with_s[with_s >= 0]
-            done = rows[self._window_sum[rows, with_s] <= self.h_clear[with_s]]
+            recent = self._history[(self.ticks - 1 - np.arange(self.s.clear_window)) % self.s.window]
+            done = rows[recent[:, rows, with_s].sum(axis=0) <= self.h_clear[with_s]]
             self.flagged[done] &= ~bit
