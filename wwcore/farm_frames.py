@@ -17,6 +17,9 @@ from wwcore.turbine_frames import TurbineFrame
 
 MIN_SPEED_FRACTION = 0.5  # –, ω_min = 0.5 Ω_nom: the lowest speed set point a farm turbine derates to [PROPOSED]
 HOLD_TORQUE_MODE = 3  # accommodation mode (wire ``mode``) in which a turbine derates by speed at held torque
+PITCH_TRIM_MODE = 4  # accommodation mode (wire ``mode``) in which a turbine's blades get a per-blade pitch trim
+CANCEL_3P_MODE = 5  # accommodation mode (wire ``mode``): normal laws, the drive-train fault's 3P torque cancelled
+DISPATCH_MODES = ("normal", "debris", "derated", "held torque", "pitch trim", "3P cancelled")  # wire ``mode`` names
 
 
 @dataclass
@@ -50,7 +53,13 @@ class FarmRefs:
     power_ref: np.ndarray  # (n,) W
     computed_tick: int | None = None  # None: the same as ``tick``
     hold_torque: np.ndarray | None = None  # (n,) bool: derate at held torque (drive-train accommodation)
+    cancel_3p: np.ndarray | None = None  # (n,) bool: cancel the drive-train fault's 3P torque without derating
     held_torque: np.ndarray | None = None  # (n,) N m, generator side: most torque sum S a hold keeps (NaN: its own)
+    pitch_trim: np.ndarray | None = None  # (n, 3) deg added to each blade's pitch command (pitch accommodation)
+    # (n,) complex W and (n,) rad/s: each turbine adds Re{C e^{jω(t − t_c)}} to its power, t_c the time of the farm
+    # sample the refs were computed from ((computed_tick + 1)·Δt): the held turbine's 3P ripple cancelled
+    ripple_power: np.ndarray | None = None
+    ripple_rate: np.ndarray | None = None
 
     @property
     def source_tick(self) -> int:

@@ -292,7 +292,7 @@ FARM_SENSORS = MessageSchema(
 FARM_REFS = MessageSchema(
     "farm.refs",
     9,
-    2,  # v2: held_torque
+    3,  # v2: held_torque; v3: modes 4 and 5, pitch_trim, ripple_power, ripple_rate
     "The farm supervisor's power reference for one turbine (FarmRefs row), with its detector's view of the turbine.",
     (
         WireField("tick", "<i8", "–", "tick of the sensor frame these refs answer"),
@@ -305,11 +305,32 @@ FARM_REFS = MessageSchema(
         ),
         WireField("threshold", "<f8", "–", "its alarm threshold (NaN: no test)", (3,), _FARM_TYPES),
         WireField(
-            "mode", "i1", "–", "accommodation: 0 none, 1 debris (23)–(24), 2 derated (26), 3 derated at held torque"
+            "mode",
+            "i1",
+            "–",
+            "accommodation: 0 none, 1 debris (23)–(24), 2 derated (26), 3 derated at held torque, 4 pitch trim, "
+            "5 normal laws with the 3P torque cancelled",
         ),
         WireField(
             "held_torque", "<f8", "N m", "mode 3: the most generator-side torque sum S = τ_g + B_g ω_g the hold keeps"
         ),
+        WireField(
+            "pitch_trim",
+            "<f8",
+            "deg",
+            "added to each blade's pitch command (mode 4)",
+            (3,),
+            ("blade_1", "blade_2", "blade_3"),
+        ),
+        WireField(
+            "ripple_power",
+            "<f8",
+            "W",
+            "phasor C: the turbine adds Re{C e^{jω(t − t_c)}} to its power, t_c = (computed_tick + 1)·Δt",
+            (2,),
+            ("re", "im"),
+        ),
+        WireField("ripple_rate", "<f8", "rad/s", "ω of ripple_power (0: none)"),
     ),
 )
 

@@ -68,7 +68,20 @@ false`` leaves the hold without it. Measured with this plant (12 m/s, 10 % turbu
 shaft's 3P swing falls from 0.27 to 0.006 MN m and its rainflow damage (Σ S⁴ over 70 s) from 3.99 to 0.72
 (MN m)⁴, against 0.52 without the fault. The price is a 3P ripple in the turbine's electrical power,
 η_gc ω_g J_g v̇ (≈ 0.3 MW at 12 m/s and 3 MW, 0.75 MW at rated speed): the power the shaft swung back and forth
-now goes through the converter. The farm's 10 Hz power carries it, so the missing-power figure counts it.
+now goes through the converter. The other turbines of the farm cancel it at the farm's terminals (below). A
+reference with ``cancel_3p`` asks for the cancellation without the hold (the dispatch's mode 5).
+
+**Power phasors** [PROPOSED]. A reference may carry a phasor C (W) and a rate ω (rad/s), ``ripple_power`` and
+``ripple_rate``: the turbine adds Re{C e^{jω(t − t_c)}} to its electrical power until the next reference, t_c the
+time of the farm sample the reference was computed from, as the torque ΔP/(η_gc ω_g,m) held over each tick and
+taken at the tick's middle, with the converter's lag α_gc/(s + α_gc) taken out in advance (C (1 + jω/α_gc)). The
+farm controller asks the free turbines for the opposite of a cancelling turbine's 3P power ripple this way
+(``service.farm.ripple``). The control laws do not see the added power; a phasor ``EXTRA_MAX_AGE_S`` old is
+dropped (its supervisor has gone quiet).
+
+**Per-blade pitch trim** [PROPOSED]. A reference may carry ``pitch_trim`` (deg per blade), which is added to each
+blade's actuator command until the next reference: the farm supervisor's virtual actuator for a pitch
+misalignment (``service.farm.pitch_trim``). The turbine's own loops do not see it; its encoders do.
 
 The power reference a turbine receives is followed at most at ``RAMP_FRACTION_PER_S`` (10 % of rated per
 second, a usual curtailment ramp [PROPOSED]), so a sudden accommodation (eq. (26) may ask for 50 kW at once) does
@@ -107,6 +120,7 @@ DAMPER_ZETA = 0.3  # –, damping of the band-pass (its width) [PROPOSED]
 DAMPER_GAIN = 1000.0  # N m s/rad on the generator side at the centre frequency [PROPOSED]
 RIPPLE_SOGI_GAIN = 0.8  # –, k = 2ζ of each SOGI of the 3P filter (ζ = 0.4: settles in ≈ 1 s at 3P) [PROPOSED]
 RIPPLE_ENGAGE_S = 0.5  # s, the 3P cancellation fades in and out over this time [PROPOSED]
+EXTRA_MAX_AGE_S = 0.5  # s, a power phasor older than this is no longer synthesised [PROPOSED]
 RELEASE_FADE_S = 5.0  # s, a stalled hold hands its torque over to the normal laws in this time [PROPOSED]
 
 
@@ -137,7 +151,7 @@ class FarmTurbineController(BenchmarkController):
         self.damper_torque = np.zeros(n)  # N m, the damper's share of τ_g,r
         self.hold = np.zeros(n, dtype=bool)  # derating at held torque (module docstring)
         self.hold_asked = np.zeros(n, dtype=bool)  # the last reference asked for it
-        self._asked_level = np.zeros(n)  # hold_asked as 0/1: where the 3P cancellation's engagement heads
+        self._asked_level = np.zeros(n)  # hold or cancellation asked, 0/1: where the cancellation's engagement heads
         self._any_asked = False  # any turbine asked to hold (set with the reference, read every tick)
         self.tau_hold = np.zeros(n)  # N m, generator side, the held sum S = τ_g + B_g ω_g
         self._omega_g = np.zeros(n)  # rad/s, the last generator speed the controller used
@@ -152,6 +166,8 @@ class FarmTurbineController(BenchmarkController):
         self._ripple_running = False  # the filter runs while a turbine's cancellation is engaged or engaging
         self._ripple_on = np.zeros(n)  # – engagement of the cancellation, 0 … 1
         self.ripple_torque = np.zeros(n)  # N m, generator side, the cancellation's share of τ_g,r
+        self._extra: tuple[np.ndarray, np.ndarray, float] | None = None  # (C, ω, t_0) of the power to add
+        self.extra_power = np.zeros(n)  # W, what the converter adds to the power this tick (ripple compensation)
         self.torque_slew = RAMP_FRACTION_PER_S * params.rated_power / (params.eta_gc * params.omega_nom) * params.dt
 
     def initialise(self, zone: np.ndarray, beta_ref: np.ndarray, tau_g_ref: np.ndarray) -> None:
@@ -162,11 +178,27 @@ class FarmTurbineController(BenchmarkController):
         self.ripple_torque = np.zeros(self.n)
 
     def set_reference(
-        self, power_ref: np.ndarray, hold_torque: np.ndarray | None = None, held_torque: np.ndarray | None = None
+        self,
+        power_ref: np.ndarray,
+        hold_torque: np.ndarray | None = None,
+        held_torque: np.ndarray | None = None,
+        pitch_trim: np.ndarray | None = None,
+        ripple: tuple[np.ndarray, np.ndarray, float] | None = None,
+        cancel_3p: np.ndarray | None = None,
     ) -> None:
         """A new power reference per turbine (W) from the farm controller, followed at the ramp rate;
         ``hold_torque`` (n,) bool asks for the derating at held torque, ``held_torque`` (n,) N m caps the torque
-        sum it holds (NaN: no cap; module docstring)."""
+        sum it holds (NaN: no cap); ``cancel_3p`` (n,) bool asks for the 3P cancellation without the derating
+        (the hold asks for it too); ``pitch_trim`` (n, 3) deg is added to each blade's pitch command;
+        ``ripple`` = (C (n,) complex W, ω (n,) rad/s, t_0 s) asks each turbine to add Re{C e^{jω(t − t_0)}} to
+        its power (module docstring). None clears the last two."""
+        self.pitch_trim = None if pitch_trim is None or not np.any(pitch_trim) else np.array(pitch_trim, dtype=float)
+        if ripple is None or not np.any(ripple[0]):
+            self._extra = None
+        else:  # the converter's lag α_gc/(s + α_gc) is taken out in advance: C (1 + jω/α_gc)
+            phasor, rate, since = ripple
+            lead = np.asarray(phasor, dtype=complex) * (1.0 + 1j * np.asarray(rate) / self.p.alpha_gc)
+            self._extra = (lead, np.asarray(rate, dtype=float), float(since))
         self.power_ref_target = np.minimum(np.maximum(np.asarray(power_ref, dtype=float), 0.0), self.p.rated_power)
         self._ramping = True
         asked = np.zeros(self.n, dtype=bool) if hold_torque is None else np.asarray(hold_torque, dtype=bool)
@@ -192,8 +224,9 @@ class FarmTurbineController(BenchmarkController):
                 self._handing_over = True
                 self.hold = self.hold & ~stalled
         self.hold_asked = asked
-        self._asked_level = asked.astype(float)
-        self._any_asked = bool(asked.any())
+        cancel = asked if cancel_3p is None else asked | np.asarray(cancel_3p, dtype=bool)
+        self._asked_level = cancel.astype(float)
+        self._any_asked = bool(cancel.any())
         self.hold = self.hold | starting
 
     def _hysteresis_at(self, setpoint: np.ndarray) -> np.ndarray:
@@ -235,6 +268,9 @@ class FarmTurbineController(BenchmarkController):
             ripple = self._ripple(omega_g_m)
             omega_g = omega_g_m - self._ripple_on * ripple
             p_g_m = p_g_m - (p.eta_gc * omega_g_m) * self.ripple_torque
+        extra = self._extra_power(k)
+        if extra is not None:  # nor the power they are asked to add for the farm
+            p_g_m = p_g_m - extra
         if self._ramping:  # the reference moves towards the farm's at most ``ramp`` per tick
             step = np.minimum(np.maximum(self.power_ref_target - self.power_ref, -self.ramp), self.ramp)
             self.power_ref = self.power_ref + step
@@ -281,6 +317,22 @@ class FarmTurbineController(BenchmarkController):
         self.tau_g_ref = base + damper
         if cancelling:
             self.tau_g_ref = self.tau_g_ref + self.ripple_torque
+        if extra is not None:
+            self.tau_g_ref = self.tau_g_ref + extra / (p.eta_gc * np.maximum(omega_g_m, 1.0))
+
+    def _extra_power(self, k: int) -> np.ndarray | None:
+        """W to add to each turbine's power over tick k (held over the step: taken at its middle), or None; a
+        phasor older than ``EXTRA_MAX_AGE_S`` (its supervisor has gone quiet) is dropped."""
+        if self._extra is None:
+            return None
+        phasor, rate, since = self._extra
+        age = (k + 0.5) * self.p.dt - since
+        if age > EXTRA_MAX_AGE_S:
+            self._extra = None
+            self.extra_power = np.zeros(self.n)
+            return None
+        self.extra_power = (phasor * np.exp(1j * rate * age)).real
+        return self.extra_power
 
     def _ripple(self, omega_g_m: np.ndarray) -> np.ndarray:
         """Advance the 3P filter on ω_g,m and set ``ripple_torque`` = −J_g v̇ (module docstring); returns v, the

@@ -215,7 +215,12 @@ class FarmBatch:
     def control(self, refs: FarmRefs | None) -> None:
         if refs is not None and refs.source_tick != self._refs_tick:
             self._refs_tick = refs.source_tick
-            self.controller.set_reference(refs.power_ref, refs.hold_torque, refs.held_torque)
+            ripple = None
+            if refs.ripple_power is not None:  # the phasor's time is the farm sample's: tick source_tick + 1
+                ripple = (refs.ripple_power, refs.ripple_rate, (refs.source_tick + 1) * self.dt)
+            self.controller.set_reference(
+                refs.power_ref, refs.hold_torque, refs.held_torque, refs.pitch_trim, ripple, refs.cancel_3p
+            )
         self.turbines.control(None)
 
     def advance(self) -> None:

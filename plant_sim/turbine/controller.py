@@ -33,6 +33,7 @@ class BenchmarkController:
         self.power_ref = np.full(n, float(power_reference))
         self.tau_g_ref = np.zeros(n)
         self.beta_ref = np.zeros(n)
+        self.pitch_trim: np.ndarray | None = None  # (n, 3) deg added to each blade's command (None: no trim)
         self.using_estimates = np.zeros(n, dtype=bool)
 
     def initialise(self, zone: np.ndarray, beta_ref: np.ndarray, tau_g_ref: np.ndarray) -> None:

@@ -214,6 +214,8 @@ class TurbineBatch:
         pitch_ref = c.beta_ref[:, None] + self._pitch_error
         if f.command_offset_active:
             pitch_ref = pitch_ref + f.pitch_command_offset
+        if c.pitch_trim is not None:  # a farm supervisor's per-blade correction (``plant_sim.farm.controller``)
+            pitch_ref = pitch_ref + c.pitch_trim
         tau_r, tau_ext = self.tau_aero, None
         if f.mesh_active or self._error_active:
             # Drive-train wear (farm fault 3): the shaft twists by θ_Δ − e(ψ), e = e_0 cos 3ψ, so the error acts as

@@ -24,6 +24,12 @@ P_ref,farm < Σ P_avail; otherwise every turbine gets rated power (it produces w
 * pitch misalignment, drive train: P_over = Σ P_avail − P_ref,farm (25) and
   P_avail,f = max(pos(P_avail − P_over), P_min), P_min = 50 kW (26), then (18) with P_avail,f. *Decision D-26*:
   with several such turbines the headroom is shared out in turbine order, P_over shrinking by what each took.
+* pitch misalignment, option ``pitch_rule``: ``trim`` (the default) [PROPOSED], D-28: a per-blade pitch trim turns
+  the misaligned blade back to the others (``pitch_trim``); the turbine keeps its power. ``paper``: (26). Why not
+  (26): on farm-case1 (4 runs, development seed 4243) derating the pitch-faulty turbine to the farm's headroom left
+  the rotor imbalance where it was (15.9 → 17.0 × the twin's), raised the turbine's shaft damage number over the
+  window from 1.00 to 3.8 (the drop to the floor and back is one large torque cycle) and took the farm's reserve,
+  doubling the window's missing power.
 * drive train, rule ``hold-torque`` (the default) [PROPOSED]: the turbine is derated by speed, not by torque.
   When the hold begins the dispatch fixes its speed floor ω_floor = clip(N_g λ w̄/R, ω_min, Ω_nom) and a cap S_max(λ)
   = η_dt (½ρπR³ C_q(λ, 0) w̄²/1.2 − B_r ω_r)/N_g on the held generator-side sum S = τ_g + B_g ω_g: what the rotor
@@ -41,9 +47,20 @@ P_ref,farm < Σ P_avail; otherwise every turbine gets rated power (it produces w
   demand too (the others then run at rated): a hold released by a lull would swing the torque through the cycles it
   exists to avoid. Why: the fault's 3P torque swing grows with ω_r² and its rainflow damage with about ω_r⁹ at m = 4,
   while lowering the mean torque costs one cycle of the torque change. In the hold the turbine also cancels the
-  fault's 3P shaft torque with its converter (``plant_sim.farm.controller``, D-C4). The paper's rule
-  (``accommodation_rule = "paper"``) drops the torque to what 50 kW needs at unchanged speed: a cycle as large as the
-  working torque, and a 3P swing as large as before (docs/farm.md, Table 7).
+  fault's 3P shaft torque with its converter (``plant_sim.farm.controller``, D-C4).
+  **D-30, release**: when the farm needs the held turbine's power, the others being asked for more than
+  1 − ``HOLD_RESERVE`` of their available power (or the demand beyond the farm's maximum) for ``RELEASE_AFTER_S``,
+  the hold is released until the flag clears: the turbine runs its normal laws with its 3P torque still cancelled
+  (mode 5, ``cancel_3p``). A derated rotor gives its power back only as fast as it can speed up, so the first
+  seconds of a lull cost what they cost; without the release, a hold begun in a lull kept its low torque while the
+  wind rose and the farm fell short for minutes (``docs/farm.md`` §4).
+  Rule ``cancel``: no hold at all, mode 5 from the flag on. The paper's rule (``accommodation_rule = "paper"``)
+  drops the torque to what 50 kW needs at unchanged speed: a cycle as large as the working torque, and a 3P swing as
+  large as before (docs/farm.md, Table 7).
+* **D-29, the ripple of a cancelled 3P torque**: a turbine whose 3P torque its converter cancels (modes 3 and 5)
+  makes a 3P power ripple instead; the dispatch estimates it and asks the free turbines of the farm for its
+  opposite (``service.farm.ripple``), and reads the turbines' power without it (eq. (22), the trim): the ripple is
+  not its power loop's to answer. Option ``ripple_compensation = false`` turns it off.
 
 **Farm-power trim** [PROPOSED; not in the paper]. Eq. (18) shares the demand in proportion to P_avail, which
 eq. (21) low-passes over a rotor transit: a turbine in a lull cannot make its share while one in a gust is held
@@ -70,16 +87,21 @@ from __future__ import annotations
 import numpy as np
 
 from service.farm.interfaces import BETA, OMEGA_G, P_G, TAU_G, FarmContext, FarmSample
+from service.farm.pitch_trim import PitchTrim
 from service.farm.power_curve import available_power
+from service.farm.ripple import RippleCompensation
 from wwcore import aero
 from wwcore.farm_frames import MIN_SPEED_FRACTION
 from wwcore.scenario.farm import FARM_DT_S, N_TURBINES, ROTOR_DIAMETER_M
 
 DEBRIS_FACTOR = 0.97  # eqs. (23)–(24)
 P_MIN_W = 50e3  # eq. (26)
-ACCOMMODATION_RULES = ("hold-torque", "paper")
+ACCOMMODATION_RULES = ("hold-torque", "cancel", "paper")
+PITCH_RULES = ("trim", "paper")
 HOLD_MARGIN = 1.2  # –, rotor torque at fine pitch and the hold's speed over the held torque cap [PROPOSED]
 HOLD_MIN_TSR = 5.0  # –, tip-speed ratio of a hold: the lowest at which fine pitch gives the most torque (below, stall)
+HOLD_RESERVE = 0.05  # –, share of their available power the others keep in hand before a hold is released [PROPOSED]
+RELEASE_AFTER_S = 5.0  # s the farm must need a held turbine's power before its hold is released [PROPOSED]
 HOLD_AVERAGING_S = 10.0  # s, low-pass of the wind the hold's speed floor and torque cap are chosen from [PROPOSED]
 _TSR_GRID = np.arange(HOLD_MIN_TSR, 9.0 + 1e-9, 0.05)
 HOLD_MAX_TORQUE_TSR = float(_TSR_GRID[np.argmax(aero.torque_coefficient(_TSR_GRID, np.zeros_like(_TSR_GRID)))])
@@ -116,6 +138,9 @@ class Dispatch:
         self.hold_margin = float(options.get("hold_margin", HOLD_MARGIN))
         if self.rule not in ACCOMMODATION_RULES:
             raise ValueError(f"accommodation_rule: {self.rule!r} is not one of {', '.join(ACCOMMODATION_RULES)}")
+        self.pitch_rule = str(options.get("pitch_rule", PITCH_RULES[0]))
+        if self.pitch_rule not in PITCH_RULES:
+            raise ValueError(f"pitch_rule: {self.pitch_rule!r} is not one of {', '.join(PITCH_RULES)}")
         self.n = context.n
         self.p_ref = np.full(self.n, self.p.rated_power)  # W, the references sent last
         self.wind: np.ndarray | None = None  # m/s, w_est of eq. (20)
@@ -124,12 +149,21 @@ class Dispatch:
         self._slow_wind: np.ndarray | None = None  # (n,) m/s, w_est low-passed over HOLD_AVERAGING_S
         self.speed_floor = np.full(self.n, np.nan)  # rad/s, ω_floor of turbines in the hold (NaN: none)
         self.held_torque = np.full(self.n, np.nan)  # N m, S_max of turbines in the hold (NaN: none)
+        self.hold_reserve = float(options.get("hold_reserve", HOLD_RESERVE))
+        self.release_after_s = float(options.get("release_after_s", RELEASE_AFTER_S))
+        self.released = np.zeros(self.n, dtype=bool)  # drive-train holds released to the normal laws (mode 5)
+        self._needed_s = np.zeros(self.n)  # s, how long the farm has needed a held turbine's power
         self.held_sum = np.full(self.n, np.nan)  # N m, min(S_m, S_max) latched when the hold began (NaN: none)
-        self.mode = np.zeros(self.n, dtype=np.int8)  # 0 normal, 1 debris (23)–(24), 2 derated (26), 3 held torque
+        # 0 normal, 1 debris, 2 derated (26), 3 held torque, 4 pitch trimmed, 5 hold released, 3P cancelled
+        self.mode = np.zeros(self.n, dtype=np.int8)
+        self.pitch = PitchTrim(self.n)  # the pitch rule ``trim``
         self.trim_kp = float(options.get("trim_kp", TRIM_KP))
         self.trim_ki = float(options.get("trim_ki", TRIM_KI))
         self.trim_limit = float(options.get("trim_limit", TRIM_LIMIT))
         self.trim = np.zeros(context.farms)  # –, the trim's integral I per farm
+        self.ripple = RippleCompensation(self.p, self.n) if bool(options.get("ripple_compensation", True)) else None
+        self.ripple_power = np.zeros(self.n, dtype=complex)  # W, phasor each turbine is asked to add (ripple)
+        self.ripple_rate = np.zeros(self.n)  # rad/s, its frequency
 
     def estimate_available(self, sample: FarmSample) -> np.ndarray:
         """Eqs. (20)–(22): P_avail,t (n,) in W."""
@@ -171,7 +205,9 @@ class Dispatch:
         return omega[rows, pick], most[rows, pick]
 
     def step(self, sample: FarmSample, faulty: np.ndarray) -> np.ndarray:
-        farms = sample.farms
+        measured, farms = sample, sample.farms
+        if self.ripple is not None:
+            sample = self.ripple.without_ripple(sample)
         p_avail = self.estimate_available(sample)
         self.p_avail = p_avail
         avail = p_avail.reshape(farms, N_TURBINES).copy()
@@ -179,10 +215,16 @@ class Dispatch:
         demand = sample.demand
         maximum = avail.sum(axis=1)  # the farm's theoretical maximum production, Σ P_avail (19)
         debris = f[:, :, DEBRIS] & ~(f[:, :, PITCH] | f[:, :, DRIVETRAIN])
-        derate = f[:, :, PITCH] | f[:, :, DRIVETRAIN]
+        trimmed = f[:, :, PITCH] & (self.pitch_rule == "trim")
+        self.released &= f[:, :, DRIVETRAIN].reshape(-1)
+        if self.rule == "cancel":  # no hold at all: the normal laws with the fault's 3P torque cancelled
+            self.released |= f[:, :, DRIVETRAIN].reshape(-1)
+        released = self.released.reshape(farms, N_TURBINES)
+        derate = (f[:, :, PITCH] & ~trimmed) | (f[:, :, DRIVETRAIN] & ~released)
+        self.pitch.step(sample, trimmed.reshape(-1))
         avail = np.where(debris, DEBRIS_FACTOR * avail, avail)  # eq. (23)
         over = avail.sum(axis=1) - demand  # eq. (25)
-        hold = f[:, :, DRIVETRAIN] & (self.rule == "hold-torque")
+        hold = f[:, :, DRIVETRAIN] & (self.rule == "hold-torque") & ~released
         floor = np.full(avail.shape, P_MIN_W)
         if hold.any():
             y, p = sample.scada, self.p
@@ -213,9 +255,10 @@ class Dispatch:
             fixed = np.where(hold, floor, 0.0)
             others = np.where(hold, 0.0, avail)
             rest = np.maximum(demand - fixed.sum(axis=1), 0.0)
+            self._release_when_needed(hold, ~active | (rest > (1.0 - self.hold_reserve) * others.sum(axis=1)))
             share = np.where(hold, fixed, others / np.maximum(others.sum(axis=1), 1.0)[:, None] * rest[:, None])
         share = np.where(debris, share / DEBRIS_FACTOR, share)  # eq. (24)
-        # beyond the farm's maximum every turbine runs at rated, but a held one stays at its floor
+        # beyond the farm's maximum every turbine runs at rated, but a held one stays at its floor (until released)
         refs = np.where(active[:, None], share, np.where(hold, floor, self.p.rated_power))
         if self.trim_kp > 0.0 or self.trim_ki > 0.0:
             refs = self._trimmed(sample, refs, active, ~(derate | hold))
@@ -223,9 +266,27 @@ class Dispatch:
         self.speed_floor = np.where(hold.reshape(-1), self.speed_floor, np.nan)
         self.held_torque = np.where(hold.reshape(-1), self.held_torque, np.nan)
         self.held_sum = np.where(hold.reshape(-1), self.held_sum, np.nan)
-        self.mode = np.where(hold, 3, np.where(derate, 2, np.where(debris, 1, 0))).astype(np.int8).reshape(-1)
+        cancelled = f[:, :, DRIVETRAIN] & released
+        mode = np.where(hold, 3, np.where(derate, 2, np.where(trimmed, 4, np.where(debris, 1, 0))))
+        self.mode = np.where(cancelled, 5, mode).astype(np.int8).reshape(-1)
+        if self.ripple is not None:  # D-29: the cancelling turbines' 3P power ripple, cancelled by the free ones
+            sources = (hold | cancelled).reshape(-1)
+            self.ripple.step(measured, sources, ~(hold | derate | cancelled).reshape(-1))
+            self.ripple_power, self.ripple_rate = self.ripple.power, self.ripple.rate
         self.p_ref = refs
         return refs
+
+    def _release_when_needed(self, hold: np.ndarray, needed: np.ndarray) -> None:
+        """Release the holds (``hold`` (farms, 9)) of farms whose demand has ``needed`` (farms,) them for
+        ``RELEASE_AFTER_S``: such a turbine runs its normal laws, its 3P still cancelled, until its flag clears."""
+        asked = (hold & needed[:, None]).reshape(-1)
+        self._needed_s = np.where(asked, self._needed_s + FARM_DT_S, 0.0)
+        self.released |= self._needed_s >= self.release_after_s - 1e-9
+
+    @property
+    def pitch_trim(self) -> np.ndarray:
+        """(n, 3) deg, the per-blade pitch trims asked of the turbines (D-28)."""
+        return self.pitch.trim
 
     def _trimmed(self, sample: FarmSample, refs: np.ndarray, active: np.ndarray, free: np.ndarray) -> np.ndarray:
         """The farm-power trim (module docstring): (1 + u) on the references of the turbines in ``free``."""

@@ -7,11 +7,17 @@ turbine's power reference (W); ``faulty`` (n, 3) is the detector's verdict per f
 accommodation is off). Both run on 10 Hz farm samples only and see what a farm controller sees: the turbines'
 SCADA means, their controller outputs, the met mast and the demand; never the plant's truth, the fault schedule
 or the wind case (the paper's detector estimates it, eqs. (1)–(2)).
+
+A farm controller may also expose ``mode`` (n,) int8 (``wwcore.farm_frames.DISPATCH_MODES``: 3 holds the torque,
+5 cancels the 3P torque without the hold), ``held_torque`` (n,) N m, ``pitch_trim`` (n, 3) deg and
+``ripple_power`` (n,) complex W with ``ripple_rate`` (n,) rad/s; the supervisor forwards them to the turbines
+(``wwcore.farm_frames.FarmRefs``), and takes a pitch trim it commanded off the next samples' pitch readings
+before the detector and the controller see them.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -57,6 +63,13 @@ class FarmSample:
     @property
     def farms(self) -> int:
         return len(self.mast)
+
+    def untrimmed(self, pitch_trim: np.ndarray) -> FarmSample:
+        """This sample with a commanded per-blade pitch trim (n, 3) deg taken off the pitch readings: the blades as
+        their actuators would hold them without it (what detectors and controllers are given)."""
+        scada = self.scada.copy()
+        scada[:, BETA] -= pitch_trim[:, :, None]
+        return replace(self, scada=scada)
 
     def per_farm(self, values: np.ndarray) -> np.ndarray:
         """(n, …) → (farms, 9, …)."""

@@ -8,18 +8,19 @@ Events: DETECTION / RECOVERY when a turbine's flag of one of the three faults ch
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 
 from service.farm.interfaces import FarmContext, FarmDiagnosis, FarmSample
 from service.plugins import FARM_CONTROLLERS, FARM_DETECTORS
 from wwcore.events import Event, EventType
-from wwcore.farm_frames import HOLD_TORQUE_MODE, FarmFrame, FarmRefs
+from wwcore.farm_frames import CANCEL_3P_MODE, DISPATCH_MODES, HOLD_TORQUE_MODE, FarmFrame, FarmRefs
 from wwcore.scenario.farm import FARM_FAULT_TYPES, N_TURBINES, FarmPlant
 from wwcore.turbine_params import BENCHMARK, TurbineParams
 
 DEFAULT_DETECTOR = "analytic"
 DEFAULT_CONTROLLER = "dispatch"
-MODES = ("normal", "debris", "derated", "held torque")  # accommodation modes of the dispatch (DISPATCH event detail)
 
 
 class FarmSupervisor:
@@ -61,24 +62,39 @@ class FarmSupervisor:
         if not frame.sample:
             if self.refs is None:
                 return None
-            return FarmRefs(
-                tick=frame.k,
-                power_ref=self.refs.power_ref,
-                computed_tick=self.refs.source_tick,
-                hold_torque=self.refs.hold_torque,
-                held_torque=self.refs.held_torque,
-            )
+            return replace(self.refs, tick=frame.k, computed_tick=self.refs.source_tick)
         sample = FarmSample.from_frame(frame, self.dt)
+        if self.refs is not None and self.refs.pitch_trim is not None:
+            sample = sample.untrimmed(self.refs.pitch_trim)
         diagnosis = self.detector.step(sample)
         faulty = diagnosis.faulty if self.accommodation else np.zeros_like(diagnosis.faulty)
         power_ref = self.controller.step(sample, faulty)
         self._record(sample.t, diagnosis)
         self.diagnosis, self.sample = diagnosis, sample
+        self.refs = self._refs(frame.k, power_ref)
+        return self.refs
+
+    def _refs(self, tick: int, power_ref: np.ndarray) -> FarmRefs:
+        """The power references with what the controller asks of the turbines besides (``interfaces``)."""
+
+        def asked(name: str) -> np.ndarray | None:  # a copy of a controller attribute, None when it asks nothing
+            value = getattr(self.controller, name, None)
+            return value.copy() if value is not None and np.any(value) else None
+
         mode = getattr(self.controller, "mode", None)
         hold = None if mode is None else mode == HOLD_TORQUE_MODE
-        held = getattr(self.controller, "held_torque", None) if hold is not None and hold.any() else None
-        self.refs = FarmRefs(tick=frame.k, power_ref=power_ref, hold_torque=hold, held_torque=held)
-        return self.refs
+        cancel = None if mode is None else mode == CANCEL_3P_MODE
+        ripple = asked("ripple_power")
+        return FarmRefs(
+            tick=tick,
+            power_ref=power_ref,
+            hold_torque=hold,
+            held_torque=asked("held_torque") if hold is not None and hold.any() else None,
+            cancel_3p=cancel if cancel is not None and cancel.any() else None,
+            pitch_trim=asked("pitch_trim"),
+            ripple_power=ripple,
+            ripple_rate=None if ripple is None else self.controller.ripple_rate.copy(),
+        )
 
     def drain_events(self) -> list[Event]:
         events, self._events = self._events, []
@@ -95,7 +111,7 @@ class FarmSupervisor:
         if mode is not None:
             switched = mode != self.mode
             for row in np.flatnonzero(switched):
-                detail = {"from": MODES[int(self.mode[row])], "to": MODES[int(mode[row])]}
+                detail = {"from": DISPATCH_MODES[int(self.mode[row])], "to": DISPATCH_MODES[int(mode[row])]}
                 self._events.append(self._event(t, EventType.DISPATCH, row, None, detail))
             self.mode = mode.copy()
 

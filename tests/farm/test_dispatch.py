@@ -32,9 +32,11 @@ def _sample(demand_mw: float, power_mw: np.ndarray | None = None) -> FarmSample:
     )
 
 
-def _dispatch(avail_mw: list[float], rule: str = "paper", trim: tuple[float, float] = (0.0, 0.0)) -> Dispatch:
+def _dispatch(
+    avail_mw: list[float], rule: str = "paper", trim: tuple[float, float] = (0.0, 0.0), pitch_rule: str = "paper"
+) -> Dispatch:
     """Eqs. (18)–(26) on stubbed available powers; the farm-power trim off unless ``trim`` = (K_p, K_i) says."""
-    options = {"accommodation_rule": rule, "trim_kp": trim[0], "trim_ki": trim[1]}
+    options = {"accommodation_rule": rule, "pitch_rule": pitch_rule, "trim_kp": trim[0], "trim_ki": trim[1]}
     d = Dispatch(context=FarmContext(FarmPlant(), 9), options=options)
     d.estimate_available = lambda sample: np.asarray(avail_mw, dtype=float) * MW  # eqs. (20)–(22) stubbed
     return d
@@ -181,6 +183,7 @@ def test_hold_torque_speed_floor_stays_at_the_lowest_set_point_in_low_wind():
 
 
 def test_a_held_turbine_stays_at_its_floor_when_the_farm_cannot_meet_the_demand():
+    """At once, that is: the hold is released only when the farm has needed it for a while (test_accommodation)."""
     d, sample = _held(12.0, 15e3)
     sample.demand[:] = 20.0 * MW  # above Σ P_avail = 18 MW: no dispatch, every other turbine at rated
     refs = d.step(sample, _faulty(t2=2))

@@ -7,7 +7,7 @@ import numpy as np
 
 from windwarden.live.adapters import adapter_for
 from windwarden.live.adapters.base import RunInfo
-from wwcore.farm_frames import HOLD_TORQUE_MODE, FarmRefs
+from wwcore.farm_frames import CANCEL_3P_MODE, DISPATCH_MODES, HOLD_TORQUE_MODE, FarmRefs
 from wwcore.scenario import parse_scenario
 
 SCENARIO = {
@@ -63,6 +63,36 @@ def test_the_hold_torque_request_and_its_torque_cap_survive_the_wire():
     assert np.array_equal(back.held_torque, cap, equal_nan=True)
     plain = adapter.refs_from_records(adapter.refs_records(FarmRefs(tick=9, power_ref=np.full(9, 1e6)), sup, turbines))
     assert np.isnan(plain.held_torque).all()  # no cap sent: NaN, which the turbine reads as its own torque
+
+
+def test_the_accommodation_requests_survive_the_wire_and_every_mode_has_a_status_name():
+    """Mode 5 (3P cancelled without the hold), the per-blade pitch trim and the power phasor of the ripple
+    compensation come back as sent; the status names every dispatch mode (``DISPATCH_MODES``)."""
+    adapter = adapter_for("farm")
+    scenario = parse_scenario(SCENARIO)
+    plant = adapter.make_plant(scenario, seed=3)
+    turbines = adapter.turbines(plant)
+    sup = adapter.make_supervisor(RunInfo.of(scenario, turbines, plant.dt))
+    sup.mode = np.array([0, 1, 2, 3, 4, 5, 0, 0, 0], dtype=np.int8)
+    trim = np.zeros((9, 3))
+    trim[4] = [0.1, -0.2, 0.1]
+    phasor = np.where(np.arange(9) == 5, 0.0, -40e3 * np.exp(0.3j))
+    rate = np.where(phasor != 0.0, 4.4, 0.0)
+    refs = FarmRefs(
+        tick=9,
+        power_ref=np.full(9, 1e6),
+        hold_torque=sup.mode == HOLD_TORQUE_MODE,
+        cancel_3p=sup.mode == CANCEL_3P_MODE,
+        pitch_trim=trim,
+        ripple_power=phasor,
+        ripple_rate=rate,
+    )
+    back = adapter.refs_from_records(adapter.refs_records(refs, sup, turbines))
+    assert np.array_equal(back.cancel_3p, refs.cancel_3p) and np.array_equal(back.hold_torque, refs.hold_torque)
+    assert np.array_equal(back.pitch_trim, trim)
+    assert np.array_equal(back.ripple_power, phasor) and np.array_equal(back.ripple_rate, rate)
+    status = adapter.status(sup, None, turbines)
+    assert [s["dispatch_mode"] for s in status[:6]] == list(DISPATCH_MODES)
 
 
 def test_farm_blueprint_has_the_overview_tab():

@@ -264,3 +264,70 @@ def test_fault_free_twins_see_the_same_wind_and_noise():
     y = np.array(rec)
     assert np.allclose(y[:, :9], y[:, 9:], rtol=1e-9, atol=1e-9)
     assert not np.array_equal(y[:, 0], y[:, 1])  # turbines differ from each other
+
+
+def test_a_pitch_trim_turns_each_blade_by_its_trim():
+    """``pitch_trim`` is added to each blade's command: a blade held 0.3 deg off by the F2 fault comes back to the
+    others with a trim of (+0.1, −0.2, +0.1), and the encoders see it (the pitch loop takes the common 0.1 back)."""
+    fault = FaultSpec(target="pitch_actuator_2", kind="offset", value=0.3, turbine=1, start_s=0.0)
+    plant = FarmBatch(farm_spec(1), wind(16.0, ti=0.02), [fault], seed=2, duration_s=25.0)
+    refs = np.full(plant.n, P.rated_power)
+
+    def blades(p, f):
+        return f.turbines.sensors[0, BETA].mean(axis=1)
+
+    before = np.array(_run(plant, 12.0, FarmRefs(0, refs), record=blades))[200:]
+    trim = np.zeros((plant.n, 3))
+    trim[0] = [0.1, -0.2, 0.1]
+    after = np.array(_run(plant, 12.0, FarmRefs(1, refs, pitch_trim=trim), record=blades))[200:]
+    spread = [b[:, 1] - 0.5 * (b[:, 0] + b[:, 2]) for b in (before, after)]
+    assert spread[0].mean() == pytest.approx(0.3, abs=0.02)
+    assert spread[1].mean() == pytest.approx(0.0, abs=0.02)
+    assert plant.controller.pitch_trim is not None
+    _run(plant, 0.02, FarmRefs(2, refs))
+    assert plant.controller.pitch_trim is None  # a reference without a trim clears it
+
+
+def test_a_power_phasor_is_made_by_the_converter_at_its_phase():
+    """``ripple_power`` C with ``ripple_rate`` ω: the turbine adds Re{C e^{jω(t − t_c)}} to its power, t_c the time of
+    the farm sample the reference answers; the converter's lag is taken out in advance. Checked by lock-in on the
+    true power against a twin without it (same wind and noise); it stops when no new reference renews it."""
+    plant = FarmBatch(farm_spec(1), wind(10.0, ti=0.05), [], seed=2, duration_s=25.0, fault_free_twins=True)
+    rows = [plant.row_of(0, 6), plant.row_of(1, 6)]
+    omega, asked = 4.0, 60e3 * np.exp(0.8j)  # the power to add: Re{asked e^{jωt}}
+    on = np.zeros(plant.n, dtype=bool)
+    on[rows[0]] = True
+    rate = np.where(on, omega, 0.0)
+    refs = np.full(plant.n, 2.5e6)
+    _run(plant, 5.0, FarmRefs(0, refs))
+    rec = []
+    for j in range(51, 200):  # renewed every farm sample, as the supervisor does
+        computed = 10 * j - 1  # the tick that closes sample j, at t_c = 10 j Δt
+        phasor = np.where(on, asked * np.exp(1j * omega * (computed + 1) * plant.dt), 0.0)  # referred to t_c
+        while plant.k < 10 * (j + 1):
+            plant.measure()
+            plant.control(FarmRefs(computed, refs, ripple_power=phasor, ripple_rate=rate))
+            rec.append((plant.t, *plant.power_output()[rows]))
+            plant.advance()
+    t, own, twin = np.array(rec).T
+    t, extra = t[300:], (own - twin)[300:]  # the power moves the rotor too: after its start
+    made = 2.0 * np.mean(extra * np.exp(-1j * omega * t))
+    assert abs(made) == pytest.approx(abs(asked), rel=0.05)
+    assert np.angle(made / asked) == pytest.approx(0.0, abs=0.05)
+    _run(plant, 1.0)  # no reference any more: the phasor lapses after EXTRA_MAX_AGE_S
+    assert not plant.controller.extra_power.any()
+
+
+def test_the_3p_cancellation_can_be_asked_for_without_the_hold():
+    """``cancel_3p`` engages the converter's 3P cancellation and leaves the turbine on its normal laws (no hold)."""
+    fault = FaultSpec(target="drivetrain", kind="drivetrain_wear", value=5.0, turbine=3, start_s=0.0)
+    plant = FarmBatch(farm_spec(1), wind(12.0, ti=0.03), [fault], seed=2, duration_s=40.0)
+    refs = np.full(plant.n, 3.0e6)
+    cancel = np.zeros(plant.n, dtype=bool)
+    cancel[2] = True
+    _run(plant, 20.0, FarmRefs(0, refs))
+    free = np.std(_run(plant, 5.0, FarmRefs(0, refs), record=lambda p, f: p.shaft_torque()[2]))
+    shaft = _run(plant, 15.0, FarmRefs(1, refs, cancel_3p=cancel), record=lambda p, f: p.shaft_torque()[2])
+    c = plant.controller
+    assert not c.hold.any() and c.ripple_torque[2] != 0.0 and not np.delete(c.ripple_torque, 2).any()
+    assert np.std(shaft[-500:]) < 0.5 * free

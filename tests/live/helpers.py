@@ -90,6 +90,24 @@ value = 0.97
 turbine = 5
 start_s = 65.0
 end_s = 75.0
+# the drive-train hold with its 3P cancellation and the farm's ripple compensation, and the pitch trim: every
+# field farm.refs carries crosses the wire
+[[faults]]
+name = "F3 drive train wt4"
+target = "drivetrain"
+kind = "drivetrain_wear"
+value = 5.0
+turbine = 4
+start_s = 30.0
+end_s = 60.0
+[[faults]]
+name = "F2 pitch misalignment wt7"
+target = "pitch_actuator_3"
+kind = "offset"
+value = 0.3
+turbine = 7
+start_s = 40.0
+end_s = 55.0
 """
 
 

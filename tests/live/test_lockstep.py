@@ -45,6 +45,9 @@ def test_lockstep_equals_batch(tmp_path, text, seed):
     batch = run_batch(scn, seed)
     assert _keys(events) == _keys(batch.events)
     assert any(e.type.value == "detection" for e in events), "the scenario must exercise detection"
+    if scn.plant.kind == "farm":  # and the accommodation's every request on the wire (FARM_SHORT)
+        modes = {e.detail.get("to") for e in events if e.type.value == "dispatch"}
+        assert {"held torque", "pitch trim", "debris"} <= modes
     live = card.pop("live")
     assert live["completed"] and live["ticks_without_refs"] == 0 and live["dropped"] == {}
     assert card == json.loads(json.dumps(batch.scorecard))  # bit for bit, through JSON as both are written

@@ -20,7 +20,7 @@ import numpy as np
 from windwarden.evaluation.scoring import score_faults
 from windwarden.live.adapters.base import RunInfo, finite_or_none, records_from_batch
 from wwcore.events import Event
-from wwcore.farm_frames import HOLD_TORQUE_MODE, FarmFrame, FarmRefs
+from wwcore.farm_frames import CANCEL_3P_MODE, DISPATCH_MODES, HOLD_TORQUE_MODE, FarmFrame, FarmRefs
 from wwcore.scenario import FaultSpec, Scenario
 from wwcore.scenario.farm import FARM_DT_S, FARM_FAULT_TYPES, N_TURBINES, FarmPlant
 from wwcore.turbine_frames import TurbineFrame
@@ -29,8 +29,6 @@ from wwcore.wire import FARM_REFS, FARM_SENSORS, FARM_TRUTH
 if TYPE_CHECKING:  # the plant process never imports the supervisor's code, nor the supervisor the plant's
     from plant_sim.farm import FarmBatch
     from service.farm.supervisor import FarmSupervisor
-
-MODES = ("normal", "debris", "derated")
 
 
 class FarmAdapter:
@@ -121,7 +119,11 @@ class FarmAdapter:
             "power_ref": np.full(n, np.nan) if refs is None else refs.power_ref,
             "mode": supervisor.mode,
             "held_torque": np.nan if refs is None or refs.held_torque is None else refs.held_torque,
+            "pitch_trim": 0.0 if refs is None or refs.pitch_trim is None else refs.pitch_trim,
         }
+        if refs is not None and refs.ripple_power is not None:
+            values["ripple_power"] = np.column_stack([refs.ripple_power.real, refs.ripple_power.imag])
+            values["ripple_rate"] = refs.ripple_rate
         if diag is not None:
             values |= {"flags": supervisor.flags, "statistic": diag.statistics, "threshold": diag.thresholds}
         return records_from_batch(FARM_REFS, values, turbines)
@@ -130,12 +132,18 @@ class FarmAdapter:
         computed = int(records["computed_tick"][0])
         if computed < 0:
             return None  # no farm sample yet: the turbines keep their own reference
+        mode = np.array(records["mode"])
+        ripple = records["ripple_power"]
         return FarmRefs(
             tick=int(records["tick"][0]),
             power_ref=np.array(records["power_ref"]),
             computed_tick=computed,
-            hold_torque=np.array(records["mode"]) == HOLD_TORQUE_MODE,
+            hold_torque=mode == HOLD_TORQUE_MODE,
             held_torque=np.array(records["held_torque"]),
+            cancel_3p=mode == CANCEL_3P_MODE,
+            pitch_trim=np.array(records["pitch_trim"]),
+            ripple_power=ripple[:, 0] + 1j * ripple[:, 1],
+            ripple_rate=np.array(records["ripple_rate"]),
         )
 
     def truth_records(self, plant: FarmBatch, frame: FarmFrame, turbines: list[int]) -> np.ndarray:
@@ -175,7 +183,7 @@ class FarmAdapter:
             entry: dict[str, Any] = {
                 "turbine": turbine,
                 "flagged": [FARM_FAULT_TYPES[j] for j in np.flatnonzero(supervisor.flags[row])],
-                "dispatch_mode": MODES[int(supervisor.mode[row])],
+                "dispatch_mode": DISPATCH_MODES[int(supervisor.mode[row])],
                 "detector": type(supervisor.detector).__name__,
             }
             if diag is not None:

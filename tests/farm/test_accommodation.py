@@ -1,0 +1,226 @@
+"""The dispatch's accommodation beyond eqs. (23)–(26): the pitch trim, the held turbine's ripple cancelled by the
+farm, and a hold released when the farm needs the power. Hand-computed numbers and closed forms."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from plant_sim.farm import FarmBatch
+from service.farm.dispatch import HOLD_RESERVE, RELEASE_AFTER_S, Dispatch
+from service.farm.interfaces import BETA, OMEGA_G, P_G, TAU_G, FarmContext, FarmSample
+from service.farm.pitch_trim import AVERAGING_S
+from service.farm.ripple import SETTLE_S, RippleCompensation
+from service.farm.supervisor import FarmSupervisor
+from tests.farm.conftest import farm_spec, wind
+from wwcore.channels import N_SENSORS
+from wwcore.farm_frames import CANCEL_3P_MODE, HOLD_TORQUE_MODE, PITCH_TRIM_MODE
+from wwcore.scenario.farm import FARM_DT_S, FarmPlant
+from wwcore.scenario.faults import FaultSpec
+from wwcore.turbine_params import BENCHMARK as P
+
+MW = 1e6
+
+
+def _sample(j: int = 1, demand_mw: float = 12.0) -> FarmSample:
+    scada = np.zeros((9, N_SENSORS))
+    scada[:, OMEGA_G] = P.omega_nom
+    return FarmSample(
+        j=j,
+        t=j * FARM_DT_S,
+        scada=scada,
+        zone=np.zeros(9, dtype=np.int8),
+        power_ref_used=np.zeros(9),
+        mast=np.array([10.0]),
+        demand=np.array([demand_mw * MW]),
+    )
+
+
+def _dispatch(avail_mw: float = 2.0, **options) -> Dispatch:
+    d = Dispatch(context=FarmContext(FarmPlant(), 9), options={"trim_kp": 0.0, "trim_ki": 0.0, **options})
+    d.estimate_available = lambda sample: np.full(9, avail_mw * MW)  # eqs. (20)–(22) stubbed
+    return d
+
+
+def _faulty(row: int, column: int) -> np.ndarray:
+    f = np.zeros((9, 3), dtype=bool)
+    f[row, column] = True
+    return f
+
+
+def test_the_pitch_trim_turns_the_misaligned_blade_back_to_the_others():
+    """Blade 2 of turbine 3 held 0.3 deg off: d = (−0.1, +0.2, −0.1) deg about the blades' mean, so the trim is
+    (+0.1, −0.2, +0.1): all three blades then stand 0.1 deg above where they were, which the pitch loop takes back.
+    The power references are those of eq. (18) without any derating."""
+    d = _dispatch()
+    sample = _sample()
+    sample.scada[:, BETA] = 5.0
+    sample.scada[2, BETA[1]] += 0.3
+    refs = d.step(sample, _faulty(2, 1))
+    assert d.pitch_trim[2] == pytest.approx([0.1, -0.2, 0.1])
+    assert not np.delete(d.pitch_trim, 2, axis=0).any()
+    assert d.mode[2] == PITCH_TRIM_MODE
+    assert refs == pytest.approx(np.full(9, 12.0 / 9 * MW))
+    d.step(_sample(2), np.zeros((9, 3), dtype=bool))  # the flag clears: the trim goes
+    assert not d.pitch_trim.any() and d.mode[2] == 0
+
+
+def test_the_pitch_trim_averages_the_misalignment_over_its_time_constant():
+    d = _dispatch()
+    readings = [0.3, 0.6]  # blade 1's offset at the flag, then from the next sample on
+    sample = _sample()
+    sample.scada[0, BETA[0]] = readings[0]
+    d.step(sample, _faulty(0, 1))
+    sample.scada[0, BETA[0]] = readings[1]
+    d.step(sample, _faulty(0, 1))
+    gain = FARM_DT_S / AVERAGING_S
+    deviation = [2.0 / 3.0 * r for r in readings]  # blade 1 about the mean of three
+    assert d.pitch_trim[0, 0] == pytest.approx(-(deviation[0] + (deviation[1] - deviation[0]) * gain))
+
+
+def test_a_sample_without_the_trim_shows_the_blades_as_their_actuators_hold_them():
+    sample = _sample()
+    sample.scada[:, BETA] = 4.0
+    trim = np.zeros((9, 3))
+    trim[5] = [0.1, -0.2, 0.1]
+    bare = sample.untrimmed(trim)
+    assert bare.scada[5, BETA].mean(axis=1) == pytest.approx([3.9, 4.2, 3.9])
+    assert np.array_equal(bare.scada[:4], sample.scada[:4]) and sample.scada[5, BETA[0]][0] == 4.0
+
+
+def test_the_paper_pitch_rule_derates_by_eq_26_and_sends_no_trim():
+    d = _dispatch(pitch_rule="paper")
+    sample = _sample()
+    sample.scada[2, BETA[1]] = 0.3
+    refs = d.step(sample, _faulty(2, 1)) / MW
+    assert refs[2] == pytest.approx(0.05 / 16.05 * 12.0)  # P_min, eq. (26), as in test_dispatch
+    assert not d.pitch_trim.any()
+
+
+def test_unknown_pitch_and_accommodation_rules_are_refused():
+    with pytest.raises(ValueError, match="pitch_rule"):
+        _dispatch(pitch_rule="bend")
+    with pytest.raises(ValueError, match="accommodation_rule"):
+        _dispatch(accommodation_rule="stop")
+
+
+def _block_means(power, omega_3: float, j: int) -> float:
+    """The SCADA power of farm sample j: the mean of the ten readings at t_j − 0.1 … t_j − 0.01 s."""
+    ticks = (np.arange(10) + 10 * (j - 1)) * P.dt
+    return float(np.mean(power(ticks)))
+
+
+def test_the_ripple_estimate_is_the_held_turbines_3p_power_and_the_free_ones_share_its_opposite():
+    """A held turbine (row 3) whose power carries A cos(ω_3 t + φ) on a drifting mean: after settling, C_j is
+    A e^{j(ω_3 t_j + φ)} (closed form), and the seven other free turbines (row 7 is derated) get −C_j/7 each."""
+    amplitude, phase = 0.3 * MW, 0.7
+    omega_3 = 3.0 * P.omega_nom / P.N_g
+
+    def power(t):
+        return 3.0 * MW + 0.02 * MW * t + amplitude * np.cos(omega_3 * t + phase)
+
+    ripple = RippleCompensation(P, 9)
+    held = np.zeros(9, dtype=bool)
+    held[3] = True
+    free = np.ones(9, dtype=bool)
+    free[7] = False
+    for j in range(1, 121):  # 12 s
+        sample = _sample(j)
+        sample.scada[3, P_G] = _block_means(power, omega_3, j)
+        ripple.step(sample, held, free)
+        if j * FARM_DT_S < SETTLE_S - 1e-9:
+            assert not ripple.power.any()
+    t_j = 120 * FARM_DT_S
+    expected = amplitude * np.exp(1j * (omega_3 * t_j + phase))
+    assert abs(ripple.ripple[3]) == pytest.approx(amplitude, rel=0.05)
+    assert np.angle(ripple.ripple[3] / expected) == pytest.approx(0.0, abs=0.05)
+    shares = np.delete(ripple.power, [3, 7])
+    assert shares == pytest.approx(np.full(7, -ripple.ripple[3] / 7))
+    assert ripple.power[3] == 0.0 and ripple.power[7] == 0.0
+    assert ripple.rate[0] == pytest.approx(omega_3)
+    ripple.step(_sample(121), np.zeros(9, dtype=bool), free)  # the hold ends: nothing is asked any more
+    assert not ripple.power.any() and not ripple.rate.any()
+
+
+def _held_dispatch(**options) -> tuple[Dispatch, FarmSample]:
+    d = _dispatch(**options)
+    d._slow_wind = np.full(9, 12.0)
+    sample = _sample()
+    sample.scada[:, TAU_G] = 15e3
+    return d, sample
+
+
+def test_a_hold_is_released_when_the_farm_has_needed_its_power_for_long_enough():
+    """Demand above Σ P_avail: the farm needs every turbine's power. The hold is kept for RELEASE_AFTER_S, then
+    the turbine runs its normal laws with its 3P cancelled (mode 5) until the flag clears."""
+    d, sample = _held_dispatch()
+    sample.demand[:] = 20.0 * MW  # Σ P_avail = 18 MW
+    steps = round(RELEASE_AFTER_S / FARM_DT_S)
+    for _ in range(steps - 1):
+        d.step(sample, _faulty(1, 2))
+        assert d.mode[1] == HOLD_TORQUE_MODE
+    refs = d.step(sample, _faulty(1, 2))
+    refs = d.step(sample, _faulty(1, 2))
+    assert d.mode[1] == CANCEL_3P_MODE and refs[1] == P.rated_power
+    assert np.isnan(d.speed_floor[1])
+    sample.demand[:] = 10.0 * MW  # plenty of headroom again: the release stands while the flag does
+    d.step(sample, _faulty(1, 2))
+    assert d.mode[1] == CANCEL_3P_MODE
+    d.step(sample, np.zeros((9, 3), dtype=bool))
+    d.step(sample, _faulty(1, 2))  # a new flag is a new hold
+    assert d.mode[1] == HOLD_TORQUE_MODE
+
+
+@pytest.mark.parametrize("margin, released", [(-0.01, False), (0.01, True)])
+def test_a_hold_is_released_when_the_others_would_need_more_than_their_margin(margin, released):
+    """The others (8 × 2 MW available) keep HOLD_RESERVE of their power in hand: a demand that leaves them just
+    below that keeps the hold, just above it releases the hold after RELEASE_AFTER_S."""
+    d, sample = _held_dispatch()
+    d.step(sample, _faulty(1, 2))
+    floor = P.eta_gc * (d.held_sum[1] - P.B_g * d.speed_floor[1]) * d.speed_floor[1]
+    sample.demand[:] = floor + (1.0 - HOLD_RESERVE + margin) * 16.0 * MW
+    for _ in range(round(RELEASE_AFTER_S / FARM_DT_S) + 1):
+        d.step(sample, _faulty(1, 2))
+    assert d.mode[1] == (CANCEL_3P_MODE if released else HOLD_TORQUE_MODE)
+
+
+def test_the_cancel_rule_never_holds():
+    d, sample = _held_dispatch(accommodation_rule="cancel")
+    refs = d.step(sample, _faulty(1, 2))
+    assert d.mode[1] == CANCEL_3P_MODE and refs == pytest.approx(np.full(9, 12.0 / 9 * MW))
+
+
+def _farm_3p(compensation: bool) -> tuple[complex, complex]:
+    """Lock-in at the faulty turbine's 3P of (its power, the farm's power) over 60 s of a drive-train fault whose
+    3P torque is cancelled (rule ``cancel``: the turbine at full speed, the largest ripple), 12 m/s."""
+    fault = FaultSpec(target="drivetrain", kind="drivetrain_wear", value=5.0, turbine=4, start_s=20.0)
+    spec = farm_spec(1)
+    plant = FarmBatch(spec, wind(12.0, ti=0.1), [fault], seed=5, duration_s=100.0)
+    options = {"accommodation_rule": "cancel", "ripple_compensation": compensation}
+    sup = FarmSupervisor(spec, plant.n, options=options)
+    refs, rec = None, []
+    for k in range(round(100.0 / plant.dt)):
+        frame = plant.measure()
+        plant.control(refs)
+        refs = sup.step(frame)
+        if k * plant.dt >= 40.0:
+            power = plant.power_output()
+            rec.append((power[3], power.sum(), plant.turbines.x[3, 4]))
+        plant.advance()
+    held, farm, azimuth = np.array(rec).T
+
+    def lock_in(x):
+        return 2.0 * np.mean((x - x.mean()) * np.exp(-3j * azimuth))
+
+    return lock_in(held), lock_in(farm)
+
+
+def test_the_farm_cancels_the_3p_power_ripple_of_a_turbine_whose_3p_torque_is_cancelled():
+    """The faulty turbine's converter takes the 3P torque off its shaft and its power swings ≈ 0.4 MW at 3P; the
+    eight others make the opposite, so the farm's 3P power falls below 10 % of the turbine's. Without the
+    compensation the dispatch's own power loop answers part of it, at 10 Hz and late: 40 % is left."""
+    held, farm = _farm_3p(compensation=True)
+    held_off, farm_off = _farm_3p(compensation=False)
+    assert abs(held) > 0.3 * MW and abs(held_off) == pytest.approx(abs(held), rel=0.2)
+    assert abs(farm) < 0.1 * abs(held)
+    assert abs(farm_off) > 0.3 * abs(held_off)
