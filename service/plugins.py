@@ -35,6 +35,10 @@ class UnknownAlgorithmError(LookupError):
     """A scenario or command named an algorithm no registry has."""
 
 
+class AlgorithmOptionError(ValueError):
+    """An algorithm refused one of its options (the scenario's ``[supervisor] params``): the message names it."""
+
+
 class Registry(Generic[T]):
     """Name → factory for one role (for example turbine fault detectors)."""
 

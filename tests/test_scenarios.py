@@ -88,17 +88,20 @@ def test_physically_impossible_faults_are_refused(fault):
         parse_scenario({**GOOD, "faults": [fault]})
 
 
-def test_cli_refuses_bad_scenario_with_exit_code_2_before_running(tmp_path, capsys):
+def _refused(tmp_path, capsys, tail: str) -> str:
+    """What ``windwarden eval`` prints refusing a turbine scenario ending in ``tail`` (exit code 2, nothing
+    written)."""
     bad = tmp_path / "bad.toml"
-    bad.write_text(
-        'name = "bad"\nduration_s = 100.0\n[plant]\nkind = "turbine"\n'
-        '[[faults]]\ntarget = "omega_r_m9"\nkind = "gain"\nvalue = 1.1\nstart_s = 1.0\n'
-    )
+    bad.write_text('name = "bad"\nduration_s = 100.0\n[plant]\nkind = "turbine"\n' + tail)
     out = tmp_path / "out"
     assert main(["eval", str(bad), "--runs", "1", "--out", str(out)]) == 2
-    err = capsys.readouterr().err
-    assert "faults[0].target" in err and "omega_r_m9" in err
     assert not out.exists()
+    return capsys.readouterr().err
+
+
+def test_cli_refuses_bad_scenario_with_exit_code_2_before_running(tmp_path, capsys):
+    err = _refused(tmp_path, capsys, '[[faults]]\ntarget = "omega_r_m9"\nkind = "gain"\nvalue = 1.1\nstart_s = 1.0\n')
+    assert "faults[0].target" in err and "omega_r_m9" in err
 
 
 def test_cli_refuses_unknown_scenario_and_unknown_algorithm(tmp_path, capsys):
@@ -107,6 +110,10 @@ def test_cli_refuses_unknown_scenario_and_unknown_algorithm(tmp_path, capsys):
     assert main(["eval", "turbine-fault-free", "--runs", "1", "--detector", "nope", "--out", str(tmp_path / "o")]) == 2
     assert "no turbine detector named 'nope'" in capsys.readouterr().err
     assert not (tmp_path / "o").exists()
+
+
+def test_cli_refuses_an_option_the_detector_refuses_before_running(tmp_path, capsys):
+    assert "clear_window" in _refused(tmp_path, capsys, "[supervisor]\nparams = {clear_window = 9}\n")
 
 
 def test_cli_refuses_bad_numbers_with_exit_code_2():

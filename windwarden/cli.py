@@ -55,7 +55,7 @@ def _add_eval(sub: argparse._SubParsersAction) -> None:
 
 
 def cmd_eval(args: argparse.Namespace) -> int:
-    from service.plugins import UnknownAlgorithmError, load_plugins
+    from service.plugins import AlgorithmOptionError, UnknownAlgorithmError, load_plugins
     from windwarden.evaluation.kinds import EvalOptions, evaluator_for
     from windwarden.evaluation.report import render
 
@@ -77,7 +77,7 @@ def cmd_eval(args: argparse.Namespace) -> int:
     )
     try:
         evaluation = evaluator_for(scenario)(scenario, args.runs, args.seed, options)
-    except UnknownAlgorithmError as error:
+    except (UnknownAlgorithmError, AlgorithmOptionError) as error:
         raise BadInputError(str(error)) from None
     console.print(render(evaluation.scorecard))
     if args.out is not None:

@@ -90,6 +90,7 @@ from service.farm.interfaces import BETA, OMEGA_G, P_G, TAU_G, FarmContext, Farm
 from service.farm.pitch_trim import PitchTrim
 from service.farm.power_curve import available_power
 from service.farm.ripple import RippleCompensation
+from service.plugins import AlgorithmOptionError
 from wwcore import aero
 from wwcore.farm_frames import MIN_SPEED_FRACTION
 from wwcore.scenario.farm import FARM_DT_S, N_TURBINES, ROTOR_DIAMETER_M
@@ -137,10 +138,12 @@ class Dispatch:
         self.rule = str(options.get("accommodation_rule", ACCOMMODATION_RULES[0]))
         self.hold_margin = float(options.get("hold_margin", HOLD_MARGIN))
         if self.rule not in ACCOMMODATION_RULES:
-            raise ValueError(f"accommodation_rule: {self.rule!r} is not one of {', '.join(ACCOMMODATION_RULES)}")
+            raise AlgorithmOptionError(
+                f"accommodation_rule: {self.rule!r} is not one of {', '.join(ACCOMMODATION_RULES)}"
+            )
         self.pitch_rule = str(options.get("pitch_rule", PITCH_RULES[0]))
         if self.pitch_rule not in PITCH_RULES:
-            raise ValueError(f"pitch_rule: {self.pitch_rule!r} is not one of {', '.join(PITCH_RULES)}")
+            raise AlgorithmOptionError(f"pitch_rule: {self.pitch_rule!r} is not one of {', '.join(PITCH_RULES)}")
         self.n = context.n
         self.p_ref = np.full(self.n, self.p.rated_power)  # W, the references sent last
         self.wind: np.ndarray | None = None  # m/s, w_est of eq. (20)

@@ -33,6 +33,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from service.plugins import AlgorithmOptionError
 from service.turbine.bank import BankDesign
 from service.turbine.frozen import FrozenReadings
 from wwcore.channels import SPEED_SENSORS
@@ -84,7 +85,9 @@ class SpeedSensorFDI:
         self.h_detect = chi2_isf(alpha / 2.0, ranks)
         self.h_window = np.array([window_threshold(o.autocov, settings.window, alpha / 2.0) for o in observers])
         if not 1 <= settings.clear_window <= settings.window:
-            raise ValueError(f"clear_window must be 1 … window ({settings.window}), not {settings.clear_window}")
+            raise AlgorithmOptionError(
+                f"clear_window must be 1 … window ({settings.window}), not {settings.clear_window}"
+            )
         self.h_clear = np.array(
             [window_threshold(o.autocov, settings.clear_window, settings.clear_alpha) for o in observers]
         )

@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import json
 
+import pytest
+
 from windwarden.cli import main
 
 SCENARIO = """
@@ -65,3 +67,16 @@ def test_unknown_farm_detector_is_refused_before_running(tmp_path):
     path = tmp_path / "farm.toml"
     path.write_text(SCENARIO)
     assert main(["eval", str(path), "--runs", "1", "--quiet", "--detector", "magic"]) == 2
+
+
+@pytest.mark.parametrize(
+    "params, named",
+    [('pitch_rule = "bend"', "pitch_rule"), ('accommodation_rule = "stop"', "accommodation_rule")],
+)
+def test_an_accommodation_rule_no_controller_knows_is_refused_before_running(tmp_path, capsys, params, named):
+    path = tmp_path / "farm.toml"
+    path.write_text(SCENARIO.replace("[plant]\n", f"[supervisor]\nparams = {{{params}}}\n\n[plant]\n", 1))
+    out = tmp_path / "out"
+    assert main(["eval", str(path), "--runs", "1", "--quiet", "--out", str(out)]) == 2
+    assert named in capsys.readouterr().err
+    assert not out.exists()

@@ -414,6 +414,8 @@ def evaluate(scenario: Scenario, runs: int, seed: int, options: EvalOptions) -> 
     controller = options.controller or scenario.supervisor.controller or DEFAULT_CONTROLLER
     FARM_DETECTORS.factory(detector)  # unknown names are refused before anything runs
     FARM_CONTROLLERS.factory(controller)
+    params = dict(scenario.supervisor.params)  # and so are options they refuse (AlgorithmOptionError)
+    FarmSupervisor(scenario.plant, N_TURBINES, detector=detector, controller=controller, options=params)
     twins = bool(scenario.faults) and options.twins  # --no-twins: detection only, no damage numbers
     main = run_variant(
         scenario,

@@ -261,6 +261,8 @@ def evaluate(scenario: Scenario, runs: int, seed: int, options: EvalOptions) -> 
     estimator = options.estimator or scenario.supervisor.estimator or DEFAULT_ESTIMATOR
     TURBINE_DETECTORS.factory(detector)  # unknown names are refused before anything runs
     TURBINE_ESTIMATORS.factory(estimator)
+    params = dict(scenario.supervisor.params)  # and so are options they refuse (AlgorithmOptionError)
+    TurbineSupervisor(1, detector=detector, estimator=estimator, options=params)
     twins = options.twins and bool(scenario.faults)
     results = run_chunks(
         simulate_chunk,
