@@ -7,6 +7,7 @@ to its detection in the status route (measured from outside, over HTTP).
 
     .venv/bin/python tools/bench_live.py --kind turbine --seconds 300
     .venv/bin/python tools/bench_live.py --kind hydro --seconds 300
+    .venv/bin/python tools/bench_live.py --kind farm --seconds 300 --offset 1450   # a drive-train hold in it
 """
 
 from __future__ import annotations
@@ -24,6 +25,7 @@ import tomllib
 from pathlib import Path
 
 import httpx
+import numpy as np
 
 from windwarden.live.router import free_port
 from wwcore.scenario import dump_scenario, load_scenario, parse_scenario
@@ -31,16 +33,22 @@ from wwcore.scenario import dump_scenario, load_scenario, parse_scenario
 SCENARIOS = {"turbine": "ftwse-2012", "hydro": "hydro-fig9", "farm": "farm-case1"}
 
 
-def bench_scenario(kind: str, seconds: float, folder: Path) -> Path:
-    """The kind's shipped scenario stretched or cut to ``seconds`` (faults after the end left out)."""
+def bench_scenario(kind: str, seconds: float, folder: Path, offset: float = 0.0) -> Path:
+    """The kind's shipped scenario from ``offset`` s on, cut to ``seconds`` (the mean wind and the faults moved
+    back by ``offset``; faults outside the span left out or cut)."""
     base = load_scenario(SCENARIOS[kind])
     data = tomllib.loads(dump_scenario(base))
     data["name"] = f"bench-{kind}"
     data["duration_s"] = seconds
-    data["faults"] = [f for f in data.get("faults", []) if f["start_s"] < seconds]
+    if offset > 0.0:
+        times, speeds = zip(*data["wind"]["mean"], strict=True)
+        kept = [(t - offset, v) for t, v in zip(times, speeds, strict=True) if t > offset]
+        data["wind"]["mean"] = [(0.0, float(np.interp(offset, times, speeds))), *kept]
+    data["faults"] = [f for f in data.get("faults", []) if offset <= f["start_s"] < offset + seconds]
     for f in data["faults"]:
-        if f.get("end_s") is not None and f["end_s"] > seconds:
-            f["end_s"] = seconds
+        f["start_s"] -= offset
+        if f.get("end_s") is not None:
+            f["end_s"] = min(f["end_s"] - offset, seconds)
     scenario = parse_scenario(data)
     path = folder / f"bench-{kind}.toml"
     path.write_text(dump_scenario(scenario))
@@ -67,10 +75,11 @@ def main() -> int:
     parser.add_argument("--runs-root", type=Path, default=Path("runs"))
     parser.add_argument("--nice", type=int, default=None, help="niceness of plant and supervisor (busy machines)")
     parser.add_argument("--inject-at", type=float, default=None, help="turbine: s of simulation time (default: half)")
+    parser.add_argument("--offset", type=float, default=0.0, help="start this far into the shipped scenario (s)")
     args = parser.parse_args()
 
     folder = Path(tempfile.mkdtemp(prefix="bench-live-"))
-    scenario = bench_scenario(args.kind, args.seconds, folder)
+    scenario = bench_scenario(args.kind, args.seconds, folder, args.offset)
     token = secrets.token_urlsafe(16)
     port = free_port()
     run_id = f"bench-{args.kind}-{time.strftime('%Y%m%d-%H%M%S')}"
