@@ -165,8 +165,6 @@ class Dispatch:
         self.trim_limit = float(options.get("trim_limit", TRIM_LIMIT))
         self.trim = np.zeros(context.farms)  # –, the trim's integral I per farm
         self.ripple = RippleCompensation(self.p, self.n) if bool(options.get("ripple_compensation", True)) else None
-        self.ripple_power = np.zeros(self.n, dtype=complex)  # W, phasor each turbine is asked to add (ripple)
-        self.ripple_rate = np.zeros(self.n)  # rad/s, its frequency
 
     def estimate_available(self, sample: FarmSample) -> np.ndarray:
         """Eqs. (20)–(22): P_avail,t (n,) in W."""
@@ -275,7 +273,6 @@ class Dispatch:
         if self.ripple is not None:  # D-29: the cancelling turbines' 3P power ripple, cancelled by the free ones
             sources = (hold | cancelled).reshape(-1)
             self.ripple.step(measured, sources, ~(hold | derate | cancelled).reshape(-1))
-            self.ripple_power, self.ripple_rate = self.ripple.power, self.ripple.rate
         self.p_ref = refs
         return refs
 
@@ -285,6 +282,16 @@ class Dispatch:
         asked = (hold & needed[:, None]).reshape(-1)
         self._needed_s = np.where(asked, self._needed_s + FARM_DT_S, 0.0)
         self.released |= self._needed_s >= self.release_after_s - 1e-9
+
+    @property
+    def ripple_power(self) -> np.ndarray:
+        """(n,) complex W, the power phasor each turbine is asked to add (D-29); zeros without compensation."""
+        return np.zeros(self.n, dtype=complex) if self.ripple is None else self.ripple.power
+
+    @property
+    def ripple_rate(self) -> np.ndarray:
+        """(n,) rad/s, the frequency of ``ripple_power``."""
+        return np.zeros(self.n) if self.ripple is None else self.ripple.rate
 
     @property
     def pitch_trim(self) -> np.ndarray:
