@@ -16,6 +16,8 @@ import numpy as np
 from wwcore.turbine_frames import TurbineFrame
 
 MIN_SPEED_FRACTION = 0.5  # –, ω_min = 0.5 Ω_nom: the lowest speed set point a farm turbine derates to [PROPOSED]
+DEBRIS_MODE = 1  # accommodation mode (wire ``mode``): eqs. (23)–(24), the reference raised by 1/0.97
+DERATED_MODE = 2  # accommodation mode (wire ``mode``): derated by eq. (26)
 HOLD_TORQUE_MODE = 3  # accommodation mode (wire ``mode``) in which a turbine derates by speed at held torque
 PITCH_TRIM_MODE = 4  # accommodation mode (wire ``mode``) in which a turbine's blades get a per-blade pitch trim
 CANCEL_3P_MODE = 5  # accommodation mode (wire ``mode``): normal laws, the drive-train fault's 3P torque cancelled

@@ -92,7 +92,14 @@ from service.farm.power_curve import available_power
 from service.farm.ripple import RippleCompensation
 from service.plugins import AlgorithmOptionError
 from wwcore import aero
-from wwcore.farm_frames import MIN_SPEED_FRACTION
+from wwcore.farm_frames import (
+    CANCEL_3P_MODE,
+    DEBRIS_MODE,
+    DERATED_MODE,
+    HOLD_TORQUE_MODE,
+    MIN_SPEED_FRACTION,
+    PITCH_TRIM_MODE,
+)
 from wwcore.scenario.farm import FARM_DT_S, N_TURBINES, ROTOR_DIAMETER_M
 
 DEBRIS_FACTOR = 0.97  # eqs. (23)–(24)
@@ -157,7 +164,7 @@ class Dispatch:
         self.released = np.zeros(self.n, dtype=bool)  # drive-train holds released to the normal laws (mode 5)
         self._needed_s = np.zeros(self.n)  # s, how long the farm has needed a held turbine's power
         self.held_sum = np.full(self.n, np.nan)  # N m, min(S_m, S_max) latched when the hold began (NaN: none)
-        # 0 normal, 1 debris, 2 derated (26), 3 held torque, 4 pitch trimmed, 5 hold released, 3P cancelled
+        # wwcore.farm_frames.DISPATCH_MODES: normal, debris, derated (26), held torque, pitch trim, 3P cancelled
         self.mode = np.zeros(self.n, dtype=np.int8)
         self.pitch = PitchTrim(self.n)  # the pitch rule ``trim``
         self.trim_kp = float(options.get("trim_kp", TRIM_KP))
@@ -267,9 +274,14 @@ class Dispatch:
         self.speed_floor = np.where(hold.reshape(-1), self.speed_floor, np.nan)
         self.held_torque = np.where(hold.reshape(-1), self.held_torque, np.nan)
         self.held_sum = np.where(hold.reshape(-1), self.held_sum, np.nan)
+        # ``released`` views self.released, so it holds the holds released at this sample too: they go out as
+        # mode 5 at once (with this sample's references, computed as held)
         cancelled = f[:, :, DRIVETRAIN] & released
-        mode = np.where(hold, 3, np.where(derate, 2, np.where(trimmed, 4, np.where(debris, 1, 0))))
-        self.mode = np.where(cancelled, 5, mode).astype(np.int8).reshape(-1)
+        mode = np.where(debris, DEBRIS_MODE, 0)
+        mode = np.where(trimmed, PITCH_TRIM_MODE, mode)
+        mode = np.where(derate, DERATED_MODE, mode)
+        mode = np.where(cancelled, CANCEL_3P_MODE, np.where(hold, HOLD_TORQUE_MODE, mode))
+        self.mode = mode.astype(np.int8).reshape(-1)
         if self.ripple is not None:  # D-29: the cancelling turbines' 3P power ripple, cancelled by the free ones
             sources = (hold | cancelled).reshape(-1)
             self.ripple.step(measured, sources, ~(hold | derate | cancelled).reshape(-1))
