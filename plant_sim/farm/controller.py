@@ -48,25 +48,32 @@ steep law can hold it stalled: measured 60 rad/s at 12.5 m/s, λ ≈ 3, 0.5 MW) 
 that climb and stay there; it leaves the hold at once instead, and its torque fades from where it is to the normal
 laws' (K_opt ω_g² in zone 0, under which it speeds up to its best tip-speed ratio) over ``RELEASE_FADE_S``.
 
-**3P cancellation in the hold** [PROPOSED]. The drive-train fault's transmission error e(ψ) = e_0 cos 3ψ is
+**3P cancellation** [PROPOSED]. The drive-train fault's transmission error e(ψ) = e_0 cos 3ψ is
 kinematic: below the torsion mode the generator follows it, and the shaft carries the torque that accelerates the
 generator, J_g N_g² (3ω_r)² e_0/η_dt at 3P (0.46 MN m at rated speed, e_0 = 5 mrad). While a turbine is asked to
-hold, its converter supplies that torque instead, so the shaft does not have to:
+cancel it (``cancel_3p``, the dispatch's default for a flagged drive train) or to hold, its converter supplies that
+torque instead, so the shaft does not have to:
 
 .. math::
 
     τ_{g,r} \mathrel{+}= −J_g\,\dot v,\qquad
     v = \mathrm{SOGI}_{ω_3}\bigl(\mathrm{SOGI}_{ω_3}(ω_{g,m})\bigr),\qquad ω_3 = 3\,ω_{g,m}/N_g
 
-Each SOGI (second-order generalised integrator: v̇ = kω_3(u − v) − ω_3 q, q̇ = ω_3 v, k = ``RIPPLE_SOGI_GAIN``)
-is a band-pass of unit gain and zero phase at ω_3; two in a row pass ω_g,m's 3P swing and give its derivative v̇
-from their states, without differencing noise. Above ω_3 the pair rolls off as 1/s², so the 4.5 Hz torsion mode
-sees no negative damping. The control laws (zone logic, pitch PI, torque laws, the hold) read ω_g,m − v and P_g,m
-less the cancellation's power; the damper reads ω_g,m. The cancellation fades in and out over
-``RIPPLE_ENGAGE_S``, and the filter runs only while it is engaged. Scenario option ``[plant] cancel_3p_in_hold =
-false`` leaves the hold without it. Measured with this plant (12 m/s, 10 % turbulence, 3 MW, one turbine): the
-shaft's 3P swing falls from 0.27 to 0.006 MN m and its rainflow damage (Σ S⁴ over 70 s) from 3.99 to 0.72
-(MN m)⁴, against 0.52 without the fault. The price is a 3P ripple in the turbine's electrical power,
+Each SOGI (second-order generalised integrator: v̇ = kω_3(u − v) − ω_3 q, q̇ = ω_3 v) is a band-pass of unit gain
+and zero phase at ω_3; two in a row pass ω_g,m's 3P swing and give its derivative v̇ from their states, without
+differencing noise. Both start wide, k = ``RIPPLE_SOGI_GAIN`` (locked in ≈ 1 s), and narrow linearly to
+``RIPPLE_TRACK_GAIN`` over ``RIPPLE_NARROW_S``; their input is ω_g,m less its ``RIPPLE_MEAN_S`` low-pass, so that
+the states' steady state does not move with k. Why narrow: −J_g v̇ is a negative damping, J_g ω |H²| sin(−∠H²),
+for anything the pair lets through above ω_3, where its phase lags. Above the pair rolls off as 1/s², so the
+4.5 Hz torsion mode is safe, but the pitch loop's ≈ 1.1 Hz mode above rated is not: with k = 0.8 (|H²| ≈ 0.6 at
+1.4 ω_3) it rang at 3.0–3.4 deg rms (15–18 m/s) and put ≈ 100 kW of 1.1 Hz into the turbine's power; at k = 0.1
+|H²| is 0.02 there (``tests/farm/test_accommodation.py``). The control laws (zone logic, pitch PI, torque laws, the
+hold) read ω_g,m − v and P_g,m less the cancellation's power; the damper reads ω_g,m. The cancellation fades in and
+out over ``RIPPLE_ENGAGE_S``, and the filter runs only while it is engaged. Scenario option ``[plant]
+cancel_3p_in_hold = false`` leaves the hold, and ``cancel_3p`` (mode 5), without it. Measured with this plant
+(12 m/s, 10 % turbulence, 3 MW, one turbine, k = 0.8 before the narrowing): the shaft's 3P swing falls from 0.27
+to 0.006 MN m and its rainflow damage (Σ S⁴ over 70 s) from 3.99 to 0.72 (MN m)⁴, against 0.52 without the fault.
+The price is a 3P ripple in the turbine's electrical power,
 η_gc ω_g J_g v̇ (≈ 0.3 MW at 12 m/s and 3 MW, 0.75 MW at rated speed): the power the shaft swung back and forth
 now goes through the converter. The other turbines of the farm cancel it at the farm's terminals (below). A
 reference with ``cancel_3p`` asks for the cancellation without the hold (the dispatch's mode 5).
@@ -118,7 +125,10 @@ SPEED_SLEW = 0.02  # Ω_nom per second: a held turbine's speed set point moves a
 DAMPER_HZ = 4.5  # Hz, centre of the drive-train damper: the torsion mode (PARAMETERS.md a.1) [PROPOSED]
 DAMPER_ZETA = 0.3  # –, damping of the band-pass (its width) [PROPOSED]
 DAMPER_GAIN = 1000.0  # N m s/rad on the generator side at the centre frequency [PROPOSED]
-RIPPLE_SOGI_GAIN = 0.8  # –, k = 2ζ of each SOGI of the 3P filter (ζ = 0.4: settles in ≈ 1 s at 3P) [PROPOSED]
+RIPPLE_SOGI_GAIN = 0.8  # –, k = 2ζ of each SOGI of the 3P filter when it starts (locks in ≈ 1 s at 3P) [PROPOSED]
+RIPPLE_TRACK_GAIN = 0.1  # –, k of each SOGI once locked: little gain off the 3P line [PROPOSED]
+RIPPLE_NARROW_S = 5.0  # s, the SOGIs narrow from RIPPLE_SOGI_GAIN to RIPPLE_TRACK_GAIN over this time [PROPOSED]
+RIPPLE_MEAN_S = 20.0  # s, low-pass of ω_g,m taken off the filter's input, so that k may change [PROPOSED]
 RIPPLE_ENGAGE_S = 0.5  # s, the 3P cancellation fades in and out over this time [PROPOSED]
 EXTRA_MAX_AGE_S = 0.5  # s, a power phasor older than this is no longer synthesised [PROPOSED]
 RELEASE_FADE_S = 5.0  # s, a stalled hold hands its torque over to the normal laws in this time [PROPOSED]
@@ -165,6 +175,8 @@ class FarmTurbineController(BenchmarkController):
         self._ripple_state = np.zeros((4, n))  # v1, q1, v2, q2: the two SOGIs of the 3P filter
         self._ripple_running = False  # the filter runs while a turbine's cancellation is engaged or engaging
         self._ripple_on = np.zeros(n)  # – engagement of the cancellation, 0 … 1
+        self._ripple_age = np.zeros(n)  # s since each turbine's cancellation began engaging
+        self._ripple_mean = np.zeros(n)  # rad/s, ω_g,m low-passed over RIPPLE_MEAN_S
         self.ripple_torque = np.zeros(n)  # N m, generator side, the cancellation's share of τ_g,r
         self._extra: tuple[np.ndarray, np.ndarray, float] | None = None  # (C, ω, t_0) of the power to add
         self.extra_power = np.zeros(n)  # W, what the converter adds to the power this tick (ripple compensation)
@@ -175,6 +187,7 @@ class FarmTurbineController(BenchmarkController):
         self._bp_ready = False  # the damper's state is set from the first speed reading (steady state)
         self._ripple_running = False
         self._ripple_on[:] = 0.0
+        self._ripple_age[:] = 0.0
         self.ripple_torque = np.zeros(self.n)
 
     def set_reference(
@@ -340,18 +353,21 @@ class FarmTurbineController(BenchmarkController):
         p, dt = self.p, self.p.dt
         if not self._ripple_running:  # start from the filter's steady state for a constant speed
             self._ripple_state[:] = 0.0
-            self._ripple_state[1] = RIPPLE_SOGI_GAIN * omega_g_m
+            self._ripple_mean = omega_g_m.copy()
             self._ripple_running = True
         v1, q1, v2, q2 = self._ripple_state  # views: updated in place
+        self._ripple_mean += (omega_g_m - self._ripple_mean) * (dt / RIPPLE_MEAN_S)
         w3 = (3.0 / p.N_g) * np.maximum(omega_g_m, 1.0)  # rad/s, the 3P frequency
-        kw = RIPPLE_SOGI_GAIN * w3
-        v1 += dt * (kw * (omega_g_m - v1) - w3 * q1)  # semi-implicit Euler: v, then q with the new v
+        narrowed = np.minimum(self._ripple_age / RIPPLE_NARROW_S, 1.0)
+        kw = (RIPPLE_SOGI_GAIN + (RIPPLE_TRACK_GAIN - RIPPLE_SOGI_GAIN) * narrowed) * w3
+        v1 += dt * (kw * (omega_g_m - self._ripple_mean - v1) - w3 * q1)  # semi-implicit Euler: v, then q
         q1 += dt * w3 * v1
         dv2 = kw * (v1 - v2) - w3 * q2  # v̇ of the second stage, from its states: no numerical derivative
         v2 += dt * dv2
         q2 += dt * w3 * v2
         rate = dt / RIPPLE_ENGAGE_S
         self._ripple_on = np.clip(self._asked_level, self._ripple_on - rate, self._ripple_on + rate)
+        self._ripple_age = np.where((self._ripple_on > 0.0) | (self._asked_level > 0.0), self._ripple_age + dt, 0.0)
         self.ripple_torque = -p.J_g * self._ripple_on * dv2
         self._ripple_running = bool(self._ripple_on.any())
         return v2

@@ -37,17 +37,24 @@ def _lockstep(tmp_path, text, seed):
     return scn, read_events(tmp_path / "run" / EVENTS), card
 
 
+FARM_SHORT_HOLD = FARM_SHORT + '[supervisor.params]\naccommodation_rule = "hold-torque"\n'
+"""FARM_SHORT with the drive-train hold (``hold_torque``, ``held_torque`` on the wire) instead of the default rule"""
+
+
 @pytest.mark.parametrize(
-    "text, seed", [(HYDRO_SHORT, 1), (TURBINE_SHORT, 3), (FARM_SHORT, 5)], ids=["hydro", "turbine", "farm"]
+    "text, seed",
+    [(HYDRO_SHORT, 1), (TURBINE_SHORT, 3), (FARM_SHORT, 5), (FARM_SHORT_HOLD, 5)],
+    ids=["hydro", "turbine", "farm", "farm-hold"],
 )
 def test_lockstep_equals_batch(tmp_path, text, seed):
     scn, events, card = _lockstep(tmp_path, text, seed)
     batch = run_batch(scn, seed)
     assert _keys(events) == _keys(batch.events)
     assert any(e.type.value == "detection" for e in events), "the scenario must exercise detection"
-    if scn.plant.kind == "farm":  # and the accommodation's every request on the wire (FARM_SHORT)
+    if scn.plant.kind == "farm":  # and the accommodation's every request on the wire
         modes = {e.detail.get("to") for e in events if e.type.value == "dispatch"}
-        assert {"held torque", "pitch trim", "debris"} <= modes
+        drive_train = "held torque" if text == FARM_SHORT_HOLD else "3P cancelled"
+        assert {drive_train, "pitch trim", "debris"} <= modes
     live = card.pop("live")
     assert live["completed"] and live["ticks_without_refs"] == 0 and live["dropped"] == {}
     assert card == json.loads(json.dumps(batch.scorecard))  # bit for bit, through JSON as both are written

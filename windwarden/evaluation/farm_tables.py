@@ -200,7 +200,7 @@ def tables_markdown(scenario: Scenario, main: Variant, comp: dict) -> str:
         label = {
             "paper": "eqs. (23)–(26) as published",
             "hold-torque": "(23)–(24), pitch trim (D-28), drive train held by speed, its 3P cancelled (D-26b, D-30)",
-            "cancel": "(23)–(24), pitch trim (D-28), drive train's 3P cancelled (D-29, D-30)",
+            "cancel": "(23)–(24), pitch trim (D-28), drive train's 3P cancelled, its ripple by the farm (D-31, D-29)",
         }[rule]
         rows.append((label, with_acc, p2a, p3a, acc_power))
         for label, d, paper2, paper3, pw in rows:
