@@ -168,7 +168,9 @@ class Dispatch:
         self.held_torque = np.full(self.n, np.nan)  # N m, S_max of turbines in the hold (NaN: none)
         self.hold_reserve = float(options.get("hold_reserve", HOLD_RESERVE))
         self.release_after_s = float(options.get("release_after_s", RELEASE_AFTER_S))
-        self.released = np.zeros(self.n, dtype=bool)  # drive-train holds released to the normal laws (mode 5)
+        # flagged drive trains on their normal laws with the 3P cancelled (mode 5): under rule ``cancel`` every one
+        # from its flag on, under ``hold-torque`` the holds D-30 released
+        self.released = np.zeros(self.n, dtype=bool)
         self._needed_s = np.zeros(self.n)  # s, how long the farm has needed a held turbine's power
         self.held_sum = np.full(self.n, np.nan)  # N m, min(S_m, S_max) latched when the hold began (NaN: none)
         # wwcore.farm_frames.DISPATCH_MODES: normal, debris, derated (26), held torque, pitch trim, 3P cancelled
