@@ -100,3 +100,27 @@ def test_row_coherence_shares_the_turbulence_of_a_row():
     # turbines 1 and 4 share a row in case 1: with c = 1 they differ only by their rotors' azimuths
     assert np.std(shared[:, 0] - shared[:, 3]) < 0.2 * np.std(own[:, 0] - own[:, 3])
     assert shared.std(axis=0)[0] == pytest.approx(own.std(axis=0).mean(), rel=0.5)  # same level of turbulence
+
+
+def test_a_derated_turbine_casts_a_weaker_wake_one_travel_time_later():
+    """C_T follows each turbine's own operating point (momentum theory), so derating one turbine raises the wind of
+    every row behind its row, x/v̄ later and not before, and leaves its own row and the rows ahead alone."""
+    spec = farm_spec(2, coherent_ti=0.0)
+    mast = MastSeries(spec, wind(10.0), [row_streams(1, 0, 0)[0]], 600.0)
+    rngs = [row_streams(1, 0, t)[0] for t in range(1, 10)]
+    field = FarmWindField(spec, wind(10.0), BENCHMARK, rngs, mast, np.array([0]), BENCHMARK.dt)
+    steady = field._p_aero.copy()
+    derated = steady.copy()
+    derated[3] *= 0.8  # turbine 4, in the second row {2, 4} of wind case 2
+    row = spec.row_of()[3]
+    lag_s = (field.distances - field.distances[row]) / 10.0  # travel time behind turbine 4's row at v̄ = 10 m/s
+    winds = []
+    for j in range(round((lag_s[-1] + 30.0) / FARM_DT_S)):
+        field.update(j, steady if j < 10 else derated)
+        winds.append(field.row_wind[0].copy())
+    winds = np.array(winds)
+    assert np.array_equal(winds[:, : row + 1], np.repeat(winds[:1, : row + 1], len(winds), axis=0))
+    arrive = 10 + round(lag_s[row + 1] / FARM_DT_S)  # the next row; those further back see it through it too
+    assert winds[arrive - 2, row + 1] == pytest.approx(winds[0, row + 1], rel=1e-12)
+    assert winds[arrive + 2, row + 1] > winds[0, row + 1]
+    assert np.all(winds[-1, row + 1 :] > winds[0, row + 1 :] + 0.01)  # m/s
