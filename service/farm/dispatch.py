@@ -147,7 +147,7 @@ class Dispatch:
         self.context = context
         self.p = context.params
         # [PROPOSED] variant of eq. (26), off by default: never derate a faulty turbine below this share of its
-        # own available power (docs/farm.md, "graded accommodation"); 0 is the paper's P_min floor only.
+        # own available power (docs/farm.md §2.3, ``derate_floor``); 0 is the paper's P_min floor only.
         self.floor = float(options.get("derate_floor", 0.0))
         self.rule = str(options.get("accommodation_rule", ACCOMMODATION_RULES[0]))
         self.hold_margin = float(options.get("hold_margin", HOLD_MARGIN))
