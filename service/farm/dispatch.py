@@ -32,11 +32,22 @@ P_ref,farm < Σ P_avail; otherwise every turbine gets rated power (it produces w
   doubling the window's missing power.
 * drive train, rule ``cancel`` (the default) [PROPOSED]: from the flag on the turbine runs its normal laws and its
   converter cancels the fault's 3P shaft torque (mode 5, ``cancel_3p``; ``plant_sim.farm.controller``, D-C4); the
-  farm cancels the power ripple that leaves (D-29 below). Nothing is derated, so the farm keeps its reserve.
+  farm cancels the power ripple that leaves (D-29 below). Nothing is derated below (1 − r) P_avail (D-32), so the
+  farm keeps its reserve.
   Why not the hold below: once the cancellation stopped ringing the pitch loop above rated (D-C4b), 20 development
   runs per case (seeds 4281, 4282, with twins) gave the cancel rule 89 % / 87 % of the run's drive-train
   damage-number excess removed at −0.1 / +0.6 kWh per run of missing power, and the hold 87 % / 84 % at +3.6 / +0.6:
   a held rotor has to speed up again whenever a lull needs its power (docs/farm.md §4).
+* **D-32, relief** of a drive train whose 3P is cancelled (rule ``cancel``; option ``drivetrain_relief`` = r,
+  default 0.1) [PROPOSED]: eq. (26) with the floor (1 − r) P_avail instead of P_min: while the farm has headroom,
+  the flagged turbine takes up to r P_avail of it, the others share the rest as in (18), and the farm-power trim
+  still acts on it, so in a lull it gives that power back first. Beyond the farm's maximum it runs at rated as
+  every turbine does. Why: a turbine asked for less than its share casts a weaker wake, which the rows behind it
+  turn into power when the farm later has none to spare; unrelieved, the accommodated turbine carried its full
+  share and the farm missed more power than with the fault unaccommodated (docs/farm.md §4, Table 7). r = 0.1
+  from three values on 20 development runs per case (seeds 4311, 4312): r = 0.05, 0.1, 0.2 moved case 2's missing
+  power −2.1, −4.1, −7.4 kWh per run against r = 0 and case 1's −0.1, +0.4, +1.1 (without the trim on the
+  relieved turbine; with it, r = 0.1 gave −3.9 and +0.15).
 * drive train, rule ``hold-torque`` [PROPOSED]: the turbine is derated by speed, not by torque.
   When the hold begins the dispatch fixes its speed floor ω_floor = clip(N_g λ w̄/R, ω_min, Ω_nom) and a cap S_max(λ)
   = η_dt (½ρπR³ C_q(λ, 0) w̄²/1.2 − B_r ω_r)/N_g on the held generator-side sum S = τ_g + B_g ω_g: what the rotor
@@ -124,7 +135,15 @@ HOLD_MAX_TORQUE_TSR = float(_TSR_GRID[np.argmax(aero.torque_coefficient(_TSR_GRI
 HOLD_TSRS = _TSR_GRID[_TSR_GRID <= HOLD_MAX_TORQUE_TSR + 1e-9]  # the λ a hold may choose, slowest first
 PI_KP, PI_KI, PI_LIMIT = 0.3, 0.05, 0.2  # PARAMETERS.md b [PROPOSED]
 TRIM_KP, TRIM_KI, TRIM_LIMIT = 0.5, 0.5, 0.1  # –, 1/s, –: the dispatch's farm-power trim [PROPOSED]
+DRIVETRAIN_RELIEF = 0.1  # –, share of its available power a flagged, cancelled drive train gives up, D-32 [PROPOSED]
 DEBRIS, PITCH, DRIVETRAIN = 0, 1, 2  # columns of ``faulty``
+
+
+def _share(value: object, name: str) -> float:
+    try:
+        return float(value)
+    except (TypeError, ValueError):
+        raise AlgorithmOptionError(f"{name}: {value!r} is not a number") from None
 
 
 def farm_power_pi(
@@ -149,6 +168,9 @@ class Dispatch:
         # [PROPOSED] variant of eq. (26), off by default: never derate a faulty turbine below this share of its
         # own available power (docs/farm.md §2.3, ``derate_floor``); 0 is the paper's P_min floor only.
         self.floor = float(options.get("derate_floor", 0.0))
+        self.relief = _share(options.get("drivetrain_relief", DRIVETRAIN_RELIEF), "drivetrain_relief")  # D-32
+        if not 0.0 <= self.relief <= 1.0:
+            raise AlgorithmOptionError(f"drivetrain_relief: {self.relief!r} is not a share in [0, 1]")
         self.rule = str(options.get("accommodation_rule", ACCOMMODATION_RULES[0]))
         self.hold_margin = float(options.get("hold_margin", HOLD_MARGIN))
         if self.rule not in ACCOMMODATION_RULES:
@@ -238,6 +260,7 @@ class Dispatch:
             self.released |= f[:, :, DRIVETRAIN].reshape(-1)
         released = self.released.reshape(farms, N_TURBINES)
         derate = (f[:, :, PITCH] & ~trimmed) | (f[:, :, DRIVETRAIN] & ~released)
+        relieved = f[:, :, DRIVETRAIN] & released & (self.rule == "cancel") & (self.relief > 0.0)
         self.pitch.step(sample, trimmed.reshape(-1))
         avail = np.where(debris, DEBRIS_FACTOR * avail, avail)  # eq. (23)
         over = avail.sum(axis=1) - demand  # eq. (25)
@@ -257,8 +280,9 @@ class Dispatch:
             # it the taper's knee, step by step, until the rotor stalled (docs/farm.md, D-26b)
             held = p.eta_gc * (self.held_sum - p.B_g * self.speed_floor) * self.speed_floor
             floor = np.where(hold, np.maximum(held.reshape(farms, N_TURBINES), P_MIN_W), floor)
+        floor = np.where(relieved, np.maximum(floor, (1.0 - self.relief) * avail), floor)
         for t in range(N_TURBINES):  # eq. (26), headroom shared out in turbine order (D-26)
-            hit = derate[:, t]
+            hit = derate[:, t] | relieved[:, t]
             if hit.any():
                 reduced = np.maximum(np.maximum(avail[:, t] - np.maximum(over, 0.0), 0.0), floor[:, t])
                 reduced = np.maximum(reduced, np.minimum(self.floor * avail[:, t], avail[:, t]))
@@ -278,7 +302,7 @@ class Dispatch:
         # beyond the farm's maximum every turbine runs at rated, but a held one stays at its floor (until released)
         refs = np.where(active[:, None], share, np.where(hold, floor, self.p.rated_power))
         if self.trim_kp > 0.0 or self.trim_ki > 0.0:
-            refs = self._trimmed(sample, refs, active, ~(derate | hold))
+            refs = self._trimmed(sample, refs, active, ~(derate | hold))  # a relieved turbine too (D-32)
         refs = np.clip(refs, 0.0, self.p.rated_power).reshape(-1)
         self.speed_floor = np.where(hold.reshape(-1), self.speed_floor, np.nan)
         self.held_torque = np.where(hold.reshape(-1), self.held_torque, np.nan)

@@ -8,7 +8,15 @@ import pytest
 from scipy import signal
 
 from plant_sim.farm import FarmBatch
-from service.farm.dispatch import ACCOMMODATION_RULES, HOLD_RESERVE, RELEASE_AFTER_S, Dispatch
+from service.farm.dispatch import (
+    ACCOMMODATION_RULES,
+    DRIVETRAIN_RELIEF,
+    HOLD_RESERVE,
+    RELEASE_AFTER_S,
+    TRIM_KI,
+    TRIM_KP,
+    Dispatch,
+)
 from service.farm.interfaces import BETA, OMEGA_G, P_G, TAU_G, FarmContext, FarmSample
 from service.farm.pitch_trim import AVERAGING_S
 from service.farm.ripple import SETTLE_S, RippleCompensation
@@ -187,10 +195,52 @@ def test_a_hold_is_released_when_the_others_would_need_more_than_their_margin(ma
 
 
 def test_the_default_rule_cancels_the_3p_and_never_holds():
-    d, sample = _held_dispatch(accommodation_rule=ACCOMMODATION_RULES[0])
+    d, sample = _held_dispatch(accommodation_rule=ACCOMMODATION_RULES[0], drivetrain_relief=0.0)
     assert ACCOMMODATION_RULES[0] == "cancel" and _dispatch().rule == "cancel"
     refs = d.step(sample, _faulty(1, 2))
     assert d.mode[1] == CANCEL_3P_MODE and refs == pytest.approx(np.full(9, 12.0 / 9 * MW))
+
+
+def test_a_relieved_drive_train_takes_the_farms_headroom_down_to_its_floor():
+    """D-32, eq. (26) with the floor (1 − r) P_avail: nine turbines with 2 MW each, r = 0.1. Asked for 12 MW, the
+    flagged turbine's P_avail,f = max(2 − 6, 1.8) = 1.8 MW and (18) gives it 1.8/17.8 × 12 MW, the others 2/17.8 × 12
+    each. Asked for 17.9 MW it takes the whole 0.1 MW of headroom: 1.9 MW, the others their 2 MW. Beyond the
+    farm's maximum every turbine, the relieved one too, gets rated power. The 3P stays cancelled throughout."""
+    assert DRIVETRAIN_RELIEF == 0.1 and _dispatch().relief == DRIVETRAIN_RELIEF
+    d = _dispatch()
+    refs = d.step(_sample(demand_mw=12.0), _faulty(1, 2)) / MW
+    assert refs[1] == pytest.approx(1.8 / 17.8 * 12.0)
+    assert np.delete(refs, 1) == pytest.approx(np.full(8, 2.0 / 17.8 * 12.0))
+    assert refs.sum() == pytest.approx(12.0) and d.mode[1] == CANCEL_3P_MODE
+    refs = d.step(_sample(2, demand_mw=17.9), _faulty(1, 2)) / MW
+    assert refs[1] == pytest.approx(1.9) and np.delete(refs, 1) == pytest.approx(np.full(8, 2.0))
+    refs = d.step(_sample(3, demand_mw=20.0), _faulty(1, 2))
+    assert refs == pytest.approx(np.full(9, P.rated_power)) and d.mode[1] == CANCEL_3P_MODE
+
+
+def test_the_farm_power_trim_still_acts_on_a_relieved_drive_train():
+    """The trim's first step with no measured power: e = 1, u = sat(0.5 + 0.5 × 0.1) = +10 % on every reference,
+    the relieved turbine's included (it gives its relief back first when the farm falls short)."""
+    d = _dispatch(trim_kp=TRIM_KP, trim_ki=TRIM_KI)
+    refs = d.step(_sample(demand_mw=12.0), _faulty(1, 2)) / MW
+    assert refs[1] == pytest.approx(1.1 * 1.8 / 17.8 * 12.0)
+    assert np.delete(refs, 1) == pytest.approx(np.full(8, 1.1 * 2.0 / 17.8 * 12.0))
+
+
+def test_the_relief_leaves_a_hold_and_the_other_faults_alone():
+    """Relief is for a cancelled drive train only: a debris flag keeps eqs. (23)–(24), and under rule
+    ``hold-torque`` the held turbine's floor is the hold's, whatever r is."""
+    refs = _dispatch(drivetrain_relief=0.5).step(_sample(demand_mw=12.0), _faulty(1, 0)) / MW
+    assert refs == pytest.approx(_dispatch(drivetrain_relief=0.0).step(_sample(demand_mw=12.0), _faulty(1, 0)) / MW)
+    held = [_held_dispatch(accommodation_rule="hold-torque", drivetrain_relief=r) for r in (0.0, 0.5)]
+    refs = [d.step(sample, _faulty(1, 2)) for d, sample in held]
+    assert refs[0] == pytest.approx(refs[1]) and held[1][0].mode[1] == HOLD_TORQUE_MODE
+
+
+@pytest.mark.parametrize("relief", [-0.1, 1.5, "lots", None])
+def test_a_relief_that_is_not_a_share_is_refused(relief):
+    with pytest.raises(ValueError, match="drivetrain_relief"):
+        _dispatch(drivetrain_relief=relief)
 
 
 def _cancelling_farm(speed: float, compensation: bool = True) -> dict[str, np.ndarray]:

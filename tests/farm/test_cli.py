@@ -71,7 +71,11 @@ def test_unknown_farm_detector_is_refused_before_running(tmp_path):
 
 @pytest.mark.parametrize(
     "params, named",
-    [('pitch_rule = "bend"', "pitch_rule"), ('accommodation_rule = "stop"', "accommodation_rule")],
+    [
+        ('pitch_rule = "bend"', "pitch_rule"),
+        ('accommodation_rule = "stop"', "accommodation_rule"),
+        ("drivetrain_relief = 2.0", "drivetrain_relief"),
+    ],
 )
 def test_an_accommodation_rule_no_controller_knows_is_refused_before_running(tmp_path, capsys, params, named):
     path = tmp_path / "farm.toml"
