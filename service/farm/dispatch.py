@@ -139,11 +139,16 @@ DRIVETRAIN_RELIEF = 0.1  # –, share of its available power a flagged, cancelle
 DEBRIS, PITCH, DRIVETRAIN = 0, 1, 2  # columns of ``faulty``
 
 
-def _share(value: object, name: str) -> float:
+def _share_option(options: dict, name: str, default: float) -> float:
+    """``options[name]`` (else ``default``) as a share in [0, 1]; an AlgorithmOptionError naming it otherwise."""
+    value = options.get(name, default)
     try:
-        return float(value)
+        share = float(value)
     except (TypeError, ValueError):
-        raise AlgorithmOptionError(f"{name}: {value!r} is not a number") from None
+        share = float("nan")
+    if not 0.0 <= share <= 1.0:
+        raise AlgorithmOptionError(f"{name}: {value!r} is not a share in [0, 1]")
+    return share
 
 
 def farm_power_pi(
@@ -168,9 +173,7 @@ class Dispatch:
         # [PROPOSED] variant of eq. (26), off by default: never derate a faulty turbine below this share of its
         # own available power (docs/farm.md §2.3, ``derate_floor``); 0 is the paper's P_min floor only.
         self.floor = float(options.get("derate_floor", 0.0))
-        self.relief = _share(options.get("drivetrain_relief", DRIVETRAIN_RELIEF), "drivetrain_relief")  # D-32
-        if not 0.0 <= self.relief <= 1.0:
-            raise AlgorithmOptionError(f"drivetrain_relief: {self.relief!r} is not a share in [0, 1]")
+        self.relief = _share_option(options, "drivetrain_relief", DRIVETRAIN_RELIEF)  # D-32
         self.rule = str(options.get("accommodation_rule", ACCOMMODATION_RULES[0]))
         self.hold_margin = float(options.get("hold_margin", HOLD_MARGIN))
         if self.rule not in ACCOMMODATION_RULES:
