@@ -51,6 +51,19 @@ def test_eval_writes_the_farm_scorecard(tmp_path):
     assert set(metrics["detection"]) == {"debris", "pitch_misalignment", "drivetrain"}
 
 
+def test_the_scorecard_keeps_each_runs_energy_for_paired_comparisons(tmp_path):
+    path = tmp_path / "farm.toml"
+    path.write_text(SCENARIO.replace("duration_s = 80.0", "duration_s = 70.0"))
+    out = tmp_path / "out"
+    assert main(["eval", str(path), "--runs", "2", "--out", str(out), "--quiet", "--workers", "1", "--no-plots"]) == 0
+    metrics = json.loads((out / "scorecard.json").read_text())["metrics"]
+    for name in ("over_production", "missing_power"):
+        by_run = metrics[name]["mwh_by_run"]
+        assert len(by_run) == 2 and min(by_run) >= 0.0
+        assert sum(by_run) / 2 == pytest.approx(metrics[name]["mwh_per_run"])
+    assert max(metrics["missing_power"]["mwh_by_run"]) > 0.0
+
+
 def test_eval_takes_the_paper_detector_the_pi_and_no_accommodation(tmp_path):
     path = tmp_path / "farm.toml"
     path.write_text(
