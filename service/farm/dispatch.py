@@ -283,12 +283,13 @@ class Dispatch:
             # it the taper's knee, step by step, until the rotor stalled (docs/farm.md, D-26b)
             held = p.eta_gc * (self.held_sum - p.B_g * self.speed_floor) * self.speed_floor
             floor = np.where(hold, np.maximum(held.reshape(farms, N_TURBINES), P_MIN_W), floor)
-        floor = np.where(relieved, np.maximum(floor, (1.0 - self.relief) * avail), floor)
+        # the share of its own available power a turbine keeps: ``derate_floor`` for (26), 1 − r for D-32
+        kept = np.where(relieved, 1.0 - self.relief, self.floor)
         for t in range(N_TURBINES):  # eq. (26), headroom shared out in turbine order (D-26)
             hit = derate[:, t] | relieved[:, t]
             if hit.any():
                 reduced = np.maximum(np.maximum(avail[:, t] - np.maximum(over, 0.0), 0.0), floor[:, t])
-                reduced = np.maximum(reduced, np.minimum(self.floor * avail[:, t], avail[:, t]))
+                reduced = np.maximum(reduced, np.minimum(kept[:, t] * avail[:, t], avail[:, t]))
                 taken = np.where(hit, avail[:, t] - reduced, 0.0)
                 avail[:, t] = np.where(hit, reduced, avail[:, t])
                 over = over - taken
