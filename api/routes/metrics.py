@@ -9,7 +9,7 @@ from fastapi import APIRouter
 from fastapi.responses import PlainTextResponse
 
 from api.bridge import Bridge, QueryFailedError
-from api.deps import BridgeDep
+from api.deps import ANY_ROUTE, BridgeDep, CountersDep, documented
 from wwcore.wire import Process
 
 router = APIRouter(tags=["metrics"])
@@ -55,8 +55,8 @@ def _gather(bridge: Bridge) -> tuple[dict[str, Any] | None, dict[str, Any] | Non
     return plant, sup
 
 
-@router.get("/metrics", response_class=PlainTextResponse)
-async def metrics(bridge: BridgeDep) -> PlainTextResponse:
+@router.get("/metrics", response_class=PlainTextResponse, responses=documented(*ANY_ROUTE))
+async def metrics(bridge: BridgeDep, counters: CountersDep) -> PlainTextResponse:
     plant, sup = await asyncio.to_thread(_gather, bridge)
     out = Exposition()
     out.metric(
@@ -104,14 +104,18 @@ async def metrics(bridge: BridgeDep) -> PlainTextResponse:
         "injections_total",
         "counter",
         "fault injections by outcome",
-        [({"outcome": k}, v) for k, v in sorted(bridge.injections.items())],
+        [({"outcome": k}, v) for k, v in sorted(counters.injections.items())],
     )
-    with bridge.requests_lock:
-        requests = sorted(bridge.requests.items())
     out.metric(
         "api_requests_total",
         "counter",
-        "HTTP requests by method, route and status",
-        [({"method": m, "route": r, "status": s}, n) for (m, r, s), n in requests],
+        "HTTP requests by method, route and status (this one not yet counted)",
+        [({"method": m, "route": r, "status": s}, n) for (m, r, s), n in sorted(counters.requests.items())],
+    )
+    out.metric(
+        "api_refused_total",
+        "counter",
+        "HTTP requests refused, by reason (unauthorized, rate_limited, body_too_large, invalid, fault_cap, ...)",
+        [({"reason": reason}, n) for reason, n in sorted(counters.refusals.items())],
     )
     return PlainTextResponse(out.text(), media_type="text/plain; version=0.0.4")
