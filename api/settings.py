@@ -14,7 +14,7 @@ from pydantic_settings import BaseSettings, SettingsConfigDict
 from windwarden.live.config import ApiSettings as ApiProcessSettings
 
 ACCESS_LOG = "api-access.jsonl"  # in the run folder
-MAX_INJECTIONS = 400  # a run's fault list (every fault ever injected) must fit in one Zenoh reply, see the tests
+MAX_INJECTIONS = 300  # a run's fault list (every fault ever injected) must fit in one Zenoh reply: see the tests
 
 
 class ApiLimits(BaseSettings):
