@@ -94,11 +94,11 @@ class RequestGuard:
         if declared is not None and declared > limit:
             await too_large(scope, receive, send, f"the declared body of {declared} bytes is over {limit} bytes")
             return
-        body = await read_body(receive, limit)
+        body, size = await read_body(receive, limit)
+        scope["state"]["bytes_in"] = size
         if body is None:
             await too_large(scope, receive, send, f"the body is over {limit} bytes")
             return
-        scope["state"]["bytes_in"] = len(body)
         await self.app(scope, replay(body, receive), self._allow_all_methods(scope, send))
 
     def _allow_all_methods(self, scope: Scope, send: Send) -> Send:
@@ -112,8 +112,9 @@ class RequestGuard:
         return send_with_allow
 
 
-async def read_body(receive: Receive, limit: int) -> bytes | None:
-    """The request body as it streams in, or None as soon as it passes ``limit`` bytes (the rest left unread)."""
+async def read_body(receive: Receive, limit: int) -> tuple[bytes | None, int]:
+    """The request body as it streams in, or None as soon as it passes ``limit`` bytes (the rest left unread);
+    and the bytes read."""
     chunks: list[bytes] = []
     size = 0
     while True:
@@ -123,11 +124,11 @@ async def read_body(receive: Receive, limit: int) -> bytes | None:
         chunk = message.get("body", b"")
         size += len(chunk)
         if size > limit:
-            return None
+            return None, size
         chunks.append(chunk)
         if not message.get("more_body", False):
             break
-    return b"".join(chunks)
+    return b"".join(chunks), size
 
 
 def replay(body: bytes, receive: Receive) -> Receive:
