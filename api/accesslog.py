@@ -34,6 +34,7 @@ REFUSALS = {
     403: "forbidden",
     404: "not_found",
     405: "method_not_allowed",
+    408: "body_timeout",
     409: "conflict",
     413: "body_too_large",
     422: "invalid",

@@ -44,6 +44,7 @@ TokenDep = Annotated[HTTPAuthorizationCredentials | None, Security(bearer)]
 RETRY_AFTER = {"Retry-After": {"description": "seconds to wait before trying again", "schema": {"type": "integer"}}}
 ERRORS = {
     401: "missing or wrong bearer token (checked before the body is read)",
+    408: "the request body did not all arrive within WINDWARDEN_API_BODY_TIMEOUT_S (the connection is closed)",
     413: "request body over WINDWARDEN_API_MAX_BODY_BYTES, refused unread (the connection is closed)",
     422: "invalid request: one item per bad field",
     429: "too many mutating requests from this client (WINDWARDEN_API_RATE_*); see Retry-After",
@@ -55,7 +56,7 @@ UPSTREAM_503 = (
     "the plant or supervisor is not running (no liveliness token) or could not apply the command in time; or the "
     "API has WINDWARDEN_API_MAX_CONCURRENT requests in progress (then with Retry-After)"
 )
-ANY_ROUTE = (413, 503)  # the body cap and the concurrency limit (api.guard)
+ANY_ROUTE = (408, 413, 503)  # the body's time and size limits and the concurrency limit (api.guard)
 MUTATING_ROUTE = (401, 429)  # the rate limit and the token (api.guard)
 UPSTREAM = (502, 503, 504)  # a route that asks the plant or the supervisor
 

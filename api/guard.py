@@ -1,14 +1,16 @@
 """What every request passes before any route runs, in this order (pure ASGI, no body parsed):
 
-1. requests in progress: more than ``WINDWARDEN_API_MAX_CONCURRENT`` at once → 503 with ``Retry-After``;
-2. mutating requests (POST, PUT, PATCH, DELETE) only:
+1. mutating requests (POST, PUT, PATCH, DELETE) only:
    a. the client's token bucket (``WINDWARDEN_API_RATE_PER_S``, ``WINDWARDEN_API_RATE_BURST``) → 429 with
       ``Retry-After``; every mutating request takes a token, with the right bearer token or not, so guessing
       the token is rate-limited as well;
    b. the bearer token → 401 whatever the body;
-3. the body: a declared ``Content-Length`` over ``WINDWARDEN_API_MAX_BODY_BYTES`` → 413 before a byte is read;
+2. the body: a declared ``Content-Length`` over ``WINDWARDEN_API_MAX_BODY_BYTES`` → 413 before a byte is read;
    otherwise it is read as it streams (chunked too), counting bytes, and the request is refused with 413 as soon
-   as the count passes the limit; a 413 closes the connection, so the rest of the body is never read.
+   as the count passes the limit, or with 408 if it has not all come within ``WINDWARDEN_API_BODY_TIMEOUT_S``;
+   both close the connection, so the rest of the body is never read;
+3. requests in progress: with ``WINDWARDEN_API_MAX_CONCURRENT`` already in the app → 503 with ``Retry-After``.
+   A request holds its place only while the app works on it, not while its body trickles in.
 
 The body read here is handed to the app unchanged. A 405 also gets an ``Allow`` header naming every method of its
 path (Starlette names only the first route's).
@@ -16,7 +18,9 @@ path (Starlette names only the first route's).
 
 from __future__ import annotations
 
+import asyncio
 import secrets
+from typing import Any
 
 from starlette.datastructures import Headers
 from starlette.types import ASGIApp, Message, Receive, Scope, Send
@@ -61,17 +65,6 @@ class RequestGuard:
         if scope["type"] != "http":
             await self.app(scope, receive, send)
             return
-        if self.in_progress >= self.settings.api_max_concurrent:
-            detail = f"{self.in_progress} requests in progress, the most this API takes (WINDWARDEN_API_MAX_CONCURRENT)"
-            await refuse(scope, receive, send, 503, "overloaded", detail, {"Retry-After": "1"})
-            return
-        self.in_progress += 1
-        try:
-            await self._guarded(scope, receive, send)
-        finally:
-            self.in_progress -= 1
-
-    async def _guarded(self, scope: Scope, receive: Receive, send: Send) -> None:
         headers = Headers(scope=scope)
         scope.setdefault("state", {})
         if scope["method"] in MUTATING:
@@ -94,12 +87,25 @@ class RequestGuard:
         if declared is not None and declared > limit:
             await too_large(scope, receive, send, f"the declared body of {declared} bytes is over {limit} bytes")
             return
-        body, size = await read_body(receive, limit)
-        scope["state"]["bytes_in"] = size
+        timeout = self.settings.api_body_timeout_s
+        try:
+            body = await asyncio.wait_for(read_body(receive, limit, scope["state"]), timeout)
+        except TimeoutError:
+            detail = f"the body did not arrive within {timeout:g} s (WINDWARDEN_API_BODY_TIMEOUT_S)"
+            await refuse(scope, receive, send, 408, "body_timeout", detail, {"Connection": "close"})
+            return
         if body is None:
             await too_large(scope, receive, send, f"the body is over {limit} bytes")
             return
-        await self.app(scope, replay(body, receive), self._allow_all_methods(scope, send))
+        if self.in_progress >= self.settings.api_max_concurrent:
+            detail = f"{self.in_progress} requests in progress, the most this API takes (WINDWARDEN_API_MAX_CONCURRENT)"
+            await refuse(scope, receive, send, 503, "overloaded", detail, {"Retry-After": "1"})
+            return
+        self.in_progress += 1
+        try:
+            await self.app(scope, replay(body, receive), self._allow_all_methods(scope, send))
+        finally:
+            self.in_progress -= 1
 
     def _allow_all_methods(self, scope: Scope, send: Send) -> Send:
         async def send_with_allow(message: Message) -> None:
@@ -112,23 +118,23 @@ class RequestGuard:
         return send_with_allow
 
 
-async def read_body(receive: Receive, limit: int) -> tuple[bytes | None, int]:
-    """The request body as it streams in, or None as soon as it passes ``limit`` bytes (the rest left unread);
-    and the bytes read."""
+async def read_body(receive: Receive, limit: int, state: dict[str, Any]) -> bytes | None:
+    """The request body as it streams in, or None as soon as it passes ``limit`` bytes (the rest left unread).
+    ``state["bytes_in"]`` counts the bytes read so far."""
     chunks: list[bytes] = []
-    size = 0
+    size = state["bytes_in"] = 0
     while True:
         message = await receive()
         if message["type"] != "http.request":  # the client went away: the app will see the disconnect
             break
         chunk = message.get("body", b"")
-        size += len(chunk)
+        size = state["bytes_in"] = size + len(chunk)
         if size > limit:
-            return None, size
+            return None
         chunks.append(chunk)
         if not message.get("more_body", False):
             break
-    return b"".join(chunks), size
+    return b"".join(chunks)
 
 
 def replay(body: bytes, receive: Receive) -> Receive:

@@ -25,6 +25,9 @@ class ApiLimits(BaseSettings):
     api_max_body_bytes: int = Field(
         default=16_384, ge=1024, le=1_048_576, description="bytes; a larger request body is refused (413) unread"
     )
+    api_body_timeout_s: float = Field(
+        default=10.0, gt=0.0, le=600.0, description="s; a body that has not all come by then is refused (408)"
+    )
     api_rate_per_s: float = Field(
         default=2.0, gt=0.0, le=10_000.0, description="mutating requests per second per client (token refill rate)"
     )

@@ -10,6 +10,7 @@ The schemathesis run (``test_api_schema.py``) checks, against a live run, that r
 from __future__ import annotations
 
 import itertools
+import socket
 import threading
 import time
 from collections.abc import Callable, Iterator
@@ -147,6 +148,20 @@ class Harness:
         with self.client() as c:
             return c.request(method, path, **kwargs)
 
+    def slow_body(self, method: str, path: str) -> httpx.Response:
+        """A request that promises 10 body bytes and sends 2, from its own address, read off the socket."""
+        host, port = self.base.removeprefix("http://").split(":")
+        head = f"{method} {path} HTTP/1.1\r\nHost: a\r\nAuthorization: Bearer {TOKEN}\r\nContent-Length: 10\r\n\r\n{{}}"
+        with socket.create_connection((host, int(port)), timeout=30, source_address=(next(self._addresses), 0)) as s:
+            s.sendall(head.encode())
+            answer = b""
+            while chunk := s.recv(65536):
+                answer += chunk
+        head_text, _, body = answer.partition(b"\r\n\r\n")
+        lines = head_text.decode("latin-1").split("\r\n")
+        headers = [tuple(part.strip() for part in line.split(":", 1)) for line in lines[1:]]
+        return httpx.Response(int(lines[0].split()[1]), headers=headers, content=body)
+
 
 @pytest.fixture(scope="module")
 def harness() -> Iterator[Harness]:
@@ -157,7 +172,12 @@ def harness() -> Iterator[Harness]:
         return bridges[-1]
 
     settings = ApiSettings(
-        api_token=TOKEN, api_rate_per_s=0.01, api_rate_burst=3, api_max_concurrent=1, api_max_faults_per_turbine=2
+        api_token=TOKEN,
+        api_rate_per_s=0.01,
+        api_rate_burst=3,
+        api_max_concurrent=1,
+        api_max_faults_per_turbine=2,
+        api_body_timeout_s=0.3,
     )
     with serve(create_app(settings, bridge_factory=factory)) as base:
         yield Harness(base, bridges[0])
@@ -200,6 +220,10 @@ def upstream_cases(method: str, path: str, process: str, **kwargs: Any) -> list[
     ]
 
 
+def slow(method: str, path: str) -> Case:
+    return 408, "a body that stops coming", lambda h: h.slow_body(method, path)
+
+
 def big(method: str, path: str) -> Case:
     return 413, "a body over the cap", lambda h: h.send(method, path, content=b"{" + b" " * 20_000 + b"}", headers=AUTH)
 
@@ -228,11 +252,17 @@ def with_token(method: str, path: str, **kwargs: Any) -> Callable[[Harness], htt
 
 
 CASES: dict[tuple[str, str], list[Case]] = {
-    ("GET", "/health"): [(200, "ok", get("/health")), big("GET", "/health")],
-    ("GET", "/run"): [(200, "ok", get("/run")), big("GET", "/run"), *upstream_cases("GET", "/run", "plant")],
+    ("GET", "/health"): [(200, "ok", get("/health")), big("GET", "/health"), slow("GET", "/health")],
+    ("GET", "/run"): [
+        (200, "ok", get("/run")),
+        big("GET", "/run"),
+        slow("GET", "/run"),
+        *upstream_cases("GET", "/run", "plant"),
+    ],
     ("GET", "/faults"): [
         (200, "ok", get("/faults")),
         big("GET", "/faults"),
+        slow("GET", "/faults"),
         *upstream_cases("GET", "/faults", "plant"),
     ],
     ("POST", "/faults"): [
@@ -241,6 +271,7 @@ CASES: dict[tuple[str, str], list[Case]] = {
         (409, "a label that exists", with_token("POST", "/faults", json=GOOD | {"name": "known"})),
         (409, "the per-turbine cap (2)", at_cap),
         big("POST", "/faults"),
+        slow("POST", "/faults"),
         (422, "a boolean value", with_token("POST", "/faults", json=GOOD | {"value": True})),
         rate_limited("POST", "/faults", json=GOOD | {"value": "x"}),
         *upstream_cases("POST", "/faults", "plant", json=GOOD, headers=AUTH),
@@ -251,6 +282,7 @@ CASES: dict[tuple[str, str], list[Case]] = {
         (404, "no such label", with_token("DELETE", "/faults/nothing")),
         (409, "ended already", with_token("DELETE", "/faults/over")),
         big("DELETE", "/faults/known"),
+        slow("DELETE", "/faults/known"),
         (422, "a control character", with_token("DELETE", "/faults/bad%01label")),
         rate_limited("DELETE", "/faults/nothing"),
         *upstream_cases("DELETE", "/faults/known", "plant", headers=AUTH),
@@ -258,21 +290,24 @@ CASES: dict[tuple[str, str], list[Case]] = {
     ("GET", "/supervisor/status"): [
         (200, "ok", get("/supervisor/status")),
         big("GET", "/supervisor/status"),
+        slow("GET", "/supervisor/status"),
         *upstream_cases("GET", "/supervisor/status", "supervisor"),
     ],
     ("GET", "/supervisor/status/{turbine}"): [
         (200, "ok", get("/supervisor/status/1")),
         (404, "no such turbine", get("/supervisor/status/7")),
         big("GET", "/supervisor/status/1"),
+        slow("GET", "/supervisor/status/1"),
         (422, "turbine 0", get("/supervisor/status/0")),
         *upstream_cases("GET", "/supervisor/status/1", "supervisor"),
     ],
     ("GET", "/events"): [
         (200, "ok", get("/events")),
         big("GET", "/events"),
+        slow("GET", "/events"),
         (422, "since < 0", get("/events", params={"since": -1})),
     ],
-    ("GET", "/metrics"): [(200, "ok", get("/metrics")), big("GET", "/metrics")],
+    ("GET", "/metrics"): [(200, "ok", get("/metrics")), big("GET", "/metrics"), slow("GET", "/metrics")],
 }
 EXAMPLE_PATH = {template: template.replace("{label}", "known").replace("{turbine}", "1") for _, template in CASES}
 

@@ -36,6 +36,8 @@ BURST = 6
 RATE = 0.05  # per second: a refused client waits 20 s
 PER_TURBINE = 3
 BODY_CAP = 16_384
+BODY_TIMEOUT_S = 2.0
+MAX_CONCURRENT = 64
 RUN = """
 name = "security-api"
 duration_s = 900.0
@@ -45,8 +47,8 @@ kind = "turbine"
 mean = [[0.0, 12.0]]
 """
 GOOD = {"target": "omega_g_m2", "kind": "fixed", "value": 100.0, "start_s": 700.0, "end_s": 750.0}
-REASONS = {401: "unauthorized", 404: "not_found", 405: "method_not_allowed", 413: "body_too_large", 422: "invalid",
-           429: "rate_limited"}  # fmt: skip
+REASONS = {401: "unauthorized", 404: "not_found", 405: "method_not_allowed", 408: "body_timeout",
+           413: "body_too_large", 422: "invalid", 429: "rate_limited"}  # fmt: skip
 
 
 def reason_of(status: int, detail: Any) -> str | None:
@@ -139,6 +141,8 @@ def probe(tmp_path_factory) -> Iterator[Probe]:
             api_rate_burst=BURST,
             api_max_faults_per_turbine=PER_TURBINE,
             api_max_body_bytes=BODY_CAP,
+            api_body_timeout_s=BODY_TIMEOUT_S,
+            api_max_concurrent=MAX_CONCURRENT,
         )
         with serve(create_app(settings)) as base:
             p = Probe(base, nodes)
@@ -181,6 +185,36 @@ def test_a_chunked_body_is_refused_once_it_passes_the_cap(probe):
     status, headers, sent = probe.raw(head, itertools.repeat(piece, 50_000_000 // 8192))
     assert status == 413 and headers["connection"] == "close"
     assert sent < 8 * 2**20, f"{sent} bytes went out before the 413 (50 MB offered)"
+    assert probe.plant_book() == before
+
+
+def test_bodies_that_trickle_in_time_out_without_holding_the_api(probe):
+    """More clients than the API takes at once each promise a body and stop sending: the API keeps answering
+    others meanwhile, and each of them gets 408 once ``WINDWARDEN_API_BODY_TIMEOUT_S`` is up."""
+    before = probe.plant_book()
+    head = (
+        f"POST /faults HTTP/1.1\r\nHost: {probe.host}\r\nAuthorization: Bearer {TOKEN}\r\n"
+        'Content-Type: application/json\r\nContent-Length: 1000\r\n\r\n{"target": '
+    ).encode()
+    sockets = []
+    try:
+        for _ in range(MAX_CONCURRENT + 6):
+            s = socket.create_connection((probe.host, probe.port), timeout=30, source_address=(probe.address(), 0))
+            sockets.append(s)
+            s.sendall(head)
+        started = time.monotonic()
+        assert probe.send("GET", "/faults").status_code == 200  # not held up by them
+        assert time.monotonic() - started < BODY_TIMEOUT_S
+        for s in sockets:
+            answer = b""
+            while chunk := s.recv(65536):
+                answer += chunk
+            status = int(answer.split(b" ", 2)[1])
+            probe.count(status, answer.partition(b"\r\n\r\n")[2].decode())
+            assert status == 408 and b"WINDWARDEN_API_BODY_TIMEOUT_S" in answer, answer[:300]
+    finally:
+        for s in sockets:
+            s.close()
     assert probe.plant_book() == before
 
 
@@ -368,7 +402,7 @@ def test_every_refusal_is_counted_in_metrics_and_in_the_access_log_and_the_plant
         }
     )
     assert counted == probe.refused, f"metrics {dict(counted)} vs sent {dict(probe.refused)}"
-    assert {"body_too_large", "invalid", "rate_limited", "unauthorized", "fault_cap"} <= set(counted)
+    assert {"body_too_large", "body_timeout", "invalid", "rate_limited", "unauthorized", "fault_cap"} <= set(counted)
 
     log_path = probe.nodes.run_dir / ACCESS_LOG
     lines = [json.loads(line) for line in log_path.read_text().splitlines()]
