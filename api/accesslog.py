@@ -28,6 +28,7 @@ from api.routing import RouteTemplates
 
 MAX_PATH_CHARS = 512
 MAX_QUERY_CHARS = 256
+METHODS = frozenset({"GET", "HEAD", "POST", "PUT", "PATCH", "DELETE", "OPTIONS"})  # others are counted as "other"
 REFUSALS = {
     400: "bad_request",
     401: "unauthorized",
@@ -130,7 +131,8 @@ class AccessLog:
     def _record(self, scope: Scope, status: int, nbytes: int, duration_s: float) -> None:
         route = self.routes.of(scope)
         reason = refusal(scope, status)
-        self.counters.requests[(scope["method"], route, status)] += 1
+        method = scope["method"] if scope["method"] in METHODS else "other"  # metric labels stay bounded
+        self.counters.requests[(method, route, status)] += 1
         if reason is not None:
             self.counters.refusals[reason] += 1
         if self.log is None:
@@ -140,7 +142,7 @@ class AccessLog:
         record: dict[str, Any] = {
             "time": datetime.now(UTC).isoformat(timespec="milliseconds").replace("+00:00", "Z"),
             "client": f"{client[0]}:{client[1]}" if client else None,
-            "method": scope["method"],
+            "method": _cut(scope["method"], 32),
             "path": _cut(scope["path"], MAX_PATH_CHARS),
             "route": route,
             "status": status,

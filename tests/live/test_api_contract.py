@@ -378,3 +378,13 @@ def test_no_route_returns_an_undocumented_code_whatever_the_plant_does(h, state)
         for body, headers in itertools.product(bodies, (AUTH, {})):
             response = h.send(method, path, json=body, headers=headers)
             assert response.status_code in codes, (method, template, body, response.status_code, response.text)
+
+
+def test_metric_labels_stay_bounded_whatever_the_method_or_path(h):
+    for i in range(5):
+        assert h.send(f"BREW{i}", "/faults").status_code == 405
+        assert h.send("GET", f"/nothing/{i}").status_code == 404
+    text = h.send("GET", "/metrics").text
+    assert "BREW" not in text and "/nothing" not in text
+    assert 'method="other",route="/faults",status="405"}' in text
+    assert 'method="GET",route="unmatched",status="404"}' in text
