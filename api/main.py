@@ -18,12 +18,16 @@ from api.errors import SafeJSONResponse, http_error, validation_error
 from api.guard import RequestGuard
 from api.routes import docs, events, faults, health, metrics, run, supervisor
 from api.routing import RouteTemplates
-from api.settings import ApiSettings
+from api.settings import ApiProcessSettings, ApiSettings
 
 
-def create_app(settings: ApiSettings | None = None, bridge_factory: Callable[[ApiSettings], Any] = Bridge) -> FastAPI:
-    """The app; ``bridge_factory`` builds its link to plant and supervisor when it starts (a stand-in in tests)."""
-    settings = settings or ApiSettings()
+def create_app(
+    settings: ApiProcessSettings | None = None, bridge_factory: Callable[[ApiSettings], Any] = Bridge
+) -> FastAPI:
+    """The app; ``bridge_factory`` builds its link to plant and supervisor when it starts (a stand-in in tests).
+    Given only the process's settings (``windwarden.live.config``), the limits come from the environment."""
+    if not isinstance(settings, ApiSettings):
+        settings = ApiSettings(**(settings.model_dump(exclude_unset=True) if settings is not None else {}))
     log_path = settings.access_log_path()
     access_log = AccessLogFile(log_path, settings.api_access_log_max_bytes) if log_path else None
 

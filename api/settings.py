@@ -69,4 +69,4 @@ class ApiSettings(ApiProcessSettings, ApiLimits):
         return self.run_dir / ACCESS_LOG if self.run_dir is not None else None
 
 
-__all__ = ["ACCESS_LOG", "MAX_INJECTIONS", "ApiLimits", "ApiSettings"]
+__all__ = ["ACCESS_LOG", "MAX_INJECTIONS", "ApiLimits", "ApiProcessSettings", "ApiSettings"]
