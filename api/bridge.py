@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import threading
 import time
-from collections import Counter, deque
+from collections import deque
 from typing import Any
 
 from api.settings import ApiSettings
@@ -67,9 +67,6 @@ class Bridge:
         self.keys = settings.keys
         self.timeout = settings.query_timeout_s
         self.drops = DropCounter()
-        self.requests: Counter[tuple[str, str, int]] = Counter()
-        self.requests_lock = threading.Lock()
-        self.injections: Counter[str] = Counter()  # accepted / refused / failed
         self.events = EventStore(settings.events_kept)
         self.session = open_session(settings)
         self._events_sub = self.session.declare_subscriber(self.keys.events, self._on_event)
@@ -96,10 +93,6 @@ class Bridge:
             self.drops.add("events", getattr(error, "reason", "bad_body"))
             return
         self.events.add(body)
-
-    def count_request(self, method: str, route: str, status: int) -> None:
-        with self.requests_lock:
-            self.requests[(method, route, status)] += 1
 
     # -- queries (blocking; call from a worker thread) ---------------------------------------------------------
     def alive(self, process: str) -> bool:

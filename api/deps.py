@@ -1,22 +1,24 @@
-"""Dependencies as ``Annotated`` aliases, the bearer-token check, and the mapping of bridge failures to HTTP."""
+"""Dependencies as ``Annotated`` aliases, the mapping of bridge failures to HTTP, and the documented errors.
+
+``documented`` is the one place a route's error responses are declared; the contract test checks that each
+declared code can be produced on that route, and the schema run that nothing else comes back.
+"""
 
 from __future__ import annotations
 
 import asyncio
-import re
-import secrets
-from collections.abc import Awaitable, Callable
+from collections.abc import Callable, Collection
 from typing import Annotated, Any, TypeVar
 
-from fastapi import Depends, HTTPException, Request, Response, Security
-from fastapi.responses import JSONResponse
+from fastapi import Depends, HTTPException, Request, Security
 from fastapi.security import HTTPAuthorizationCredentials, HTTPBearer
 
+from api.accesslog import ApiCounters
 from api.bridge import Bridge, QueryFailedError
+from api.models import ErrorOut
 from api.settings import ApiSettings
 
 T = TypeVar("T")
-MUTATING = frozenset({"POST", "PUT", "PATCH", "DELETE"})
 
 bearer = HTTPBearer(auto_error=False, description="WINDWARDEN_API_TOKEN (printed by `windwarden up`)")
 
@@ -29,68 +31,77 @@ def get_bridge(request: Request) -> Bridge:
     return request.app.state.bridge
 
 
+def get_counters(request: Request) -> ApiCounters:
+    return request.app.state.counters
+
+
 SettingsDep = Annotated[ApiSettings, Depends(get_settings)]
 BridgeDep = Annotated[Bridge, Depends(get_bridge)]
+CountersDep = Annotated[ApiCounters, Depends(get_counters)]
 TokenDep = Annotated[HTTPAuthorizationCredentials | None, Security(bearer)]
-"""Declares the bearer scheme on a route (OpenAPI); ``auth_first`` enforces it before anything else runs."""
+"""Declares the bearer scheme on a route (OpenAPI); ``api.guard`` enforces it before anything else runs."""
+
+RETRY_AFTER = {"Retry-After": {"description": "seconds to wait before trying again", "schema": {"type": "integer"}}}
+ERRORS = {
+    401: "missing or wrong bearer token (checked before the body is read)",
+    408: "the request body did not all arrive within WINDWARDEN_API_BODY_TIMEOUT_S (the connection is closed)",
+    413: "request body over WINDWARDEN_API_MAX_BODY_BYTES, refused unread (the connection is closed)",
+    422: "invalid request: one item per bad field",
+    429: "too many mutating requests from this client (WINDWARDEN_API_RATE_*); see Retry-After",
+    502: "the plant or supervisor answered with something unusable",
+    503: "the API has WINDWARDEN_API_MAX_CONCURRENT requests in progress (see Retry-After)",
+    504: "no answer from the plant or supervisor within WINDWARDEN_QUERY_TIMEOUT_S",
+}
+UPSTREAM_503 = (
+    "the plant or supervisor is not running (no liveliness token) or could not apply the command in time; or the "
+    "API has WINDWARDEN_API_MAX_CONCURRENT requests in progress (then with Retry-After)"
+)
+ANY_ROUTE = (408, 413, 503)  # the body's time and size limits and the concurrency limit (api.guard)
+MUTATING_ROUTE = (401, 429)  # the rate limit and the token (api.guard)
+UPSTREAM = (502, 503, 504)  # a route that asks the plant or the supervisor
 
 
-def token_ok(settings: ApiSettings, authorization: str | None) -> bool:
-    expected = settings.api_token.get_secret_value() if settings.api_token else ""
-    if not expected or not authorization:
-        return False
-    scheme, _, given = authorization.partition(" ")
-    return scheme.lower() == "bearer" and secrets.compare_digest(given.strip().encode(), expected.encode())
+def documented(*codes: int, **descriptions: str) -> dict[int | str, dict[str, Any]]:
+    """OpenAPI ``responses`` for error ``codes`` (``descriptions``: ``c404="..."`` for a route's own wording)."""
+    out: dict[int | str, dict[str, Any]] = {}
+    for code in sorted(set(codes)):
+        description = descriptions.get(f"c{code}") or ERRORS.get(code, "")
+        entry: dict[str, Any] = {"model": ErrorOut, "description": description}
+        if code in (429, 503):
+            entry["headers"] = RETRY_AFTER
+        out[code] = entry
+    return out
 
 
-async def auth_first(request: Request, call_next: Callable[[Request], Awaitable[Response]]) -> Response:
-    """Mutating requests without the right bearer token get 401 before their body is even read.
+async def ask(function: Callable[..., T], *args: Any, passthrough: Collection[int] = ()) -> T:
+    """Run a blocking bridge call in a worker thread and map its failures to HTTP.
 
-    Also counts every request for ``/metrics``.
+    The transport's own failures: no answer in time → 504, a reply it cannot decode → 502. The plant's error
+    replies: a status in ``passthrough`` (its 4xx refusals) or 503 (command not applied in time) pass through with
+    the plant's problems as 422-style items; anything else → 502.
     """
-    if request.method in MUTATING and not token_ok(request.app.state.settings, request.headers.get("authorization")):
-        response: Response = JSONResponse(
-            {"detail": "missing or wrong bearer token"}, status_code=401, headers={"WWW-Authenticate": "Bearer"}
-        )
-    else:
-        response = await call_next(request)
-        if response.status_code == 405:  # Allow: every method the path supports, not only its first route's
-            response.headers["allow"] = ", ".join(allowed_methods(request))
-    bridge = getattr(request.app.state, "bridge", None)
-    if bridge is not None:
-        bridge.count_request(request.method, route_template(request), response.status_code)
-    return response
-
-
-def allowed_methods(request: Request) -> list[str]:
-    paths = request.app.openapi()["paths"]
-    return sorted(m.upper() for m in paths.get(route_template(request), {}))
-
-
-def route_template(request: Request) -> str:
-    """The route's path template (``/faults/{label}``), never the raw path: metric labels stay bounded."""
-    state = request.app.state
-    if getattr(state, "route_patterns", None) is None:
-        templates = [r.path for r in request.app.routes if hasattr(r, "path")] + list(request.app.openapi()["paths"])
-        state.route_patterns = [
-            (re.compile("^" + re.sub(r"\\{[^/]+?\\}", "[^/]+", re.escape(t)) + "$"), t)
-            for t in dict.fromkeys(templates)
-        ]
-    path = request.url.path
-    return next((template for pattern, template in state.route_patterns if pattern.match(path)), "unmatched")
-
-
-async def ask(function: Callable[..., T], *args: Any) -> T:
-    """Run a blocking bridge call in a worker thread; Zenoh failures become 502/503/504 or the plant's 4xx."""
     try:
         return await asyncio.to_thread(function, *args)
     except QueryFailedError as error:
-        status = error.status if 400 <= error.status < 600 and error.status != 500 else 502
+        if not error.body:
+            status = 504 if error.status == 503 else 502
+        elif error.status in passthrough or error.status == 503:
+            status = error.status
+        else:
+            status = 502
         detail: Any = str(error)
         problems = error.body.get("problems")
-        if problems:
-            detail = [{"loc": ["body", field], "msg": msg, "type": "value_error"} for field, msg in problems]
+        if problems and status < 500:
+            detail = [{"loc": ["body", str(p[0])], "msg": str(p[1]), "type": "value_error"} for p in problems]
         raise HTTPException(status_code=status, detail=detail) from None
+
+
+def from_upstream(build: Callable[[], T], what: str) -> T:
+    """``build()`` turns a reply into a response model; a reply without the expected fields is a 502, not a 500."""
+    try:
+        return build()
+    except (KeyError, TypeError, ValueError, IndexError) as error:
+        raise HTTPException(status_code=502, detail=f"unusable reply from {what}: {error}") from None
 
 
 def unavailable(what: str) -> HTTPException:

@@ -3,7 +3,9 @@
 FastAPI's default handlers echo the offending input. Python's JSON parser accepts NaN, infinities and lone UTF-16
 surrogates (``"\\udcff"``); echoed back, the first cannot be written as JSON and the second not as UTF-8, and the
 error response itself would fail with a 500. Responses here are rendered ASCII-escaped with non-finite numbers
-as strings. A body that is not even text (FastAPI's 400 "error parsing the body") is a malformed body: 422.
+as strings. A body that is not even text (FastAPI's 400 "error parsing the body") is a malformed body: 422. The
+offending input itself is never echoed back (a 10 kB name would come back as 10 kB): each item names the field
+(``loc``), says what is wrong (``msg``, ``type``) and, where pydantic gives them, the limits (``ctx``).
 """
 
 from __future__ import annotations
@@ -40,7 +42,8 @@ class SafeJSONResponse(JSONResponse):
 
 async def validation_error(request: Request, error: Exception) -> JSONResponse:
     assert isinstance(error, RequestValidationError)
-    return SafeJSONResponse(status_code=422, content={"detail": jsonable_encoder(error.errors())})
+    items = [{k: v for k, v in item.items() if k != "input"} for item in error.errors()]
+    return SafeJSONResponse(status_code=422, content={"detail": jsonable_encoder(items)})
 
 
 async def http_error(request: Request, error: Exception) -> JSONResponse:

@@ -6,15 +6,19 @@ from typing import Any
 
 from pydantic import BaseModel, ConfigDict, Field
 
+from windwarden.live.faults import FAULT_NAME_MAX, FAULT_NAME_PATTERN, FAULT_NAME_RULE
 from wwcore.scenario import FaultSpec
+from wwcore.scenario.faults import FaultKind
 
 
 class FaultRequest(FaultSpec):
     """A fault to inject, in the scenario file's schema. ``start_s`` is simulation time; a start in the past (or
-    0) means now. Numbers must be finite."""
+    0) means now. Types are strict: numbers are JSON numbers (not strings, not booleans), ``turbine`` an integer,
+    and every number finite."""
 
     model_config = ConfigDict(
         extra="forbid",
+        strict=True,
         allow_inf_nan=False,
         json_schema_extra={
             "examples": [
@@ -28,6 +32,18 @@ class FaultRequest(FaultSpec):
                 }
             ]
         },
+    )
+
+    target: str = Field(
+        min_length=1, max_length=64, description="sensor channel (e.g. omega_r_m1) or component (pitch_actuator_2)"
+    )
+    kind: FaultKind = Field(strict=False, description="one of the kinds' names (JSON has no enum type)")
+    name: str | None = Field(
+        default=None,
+        min_length=1,
+        max_length=FAULT_NAME_MAX,
+        pattern=FAULT_NAME_PATTERN,
+        description=f"label in listings and scorecards, {FAULT_NAME_RULE}; default target:kind@start",
     )
 
     def to_spec(self) -> FaultSpec:

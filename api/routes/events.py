@@ -6,14 +6,14 @@ from typing import Annotated
 
 from fastapi import APIRouter, Query
 
-from api.deps import BridgeDep
-from api.models import ErrorOut, EventOut, EventsPage
+from api.deps import ANY_ROUTE, BridgeDep, documented
+from api.models import EventOut, EventsPage
 from wwcore.events import EventType
 
 router = APIRouter(tags=["events"])
 
 
-@router.get("/events", response_model=EventsPage, responses={422: {"model": ErrorOut}})
+@router.get("/events", response_model=EventsPage, responses=documented(*ANY_ROUTE, 422))
 def events(
     bridge: BridgeDep,
     since: Annotated[int, Query(ge=0, le=2**62, description="first seq to return (the previous page's next)")] = 0,

@@ -6,14 +6,14 @@ import time
 
 from fastapi import APIRouter
 
-from api.deps import BridgeDep
+from api.deps import ANY_ROUTE, BridgeDep, documented
 from api.models import Health
 from wwcore.wire import Process
 
 router = APIRouter(tags=["health"])
 
 
-@router.get("/health", response_model=Health)
+@router.get("/health", response_model=Health, responses=documented(*ANY_ROUTE))
 def health(bridge: BridgeDep) -> Health:
     return Health(
         status="ok",

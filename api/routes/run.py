@@ -4,19 +4,16 @@ from __future__ import annotations
 
 from fastapi import APIRouter
 
-from api.deps import BridgeDep, ask, unavailable
-from api.models import ErrorOut, RunStatus
+from api.deps import ANY_ROUTE, UPSTREAM, UPSTREAM_503, BridgeDep, ask, documented, from_upstream, unavailable
+from api.models import RunStatus
 from wwcore.wire import Process
 
 router = APIRouter(tags=["run"])
 
 
-@router.get(
-    "/run",
-    response_model=RunStatus,
-    responses={503: {"model": ErrorOut}, 502: {"model": ErrorOut}, 504: {"model": ErrorOut}},
-)
+@router.get("/run", response_model=RunStatus, responses=documented(*ANY_ROUTE, *UPSTREAM, c503=UPSTREAM_503))
 async def run_status(bridge: BridgeDep) -> RunStatus:
     if not bridge.alive(Process.PLANT):
         raise unavailable("the plant")
-    return RunStatus.model_validate(await ask(bridge.plant_status))
+    reply = await ask(bridge.plant_status)
+    return from_upstream(lambda: RunStatus.model_validate(reply), "the plant")

@@ -6,12 +6,11 @@ from typing import Annotated, Any
 
 from fastapi import APIRouter, HTTPException, Path
 
-from api.deps import BridgeDep, ask, unavailable
-from api.models import ErrorOut, SupervisorStatus, TurbineStatus
+from api.deps import ANY_ROUTE, UPSTREAM, UPSTREAM_503, BridgeDep, ask, documented, from_upstream, unavailable
+from api.models import SupervisorStatus, TurbineStatus
 from wwcore.wire import Process
 
 router = APIRouter(prefix="/supervisor", tags=["supervisor"])
-ERRORS: dict[int | str, dict[str, Any]] = {code: {"model": ErrorOut} for code in (404, 502, 503, 504)}
 
 
 def _status(raw: dict[str, Any]) -> SupervisorStatus:
@@ -19,18 +18,24 @@ def _status(raw: dict[str, Any]) -> SupervisorStatus:
     return SupervisorStatus.model_validate({**raw, "turbines": turbines})
 
 
-@router.get("/status", response_model=SupervisorStatus, responses=ERRORS)
+@router.get("/status", response_model=SupervisorStatus, responses=documented(*ANY_ROUTE, *UPSTREAM, c503=UPSTREAM_503))
 async def supervisor_status(bridge: BridgeDep) -> SupervisorStatus:
     if not bridge.alive(Process.SUPERVISOR):
         raise unavailable("the supervisor")
-    return _status(await ask(bridge.supervisor_status))
+    reply = await ask(bridge.supervisor_status)
+    return from_upstream(lambda: _status(reply), "the supervisor")
 
 
-@router.get("/status/{turbine}", response_model=TurbineStatus, responses=ERRORS)
+@router.get(
+    "/status/{turbine}",
+    response_model=TurbineStatus,
+    responses=documented(*ANY_ROUTE, *UPSTREAM, 404, 422, c404="no such turbine in this run", c503=UPSTREAM_503),
+)
 async def turbine_status(turbine: Annotated[int, Path(ge=1, le=10_000)], bridge: BridgeDep) -> TurbineStatus:
     if not bridge.alive(Process.SUPERVISOR):
         raise unavailable("the supervisor")
-    status = _status(await ask(bridge.supervisor_status))
+    reply = await ask(bridge.supervisor_status)
+    status = from_upstream(lambda: _status(reply), "the supervisor")
     for entry in status.turbines:
         if entry.turbine == turbine:
             return entry

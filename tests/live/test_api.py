@@ -34,7 +34,10 @@ GOOD = {"target": "omega_g_m2", "kind": "fixed", "value": 100.0, "start_s": 0.0,
 def live(tmp_path_factory):
     run_dir = tmp_path_factory.mktemp("api") / "run"
     with router() as endpoint, LiveNodes(endpoint, scenario(LONG_TURBINE), run_dir, mode="realtime", speed=1.0) as n:
-        settings = ApiSettings(connect=endpoint, api_token=TOKEN, run_dir=None)
+        # the limits on clients have their own tests (tests/security/test_api.py): room for this file's requests
+        settings = ApiSettings(
+            connect=endpoint, api_token=TOKEN, run_dir=None, api_rate_per_s=1000.0, api_rate_burst=1000
+        )
         with TestClient(create_app(settings)) as client:
             assert wait_for(lambda: client.get("/health").json()["plant"], 30)
             yield client, n

@@ -15,7 +15,7 @@ from windwarden.live.router import free_port, open_router
 
 TOKEN = "schema-token"
 ENDPOINT = f"tcp/127.0.0.1:{free_port()}"
-APP = create_app(ApiSettings(connect=ENDPOINT, api_token=TOKEN))
+APP = create_app(ApiSettings(connect=ENDPOINT, api_token=TOKEN, api_rate_per_s=1000.0, api_rate_burst=1000))
 schema = schemathesis.openapi.from_dict(APP.openapi())
 RUN = """
 name = "schema-test"

@@ -283,8 +283,9 @@ def cmd_api(args: argparse.Namespace) -> int:
     import uvicorn
 
     from api.main import create_app
+    from api.settings import ApiSettings
     from windwarden.cli import BadInputError
-    from windwarden.live.config import ApiSettings, settings_from_flags
+    from windwarden.live.config import settings_from_flags
 
     setup_logging("api")
     try:

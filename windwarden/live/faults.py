@@ -10,11 +10,22 @@ start in the past means *now* (the next tick). Its default label is then built f
 from __future__ import annotations
 
 import math
+import re
 from dataclasses import dataclass
 from typing import Any
 
 from wwcore.scenario import FaultSpec
 from wwcore.scenario.model import FAULT_CHECKS
+
+FAULT_NAME_MAX = 64
+FAULT_NAME_PATTERN = r"^[A-Za-z0-9](?:[A-Za-z0-9 _.:+()-]*[A-Za-z0-9_.:+()-])?$"
+FAULT_NAME_RULE = (
+    f"1 to {FAULT_NAME_MAX} characters: letters, digits, space and _ . : + - ( ), starting with a letter or digit, "
+    "not ending with a space"
+)
+"""An injected fault's name: short, printable, and usable as it is in a URL path (no ``/``, ``%``, ``?``, ``#``)
+and in a log line, so any fault that can be injected can be listed and cleared."""
+_FAULT_NAME = re.compile(FAULT_NAME_PATTERN)
 
 
 class InjectionRefusedError(ValueError):
@@ -33,6 +44,8 @@ def fault_problems(fault: FaultSpec, kind: str, n_turbines: int) -> list[tuple[s
         for name, value in fault.model_dump().items()
         if isinstance(value, float) and not math.isfinite(value)
     ]
+    if fault.name is not None and (len(fault.name) > FAULT_NAME_MAX or not _FAULT_NAME.fullmatch(fault.name)):
+        problems.append(("name", f"a fault name is {FAULT_NAME_RULE}"))
     return problems + FAULT_CHECKS[kind](fault, n_turbines)
 
 
