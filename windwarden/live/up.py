@@ -231,7 +231,7 @@ class Up:
             sig: signal.signal(sig, lambda *_: self.interrupted.set()) for sig in (signal.SIGINT, signal.SIGTERM)
         }
         session = open_session(self._watch_settings(endpoint))
-        sub = session.declare_subscriber(KeyTree(o.farm).events, self._on_event)
+        sub = session.declare_subscriber(KeyTree(o.farm).events_all, self._on_event)
         try:
             for child in self.children:
                 child.start()
