@@ -31,9 +31,7 @@ from typing import Any
 
 log = logging.getLogger(__name__)
 
-LOG_FILTER = (
-    "warn,zenoh::net::routing::interceptor::access_control=trace,zenoh_transport::unicast::establishment::accept=debug"
-)
+AUDIT_TARGETS = "zenoh::net::routing::interceptor=trace,zenoh_transport::unicast::establishment::accept=debug"
 _ANSI = re.compile(r"\x1b\[[0-9;]*m")
 _DECISION = re.compile(
     r"(?:Using cached result: )?(?P<zid>[0-9a-f]+)(?: on (?P<subject>\S+))? is (?P<verdict>unauthorized|authorized) "
@@ -74,7 +72,8 @@ class RouterAudit:
         os.dup2(write_fd, 1)
         os.close(write_fd)
         sys.stdout = os.fdopen(stdout, "w", buffering=1)
-        os.environ.setdefault("RUST_LOG", LOG_FILTER)
+        # The audit's own targets after whatever the operator asked for (a later directive wins for its target).
+        os.environ["RUST_LOG"] = ",".join(filter(None, [os.environ.get("RUST_LOG") or "warn", AUDIT_TARGETS]))
         zenoh.init_log_from_env_or("warn")
         threading.Thread(target=self._read, args=(read_fd,), name="router-audit", daemon=True).start()
         threading.Thread(target=self._flush_loop, name="router-audit-writer", daemon=True).start()
@@ -161,12 +160,13 @@ class RouterAudit:
         tmp.replace(self.out)
 
     def _flush_loop(self) -> None:
-        self.write()
+        written = -1
         while not self._stop.is_set():
-            if self._changed.wait(1.0):
+            if self._changed.is_set() or self.decisions != written:
                 self._changed.clear()
+                written = self.decisions
                 self.write()
-                self._stop.wait(1.0)
+            self._stop.wait(1.0)
 
     def close(self) -> None:
         self._stop.set()

@@ -302,8 +302,10 @@ class Up:
 
     def _watch_settings(self, endpoint: str) -> Any:
         """``up``'s own session (the event feed) is a viewer."""
-        creds = {"zenoh_user": "viewer", "zenoh_password_file": password_file(self.secrets, "viewer")}
-        return ZenohSettings(connect=endpoint, farm=self.o.farm, **(creds if self.secrets else {}))
+        if self.secrets is None:
+            return ZenohSettings(connect=endpoint, farm=self.o.farm)
+        viewer = password_file(self.secrets, "viewer")
+        return ZenohSettings(connect=endpoint, farm=self.o.farm, zenoh_user="viewer", zenoh_password_file=viewer)
 
     # -- running --------------------------------------------------------------------------------------------------
     def _banner(self) -> None:
