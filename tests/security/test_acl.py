@@ -196,3 +196,12 @@ def test_hostile_clients_are_refused_and_counted(live_system):
     assert not legit, f"denials counted for unknown subjects: {legit}"
     up_json = json.loads((run_dir / "up.json").read_text())
     assert up_json["access_control"] and up_json["router_refused"]["denied_total"] == counts["denied_total"]
+    # the credentials: private files, and no password in any log, in up's output or in the run's JSON files
+    assert secrets.stat().st_mode & 0o777 == 0o700
+    passwords = []
+    for path in secrets.iterdir():
+        assert path.stat().st_mode & 0o777 == 0o600, path
+        if path.suffix == ".password":
+            passwords.append(path.read_text().strip())
+    written = [out, *(p.read_text(errors="replace") for p in [*run_dir.glob("*.json"), *(run_dir / "logs").glob("*")])]
+    assert len(passwords) == 4 and not [pw for pw in passwords if any(pw in text for text in written)]

@@ -102,6 +102,8 @@ def cmd_router(args: argparse.Namespace) -> int:
     audit = RouterAudit(args.audit) if args.audit else None
     if audit is not None:
         audit.start()  # before the session: Zenoh's log goes to the audit from the start
+    else:
+        zenoh.init_log_from_env_or("warn")
     try:
         if args.config is not None:
             config = zenoh.Config.from_file(str(args.config))

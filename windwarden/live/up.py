@@ -180,11 +180,15 @@ class Up:
         return f"tcp/127.0.0.1:{port}"
 
     def _credentials(self) -> Path | None:
-        """The role credentials: the given folder, or new ones for this run in the run folder (0700, files 0600)."""
-        if self.o.credentials is not None:
-            return self.o.credentials.resolve()
+        """The role credentials: the given folder, or new ones for this run in the run folder (0700, files 0600);
+        None for an open embedded router (``--no-acl``: a client with credentials cannot join a router without a
+        users file) or an existing router (``--connect``) without ``--credentials``."""
+        if self.o.connect:
+            return self.o.credentials.resolve() if self.o.credentials is not None else None
         if not self.o.acl:
             return None
+        if self.o.credentials is not None:
+            return self.o.credentials.resolve()
         return write_credentials(self.run_dir / SECRETS, new_passwords()).parent.resolve()
 
     def _role_env(self, role: str) -> dict[str, str]:
@@ -194,7 +198,7 @@ class Up:
         return {"WINDWARDEN_ZENOH_USER": role, "WINDWARDEN_ZENOH_PASSWORD_FILE": str(password_file(self.secrets, role))}
 
     def _start_router(self, endpoint: str) -> subprocess.Popen:
-        access = RouterAccess(self.secrets / USERS_FILE, farm=self.o.farm) if self.o.acl and self.secrets else None
+        access = RouterAccess(self.secrets / USERS_FILE, farm=self.o.farm) if self.secrets else None
         env = {k: v for k, v in os.environ.items() if not k.startswith("WINDWARDEN_")}
         env |= {"WINDWARDEN_PARENT_PID": str(os.getpid()), "PYTHONUNBUFFERED": "1"}
         audit = self.run_dir / ROUTER_AUDIT if self.o.router_audit else None
@@ -233,7 +237,11 @@ class Up:
         (self.run_dir / SCENARIO).write_text(dump_scenario(self.scenario))
         self.secrets = self._credentials()
         endpoint = self._endpoint()
-        self.router = None if self.o.connect else self._start_router(endpoint)
+        try:
+            self.router = None if self.o.connect else self._start_router(endpoint)
+        except (RuntimeError, OSError, ValueError) as error:
+            console.print(f"[red]{error}[/red]")
+            return 1
         try:
             return self._run(endpoint, self.router)
         finally:
