@@ -14,6 +14,7 @@ import os
 import sys
 import threading
 from pathlib import Path
+from typing import Any
 
 log = logging.getLogger("windwarden.live")
 
@@ -61,7 +62,7 @@ def _add_router(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(func=cmd_router)
 
 
-def router_access(args: argparse.Namespace):
+def router_access(args: argparse.Namespace) -> Any:
     """The ``RouterAccess`` the flags ask for (None with ``--no-acl``)."""
     from windwarden.cli import BadInputError
     from windwarden.live.router import RouterAccess, TlsFiles
@@ -117,7 +118,8 @@ def cmd_router(args: argparse.Namespace) -> int:
     except (zenoh.ZError, OSError, ValueError) as error:
         log.error("the router cannot start: %s", error)
         return 1
-    log.info("router %s listening on %s (%s)", session.info.zid(), args.listen or ",".join(listen), what)
+    where = ",".join(listen) if args.listen or args.config is None else "the file's endpoints"
+    log.info("router %s listening on %s (%s)", session.info.zid(), where, what)
     stopped = threading.Event()
     on_signals(stopped.set)
     exit_with_parent(stopped.set)
