@@ -74,7 +74,10 @@ def test_compose_up_inject_detect_refuse_down(tmp_path):
     def run(*args: str, timeout: float) -> float:
         start = time.monotonic()
         done = subprocess.run([*compose, *args], env=env, capture_output=True, text=True, timeout=timeout)
-        assert done.returncode == 0, f"docker compose {' '.join(args)}:\n{done.stdout[-3000:]}\n{done.stderr[-3000:]}"
+        if done.returncode != 0:
+            ps = subprocess.run([*compose, "ps", "-a"], env=env, capture_output=True, text=True, timeout=60)
+            logs = subprocess.run([*compose, "logs", "--tail", "15"], env=env, capture_output=True, text=True)
+            pytest.fail(f"docker compose {' '.join(args)}:\n{done.stderr[-2000:]}\n{ps.stdout}\n{logs.stdout[-6000:]}")
         return time.monotonic() - start
 
     timings: dict[str, float] = {}
