@@ -69,7 +69,7 @@ class Bridge:
         self.drops = DropCounter()
         self.events = EventStore(settings.events_kept)
         self.session = open_session(settings)
-        self._events_sub = self.session.declare_subscriber(self.keys.events, self._on_event)
+        self._events_sub = self.session.declare_subscriber(self.keys.events_all, self._on_event)
         self.watch = LivenessWatch(self.session, self.keys.alive_all)
         self._token = self.session.liveliness().declare_token(self.keys.alive(Process.API))
         self._info: dict[str, Any] | None = None

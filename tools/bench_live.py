@@ -8,6 +8,13 @@ to its detection in the status route (measured from outside, over HTTP).
     .venv/bin/python tools/bench_live.py --kind turbine --seconds 300
     .venv/bin/python tools/bench_live.py --kind hydro --seconds 300
     .venv/bin/python tools/bench_live.py --kind farm --seconds 300 --offset 1450   # a drive-train hold in it
+
+What access control costs: ``--compare-acl`` runs the same benchmark back to back with an open router
+(``up --no-acl``) and with the router ``up`` runs by default (access control, user/password per role, and the audit
+that counts refusals from Zenoh's trace log), and prints both with the ratios of their loop latencies; add
+``--acl-modes open,acl,acl-noaudit`` to separate the audit's share:
+
+    .venv/bin/python tools/bench_live.py --kind turbine --seconds 120 --compare-acl
 """
 
 from __future__ import annotations
@@ -31,6 +38,11 @@ from windwarden.live.router import free_port
 from wwcore.scenario import dump_scenario, load_scenario, parse_scenario
 
 SCENARIOS = {"turbine": "ftwse-2012", "hydro": "hydro-fig9", "farm": "farm-case1"}
+ACL_MODES = {  # name → flags of `windwarden up`
+    "open": ["--no-acl"],
+    "acl": [],
+    "acl-noaudit": ["--no-router-audit"],
+}
 
 
 def bench_scenario(kind: str, seconds: float, folder: Path, offset: float = 0.0) -> Path:
@@ -76,13 +88,76 @@ def main() -> int:
     parser.add_argument("--nice", type=int, default=None, help="niceness of plant and supervisor (busy machines)")
     parser.add_argument("--inject-at", type=float, default=None, help="turbine: s of simulation time (default: half)")
     parser.add_argument("--offset", type=float, default=0.0, help="start this far into the shipped scenario (s)")
+    parser.add_argument("--compare-acl", action="store_true", help="run without and with access control, compare")
+    parser.add_argument(
+        "--acl-modes",
+        default="open,acl",
+        help=f"with --compare-acl: configurations to run in order, from {', '.join(ACL_MODES)} (default open,acl)",
+    )
+    parser.add_argument(
+        "--repeat", type=int, default=1, help="with --compare-acl: run the configurations this many times, interleaved"
+    )
     args = parser.parse_args()
+    if not args.compare_acl:
+        return 0 if run_once(args, [], "")[0] == 0 else 1
+    modes = [m.strip() for m in args.acl_modes.split(",") if m.strip()]
+    unknown = [m for m in modes if m not in ACL_MODES]
+    if unknown or not modes:
+        parser.error(f"unknown --acl-modes {unknown}; choose from {', '.join(ACL_MODES)}")
+    results: dict[str, list[dict]] = {mode: [] for mode in modes}
+    for _ in range(max(args.repeat, 1)):
+        for mode in modes:
+            code, figures = run_once(args, ACL_MODES[mode], f"-{mode}")
+            results[mode].append(figures)
+            if code != 0:
+                print(f"{mode}: up exited with {code}", flush=True)
+    print(json.dumps(compare(results), indent=2))
+    return 0
 
+
+def compare(results: dict[str, list[dict]]) -> dict[str, object]:
+    """Per configuration: each run's loop latency p50/p99/max and overruns, their medians over the runs, and the
+    ratio of those medians to the first configuration's."""
+    table: dict[str, dict] = {}
+    for mode, runs in results.items():
+        rows = [
+            {
+                "p50_ms": f.get("latency_ms", {}).get("p50_ms"),
+                "p99_ms": f.get("latency_ms", {}).get("p99_ms"),
+                "max_ms": f.get("latency_ms", {}).get("max_ms"),
+                "overrun_pct": f.get("overrun_pct"),
+                "load_average_1min_mean": round(f.get("load_average_1min", {}).get("mean") or 0.0, 2),
+                "run_dir": f.get("run_dir"),
+            }
+            for f in runs
+        ]
+        table[mode] = {
+            "p50_ms": _median([r["p50_ms"] for r in rows]),
+            "p99_ms": _median([r["p99_ms"] for r in rows]),
+            "runs": rows,
+        }
+    base_mode = next(iter(table))
+    base = table[base_mode]
+    for mode in list(table)[1:]:
+        row = table[mode]
+        for q in ("p50_ms", "p99_ms"):
+            if row[q] and base[q]:
+                row[f"{q.removesuffix('_ms')}_ratio_to_{base_mode}"] = round(row[q] / base[q], 3)
+    return table
+
+
+def _median(values: list) -> float | None:
+    numbers = [v for v in values if isinstance(v, int | float)]
+    return round(float(np.median(numbers)), 3) if numbers else None
+
+
+def run_once(args: argparse.Namespace, extra: list[str], label: str) -> tuple[int, dict]:
+    """One ``windwarden up`` benchmark run with ``extra`` flags; its exit code and figures."""
     folder = Path(tempfile.mkdtemp(prefix="bench-live-"))
     scenario = bench_scenario(args.kind, args.seconds, folder, args.offset)
     token = secrets.token_urlsafe(16)
     port = free_port()
-    run_id = f"bench-{args.kind}-{time.strftime('%Y%m%d-%H%M%S')}"
+    run_id = f"bench-{args.kind}{label}-{time.strftime('%Y%m%d-%H%M%S')}"
     argv = [
         sys.executable,
         "-m",
@@ -102,6 +177,7 @@ def main() -> int:
         "--quiet",
         "--no-restart",
         *(["--nice", str(args.nice)] if args.nice is not None else []),
+        *extra,
     ]
     env = os.environ | {"WINDWARDEN_API_TOKEN": token}
     print(f"running {' '.join(argv[3:])}", flush=True)
@@ -121,7 +197,7 @@ def sample_load(up: subprocess.Popen, into: list[float]) -> None:
         time.sleep(5.0)
 
 
-def report(args: argparse.Namespace, up: subprocess.Popen, port: int, token: str, run_id: str) -> int:
+def report(args: argparse.Namespace, up: subprocess.Popen, port: int, token: str, run_id: str) -> tuple[int, dict]:
     figures: dict[str, object] = {}
     load: list[float] = []
     threading.Thread(target=sample_load, args=(up, load), daemon=True).start()
@@ -151,6 +227,7 @@ def report(args: argparse.Namespace, up: subprocess.Popen, port: int, token: str
     card = json.loads((run_dir / "scorecard.json").read_text())
     live = card["live"]
     size = (run_dir / "recording.rrd").stat().st_size
+    up_info = json.loads((run_dir / "up.json").read_text())
     figures |= {
         "exit_code": code,
         "ticks": live["ticks"],
@@ -163,6 +240,8 @@ def report(args: argparse.Namespace, up: subprocess.Popen, port: int, token: str
         "recording_bytes": size,
         "recording_1h_estimate_mb": round(size * 3600.0 / args.seconds / 1e6, 1),
         "run_dir": str(run_dir),
+        "access_control": up_info.get("access_control"),
+        "router_refused": up_info.get("router_refused"),
         "nice": args.nice,
         "load_average_1min": {
             "min": min(load, default=None),
@@ -173,7 +252,7 @@ def report(args: argparse.Namespace, up: subprocess.Popen, port: int, token: str
     }
     print(json.dumps(figures, indent=2))
     (run_dir / "bench.json").write_text(json.dumps(figures, indent=2) + "\n")
-    return code
+    return code, figures
 
 
 if __name__ == "__main__":

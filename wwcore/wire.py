@@ -13,9 +13,13 @@ Key-expression tree (``<farm>`` is one chunk, ``<id>`` the 1-based turbine numbe
     windwarden/<farm>/plant/status           plant → anyone        JSON    2 Hz + queryable (run status)
     windwarden/<farm>/plant/run              queryable             JSON    what the supervisor may know of the run
     windwarden/<farm>/plant/faults           queryable             JSON    inject / clear / list faults
+    windwarden/<farm>/plant/events           plant → all           JSON    the plant's events; reliable, blocking
     windwarden/<farm>/supervisor/status      supervisor → anyone   JSON    2 Hz + queryable (per-turbine status)
-    windwarden/<farm>/events                 every process → all   JSON    reliable, blocking
+    windwarden/<farm>/supervisor/events      supervisor → all      JSON    the supervisor's events; reliable, blocking
     windwarden/<farm>/alive/<process>        liveliness tokens (plant, supervisor, api)
+
+Each stream has one publishing process, so the router's access control (``windwarden.live.access``) can say who
+may put where: plant and supervisor events have a key each, and readers subscribe to ``windwarden/<farm>/*/events``.
 
 Binary messages (the per-tick streams): a 4-byte header ``b"WW"``, schema code (u8), schema version (u8), then
 one packed little-endian record whose layout is the schema's fields in order. Floats travel as float64, so a
@@ -480,6 +484,14 @@ class KeyTree:
         if not _CHUNK.match(self.farm):
             raise ValueError(f"farm id {self.farm!r} must be letters, digits, '_' or '-' (one key chunk)")
 
+    @classmethod
+    def every_farm(cls) -> KeyTree:
+        """The tree with ``*`` for the farm chunk: patterns for access-control rules, never keys to publish on."""
+        tree = object.__new__(cls)
+        object.__setattr__(tree, "farm", "*")
+        object.__setattr__(tree, "root", "windwarden")
+        return tree
+
     @property
     def base(self) -> str:
         return f"{self.root}/{self.farm}"
@@ -514,8 +526,17 @@ class KeyTree:
         return f"{self.base}/supervisor/status"
 
     @property
-    def events(self) -> str:
-        return f"{self.base}/events"
+    def plant_events(self) -> str:
+        return f"{self.base}/plant/events"
+
+    @property
+    def supervisor_events(self) -> str:
+        return f"{self.base}/supervisor/events"
+
+    @property
+    def events_all(self) -> str:
+        """Both event streams (plant and supervisor), for readers."""
+        return f"{self.base}/*/events"
 
     def alive(self, process: Process | str) -> str:
         return f"{self.base}/alive/{process}"
@@ -548,6 +569,7 @@ class KeyTree:
             KeySpec(self.run, "plant (queryable)", "JSON plant.run", None, "what the supervisor may know"),
             KeySpec(self.faults, "plant (queryable)", "JSON plant.faults", None, "inject, clear, list"),
             KeySpec(self.supervisor_status, "supervisor", "JSON supervisor.status", DISPLAY_QOS, "2 Hz; queryable"),
-            KeySpec(self.events, "every process", "JSON events", EVENT_QOS, "append-only event stream"),
+            KeySpec(self.plant_events, "plant", "JSON events", EVENT_QOS, "the plant's events, append-only"),
+            KeySpec(self.supervisor_events, "supervisor", "JSON events", EVENT_QOS, "the supervisor's events"),
             KeySpec(self.alive("<process>"), "every process", "liveliness token", None, "plant, supervisor, api"),
         ]

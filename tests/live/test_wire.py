@@ -109,7 +109,9 @@ def test_key_tree():
     assert keys.sensors(3) == "windwarden/farm_1/turbine/3/sensors"
     assert keys.turbine_of(keys.refs(12)) == 12
     assert keys.process_of(keys.alive("supervisor")) == "supervisor"
-    assert {spec.pattern for spec in keys.registry()} >= {keys.events, keys.faults, keys.metmast}
+    assert {spec.pattern for spec in keys.registry()} >= {keys.plant_events, keys.supervisor_events, keys.faults}
+    assert keys.events_all == "windwarden/farm_1/*/events"
+    assert KeyTree.every_farm().refs(1) == "windwarden/*/turbine/1/refs"
     for bad in ("a/b", "*", "", "x y"):
         with pytest.raises(ValueError):
             KeyTree(bad)

@@ -20,6 +20,7 @@ from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any
 
+from windwarden.live.cli_router import ROUTER_SUBCOMMANDS
 from wwcore.scenario import Scenario, load_scenario
 
 log = logging.getLogger("windwarden.live")
@@ -348,6 +349,15 @@ def _up_flags(p: argparse.ArgumentParser, viewer: str) -> None:
         help="niceness of plant and supervisor, e.g. -10 on a busy machine (needs CAP_SYS_NICE)",
     )
     p.add_argument("--quiet", action="store_true", help="no event feed")
+    g = p.add_argument_group("access control")
+    g.add_argument(
+        "--credentials",
+        type=Path,
+        default=None,
+        help="a folder of <role>.password files (and zenoh-users.txt) to use (default: new ones for this run)",
+    )
+    g.add_argument("--no-acl", action="store_true", help="the router lets anyone do anything (development)")
+    g.add_argument("--no-router-audit", action="store_true", help="do not count what the router refuses")
 
 
 def cmd_up(args: argparse.Namespace) -> int:
@@ -376,6 +386,9 @@ def cmd_up(args: argparse.Namespace) -> int:
         restart=not args.no_restart,
         quiet=args.quiet,
         nice=args.nice,
+        acl=not args.no_acl,
+        credentials=args.credentials,
+        router_audit=not args.no_router_audit,
     )
     return Up(options).run()
 
@@ -408,7 +421,7 @@ def cmd_open(args: argparse.Namespace) -> int:
 # -- probe (container health checks) -------------------------------------------------------------------------------
 def _add_probe(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("probe", help="health check: exit 0 if the service answers (for docker compose)")
-    p.add_argument("service", choices=["plant", "supervisor", "api"], help="what to ask")
+    p.add_argument("service", choices=["plant", "supervisor", "api", "router"], help="what to ask")
     p.add_argument("--timeout", type=float, default=3.0, help="s to wait for the answer")
     p.add_argument("--url", default=None, help="api: the health URL (default http://127.0.0.1:$WINDWARDEN_PORT/health)")
     _zenoh_flags(p)
@@ -416,9 +429,11 @@ def _add_probe(sub: argparse._SubParsersAction) -> None:
 
 
 def cmd_probe(args: argparse.Namespace) -> int:
-    """Plant and supervisor: their status queryable answers over Zenoh. API: GET /health is 200."""
+    """Plant and supervisor: their liveliness token is on the router (asked with whatever role's credentials the
+    container has: every role may ask liveliness, only the API may query the status queryables). API: GET /health
+    is 200. Router: its endpoint accepts TCP connections."""
     from windwarden.live.config import ApiSettings, ZenohSettings, settings_from_flags
-    from windwarden.live.transport import QueryFailedError, query_json
+    from windwarden.live.router import DEFAULT_PORT, wait_listening
 
     if args.service == "api":
         import urllib.request
@@ -430,15 +445,16 @@ def cmd_probe(args: argparse.Namespace) -> int:
         except OSError:
             return 1
     settings = settings_from_flags(ZenohSettings, _flags(args, ZENOH_FLAGS))
+    if args.service == "router":
+        endpoint = (settings.listen_endpoints or [f"tcp/127.0.0.1:{DEFAULT_PORT}"])[0].replace("0.0.0.0", "127.0.0.1")
+        return 0 if wait_listening(endpoint, args.timeout) else 1
     settings = settings.model_copy(update={"connect_timeout_s": args.timeout})
-    key = settings.keys.plant_status if args.service == "plant" else settings.keys.supervisor_status
-    schema = "plant.status" if args.service == "plant" else "supervisor.status"
     try:
         with zenoh_session(settings) as session:
-            query_json(session, key, schema, timeout=args.timeout)
-    except (ServiceError, QueryFailedError):
+            replies = session.liveliness().get(settings.keys.alive(args.service), timeout=args.timeout)
+            return 0 if any(reply.ok is not None for reply in replies) else 1
+    except (ServiceError, ValueError, OSError):
         return 1
-    return 0
 
 
 LIVE_SUBCOMMANDS: list[Callable[[argparse._SubParsersAction], None]] = [
@@ -449,4 +465,5 @@ LIVE_SUBCOMMANDS: list[Callable[[argparse._SubParsersAction], None]] = [
     _add_probe,
     _add_demo,
     _add_open,
+    *ROUTER_SUBCOMMANDS,
 ]

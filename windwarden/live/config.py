@@ -14,6 +14,7 @@ from typing import Any, Literal
 from pydantic import Field, SecretStr, field_validator
 from pydantic_settings import BaseSettings, SettingsConfigDict
 
+from windwarden.live.access import read_password
 from wwcore.wire import KeyTree
 
 TimingMode = Literal["realtime", "lockstep"]
@@ -31,12 +32,29 @@ class ZenohSettings(BaseSettings):
     lease_ms: int = Field(default=800, ge=100, le=60_000, description="ms without traffic before a peer is gone")
     multicast: bool = Field(default=False, description="multicast scouting (off: explicit endpoints only)")
     connect_timeout_s: float = Field(default=10.0, ge=-1.0, description="s to keep trying the endpoints; -1: for ever")
+    zenoh_user: str | None = Field(default=None, description="user name for the router (the role: plant, api, …)")
+    zenoh_password: SecretStr | None = Field(default=None, description="its password (prefer zenoh_password_file)")
+    zenoh_password_file: Path | None = Field(default=None, description="a secret file holding the password")
+    zenoh_tls_ca: Path | None = Field(default=None, description="CA certificate (PEM) of the router's tls/ endpoint")
+    zenoh_tls_cert: Path | None = Field(default=None, description="client certificate (PEM), common name = role")
+    zenoh_tls_key: Path | None = Field(default=None, description="the client certificate's private key (PEM)")
 
     @field_validator("farm")
     @classmethod
     def _farm_is_a_chunk(cls, farm: str) -> str:
         KeyTree(farm)
         return farm
+
+    def credentials(self) -> tuple[str, str] | None:
+        """(user, password) for the router's authentication, or None; the password file is read here, so a
+        rotated secret is picked up by the next session."""
+        if not self.zenoh_user:
+            return None
+        if self.zenoh_password is not None:
+            return self.zenoh_user, self.zenoh_password.get_secret_value()
+        if self.zenoh_password_file is not None:
+            return self.zenoh_user, read_password(self.zenoh_password_file)
+        raise ValueError(f"zenoh user {self.zenoh_user!r} has no password (set WINDWARDEN_ZENOH_PASSWORD_FILE)")
 
     @property
     def connect_endpoints(self) -> list[str]:

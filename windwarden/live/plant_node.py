@@ -111,7 +111,7 @@ class PlantNode:
     def _open_transport(self) -> None:
         s, keys = self.session, self.keys
         self.events = EventLog(self.run_dir / EVENTS, self._publish_event)
-        self._events_pub = declare_publisher(s, keys.events, EVENT_QOS)
+        self._events_pub = declare_publisher(s, keys.plant_events, EVENT_QOS)
         self._status_pub = declare_publisher(s, keys.plant_status, DISPLAY_QOS)
         sensors_qos = COMMAND_QOS if self.settings.mode == "lockstep" else SENSORS_QOS
         unique = list(dict.fromkeys(self.turbines))

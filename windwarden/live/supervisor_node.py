@@ -66,11 +66,11 @@ class SupervisorNode:
         self.gaps = 0
         self._last_status = 0.0
         s = session
-        self._events_pub = declare_publisher(s, self.keys.events, EVENT_QOS)
+        self._events_pub = declare_publisher(s, self.keys.supervisor_events, EVENT_QOS)
         self._status_pub = declare_publisher(s, self.keys.supervisor_status, EVENT_QOS)  # carries the handshake
         self._refs_pubs: dict[int, zenoh.Publisher] = {}
         self._sensors_sub: zenoh.Subscriber | None = None  # declared once the supervisor is built (see _start_run)
-        self._events_sub = s.declare_subscriber(self.keys.events, self._on_event_sample)
+        self._events_sub = s.declare_subscriber(self.keys.plant_events, self._on_event_sample)
         self._status_q = JsonQueryable(
             s, self.keys.supervisor_status, "supervisor.status", lambda body: self.status(), self.drops
         )

@@ -1,7 +1,9 @@
 """Zenoh at the edge: sessions, publishers with the registry's QoS, liveliness watching, JSON queryables.
 
 Every process opens one session (``open_session``) configured from ``ZenohSettings``: explicit endpoints,
-multicast scouting off unless asked for, a short link lease so a hung peer is declared gone in under a second.
+multicast scouting off unless asked for, a short link lease so a hung peer is declared gone in under a second,
+and the process's role credentials for a router with access control (``windwarden.live.access``): a user name and
+password (``WINDWARDEN_ZENOH_USER``, ``WINDWARDEN_ZENOH_PASSWORD_FILE``) and/or a TLS client certificate.
 """
 
 from __future__ import annotations
@@ -35,6 +37,19 @@ def zenoh_config(settings: ZenohSettings, mode: str | None = None) -> zenoh.Conf
     # A peer that sends nothing for lease_ms is gone (keep-alives every lease/4): liveliness within a second.
     conf.insert_json5("transport/link/tx/lease", str(settings.lease_ms))
     conf.insert_json5("transport/link/tx/keep_alive", "4")
+    credentials = settings.credentials()
+    if credentials is not None:  # the role's user name and password (never logged: the config is not printed)
+        conf.insert_json5("transport/auth/usrpwd/user", json.dumps(credentials[0]))
+        conf.insert_json5("transport/auth/usrpwd/password", json.dumps(credentials[1]))
+    if settings.zenoh_tls_ca is not None:
+        tls: dict[str, Any] = {"root_ca_certificate": str(settings.zenoh_tls_ca)}
+        if settings.zenoh_tls_cert is not None and settings.zenoh_tls_key is not None:
+            tls |= {
+                "connect_certificate": str(settings.zenoh_tls_cert),
+                "connect_private_key": str(settings.zenoh_tls_key),
+                "enable_mtls": True,
+            }
+        conf.insert_json5("transport/link/tls", json.dumps(tls))
     return conf
 
 

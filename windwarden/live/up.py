@@ -1,11 +1,13 @@
 """``windwarden up``: the whole system on one machine, no Docker.
 
-One process (this one) holds the embedded Zenoh router (or connects to an existing one), starts the Rerun
+One process (this one) starts the Zenoh router (``windwarden router``, with access control: a new password per
+role for each run, in ``runs/<id>/secrets/`` with mode 0600; or connects to an existing router), the Rerun
 recorder (and a viewer on request), then the API, the supervisor and the plant as child processes of
-``windwarden`` with their settings in ``WINDWARDEN_*`` variables, each in its own session with its output in
-``runs/<id>/logs/``. It prints the events as they happen, restarts the supervisor or the API if one dies
-(``--restart``), and shuts everything down in order at the scenario's end or on Ctrl-C: plant, supervisor, API,
-then the recorder; finally it recomputes the scorecard from ``events.jsonl`` and closes the recording.
+``windwarden`` with their settings in ``WINDWARDEN_*`` variables (a role's password by file path, never its value),
+each in its own session with its output in ``runs/<id>/logs/``. It prints the events as they happen, restarts the
+supervisor or the API if one dies (``--restart``), and shuts everything down in order at the scenario's end or on
+Ctrl-C: plant, supervisor, API, the recorder, then the router; finally it recomputes the scorecard from
+``events.jsonl`` and closes the recording.
 
 Exit code: 0 when the scenario ran to its end and no child failed; 1 when a child failed (even if restarted);
 130 on Ctrl-C.
@@ -30,13 +32,21 @@ from typing import Any
 
 from rich.console import Console
 
+from windwarden.live.access import USERS_FILE, new_passwords, password_file, write_credentials
 from windwarden.live.adapters import adapter_for
-from windwarden.live.config import new_run_id
+from windwarden.live.config import ZenohSettings, new_run_id
 from windwarden.live.finalize import finalize_recording, finalize_scorecard, verify_recording
 from windwarden.live.recorder import recorder_command
 from windwarden.live.recorder import start as start_rerun
 from windwarden.live.recorder import stop as stop_rerun
-from windwarden.live.router import DEFAULT_PORT, free_port, open_router
+from windwarden.live.router import (
+    DEFAULT_PORT,
+    RouterAccess,
+    free_port,
+    read_audit,
+    start_router_process,
+    wait_listening,
+)
 from windwarden.live.runfolder import EVENTS, RECORDING, SCENARIO, write_json
 from windwarden.live.transport import open_session
 from wwcore.events import Event, EventType
@@ -45,6 +55,9 @@ from wwcore.wire import KeyTree, WireError, decode_json
 
 console = Console(stderr=True, highlight=False, soft_wrap=True)
 STOP_TIMEOUT_S = 15.0
+ROUTER_START_S = 30.0  # s for the router process to listen
+SECRETS = "secrets"  # the run's credentials, in the run folder
+ROUTER_AUDIT = "router.json"  # what the router refused (counts)
 MAX_RESTARTS = 3
 
 
@@ -66,6 +79,9 @@ class UpOptions:
     restart: bool = True
     quiet: bool = False
     nice: int | None = None  # niceness of plant and supervisor (WINDWARDEN_NICE)
+    acl: bool = True  # the router enforces access control (a new password per role for this run)
+    credentials: Path | None = None  # a folder of <role>.password (and zenoh-users.txt) to use instead
+    router_audit: bool = True  # the router counts what it refuses (runs/<id>/router.json)
 
 
 @dataclass
@@ -150,6 +166,8 @@ class Up:
         self.rerun: list[subprocess.Popen] = []
         self.interrupted = threading.Event()
         self.token = os.environ.get("WINDWARDEN_API_TOKEN") or secrets.token_urlsafe(24)
+        self.secrets: Path | None = None  # the folder of role credentials (None: no access control)
+        self.router: subprocess.Popen | None = None
         self.info: dict[str, Any] = {}
 
     # -- set-up ---------------------------------------------------------------------------------------------------
@@ -160,6 +178,39 @@ class Up:
             return self.o.listen
         port = DEFAULT_PORT if _port_free(DEFAULT_PORT) else free_port()
         return f"tcp/127.0.0.1:{port}"
+
+    def _credentials(self) -> Path | None:
+        """The role credentials: the given folder, or new ones for this run in the run folder (0700, files 0600);
+        None for an open embedded router (``--no-acl``: a client with credentials cannot join a router without a
+        users file) or an existing router (``--connect``) without ``--credentials``."""
+        if self.o.connect:
+            return self.o.credentials.resolve() if self.o.credentials is not None else None
+        if not self.o.acl:
+            return None
+        if self.o.credentials is not None:
+            return self.o.credentials.resolve()
+        return write_credentials(self.run_dir / SECRETS, new_passwords()).parent.resolve()
+
+    def _role_env(self, role: str) -> dict[str, str]:
+        """How a child proves its role: user name and the path of its password file (never the password)."""
+        if self.secrets is None:
+            return {}
+        return {"WINDWARDEN_ZENOH_USER": role, "WINDWARDEN_ZENOH_PASSWORD_FILE": str(password_file(self.secrets, role))}
+
+    def _start_router(self, endpoint: str) -> subprocess.Popen:
+        access = RouterAccess(self.secrets / USERS_FILE, farm=self.o.farm) if self.secrets else None
+        env = {k: v for k, v in os.environ.items() if not k.startswith("WINDWARDEN_")}
+        env |= {"WINDWARDEN_PARENT_PID": str(os.getpid()), "PYTHONUNBUFFERED": "1"}
+        audit = self.run_dir / ROUTER_AUDIT if self.o.router_audit else None
+        proc = start_router_process(endpoint, access, self.logs / "router.log", audit, env)
+        if not wait_listening(endpoint, ROUTER_START_S, proc.poll):
+            stop_rerun(proc, 5.0)
+            raise RuntimeError(f"the Zenoh router did not start on {endpoint}; see {self.logs / 'router.log'}")
+        return proc
+
+    def _stop_router(self) -> None:
+        if self.router is not None and self.router.poll() is None:
+            stop_rerun(self.router, STOP_TIMEOUT_S)
 
     def _child(self, name: str, args: list[str], env: dict[str, str], restartable: bool, nice: int = 0) -> Child:
         argv = [sys.executable, "-m", "windwarden.cli", *args]
@@ -184,13 +235,17 @@ class Up:
     def run(self) -> int:
         self.logs.mkdir(parents=True, exist_ok=True)
         (self.run_dir / SCENARIO).write_text(dump_scenario(self.scenario))
+        self.secrets = self._credentials()
         endpoint = self._endpoint()
-        router = None if self.o.connect else open_router([endpoint])
         try:
-            return self._run(endpoint, router)
+            self.router = None if self.o.connect else self._start_router(endpoint)
+        except (RuntimeError, OSError, ValueError) as error:
+            console.print(f"[red]{error}[/red]")
+            return 1
+        try:
+            return self._run(endpoint, self.router)
         finally:
-            if router is not None:
-                router.close()
+            self._stop_router()
 
     def _run(self, endpoint: str, router: Any) -> int:
         o = self.o
@@ -205,19 +260,22 @@ class Up:
         api_url = f"http://{o.api_host}:{api_port}"
         scenario_file = str(self.run_dir / SCENARIO)
         if o.api:
-            api_env = env | {"WINDWARDEN_API_TOKEN": self.token, "WINDWARDEN_RUN_DIR": str(self.run_dir)}
+            api_env = env | self._role_env("api")
+            api_env |= {"WINDWARDEN_API_TOKEN": self.token, "WINDWARDEN_RUN_DIR": str(self.run_dir)}
             self.children.append(
                 self._child("api", ["api", "--host", o.api_host, "--port", str(api_port)], api_env, True, nice=5)
             )
         rt_env = env | ({"WINDWARDEN_NICE": str(o.nice)} if o.nice is not None else {})
-        self.children.append(self._child("supervisor", ["supervise"], rt_env, True))
+        self.children.append(self._child("supervisor", ["supervise"], rt_env | self._role_env("supervisor"), True))
         plant_args = ["plant", scenario_file, "--mode", o.mode, "--speed", str(o.speed), "--seed", str(o.seed)]
-        self.children.append(self._child("plant", plant_args, rt_env, False))
+        self.children.append(self._child("plant", plant_args, rt_env | self._role_env("plant"), False))
         self.info = {
             "run_id": self.run_id,
             "run_dir": str(self.run_dir),
             "zenoh": endpoint,
             "embedded_router": router is not None,
+            "access_control": self.secrets is not None,
+            "credentials": str(self.secrets) if self.secrets else None,
             "rerun_url": rec.url,
             "web_viewer": rec.web_url,
             "api": api_url if o.api else None,
@@ -231,7 +289,7 @@ class Up:
             sig: signal.signal(sig, lambda *_: self.interrupted.set()) for sig in (signal.SIGINT, signal.SIGTERM)
         }
         session = open_session(self._watch_settings(endpoint))
-        sub = session.declare_subscriber(KeyTree(o.farm).events, self._on_event)
+        sub = session.declare_subscriber(KeyTree(o.farm).events_all, self._on_event)
         try:
             for child in self.children:
                 child.start()
@@ -251,9 +309,11 @@ class Up:
         return self._report()
 
     def _watch_settings(self, endpoint: str) -> Any:
-        from windwarden.live.config import ZenohSettings
-
-        return ZenohSettings(connect=endpoint, farm=self.o.farm)
+        """``up``'s own session (the event feed) is a viewer."""
+        if self.secrets is None:
+            return ZenohSettings(connect=endpoint, farm=self.o.farm)
+        viewer = password_file(self.secrets, "viewer")
+        return ZenohSettings(connect=endpoint, farm=self.o.farm, zenoh_user="viewer", zenoh_password_file=viewer)
 
     # -- running --------------------------------------------------------------------------------------------------
     def _banner(self) -> None:
@@ -331,6 +391,7 @@ class Up:
         time.sleep(0.3)  # the recorder receives the last rows in flight
         for proc in reversed(self.rerun):
             stop_rerun(proc, STOP_TIMEOUT_S)
+        self._stop_router()  # last: its audit counts are final once it has stopped
 
     def _report(self) -> int:
         card = finalize_scorecard(self.run_dir)
@@ -338,6 +399,7 @@ class Up:
         verified = finalize_recording(self.run_dir) or (recording.exists() and verify_recording(recording, False))
         failed = [c.name for c in self.children if c.failed]
         completed = bool(card and card["live"]["completed"])
+        refused = read_audit(self.run_dir / ROUTER_AUDIT) if self.router is not None else None
         if not self.o.quiet:
             if card is not None:
                 from windwarden.evaluation.report import render
@@ -354,6 +416,11 @@ class Up:
                 f"run folder {self.run_dir}: scorecard.json, events.jsonl, recording.rrd "
                 f"({'verified' if verified else 'NOT verified'})"
             )
+            if refused is not None:
+                console.print(
+                    f"router: {refused['denied_total']} messages denied, {refused['logins_refused_total']} logins "
+                    f"refused ({self.run_dir / ROUTER_AUDIT})"
+                )
             if failed:
                 console.print(f"[red]failed: {', '.join(failed)} (logs in {self.logs})[/red]")
         write_json(
@@ -365,6 +432,7 @@ class Up:
                 "failed": failed,
                 "recording_verified": verified,
                 "restarts": {c.name: c.restarts for c in self.children},
+                "router_refused": refused,
             },
         )
         if self.interrupted.is_set():
