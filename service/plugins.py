@@ -173,7 +173,7 @@ def choose(kind: str, params: Mapping[str, Any] | None = None, **names: str | No
             known = f"did you mean {hint[0]!r}? " if hint else ""
             problems.append(
                 (
-                    f"params.{key}",
+                    f"supervisor.params.{key}",
                     f"unknown option for {running}; {known}known: {', '.join(sorted(declared)) or 'none'}",
                 )
             )

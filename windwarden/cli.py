@@ -12,6 +12,7 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 
 from rich.console import Console
+from rich.markup import escape
 
 from windwarden.live.cli import LIVE_SUBCOMMANDS
 from wwcore.scenario import Scenario, ScenarioError, load_scenario, shipped_scenarios
@@ -64,8 +65,6 @@ def cmd_eval(args: argparse.Namespace) -> int:
     except ModuleNotFoundError as error:
         raise BadInputError(f"--plugin: cannot import {error.name!r}") from None
     scenario = load_scenario(args.scenario)
-    roles = {"detector": args.detector, "estimator": args.estimator, "controller": args.controller}
-    check_supervisor(scenario, **roles)
     options = EvalOptions(
         detector=args.detector,
         estimator=args.estimator,
@@ -77,9 +76,13 @@ def cmd_eval(args: argparse.Namespace) -> int:
         workers=args.workers,
         progress=not args.quiet,
     )
-    unused = unused_switches(scenario.plant.kind, options)
-    if unused:
-        raise BadInputError("\n".join(f"{flag}: {message}" for flag, message in unused))
+    refused = [f"{flag}: {message}" for flag, message in unused_switches(scenario.plant.kind, options)]
+    try:
+        check_supervisor(scenario, detector=args.detector, estimator=args.estimator, controller=args.controller)
+    except BadInputError as error:
+        refused.append(str(error))
+    if refused:
+        raise BadInputError("\n".join(refused))
     try:
         evaluation = evaluator_for(scenario)(scenario, args.runs, args.seed, options)
     except (UnknownAlgorithmError, AlgorithmOptionError) as error:
@@ -161,11 +164,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     args = parser.parse_args(argv)
     try:
         return int(args.func(args) or 0)
-    except ScenarioError as error:
-        err_console.print(f"[red]error:[/red] {error}", highlight=False)
-        return EXIT_BAD_INPUT
-    except BadInputError as error:
-        err_console.print(f"[red]error:[/red] {error}", highlight=False)
+    except (ScenarioError, BadInputError) as error:  # escaped: a message may hold brackets (tuple[float, float])
+        err_console.print(f"[red]error:[/red] {escape(str(error))}", highlight=False)
         return EXIT_BAD_INPUT
     except KeyboardInterrupt:
         return 130

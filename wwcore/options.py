@@ -45,7 +45,7 @@ class Bounds:
         """The range as a reader would write it: ``> 0 … ≤ 1000``."""
         low = f"≥ {self.ge:g}" if self.ge is not None else f"> {self.gt:g}" if self.gt is not None else ""
         high = f"≤ {self.le:g}" if self.le is not None else f"< {self.lt:g}" if self.lt is not None else ""
-        return " … ".join(part for part in (low, high) if part) or "any"
+        return " … ".join(part for part in (low, high) if part) or "(any value)"
 
 
 @dataclass(frozen=True)
@@ -65,8 +65,10 @@ _SCALARS = (bool, int, float, str)
 def _constrained(tp: Any, bounds: Bounds | None) -> Any:
     """``tp`` with strict scalars and ``bounds`` on every numeric element (tuples, lists, optionals)."""
     origin = typing.get_origin(tp)
-    if origin is Annotated:
-        return _constrained(tp.__origin__, bounds)
+    if origin is Annotated:  # Bounds become pydantic constraints; other metadata (a pydantic Field, …) is kept
+        kept = tuple(m for m in tp.__metadata__ if not isinstance(m, Bounds))
+        inner = _constrained(tp.__origin__, bounds)
+        return Annotated[(inner, *kept)] if kept else inner
     if origin in (tuple, list):
         args = typing.get_args(tp)
         inner = tuple(a if a is Ellipsis else _constrained(a, bounds) for a in args)
@@ -89,7 +91,9 @@ def _bounds_of(hint: Any) -> Bounds | None:
 
 def _type_text(hint: Any) -> str:
     base = hint.__origin__ if typing.get_origin(hint) is Annotated else hint
-    return getattr(base, "__name__", None) if isinstance(base, type) else str(base).replace("typing.", "")
+    if isinstance(base, type) and typing.get_origin(base) is None:
+        return base.__name__
+    return str(base).replace("typing.", "")
 
 
 def _fields(cls: type) -> list[tuple[str, Any, Any]]:
@@ -158,12 +162,16 @@ class OptionSchema:
         return {k: getattr(model, k) for k in mine}, []
 
     def _problem(self, err: Mapping[str, Any]) -> tuple[str, str]:
+        """(key, "got 2.0: should be less than or equal to 1; accepts float ≥ 0 … ≤ 1 s") from a pydantic error."""
         loc = err["loc"]
         key = str(loc[0])
         where = key + "".join(f"[{part}]" for part in loc[1:] if isinstance(part, int))
+        text = f"got {err.get('input')!r}: {err['msg'].replace('Input should', 'should')}"
         info = self.options.get(key)
-        unit = f" ({info.bounds.unit})" if info is not None and info.bounds is not None else ""
-        expected = f"; expected {info.type_text}" if info is not None else ""
-        if info is not None and info.bounds is not None:
-            expected += f" in {info.bounds.text()}{unit}"
-        return where, f"{err['msg'].replace('Input should', 'should')}, got {err.get('input')!r}{expected}"
+        if info is not None:
+            accepts = info.type_text
+            if info.bounds is not None:
+                unit = "" if info.bounds.unit == "–" else f" {info.bounds.unit}"
+                accepts += f" {info.bounds.text()}{unit}"
+            text += f"; accepts {accepts}"
+        return where, text
