@@ -20,7 +20,7 @@ from windwarden.live.adapters import adapter_for
 from windwarden.live.adapters.base import RunInfo
 from wwcore.hydro_params import NOMINAL
 from wwcore.options import Bounds, OptionSchema
-from wwcore.scenario import ScenarioError, parse_scenario
+from wwcore.scenario import ScenarioError, load_scenario, parse_scenario, shipped_scenarios
 from wwcore.scenario.farm import FarmPlant
 from wwcore.scenario.model import SUPERVISOR_ROLES
 from wwcore.turbine_params import BENCHMARK
@@ -260,6 +260,15 @@ def test_eval_refuses_options_an_algorithm_finds_inconsistent(tmp_path, capsys):
     path = _scenario(tmp_path, "turbine", "window = 3\nclear_window = 4")
     _refused(capsys, ["eval", str(path), "--runs", "1", "--quiet", "--out", str(out)], "clear_window")
     assert not out.exists()
+
+
+@pytest.mark.parametrize("name", sorted(shipped_scenarios()))
+def test_every_shipped_scenario_passes_the_check(name):
+    scenario = load_scenario(name)
+    spec = scenario.supervisor
+    choose(
+        scenario.plant.kind, spec.params, detector=spec.detector, estimator=spec.estimator, controller=spec.controller
+    )
 
 
 def test_a_role_the_kind_does_not_have_is_refused_at_load():
