@@ -209,8 +209,10 @@ def detection_metrics(supervisor: HydroSupervisor, m: dict[str, Any]) -> dict[st
     its largest |f̂_filt| after the warm-up, and that as a share of θ (the margin the design left)."""
     out: dict[str, Any] = {"detector": supervisor.detector_name}
     warm = round(WARMUP_S / NOMINAL.dt)
-    quiet = np.abs(m["fault_free"]["f_filt"][warm:].astype(float)).max(axis=(0, 1))
+    free = m["fault_free"]["f_filt"][warm:].astype(float)
+    quiet = np.abs(free).max(axis=(0, 1))
     out["fault_free_max_abs_f_filt"] = dict(zip(FAULT_TARGETS, map(float, quiet), strict=True))
+    out["fault_free_std_f_filt"] = dict(zip(FAULT_TARGETS, map(float, free.std(axis=(0, 1))), strict=True))
     theta = supervisor.thresholds
     if theta is not None:
         out["thresholds"] = dict(zip(FAULT_TARGETS, map(float, theta), strict=True))
