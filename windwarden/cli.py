@@ -12,9 +12,10 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 
 from rich.console import Console
+from rich.markup import escape
 
 from windwarden.live.cli import LIVE_SUBCOMMANDS
-from wwcore.scenario import ScenarioError, load_scenario, shipped_scenarios
+from wwcore.scenario import Scenario, ScenarioError, load_scenario, shipped_scenarios
 
 EXIT_BAD_INPUT = 2
 console = Console()
@@ -56,7 +57,7 @@ def _add_eval(sub: argparse._SubParsersAction) -> None:
 
 def cmd_eval(args: argparse.Namespace) -> int:
     from service.plugins import AlgorithmOptionError, UnknownAlgorithmError, load_plugins
-    from windwarden.evaluation.kinds import EvalOptions, evaluator_for
+    from windwarden.evaluation.kinds import EvalOptions, evaluator_for, unused_switches
     from windwarden.evaluation.report import render
 
     try:
@@ -75,6 +76,13 @@ def cmd_eval(args: argparse.Namespace) -> int:
         workers=args.workers,
         progress=not args.quiet,
     )
+    refused = [f"{flag}: {message}" for flag, message in unused_switches(scenario.plant.kind, options)]
+    try:
+        check_supervisor(scenario, detector=args.detector, estimator=args.estimator, controller=args.controller)
+    except BadInputError as error:
+        refused.append(str(error))
+    if refused:
+        raise BadInputError("\n".join(refused))
     try:
         evaluation = evaluator_for(scenario)(scenario, args.runs, args.seed, options)
     except (UnknownAlgorithmError, AlgorithmOptionError) as error:
@@ -88,6 +96,27 @@ def cmd_eval(args: argparse.Namespace) -> int:
         written = [] if args.no_plots else evaluation.plot(args.out)
         console.print(f"wrote {args.out / 'scorecard.json'}" + (f" and {len(written)} plots" if written else ""))
     return 0
+
+
+def check_supervisor(scenario: Scenario, **flags: str | None) -> None:
+    """Refuse (exit 2), before anything runs, a scenario whose supervisor the registries would not build: a role
+    its plant kind does not have, an unknown algorithm, an option no selected algorithm declares or out of its
+    range (``service.plugins.choose``). ``flags``: role → name given on the command line (wins over the file)."""
+    from service.plugins import AlgorithmOptionError, UnknownAlgorithmError, choose
+
+    spec = scenario.supervisor
+    names = {role: flags.get(role) or getattr(spec, role) for role in ("detector", "estimator", "controller")}
+    try:
+        choose(scenario.plant.kind, spec.params, **names)
+    except UnknownAlgorithmError as error:
+        raise BadInputError(f"scenario {scenario.name}: {error}") from None
+    except AlgorithmOptionError as error:
+        # a role refused because of a flag names the flag; everything else the scenario file's key
+        lines = []
+        for key, text in error.problems:
+            role = key.removeprefix("supervisor.")
+            lines.append(f"  {'--' + role if flags.get(role) else key}: {text}")
+        raise BadInputError(f"scenario {scenario.name}: supervisor options refused:\n" + "\n".join(lines)) from None
 
 
 def _add_scenarios(sub: argparse._SubParsersAction) -> None:
@@ -135,11 +164,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     args = parser.parse_args(argv)
     try:
         return int(args.func(args) or 0)
-    except ScenarioError as error:
-        err_console.print(f"[red]error:[/red] {error}", highlight=False)
-        return EXIT_BAD_INPUT
-    except BadInputError as error:
-        err_console.print(f"[red]error:[/red] {error}", highlight=False)
+    except (ScenarioError, BadInputError) as error:  # escaped: a message may hold brackets (tuple[float, float])
+        err_console.print(f"[red]error:[/red] {escape(str(error))}", highlight=False)
         return EXIT_BAD_INPUT
     except KeyboardInterrupt:
         return 130

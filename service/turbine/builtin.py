@@ -4,9 +4,16 @@ Detectors: ``benchmark`` (the default: ``uio-bank`` plus the pitch-sensor, pitch
 ``component_fdi``), ``uio-bank`` (seed 000's bank with the speed-sensor FDI of ``fdi``), ``none``.
 Estimators: ``uio-bank`` (the observer matching the healthy set, wind from ``wind_recovery``), ``none``
 (passes the raw sensors through, i.e. the benchmark controller as published).
+
+Options are declared at registration (``service.plugins``): the detectors' are the fields of ``FDISettings`` (and,
+prefixed ``component_``, of ``ComponentSettings``), the estimator's those of ``EstimatorSettings``; a field added
+to one of these dataclasses is an option at once. ``none`` declares none.
 """
 
 from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Annotated
 
 import numpy as np
 
@@ -25,6 +32,7 @@ from service.turbine.interfaces import (
 )
 from service.turbine.wind_recovery import WindRecovery
 from wwcore.channels import DIAGNOSIS_TARGETS, SENSOR_INDEX, SPEED_SENSORS, TARGET_INDEX
+from wwcore.options import Bounds
 from wwcore.turbine_frames import TurbineFrame
 
 SPEED_TARGETS = np.array([TARGET_INDEX[s] for s in SPEED_SENSORS])
@@ -39,12 +47,28 @@ _DIAGNOSIS_OF_MASK = np.zeros((1 << len(SPEED_SENSORS), len(DIAGNOSIS_TARGETS)),
 _DIAGNOSIS_OF_MASK[:, SPEED_TARGETS] = (np.arange(1 << len(SPEED_SENSORS))[:, None] & _MASK_WEIGHTS) != 0
 
 
+DETECTOR_OPTIONS = {"": FDISettings}
+BENCHMARK_OPTIONS = {"": FDISettings, "component_": ComponentSettings}
+
+
+@dataclass(frozen=True)
+class EstimatorSettings:
+    """Options of the ``uio-bank`` estimator (``[supervisor.params]``); ``Bounds``: the accepted range."""
+
+    # the torque the wind inversion uses is low-pass filtered at this frequency
+    wind_cutoff_hz: Annotated[float, Bounds(gt=0.0, le=5.0, unit="Hz")] = 0.3
+    speed_cutoff_hz: Annotated[float, Bounds(gt=0.0, le=50.0, unit="Hz")] = 2.0  # low-pass of the speed estimates
+    warmup_s: Annotated[float, Bounds(ge=0.0, le=600.0, unit="s")] = 5.0  # estimates not valid before this
+    wind_every: Annotated[int, Bounds(ge=1, le=1000, unit="ticks")] = 20  # the wind is inverted every this many ticks
+    power_speed: bool = True  # both generator-speed sensors flagged: use observer 5-pe
+
+
 def _settings(cls, options: dict):
     known = {k: v for k, v in options.items() if k in cls.__dataclass_fields__}
     return cls(**known)
 
 
-@TURBINE_DETECTORS.register("uio-bank")
+@TURBINE_DETECTORS.register("uio-bank", options=DETECTOR_OPTIONS)
 class UIOBankDetector:
     """Speed-sensor FDI on the residuals of seed 000's observer bank (see ``service.turbine.fdi``)."""
 
@@ -61,7 +85,7 @@ class UIOBankDetector:
         return Diagnosis(_DIAGNOSIS_OF_MASK[self.fdi.flagged], self.fdi.ratio, self._margin_names)
 
 
-@TURBINE_DETECTORS.register("benchmark")
+@TURBINE_DETECTORS.register("benchmark", options=BENCHMARK_OPTIONS)
 class BenchmarkDetector(UIOBankDetector):
     """``uio-bank`` for the speed sensors plus ``component_fdi``'s tests for the benchmark's other faults."""
 
@@ -91,36 +115,36 @@ class NoDetector:
         return empty_diagnosis(self.n)
 
 
-@TURBINE_ESTIMATORS.register("uio-bank")
+@TURBINE_ESTIMATORS.register("uio-bank", options=EstimatorSettings)
 class UIOBankEstimator:
     """Estimates of the observer whose sensor set matches the healthy sensors (active fault tolerance).
 
-    Options: ``wind_cutoff_hz`` (default 0.3), ``speed_cutoff_hz`` (2.0), ``warmup_s`` (5.0),
-    ``wind_every`` (20): the wind is inverted every that many ticks (5 Hz) and held in between; the torque it
-    inverts is low-pass filtered at ``wind_cutoff_hz``, far below the 5 Hz this resolves. ``power_speed``
+    Options (``EstimatorSettings``): ``wind_cutoff_hz`` (default 0.3), ``speed_cutoff_hz`` (2.0), ``warmup_s``
+    (5.0), ``wind_every`` (20): the wind is inverted every that many ticks (5 Hz) and held in between; the torque
+    it inverts is low-pass filtered at ``wind_cutoff_hz``, far below the 5 Hz this resolves. ``power_speed``
     (true): with both generator-speed sensors flagged, use observer 5-pe (the rotor-speed sensors and the
     power-speed channel, ``docs/turbine.md``), the design nearest the torque reference, instead of seed 000's
     observer 5.
     """
 
     def __init__(self, *, context: TurbineContext, options: dict | None = None):
-        options = options or {}
+        settings = _settings(EstimatorSettings, options or {})
         self.context = context
         design = context.bank_design
         self.recovery = WindRecovery(
             context.params,
             design,
             context.n,
-            wind_cutoff_hz=float(options.get("wind_cutoff_hz", 0.3)),
-            speed_cutoff_hz=float(options.get("speed_cutoff_hz", 2.0)),
+            wind_cutoff_hz=settings.wind_cutoff_hz,
+            speed_cutoff_hz=settings.speed_cutoff_hz,
         )
-        self.warmup_ticks = round(float(options.get("warmup_s", 5.0)) / context.dt)
-        self.wind_every = int(options.get("wind_every", 20))
+        self.warmup_ticks = round(settings.warmup_s / context.dt)
+        self.wind_every = settings.wind_every
         self.observer_of_mask = np.full(1 << len(SPEED_SENSORS), -1)
         for j, left_out in enumerate(design.left_out):
             self.observer_of_mask[sum(1 << SPEED_SENSORS.index(s) for s in left_out)] = j
         # With both generator-speed sensors flagged: the 5-pe observer designed nearest the torque (step)
-        self._power_speed = np.array(design.power_speed if bool(options.get("power_speed", True)) else ())
+        self._power_speed = np.array(design.power_speed if settings.power_speed else ())
         if len(self._power_speed):
             both_generator = sum(1 << SPEED_SENSORS.index(s) for s in GENERATOR)
             self.observer_of_mask[both_generator] = self._power_speed[0]

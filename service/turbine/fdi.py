@@ -30,6 +30,7 @@ scaled χ², c·χ²_ν, with the sum's exact mean and variance from the residua
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Annotated
 
 import numpy as np
 
@@ -37,6 +38,7 @@ from service.plugins import AlgorithmOptionError
 from service.turbine.bank import BankDesign
 from service.turbine.frozen import FrozenReadings
 from wwcore.channels import SPEED_SENSORS
+from wwcore.options import Bounds
 from wwcore.quantiles import chi2_isf
 
 N_SPEED = len(SPEED_SENSORS)
@@ -46,12 +48,19 @@ _SENSORS_OF_MASK = (np.arange(1 << N_SPEED)[:, None] >> np.arange(N_SPEED)) & 1 
 
 @dataclass(frozen=True)
 class FDISettings:
-    false_alarms_per_1000s: float = 0.01  # design rate of the detection tests (requirement: < 1, aim: none)
-    clear_alpha: float = 0.01  # probability that a healthy sensor's window fails the clearing test
-    window: int = 4  # ticks summed by the window test
-    clear_window: int = 3  # ticks summed by the clearing test (≤ window): ends recognised a tick sooner
-    frozen_ticks: int = 3  # identical consecutive readings that mark a sensor frozen
-    warmup_s: float = 5.0  # no decisions while the observers converge from their initial state
+    """Options of the speed-sensor FDI (``[supervisor.params]``); each field's ``Bounds`` is its accepted range."""
+
+    # design rate of the detection tests (requirement: < 1, aim: none)
+    false_alarms_per_1000s: Annotated[float, Bounds(gt=0.0, le=1000.0, unit="1/1000 s")] = 0.01
+    # probability that a healthy sensor's window fails the clearing test
+    clear_alpha: Annotated[float, Bounds(gt=0.0, lt=1.0)] = 0.01
+    window: Annotated[int, Bounds(ge=1, le=1000, unit="ticks")] = 4  # ticks summed by the window test
+    # ticks summed by the clearing test (≤ window): ends recognised a tick sooner
+    clear_window: Annotated[int, Bounds(ge=1, le=1000, unit="ticks")] = 3
+    # identical consecutive readings that mark a sensor frozen
+    frozen_ticks: Annotated[int, Bounds(ge=2, le=1000, unit="ticks")] = 3
+    # no decisions while the observers converge from their initial state
+    warmup_s: Annotated[float, Bounds(ge=0.0, le=600.0, unit="s")] = 5.0
 
 
 def window_threshold(autocov: np.ndarray, window: int, alpha: float) -> float:

@@ -1,4 +1,8 @@
-"""The turbine supervisor: a detector and an estimator chosen by name, composed into the step contract."""
+"""The turbine supervisor: a detector and an estimator chosen by name, composed into the step contract.
+
+``options`` (a scenario's ``[supervisor.params]``) are checked by ``service.plugins.choose`` against what the two
+algorithms declare; each algorithm receives the keys it declared.
+"""
 
 from __future__ import annotations
 
@@ -6,15 +10,15 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from service.plugins import TURBINE_DETECTORS, TURBINE_ESTIMATORS
+from service.plugins import TURBINE_DETECTORS, TURBINE_ESTIMATORS, choose
 from service.turbine.interfaces import Diagnosis, Estimates, TurbineContext
 from wwcore.channels import DIAGNOSIS_TARGETS
 from wwcore.events import Event, EventType
 from wwcore.turbine_frames import TurbineFrame, TurbineRefs
 from wwcore.turbine_params import BENCHMARK, TurbineParams
 
-DEFAULT_DETECTOR = "benchmark"
-DEFAULT_ESTIMATOR = "uio-bank"
+DEFAULT_DETECTOR = TURBINE_DETECTORS.default
+DEFAULT_ESTIMATOR = TURBINE_ESTIMATORS.default
 
 
 class TurbineSupervisor:
@@ -32,11 +36,12 @@ class TurbineSupervisor:
         run_of_row: Sequence[int] | None = None,
         turbine_of_row: Sequence[int] | None = None,
     ):
-        options = options or {}
+        self.choice = choose("turbine", options, detector=detector, estimator=estimator)  # refuses bad options
         self.context = TurbineContext(params, n, noise_convention)
-        self.detector = TURBINE_DETECTORS.create(detector or DEFAULT_DETECTOR, context=self.context, options=options)
+        names, chosen = self.choice.names, self.choice.options
+        self.detector = TURBINE_DETECTORS.create(names["detector"], context=self.context, options=chosen["detector"])
         self.estimator = TURBINE_ESTIMATORS.create(
-            estimator or DEFAULT_ESTIMATOR, context=self.context, options=options
+            names["estimator"], context=self.context, options=chosen["estimator"]
         )
         self.n = n
         self.run_of_row = np.zeros(n, dtype=int) if run_of_row is None else np.asarray(run_of_row)

@@ -46,6 +46,25 @@ class Evaluation:
     extra_files: dict[str, str] = field(default_factory=dict)  # file name → text (markdown tables, …)
 
 
+SWITCHES: dict[str, tuple[str, frozenset[str]]] = {
+    "accommodation": ("--no-accommodation", frozenset({"farm"})),
+    "compensation": ("--no-compensation", frozenset({"hydro"})),
+    "compare": ("--compare", frozenset({"farm"})),
+    "twins": ("--no-twins", frozenset({"turbine", "farm"})),
+}
+"""``EvalOptions`` field → (the ``eval`` flag that changes it, the plant kinds whose evaluator uses it)."""
+
+
+def unused_switches(kind: str, options: EvalOptions) -> list[tuple[str, str]]:
+    """The flags given that a ``kind`` evaluation would ignore, as (flag, message) pairs; empty when none."""
+    defaults = EvalOptions()
+    return [
+        (flag, f"a {kind} scenario does not use it (it applies to {', '.join(sorted(kinds))} scenarios)")
+        for name, (flag, kinds) in SWITCHES.items()
+        if kind not in kinds and getattr(options, name) != getattr(defaults, name)
+    ]
+
+
 def evaluator_for(scenario: Scenario) -> Callable[[Scenario, int, int, EvalOptions], Evaluation]:
     module = importlib.import_module(EVALUATORS[scenario.plant.kind])
     return module.evaluate

@@ -159,7 +159,7 @@ def service_errors(command: Callable[[argparse.Namespace], int]) -> Callable[[ar
 
 @service_errors
 def cmd_plant(args: argparse.Namespace) -> int:
-    from windwarden.cli import BadInputError
+    from windwarden.cli import BadInputError, check_supervisor
     from windwarden.live.config import PlantSettings, new_run_id, settings_from_flags
     from windwarden.live.finalize import finalize_scorecard
     from windwarden.live.plant_node import PlantNode
@@ -176,6 +176,7 @@ def cmd_plant(args: argparse.Namespace) -> int:
         raise BadInputError(str(error)) from None
     scenario = truncated(load_scenario(settings.scenario), settings.duration_s)
     check_kind(scenario.plant.kind)
+    check_supervisor(scenario)  # the supervisor would refuse these options: say so before the run starts
     apply_nice(settings)
     run_id = settings.run_id or new_run_id(scenario.name)
     run_dir = settings.folder(run_id)
@@ -226,6 +227,7 @@ def _add_supervise(sub: argparse._SubParsersAction) -> None:
 
 @service_errors
 def cmd_supervise(args: argparse.Namespace) -> int:
+    from service.plugins import AlgorithmOptionError, UnknownAlgorithmError
     from windwarden.cli import BadInputError
     from windwarden.live.config import SupervisorSettings, settings_from_flags
     from windwarden.live.supervisor_node import SupervisorNode
@@ -257,6 +259,8 @@ def cmd_supervise(args: argparse.Namespace) -> int:
         exit_with_parent(node.stop)
         try:
             return node.run()
+        except (AlgorithmOptionError, UnknownAlgorithmError) as error:  # the plant's run names options we refuse
+            raise BadInputError(f"the run's supervisor: {error}") from None
         finally:
             status = node.status()
             log.info(
@@ -361,12 +365,13 @@ def _up_flags(p: argparse.ArgumentParser, viewer: str) -> None:
 
 
 def cmd_up(args: argparse.Namespace) -> int:
-    from windwarden.cli import BadInputError
+    from windwarden.cli import BadInputError, check_supervisor
     from windwarden.live.up import Up, UpOptions
 
     setup_logging("up")
     scenario = truncated(load_scenario(args.scenario), args.duration)
     check_kind(scenario.plant.kind)
+    check_supervisor(scenario)
     if not args.speed > 0:
         raise BadInputError(f"--speed must be > 0, got {args.speed}")
     options = UpOptions(
