@@ -11,7 +11,7 @@ wind and measurement noise:
 
 Detection does not feed back into the loop, so the evaluator runs the supervisor's own detector class over the
 recorded reconstructions once the calibrated thresholds are known; the events are those the supervisor would
-emit with those thresholds. Detection figures come from ``scoring.score_faults``.
+emit with those thresholds. Detection figures come from ``scoring.score_detection``.
 """
 
 from __future__ import annotations
@@ -28,7 +28,8 @@ from service.hydro.detector import DetectionSettings, OffsetDetector, threshold_
 from service.hydro.supervisor import HydroSupervisor
 from windwarden.evaluation.kinds import EvalOptions, Evaluation
 from windwarden.evaluation.parallel import run_chunks
-from windwarden.evaluation.scoring import score_faults, windows_from_faults
+from windwarden.evaluation.scoring import score_detection, windows_from_faults
+from windwarden.evaluation.scoring_policy import HYDRO as SCORING
 from wwcore.events import Event
 from wwcore.hydro_params import FAULT_TARGETS, NOMINAL
 from wwcore.scenario import Scenario
@@ -210,16 +211,16 @@ def evaluate(scenario: Scenario, runs: int, seed: int, options: EvalOptions) -> 
     settings = replace(base, threshold=threshold_from_quiet(quiet))
     events = detect(m[main]["f_filt"], dt, settings)
     windows = windows_from_faults(scenario.faults, scenario.duration_s)
-    entries, fa_rate, fa_raw = score_faults(events, windows, runs, scenario.duration_s, warmup_s=base.warmup_s)
+    detection = score_detection(events, windows, runs=runs, duration_s=scenario.duration_s, policy=SCORING)
     ff_events = detect(m["fault_free"]["f_filt"], dt, settings)
-    _, ff_rate, _ = score_faults(ff_events, [], runs, scenario.duration_s, warmup_s=base.warmup_s)
+    ff = score_detection(ff_events, [], runs=runs, duration_s=scenario.duration_s, policy=SCORING)
     metrics: dict[str, Any] = {"reconstruction": reconstruction_metrics(m[main], scenario, dt)}
     metrics.update(deviation_metrics(m))
     metrics["detection"] = {
         "thresholds": dict(zip(FAULT_TARGETS, settings.threshold, strict=True)),
         "calibration_max_abs_f_filt": dict(zip(FAULT_TARGETS, map(float, quiet), strict=True)),
-        "false_alarms": fa_raw,
-        "fault_free_twin_false_alarms_per_1000s": ff_rate,
+        "false_alarms": detection.false_alarms,
+        "fault_free_twin_false_alarms_per_1000s": ff.false_alarms_per_1000s,
         "rule": f"|f̂_filt| > θ for {base.on_samples} samples; release below {base.off_ratio:g} θ for "
         f"{base.off_samples} samples; θ = max(1.5 · max|f̂_filt| over the calibration twin, 0.01)",
     }
@@ -230,8 +231,7 @@ def evaluate(scenario: Scenario, runs: int, seed: int, options: EvalOptions) -> 
         "duration_s": scenario.duration_s,
         "observer": observer,
         "compensation": options.compensation,
-        "false_alarms_per_1000s": fa_rate,
-        "faults": entries,
+        **detection.card_fields(),
         "metrics": metrics,
     }
 

@@ -5,7 +5,7 @@ streams ``SeedSequence(seed, spawn_key=(0, 0))``, the nominal parameters with th
 correction applied). A one-row batch gives bit for bit the numbers of that twin, so the live reconstruction
 figures equal ``windwarden eval``'s.
 
-Scorecard of a live run: detection figures from the event log (``scoring.score_faults``, the supervisor's own
+Scorecard of a live run: detection figures from the event log (``scoring.score_detection``, the supervisor's own
 detector with its default thresholds: the batch evaluator calibrates them on a fault-free twin, which a live run
 does not have) and the reconstruction figures of ``evaluation.hydro.reconstruction_metrics`` from the corrections
 the plant received. The deviation-from-fault-free figures need that twin too and are batch-only.
@@ -18,7 +18,8 @@ from typing import TYPE_CHECKING, Any, ClassVar
 
 import numpy as np
 
-from windwarden.evaluation.scoring import score_faults, windows_from_faults
+from windwarden.evaluation.scoring import score_detection, windows_from_faults
+from windwarden.evaluation.scoring_policy import HYDRO as SCORING
 from windwarden.live.adapters.base import RunInfo, finite_or_none, records_from_batch
 from wwcore.events import Event
 from wwcore.hydro_frames import HydroFrame, HydroRefs
@@ -162,7 +163,7 @@ class HydroAdapter:
 
         settings = DetectionSettings()
         windows = windows_from_faults(faults, scenario.duration_s)
-        entries, fa_rate, fa_raw = score_faults(events, windows, 1, scenario.duration_s, warmup_s=settings.warmup_s)
+        detection = score_detection(events, windows, runs=1, duration_s=scenario.duration_s, policy=SCORING)
         return {
             "scenario": scenario.name,
             "runs": 1,
@@ -170,13 +171,12 @@ class HydroAdapter:
             "duration_s": scenario.duration_s,
             "observer": scenario.supervisor.estimator or DEFAULT_OBSERVER,
             "compensation": True,
-            "false_alarms_per_1000s": fa_rate,
-            "faults": entries,
+            **detection.card_fields(),
             "metrics": {
                 "reconstruction": metrics.get("reconstruction", []),
                 "detection": {
                     "thresholds": dict(zip(FAULT_TARGETS, settings.threshold, strict=True)),
-                    "false_alarms": fa_raw,
+                    "false_alarms": detection.false_alarms,
                     "calibrated": False,
                 },
             },
