@@ -1,20 +1,33 @@
-"""The scoring policy (``windwarden.evaluation.scoring``): closed-form figures on hand-made event logs.
+"""The scoring policy (``windwarden.evaluation.scoring``).
 
-Every figure of ``docs/scorecards.md`` has a case here whose answer follows from the definitions by hand. The
-adversarial detectors, run through the real evaluators, are in ``test_scoring_adversarial.py``.
+Closed-form figures on hand-made event logs: every figure of ``docs/scorecards.md`` has a case whose answer
+follows from the definitions by hand. Then detectors built to game the scorecard, registered through the plug-in
+registries and scored by the real evaluators on short scenarios: each scores badly on the figure it games. And the
+live run folder's scorecard equals ``windwarden eval``'s for the same events.
 """
 
 from __future__ import annotations
 
 import re
+import tomllib
+from dataclasses import replace
 from pathlib import Path
 
+import numpy as np
 import pytest
 
+from service.plugins import FARM_DETECTORS, TURBINE_DETECTORS
+from service.turbine.interfaces import Diagnosis
+from windwarden.evaluation.kinds import EvalOptions, evaluator_for
 from windwarden.evaluation.scoring import FaultWindow, score_detection, twin_false_alarms, windows_from_faults
 from windwarden.evaluation.scoring_policy import POLICIES, ScoringPolicy, policy_for, policy_table
+from windwarden.live.batch import run_batch
+from windwarden.live.finalize import finalize_scorecard
+from windwarden.live.runfolder import EVENTS, LIVE, RUN, SCENARIO, encode_line, write_json
+from wwcore.channels import DIAGNOSIS_TARGETS, SPEED_SENSORS, TARGET_INDEX
 from wwcore.events import Event, EventType
-from wwcore.scenario import FaultSpec
+from wwcore.scenario import FaultSpec, parse_scenario
+from wwcore.scenario.farm import N_TURBINES
 
 POLICY = ScoringPolicy("test", warmup_s=10.0, grace_s=2.0, time_base="s", warmup_reason="", grace_reason="")
 DURATION = 1000.0
@@ -239,3 +252,239 @@ def test_one_policy_per_kind_and_the_docs_show_it_as_the_code_applies_it():
         policy_for("ship")
     docs = (Path(__file__).resolve().parents[1] / "docs" / "scorecards.md").read_text()
     assert policy_table() in docs  # the values and the reasons for them, as the code has them
+
+
+# ---- detectors built to game the scorecard, through the plug-in interface and the real evaluators -------------
+SPEED_COLUMNS = [TARGET_INDEX[s] for s in SPEED_SENSORS]
+GAMED = """
+name = "gamed"
+duration_s = 40.0
+[plant]
+kind = "turbine"
+[wind]
+mean = [[0.0, 12.0], [40.0, 13.0]]
+[[faults]]
+name = "generator sensor 2 stuck"
+target = "omega_g_m2"
+kind = "fixed"
+value = 100.0
+start_s = 20.0
+end_s = 30.0
+"""
+RUNS = 2
+
+
+class _Adversary:
+    """Flags from the frame alone (``flags``), as any plug-in detector sees it; never the fault schedule."""
+
+    def __init__(self, *, context, options=None):
+        self.context, self.n = context, context.n
+
+    def step(self, frame):
+        return Diagnosis(self.flags(frame))
+
+    def none(self):
+        return np.zeros((self.n, len(DIAGNOSIS_TARGETS)), dtype=bool)
+
+
+@TURBINE_DETECTORS.register("adversary-never")
+class NeverFlags(_Adversary):
+    def flags(self, frame):
+        return self.none()
+
+
+@TURBINE_DETECTORS.register("adversary-everything")
+class FlagsEverythingAlways(_Adversary):
+    def flags(self, frame):
+        return ~self.none()
+
+
+@TURBINE_DETECTORS.register("adversary-cycle")
+class CyclesThroughTheSpeedSensors(_Adversary):
+    def flags(self, frame):  # one speed sensor after another, 0.5 s each
+        out = self.none()
+        out[:, SPEED_COLUMNS[(frame.k // 50) % 4]] = True
+        return out
+
+
+@TURBINE_DETECTORS.register("adversary-early")
+class FlagsEarlyNeverClears(_Adversary):
+    def flags(self, frame):  # every speed sensor from 5 s on (inside the warm-up), never cleared
+        out = self.none()
+        out[:, SPEED_COLUMNS] = frame.t >= 5.0
+        return out
+
+
+class _Wrapped(_Adversary):
+    """The shipped detector's verdict, altered."""
+
+    def __init__(self, *, context, options=None):
+        super().__init__(context=context, options=options)
+        self.inner = TURBINE_DETECTORS.create("benchmark", context=context, options=options)
+
+
+@TURBINE_DETECTORS.register("adversary-wrong-target")
+class FlagsTheWrongTarget(_Wrapped):
+    def flags(self, frame):  # perfect timing, but each speed sensor's flag on the next sensor
+        out = self.inner.step(frame).faulty.copy()
+        out[:, SPEED_COLUMNS] = np.roll(out[:, SPEED_COLUMNS], 1, axis=1)
+        return out
+
+
+@TURBINE_DETECTORS.register("adversary-late")
+class FlagsLate(_Wrapped):
+    LAG = 300  # ticks (3 s)
+
+    def __init__(self, *, context, options=None):
+        super().__init__(context=context, options=options)
+        self.past: list[np.ndarray] = []
+
+    def flags(self, frame):  # the shipped detector's verdict of 3 s ago
+        self.past.append(self.inner.step(frame).faulty.copy())
+        return self.past.pop(0) if len(self.past) > self.LAG else self.none()
+
+
+@pytest.fixture(scope="module")
+def gamed_cards():
+    scenario = parse_scenario(tomllib.loads(GAMED))
+    names = ("benchmark", "never", "everything", "cycle", "early", "wrong-target", "late")
+    cards = {}
+    for name in names:
+        detector = name if name == "benchmark" else f"adversary-{name}"
+        options = EvalOptions(detector=detector, workers=1, progress=False, twins=False)
+        cards[name] = evaluator_for(scenario)(scenario, RUNS, 11, options).scorecard
+    return cards
+
+
+def test_the_shipped_detector_scores_well_on_the_gamed_scenario(gamed_cards):
+    [f] = gamed_cards["benchmark"]["faults"]
+    assert (f["detected_pct"], f["isolated_pct"], f["end_recognised_pct"]) == (100.0, 100.0, 100.0)
+    assert f["delay_s_max"] <= 0.03 and f["wrong_isolations"] == 0 and f["flaps_max"] == 0
+    assert gamed_cards["benchmark"]["false_alarms"]["count"] == 0
+
+
+def test_a_detector_that_never_flags_recognises_no_end(gamed_cards):
+    [f] = gamed_cards["never"]["faults"]
+    assert (f["detected_pct"], f["isolated_pct"], f["end_recognised_pct"]) == (0.0, 0.0, 0.0)
+
+
+@pytest.mark.parametrize("name, flags_per_run", [("everything", len(DIAGNOSIS_TARGETS)), ("early", 4)])
+def test_flags_raised_in_the_warm_up_and_never_cleared_are_false_alarms(gamed_cards, name, flags_per_run):
+    card = gamed_cards[name]
+    [f] = card["faults"]
+    assert f["detected_pct"] == 0.0 and f["isolated_pct"] == 0.0 and f["isolated_time_pct"] == 0.0
+    assert card["false_alarms"]["count"] == RUNS * flags_per_run
+    assert card["false_alarm_flagged_s_per_1000s"] == pytest.approx(1000.0)
+    assert card["false_alarms_per_1000s"] > 100.0
+
+
+def test_a_detector_cycling_through_the_sensors_is_not_isolated(gamed_cards):
+    card = gamed_cards["cycle"]
+    [f] = card["faults"]
+    assert f["isolated_pct"] == 0.0 and f["isolated_time_pct"] < 30.0 and f["end_recognised_pct"] == 0.0
+    assert f["delay_s_mean"] == pytest.approx(1.5)  # its first flag in the window is omega_r_m1 (20.0 s)
+    assert f["wrong_isolation_pct"] == 100.0 and f["flaps_max"] >= 4 and f["lost_pct"] == 100.0
+    assert card["false_alarms_per_1000s"] > 100.0
+
+
+def test_a_detector_flagging_the_wrong_sensor_detects_nothing(gamed_cards):
+    card = gamed_cards["wrong-target"]
+    [f] = card["faults"]
+    assert f["detected_pct"] == 0.0 and f["isolated_pct"] == 0.0 and f["end_recognised_pct"] == 0.0
+    assert f["wrong_isolation_pct"] == 100.0 and card["wrong_isolations"]["by_target"] == {"omega_r_m1": RUNS}
+    assert card["false_alarms"]["count"] == 0  # inside the window it is a wrong isolation, not a false alarm
+
+
+def test_a_late_detector_shows_its_delay_and_misses_the_end(gamed_cards):
+    card = gamed_cards["late"]
+    [f] = card["faults"]
+    assert f["detected_pct"] == 100.0 and f["isolated_pct"] == 100.0 and f["delay_s_mean"] >= 3.0
+    assert f["end_recognised_pct"] == 0.0
+    assert card["false_alarm_flagged_s_per_1000s"] > 0.0  # its flag outlives the grace
+
+
+# ---- one policy: the live run folder scores the events of a run as windwarden eval does ----------------------
+FARM_GAMED = """
+name = "farm-gamed"
+duration_s = 90.0
+[plant]
+kind = "farm"
+wind_case = 2
+[plant.demand]
+mode = "available_fraction"
+fraction = 0.8
+update_s = 10.0
+[wind]
+mean = [[0.0, 10.0], [90.0, 11.0]]
+[[faults]]
+name = "F1 debris wt5"
+target = "rotor"
+kind = "debris"
+value = 0.97
+turbine = 5
+start_s = 70.0
+end_s = 85.0
+"""
+DETECTION_FIELDS = (
+    "scoring",
+    "false_alarms_per_1000s",
+    "false_alarm_flagged_s_per_1000s",
+    "false_alarms",
+    "wrong_isolations",
+    "faults",
+)
+
+
+@FARM_DETECTORS.register("adversary-wrong-turbine")
+class FlagsTheNextTurbine:
+    """The shipped farm detector's verdict, each turbine's flags moved to the next turbine of its farm."""
+
+    def __init__(self, *, context, options=None):
+        self.inner = FARM_DETECTORS.create("analytic", context=context, options=options)
+
+    def step(self, sample):
+        diagnosis = self.inner.step(sample)
+        faulty = np.roll(diagnosis.faulty.reshape(-1, N_TURBINES, 3), 1, axis=1).reshape(diagnosis.faulty.shape)
+        return replace(diagnosis, faulty=faulty)
+
+
+def _live_scorecard(run_dir: Path, text: str, seed: int, events: list[Event], faults) -> dict:
+    """A live run folder holding ``events`` as the nodes write them, scored by ``finalize_scorecard``."""
+    run_dir.mkdir()
+    (run_dir / SCENARIO).write_text(text)
+    write_json(run_dir / RUN, {"run_id": "same-events", "seed": seed})
+    timing = dict.fromkeys(("overruns", "overrun_pct", "resyncs", "real_time_factor", "latency", "dropped"), 0)
+    live = {
+        "effective_faults": [f.model_dump(mode="json") for f in faults],
+        "metrics": {},
+        "timing": {**timing, "mode": "lockstep", "speed": 1.0},
+        "completed": True,
+        "ticks_run": 0,
+    }
+    write_json(run_dir / LIVE, live)
+    (run_dir / EVENTS).write_bytes(b"".join(encode_line(e) for e in events))
+    return finalize_scorecard(run_dir)
+
+
+@pytest.mark.parametrize(
+    "text, detector",
+    [(GAMED, "adversary-cycle"), (FARM_GAMED, "adversary-wrong-turbine")],
+    ids=["turbine", "farm"],
+)
+def test_the_live_run_folder_and_eval_give_the_same_scorecard_for_the_same_events(tmp_path, text, detector):
+    text = f'{text}\n[supervisor]\ndetector = "{detector}"\n'
+    scenario = parse_scenario(tomllib.loads(text))
+    seed = 5
+    run = run_batch(scenario, seed)  # run 0 of eval, through the live adapters' loop: the events a live run logs
+    live = _live_scorecard(tmp_path / "run", text, seed, run.events, scenario.faults)
+    batch = evaluator_for(scenario)(scenario, 1, seed, EvalOptions(workers=1, progress=False, twins=False)).scorecard
+    for key in DETECTION_FIELDS:
+        assert live[key] == batch[key], key
+    if scenario.plant.kind == "farm":
+        assert live["metrics"]["detection"] == batch["metrics"]["detection"]
+        [f] = live["faults"]  # and the adversary scores badly: the right type on the wrong turbine
+        assert f["detected_pct"] == 0.0 and f["isolated_pct"] == 0.0 and f["wrong_isolation_pct"] == 100.0
+        assert live["wrong_isolations"]["by_target"] == {"debris": 1}
+        assert live["metrics"]["detection"]["debris"]["false_positives"] == 1
+    else:
+        assert live["wrong_isolations"]["count"] > 0 and live["false_alarms"]["count"] > 0

@@ -38,7 +38,7 @@ from typing import Any
 import numpy as np
 
 from windwarden.evaluation.flag_history import NOTHING, Flag, FlagHistory, flag_histories, scoring_time
-from windwarden.evaluation.scoring_policy import ScoringPolicy
+from windwarden.evaluation.scoring_policy import TIME_DECIMALS, ScoringPolicy
 from wwcore.events import Event
 
 
@@ -175,9 +175,10 @@ def _window_run(h: FlagHistory, span: _Span, schedule: _Schedule) -> _RunFigures
 
 
 def _stats(values: Sequence[float]) -> tuple[float | None, float | None]:
+    """Mean and max of times, to the scoring's time resolution."""
     if not values:
         return None, None
-    return float(np.mean(values)), float(np.max(values))
+    return round(float(np.mean(values)), TIME_DECIMALS), round(float(np.max(values)), TIME_DECIMALS)
 
 
 def _pct(count: int, runs: int) -> float:
