@@ -15,10 +15,12 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from rich.console import Console
 
 from service.plugins import FARM_DETECTORS, TURBINE_DETECTORS
 from service.turbine.interfaces import Diagnosis
 from windwarden.evaluation.kinds import EvalOptions, evaluator_for
+from windwarden.evaluation.report import render
 from windwarden.evaluation.scoring import FaultWindow, score_detection, twin_false_alarms, windows_from_faults
 from windwarden.evaluation.scoring_policy import POLICIES, ScoringPolicy, policy_for, policy_table
 from windwarden.live.batch import run_batch
@@ -488,3 +490,23 @@ def test_the_live_run_folder_and_eval_give_the_same_scorecard_for_the_same_event
         assert live["metrics"]["detection"]["debris"]["false_positives"] == 1
     else:
         assert live["wrong_isolations"]["count"] > 0 and live["false_alarms"]["count"] > 0
+
+
+def test_the_printed_scorecard_shows_the_new_figures_within_100_columns():
+    window, early = (
+        FaultWindow("double: rotor and generator sensors", ("omega_r_m2", "omega_g_m1"), 1, 100.0, 200.0),
+        (FaultWindow("early", ("a",), 1, 2.0, 8.0)),
+    )
+    s = score(
+        log("100.1+omega_r_m2", "100.1+omega_g_m1", "150+b", "150.1-b", "200.1-omega_r_m2", "200.1-omega_g_m1"),
+        windows=[window, early],
+    )
+    card = {"scenario": "printed", "runs": 1, "seed": 7, **s.card_fields(), "metrics": {"x": 1.0}}
+    console = Console(width=100, record=True)
+    console.print(render(card))
+    text = console.export_text()
+    assert max(len(line) for line in text.splitlines()) <= 100
+    flat = " ".join(text.split())
+    for word in ("first", "time", "wrong", "lost", "flaps", "recognised", "warm-up:", "flagged"):  # headers wrap
+        assert word in flat, word
+    assert "warm-up 10 s, grace 2 s" in flat

@@ -12,7 +12,7 @@ from typing import Any
 from rich.console import Group
 from rich.table import Table
 
-WIDTH = 100  # columns the tables are laid out for
+WIDTH = 100  # columns the tables are laid out for; they fill a narrower or a wider terminal as well
 
 
 def _fmt(value: Any, digits: int = 3) -> str:
@@ -29,8 +29,8 @@ def _pair(a: Any, b: Any) -> str:
 
 def _table(title: str | None, text: list[tuple[str, int, int]], numbers: list[tuple[str, int]]) -> Table:
     """Text columns (name, share of the room left, minimum width) on the left, then number columns (name, width),
-    all within ``WIDTH``."""
-    table = Table(title=title, width=WIDTH, title_justify="left", caption_justify="left", pad_edge=False)
+    across the terminal (the number columns and the text columns' minimum widths fit in ``WIDTH``)."""
+    table = Table(title=title, expand=True, title_justify="left", caption_justify="left", pad_edge=False)
     for name, share, least in text:
         table.add_column(name, ratio=share, min_width=least, overflow="fold")
     for name, width in numbers:
