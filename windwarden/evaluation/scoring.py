@@ -187,8 +187,7 @@ def _pct(count: int, runs: int) -> float:
 
 def _entry(span: _Span, figures: list[_RunFigures], runs: int, duration: float) -> dict[str, Any]:
     w = span.window
-    entry: dict[str, Any] = {"name": w.name, "target": w.target, "turbine": w.turbine, "start_s": w.start_s}
-    entry["end_s"] = w.end_s
+    entry = {"name": w.name, "target": w.target, "turbine": w.turbine, "start_s": w.start_s, "end_s": w.end_s}
     if span.end <= span.start:  # the whole window lies in the warm-up
         return {**entry, "note": "inside the warm-up: not scored"}
     delays = [f.delay for f in figures if f.delay is not None]
