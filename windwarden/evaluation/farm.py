@@ -3,11 +3,13 @@
 Per run (``FarmBatch``), and when the scenario has faults also its fault-free twin farm (same wind and noise
 streams, no faults, same supervisor), in one batch. The scorecard has the schema of the turbine kind:
 
-* ``faults``: one entry per scheduled fault window (``scoring.score_faults``), target ``wt<k>:<type>``; a
-  detection counts on the window's turbine; *isolated* means the flagged fault type was the right one;
-* ``false_alarms_per_1000s``: detections outside every window of their turbine, per 1000 turbine-seconds;
-* ``metrics.detection``: Table 5 per fault type: detection rate and delay with the right type, false
-  positives of that type per 1000 s (farm-seconds, the paper's basis, and turbine-seconds), on these runs;
+* ``faults``: one entry per scheduled fault window (``scoring.score_detection``, ``docs/scorecards.md``), target
+  ``wt<k>:<type>``: a flag is a (turbine, fault type) pair, so a detection needs the right type on the right
+  turbine, and any other flag raised in the farm during the window is a wrong isolation;
+* ``false_alarms_per_1000s``: flags raised outside every window, per 1000 turbine-seconds;
+* ``metrics.detection``: Table 5 per fault type: detection rate and delay with the right type and turbine,
+  false positives of that type (raised where it is not the fault) per 1000 s (farm-seconds, the paper's basis,
+  and turbine-seconds), on these runs;
 * ``metrics.over_production`` / ``metrics.missing_power``: ∫ pos(P_farm − P_ref,farm) dt and
   ∫ pos(P_ref,farm − P_farm) dt after the warm-up, P_farm the farm's true output (10 Hz block means), per run;
 * ``metrics.damage``: drive-train damage numbers (DEL of the shaft torque, rainflow, m = 4, over the fault-free
@@ -37,13 +39,14 @@ from service.farm.supervisor import DEFAULT_CONTROLLER, DEFAULT_DETECTOR, FarmSu
 from service.plugins import FARM_CONTROLLERS, FARM_DETECTORS
 from windwarden.evaluation.kinds import EvalOptions, Evaluation
 from windwarden.evaluation.parallel import run_chunks
-from windwarden.evaluation.scoring import FaultWindow, score_faults
+from windwarden.evaluation.scoring import FaultWindow, score_detection, twin_false_alarms
+from windwarden.evaluation.scoring_policy import FARM as SCORING
 from wwcore.events import Event, EventType
 from wwcore.scenario import Scenario
 from wwcore.scenario.farm import FARM_DT_S, FARM_FAULT_TYPES, N_TURBINES, farm_fault_name
 
-WARMUP_S = 60.0  # s: the paper's wind-direction estimate (500 samples), filters and dispatch settle; not scored
-GRACE_S = 10.0  # s after a fault ends during which its detections still count and its end must be recognised
+WARMUP_S = SCORING.warmup_s  # s, not scored (scoring_policy says why)
+GRACE_S = SCORING.grace_s  # s after a fault ends during which its flags may still be up (scoring_policy)
 DAMAGE_BIN_S = 10.0  # s, time resolution of the damage sums (Fig. 4)
 MAX_CHUNK = 50  # runs per process at most: 100 runs are two chunks of 50 (900 turbine rows and their twins)
 PROGRESS_EVERY = 1000  # ticks between progress reports
@@ -276,27 +279,17 @@ def run_variant(
     )
 
 
+def score_farm(events: list[Event], windows: list[FaultWindow], runs: int, duration_s: float):
+    """The detection figures of farm runs (``scoring.score_detection``, every turbine in the time base)."""
+    return score_detection(events, windows, runs=runs, duration_s=duration_s, policy=SCORING, turbines=TURBINES)
+
+
 def detection_by_type(events: list[Event], windows: list[FaultWindow], runs: int, duration_s: float) -> dict:
-    """Table 5 per fault type: detected %, mean/max delay with the right type, false positives of that type."""
-    out = {}
-    farm_seconds = runs * (duration_s - WARMUP_S)
-    for name in FARM_FAULT_TYPES:
-        typed = [e for e in events if e.target == name]
-        wins = [w for w in windows if w.target == name]
-        entries, rate, raw = score_faults(typed, wins, runs, duration_s, GRACE_S, WARMUP_S, turbines=TURBINES)
-        delays = [e["delay_s_mean"] for e in entries if e["delay_s_mean"] is not None]
-        detected = [e["detected_pct"] for e in entries]
-        out[name] = {
-            "windows": len(wins),
-            "detected_pct": float(np.mean(detected)) if detected else None,
-            "missed_pct": float(100.0 - np.mean(detected)) if detected else None,
-            "delay_s_mean": float(np.mean(delays)) if delays else None,
-            "delay_s_max": max((e["delay_s_max"] for e in entries if e["delay_s_max"] is not None), default=None),
-            "false_positives": raw["count"],
-            "false_positives_per_1000s": 1000.0 * raw["count"] / farm_seconds if farm_seconds > 0 else 0.0,
-            "false_positives_per_1000_turbine_s": rate,
-        }
-    return out
+    """Table 5 per fault type: detected % and mean/max delay with the right type and turbine, isolated % (first
+    flag), false positives of that type (``DetectionScore.by_target``) per 1000 farm-s and turbine-s."""
+    score = score_farm(events, windows, runs, duration_s)
+    farm_seconds = runs * max(duration_s - WARMUP_S, 0.0)
+    return {name: score.by_target(name, farm_seconds) for name in FARM_FAULT_TYPES}
 
 
 def damage_metrics(v: Variant, windows: list[FaultWindow]) -> dict[str, Any]:
@@ -380,14 +373,13 @@ def power_metrics(v: Variant) -> dict[str, Any]:
 def scorecard_of(v: Variant) -> dict[str, Any]:
     scenario = v.scenario
     windows = farm_windows(scenario)
-    entries, fa_rate, fa_raw = score_faults(
-        v.events, windows, v.runs, scenario.duration_s, GRACE_S, WARMUP_S, turbines=TURBINES
-    )
-    for entry, w in zip(entries, windows, strict=True):
+    detection = score_farm(v.events, windows, v.runs, scenario.duration_s)
+    farm_seconds = v.runs * max(scenario.duration_s - WARMUP_S, 0.0)
+    for entry, w in zip(detection.faults, windows, strict=True):
         entry["target"] = scorecard_target(w)
     metrics: dict[str, Any] = power_metrics(v)
     metrics["damage"] = damage_metrics(v, windows)
-    metrics["detection"] = detection_by_type(v.events, windows, v.runs, scenario.duration_s)
+    metrics["detection"] = {name: detection.by_target(name, farm_seconds) for name in FARM_FAULT_TYPES}
     card = {
         "scenario": scenario.name,
         "runs": v.runs,
@@ -397,15 +389,13 @@ def scorecard_of(v: Variant) -> dict[str, Any]:
         "detector": v.detector,
         "controller": v.controller,
         "accommodation": v.accommodation,
-        "false_alarms_per_1000s": fa_rate,
-        "false_alarms": fa_raw,
-        "faults": entries,
+        **detection.card_fields(),
         "metrics": metrics,
     }
     if v.twin_events:
-        count = sum(1 for e in v.twin_events if e.type is EventType.DETECTION and e.t >= WARMUP_S)
         observed = v.runs * (scenario.duration_s - WARMUP_S) * N_TURBINES
-        card["false_alarms_twin"] = {"count": count, "observed_s": observed, "per_1000s": 1000.0 * count / observed}
+        whole_run = [(0.0, scenario.duration_s)]
+        card["false_alarms_twin"] = twin_false_alarms(v.twin_events, observed, SCORING, whole_run)
     return card
 
 

@@ -11,7 +11,8 @@ All three run one ``HydroSupervisor``, the one the live system runs, with the sc
 thresholds are the design values of ``service.hydro.detector`` (fixed before any run, from the sensors'
 accuracy and the design false-alarm rate, no data). The detection figures score the supervisor's own
 DETECTION / RECOVERY events of the main twin (compensated, or uncompensated with ``--no-compensation``); the
-fault-free twin's events give a second false-alarm count. Scoring goes through ``_score`` alone.
+fault-free twin's events give a second false-alarm count. Scoring goes through ``_score`` alone
+(``scoring.score_detection`` with the hydrostatic ``ScoringPolicy``).
 """
 
 from __future__ import annotations
@@ -28,7 +29,8 @@ from service.hydro.detector import DetectionSettings
 from service.hydro.supervisor import HydroSupervisor
 from windwarden.evaluation.kinds import EvalOptions, Evaluation
 from windwarden.evaluation.parallel import run_chunks
-from windwarden.evaluation.scoring import score_faults, windows_from_faults
+from windwarden.evaluation.scoring import DetectionScore, score_detection, windows_from_faults
+from windwarden.evaluation.scoring_policy import HYDRO as SCORING
 from wwcore.events import Event
 from wwcore.hydro_params import FAULT_TARGETS, NOMINAL
 from wwcore.scenario import Scenario
@@ -39,7 +41,7 @@ SETTLE_BAND = 0.05  # settled when |f̂_filt − f| ≤ 5 % of |f|
 ERROR_SKIP_S = 1.0  # reconstruction error measured from 1 s after a fault starts
 OVERSPEED_MARGIN = 0.05  # rotor overspeed: ω_r above its fault-free twin by 5 % of the rated rotor speed
 CHUNK = 10  # runs per process: 20 runs use both cores
-WARMUP_S = 1.0  # s, detections before this are not scored (observer convergence)
+WARMUP_S = SCORING.warmup_s  # s, left out of the fault-free statistics as of every detection figure
 
 
 def _seeds(seed: int, stream: int, run_ids: list[int]) -> list[np.random.SeedSequence]:
@@ -139,10 +141,10 @@ def _merge(parts: list[dict[str, Any]]) -> dict[str, Any]:
     return merged
 
 
-def _score(scenario: Scenario, events: list[Event], runs: int, faulty: bool) -> tuple[list[dict], float, dict]:
-    """The scoring module's figures for one twin's events (the fault-free twin: no fault windows)."""
+def _score(scenario: Scenario, events: list[Event], runs: int, faulty: bool) -> DetectionScore:
+    """The scoring policy's figures for one twin's events (the fault-free twin: no fault windows)."""
     windows = windows_from_faults(scenario.faults, scenario.duration_s) if faulty else []
-    return score_faults(events, windows, runs, scenario.duration_s, warmup_s=WARMUP_S)
+    return score_detection(events, windows, runs=runs, duration_s=scenario.duration_s, policy=SCORING)
 
 
 def reconstruction_metrics(traces: dict[str, np.ndarray], scenario: Scenario, dt: float) -> list[dict[str, Any]]:
@@ -255,16 +257,16 @@ def evaluate(scenario: Scenario, runs: int, seed: int, options: EvalOptions) -> 
     )
     m = _merge(parts)
     dt = NOMINAL.dt
-    entries, fa_rate, fa_raw = _score(scenario, m["events"][main], runs, faulty=True)
-    _, ff_rate, ff_raw = _score(scenario, m["events"]["fault_free"], runs, faulty=False)
+    detection = _score(scenario, m["events"][main], runs, faulty=True)
+    fault_free = _score(scenario, m["events"]["fault_free"], runs, faulty=False)
     metrics: dict[str, Any] = {"reconstruction": reconstruction_metrics(m[main], scenario, dt)}
     metrics.update(deviation_metrics(m))
     metrics["detection"] = detection_metrics(probe, m)
     metrics["detection"].update(
         {
-            "false_alarms": fa_raw,
-            "fault_free_twin_false_alarms": ff_raw,
-            "fault_free_twin_false_alarms_per_1000s": ff_rate,
+            "false_alarms": detection.false_alarms,
+            "fault_free_twin_false_alarms": fault_free.false_alarms,
+            "fault_free_twin_false_alarms_per_1000s": fault_free.false_alarms_per_1000s,
         }
     )
     scorecard = {
@@ -275,8 +277,7 @@ def evaluate(scenario: Scenario, runs: int, seed: int, options: EvalOptions) -> 
         "observer": probe.observer_name,
         "detector": probe.detector_name,
         "compensation": options.compensation,
-        "false_alarms_per_1000s": fa_rate,
-        "faults": entries,
+        **detection.card_fields(),
         "metrics": metrics,
     }
 

@@ -26,14 +26,15 @@ from service.plugins import TURBINE_DETECTORS, TURBINE_ESTIMATORS
 from service.turbine.supervisor import DEFAULT_DETECTOR, DEFAULT_ESTIMATOR, TurbineSupervisor
 from windwarden.evaluation.kinds import EvalOptions, Evaluation
 from windwarden.evaluation.parallel import Branch, run_chunks
-from windwarden.evaluation.scoring import score_faults, windows_from_faults
+from windwarden.evaluation.scoring import FaultWindow, score_detection, twin_false_alarms, windows_from_faults
+from windwarden.evaluation.scoring_policy import TURBINE as SCORING
 from wwcore.channels import SENSOR_INDEX
-from wwcore.events import Event, EventType
+from wwcore.events import Event
 from wwcore.scenario import Scenario
 
 TWIN_TURBINE = 0  # turbine number of the fault-free twin rows in events (no real turbine has it)
-WARMUP_S = 10.0  # observer convergence and the supervisor's 5 s decision warm-up, left out of every figure
-GRACE_S = 2.0  # after a fault ends, detections still belong to it for this long
+WARMUP_S = SCORING.warmup_s  # left out of every figure (scoring_policy says why)
+GRACE_S = SCORING.grace_s  # after a fault ends, its flags may still be up for this long (scoring_policy)
 TRACE_EVERY = 10  # ticks between stored trace samples of run 0 (10 Hz)
 PROGRESS_EVERY = 1000  # ticks between progress reports
 _ANEMOMETER = SENSOR_INDEX["v_hub_m"]
@@ -278,7 +279,7 @@ def evaluate(scenario: Scenario, runs: int, seed: int, options: EvalOptions) -> 
     events = [e for e in all_events if e.turbine != TWIN_TURBINE]
     twin_events = [e for e in all_events if e.turbine == TWIN_TURBINE]
     windows = windows_from_faults(scenario.faults, scenario.duration_s)
-    faults, fa_rate, fa_raw = score_faults(events, windows, runs, scenario.duration_s, GRACE_S, WARMUP_S)
+    detection = score_detection(events, windows, runs=runs, duration_s=scenario.duration_s, policy=SCORING)
     labels = ["fault_free"] + [w.name for w in windows]
     counts = sum(r.counts for r in results)
     wind_rmse = {}
@@ -299,10 +300,8 @@ def evaluate(scenario: Scenario, runs: int, seed: int, options: EvalOptions) -> 
         "duration_s": scenario.duration_s,
         "detector": detector,
         "estimator": estimator,
-        "false_alarms_per_1000s": fa_rate,
-        "false_alarms": fa_raw,
-        **(_twin_false_alarms(twin_events, runs, results[0].twin_seconds) if twins else {}),
-        "faults": faults,
+        **detection.card_fields(),
+        **(_twin_false_alarms(twin_events, runs, results[0].twin_seconds, windows) if twins else {}),
         "metrics": {"wind_rmse": wind_rmse},
     }
     trace = next((r.trace for r in results if r.trace), {})
@@ -315,9 +314,8 @@ def evaluate(scenario: Scenario, runs: int, seed: int, options: EvalOptions) -> 
     return Evaluation(scorecard, plot=plot)
 
 
-def _twin_false_alarms(events: list[Event], runs: int, duration_s: float) -> dict:
-    """Detections in the fault-free twins, which run for ``duration_s`` per run in all: a false-alarm count on the
-    fault windows' own wind."""
-    count = sum(1 for e in events if e.type is EventType.DETECTION and e.t >= WARMUP_S)
-    observed = runs * duration_s
-    return {"false_alarms_twin": {"count": count, "observed_s": observed, "per_1000s": 1000.0 * count / observed}}
+def _twin_false_alarms(events: list[Event], runs: int, duration_s: float, windows: list[FaultWindow]) -> dict:
+    """Flags raised in the fault-free twins, which run over the fault windows, ``duration_s`` per run in all: a
+    false-alarm count on the fault windows' own wind."""
+    spans = [(w.start_s, w.end_s) for w in windows]
+    return {"false_alarms_twin": twin_false_alarms(events, runs * duration_s, SCORING, spans)}

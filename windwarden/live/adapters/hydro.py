@@ -5,7 +5,7 @@ streams ``SeedSequence(seed, spawn_key=(0, 0))``, the nominal parameters with th
 correction applied). A one-row batch gives bit for bit the numbers of that twin, so the live reconstruction
 figures equal ``windwarden eval``'s.
 
-Scorecard of a live run: detection figures from the event log (``scoring.score_faults`` on the supervisor's own
+Scorecard of a live run: detection figures from the event log (``scoring.score_detection`` on the supervisor's own
 events, as ``windwarden eval`` scores them: both run the same supervisor with the same design thresholds) and the
 reconstruction figures of ``evaluation.hydro.reconstruction_metrics`` from the corrections the plant received.
 The deviation-from-fault-free figures need the fault-free twin and are batch-only.
@@ -18,7 +18,8 @@ from typing import TYPE_CHECKING, Any, ClassVar
 
 import numpy as np
 
-from windwarden.evaluation.scoring import score_faults, windows_from_faults
+from windwarden.evaluation.scoring import score_detection, windows_from_faults
+from windwarden.evaluation.scoring_policy import HYDRO as SCORING
 from windwarden.live.adapters.base import RunInfo, finite_or_none, records_from_batch
 from wwcore.events import Event
 from wwcore.hydro_frames import HydroFrame, HydroRefs
@@ -163,10 +164,8 @@ class HydroAdapter:
     def scorecard(
         self, scenario: Scenario, seed: int, faults: list[FaultSpec], events: list[Event], metrics: dict[str, Any]
     ) -> dict[str, Any]:
-        from windwarden.evaluation.hydro import WARMUP_S
-
         windows = windows_from_faults(faults, scenario.duration_s)
-        entries, fa_rate, fa_raw = score_faults(events, windows, 1, scenario.duration_s, warmup_s=WARMUP_S)
+        detection = score_detection(events, windows, runs=1, duration_s=scenario.duration_s, policy=SCORING)
         return {
             "scenario": scenario.name,
             "runs": 1,
@@ -175,11 +174,10 @@ class HydroAdapter:
             "observer": scenario.supervisor.estimator or DEFAULT_OBSERVER,
             "detector": scenario.supervisor.detector or DEFAULT_DETECTOR,
             "compensation": True,
-            "false_alarms_per_1000s": fa_rate,
-            "faults": entries,
+            **detection.card_fields(),
             "metrics": {
                 "reconstruction": metrics.get("reconstruction", []),
-                "detection": {"false_alarms": fa_raw},
+                "detection": {"false_alarms": detection.false_alarms},
             },
         }
 

@@ -14,7 +14,8 @@ from typing import TYPE_CHECKING, Any, ClassVar
 
 import numpy as np
 
-from windwarden.evaluation.scoring import score_faults, windows_from_faults
+from windwarden.evaluation.scoring import score_detection, windows_from_faults
+from windwarden.evaluation.scoring_policy import TURBINE as SCORING
 from windwarden.live.adapters.base import RunInfo, finite_or_none, records_from_batch
 from wwcore.channels import DIAGNOSIS_TARGETS, SENSOR_INDEX
 from wwcore.events import Event
@@ -180,11 +181,10 @@ class TurbineAdapter:
         self, scenario: Scenario, seed: int, faults: list[FaultSpec], events: list[Event], metrics: dict[str, Any]
     ) -> dict[str, Any]:
         from service.turbine.supervisor import DEFAULT_DETECTOR, DEFAULT_ESTIMATOR
-        from windwarden.evaluation.turbine import GRACE_S, WARMUP_S
 
         sup = scenario.supervisor
         windows = windows_from_faults(faults, scenario.duration_s)
-        entries, fa_rate, fa_raw = score_faults(events, windows, 1, scenario.duration_s, GRACE_S, WARMUP_S)
+        detection = score_detection(events, windows, runs=1, duration_s=scenario.duration_s, policy=SCORING)
         return {
             "scenario": scenario.name,
             "runs": 1,
@@ -192,9 +192,7 @@ class TurbineAdapter:
             "duration_s": scenario.duration_s,
             "detector": sup.detector or DEFAULT_DETECTOR,
             "estimator": sup.estimator or DEFAULT_ESTIMATOR,
-            "false_alarms_per_1000s": fa_rate,
-            "false_alarms": fa_raw,
-            "faults": entries,
+            **detection.card_fields(),
             "metrics": {"wind_rmse": metrics.get("wind_rmse", {})},
         }
 
