@@ -22,6 +22,11 @@ one packed little-endian record whose layout is the schema's fields in order. Fl
 lockstep run sees bit for bit what the batch loop sees. JSON messages (the control plane, a few per second) are
 ``{"schema": name, "v": version, "body": {...}}``. A message with an unknown schema or version, a bad length or a
 bad body raises ``WireError``; receivers drop it and count it (``DropCounter``), never crash.
+
+A message that decodes is not yet trusted. The fields a plant acts on carry their physical range (``WireField.limits``,
+in the field's unit, declared here once per plant kind); ``MessageSchema.refusal`` says whether a refs record is
+finite and inside them, and the plant refuses it otherwise. Sensor frames carry the plant's run identity (``run``),
+so the supervisor can tell a new run from an old or replayed frame.
 """
 
 from __future__ import annotations
@@ -39,7 +44,8 @@ from typing import Any
 import numpy as np
 
 from wwcore.channels import N_SENSORS, SENSOR_NAMES, SENSORS
-from wwcore.hydro_params import FAULT_TARGETS, U_NAMES, X_NAMES, Y_NAMES, Y_UNITS
+from wwcore.hydro_params import FAULT_TARGETS, NOMINAL, U_NAMES, X_NAMES, Y_NAMES, Y_UNITS
+from wwcore.turbine_params import BENCHMARK
 
 MAGIC = b"WW"
 HEADER = np.dtype([("magic", "S2"), ("code", "u1"), ("version", "u1")])
@@ -61,6 +67,15 @@ class DropReason(StrEnum):
     BAD_LENGTH = "bad_length"
     BAD_BODY = "bad_body"
     INCOMPLETE = "incomplete"  # a tick whose rows never all arrived (multi-turbine plants)
+    # Messages that decode but are refused (``MessageSchema.refusal`` and the nodes' tick and run checks):
+    NON_FINITE = "non_finite"  # a field the plant acts on is NaN or infinite
+    OUT_OF_RANGE = "out_of_range"  # a field the plant acts on is outside its physical range
+    FUTURE_TICK = "future_tick"  # refs for a tick the plant has not measured yet
+    STALE_TICK = "stale_tick"  # refs older than the plant's window (max_ref_age ticks)
+    REPEATED_TICK = "repeated_tick"  # a second message for a tick already taken
+    OLD_TICK = "old_tick"  # a sensor frame older than the last one stepped, same run
+    FOREIGN_RUN = "foreign_run"  # a sensor frame whose run identity the plant does not confirm
+    UNCONFIRMED_TICK = "unconfirmed_tick"  # a sensor frame far ahead of the last, beyond the plant's own tick
 
 
 # -- binary schemas ------------------------------------------------------------------------------------------------
@@ -74,6 +89,8 @@ class WireField:
     doc: str
     shape: tuple[int, ...] = ()
     columns: tuple[str, ...] = ()  # names of the elements of a vector field, in order
+    limits: tuple[float, float] | None = None  # physical range [lo, hi] in ``unit``; NaN and ±inf are outside it
+    when: tuple[str, str, float] | None = None  # (field, "==" or ">=", value): the rows the limits hold on
 
 
 @dataclass(frozen=True)
@@ -122,13 +139,109 @@ class MessageSchema:
             raise WireError(DropReason.BAD_LENGTH, f"{self.name}: {len(payload)} bytes, expected {self.size}")
         return np.frombuffer(payload, dtype=self.dtype, count=1, offset=HEADER.itemsize)[0]
 
+    @cached_property
+    def limited(self) -> tuple[WireField, ...]:
+        """The fields with a physical range, in declaration order."""
+        return tuple(f for f in self.fields if f.limits is not None)
+
+    @cached_property
+    def range_check(self) -> RangeCheck:
+        return RangeCheck(self)
+
+    def refusal(self, records: np.ndarray) -> DropReason | None:
+        """Why the plant must refuse ``records`` (one row per turbine), or None: a limited field that is not finite
+        (``NON_FINITE``) or outside its range (``OUT_OF_RANGE``) on a row where its limits hold."""
+        return self.range_check(records)
+
     def describe(self) -> list[dict[str, Any]]:
         """The fields as a table (for docs and the API)."""
         return [
             {"field": f.name, "dtype": np.dtype(f.dtype).name, "shape": list(f.shape), "unit": f.unit, "doc": f.doc}
             | ({"columns": list(f.columns)} if f.columns else {})
+            | ({"limits": list(f.limits)} if f.limits else {})
+            | ({"limits_when": " ".join(map(str, f.when))} if f.when else {})
             for f in self.fields
         ]
+
+
+class RangeCheck:
+    """A schema's limits compiled into a dozen array operations on the records' packed bytes, whatever the number
+    of limited fields and rows: the float64 fields are gathered into one (n, m) array and compared with the lower
+    and upper limits at once; the conditions (``WireField.when``) are single bytes (a bool, an int8 mode, the sign
+    byte of an int64) compared with byte ranges. Other limited fields (the farm's int8 ``mode``) take a few more
+    operations each."""
+
+    def __init__(self, schema: MessageSchema):
+        dtype = schema.dtype
+        value_bytes, lo, hi, cond_of = [], [], [], []
+        conditions: dict[tuple[str, str, float], int] = {}
+        cond_bytes, cond_lo, cond_hi = [], [], []
+        self.other: list[WireField] = []
+        for f in schema.limited:
+            if np.dtype(f.dtype) != np.dtype("<f8"):
+                self.other.append(f)
+                continue
+            offset = dtype.fields[f.name][1]
+            if f.when is not None and f.when not in conditions:
+                conditions[f.when] = len(conditions)
+                byte, low, high = _condition_bytes(dtype, f.when)
+                cond_bytes.append(byte), cond_lo.append(low), cond_hi.append(high)
+            for i in range(int(np.prod(f.shape, dtype=int))):
+                value_bytes += range(offset + 8 * i, offset + 8 * i + 8)
+                lo.append(f.limits[0]), hi.append(f.limits[1])  # type: ignore[index]
+                cond_of.append(-1 if f.when is None else conditions[f.when])
+        self.value_bytes = np.array(value_bytes, dtype=np.intp)
+        self.lo, self.hi = np.array(lo), np.array(hi)
+        self.cond_bytes = np.array(cond_bytes, dtype=np.intp)
+        self.cond_lo, self.cond_hi = np.array(cond_lo, dtype=np.uint8), np.array(cond_hi, dtype=np.uint8)
+        cond_of_arr = np.array(cond_of, dtype=np.intp)
+        self.unconditional = cond_of_arr < 0
+        self.cond_of = np.maximum(cond_of_arr, 0)
+        self.itemsize = dtype.itemsize
+
+    def __call__(self, records: np.ndarray) -> DropReason | None:
+        outside = False
+        if len(self.value_bytes):
+            raw = np.ascontiguousarray(records).view(np.uint8).reshape(len(records), self.itemsize)
+            values = raw.take(self.value_bytes, axis=1).view("<f8")  # (n, m)
+            bad = ~((values >= self.lo) & (values <= self.hi))  # NaN compares False: bad
+            if len(self.cond_bytes):
+                flags = raw.take(self.cond_bytes, axis=1)
+                holds = (flags >= self.cond_lo) & (flags <= self.cond_hi)
+                bad &= holds[:, self.cond_of] | self.unconditional
+            if bad.any():
+                if not np.isfinite(values[bad]).all():
+                    return DropReason.NON_FINITE
+                outside = True
+        for f in self.other:
+            values = records[f.name]
+            bad = ~((values >= f.limits[0]) & (values <= f.limits[1]))  # type: ignore[index]
+            if f.when is not None:
+                bad &= _condition_holds(records, f.when)
+            if bad.any():
+                if not np.isfinite(values[bad]).all():
+                    return DropReason.NON_FINITE
+                outside = True
+        return DropReason.OUT_OF_RANGE if outside else None
+
+
+def _condition_bytes(dtype: np.dtype, when: tuple[str, str, float]) -> tuple[int, int, int]:
+    """(byte offset, lowest, highest byte value) for which ``when`` holds: a bool is true when its byte is not 0,
+    an int8 equals v when its byte is v, an int64 is ≥ 0 when its (little-endian) top byte is < 128."""
+    name, op, value = when
+    field_dtype, offset = dtype.fields[name][:2]
+    if op == "==" and field_dtype == np.dtype("?"):
+        return (offset, 1, 255) if value else (offset, 0, 0)
+    if op == "==" and field_dtype == np.dtype("i1"):
+        return offset, int(value) & 0xFF, int(value) & 0xFF
+    if op == ">=" and value == 0 and field_dtype == np.dtype("<i8"):
+        return offset + 7, 0, 127
+    raise ValueError(f"unsupported limit condition {when} on a {field_dtype} field")  # a declaration error
+
+
+def _condition_holds(records: np.ndarray, when: tuple[str, str, float]) -> np.ndarray:
+    name, op, value = when
+    return records[name] >= value if op == ">=" else records[name] == value
 
 
 def check_header(payload: bytes) -> tuple[int, int]:
@@ -153,15 +266,43 @@ def _tick_fields() -> tuple[WireField, ...]:
     )
 
 
+def _frame_fields() -> tuple[WireField, ...]:
+    """The head of every sensor frame: the tick fields and the plant's run identity."""
+    return (
+        *_tick_fields(),
+        WireField(
+            "run",
+            "<u8",
+            "–",
+            "run identity: a random number the plant draws when it starts a run (< 2⁵³), on every frame of the run",
+        ),
+    )
+
+
+# -- physical ranges of what the plants act on: a reference outside them is refused (``MessageSchema.refusal``) --
+OVERSPEED = 1.2
+"""× rated generator speed: the overspeed limit of the benchmark turbine (a multi-MW turbine's overspeed protection
+trips at 1.1–1.2 × rated); no speed estimate above it is one the controller may act on."""
+OMEGA_G_MAX = OVERSPEED * BENCHMARK.omega_nom  # rad/s, 194.4
+OMEGA_R_MAX = OMEGA_G_MAX / BENCHMARK.N_g  # rad/s, 2.05
+WIND_MAX = 70.0  # m/s, the IEC class I extreme 3-s gust (1.4 × 50 m/s): no turbine runs in a stronger wind
+POWER_MAX = BENCHMARK.rated_power  # W: no turbine of the benchmark can be asked for more than P_r
+TORQUE_MAX = (
+    1.2 * BENCHMARK.rated_torque + BENCHMARK.B_g * OMEGA_G_MAX
+)  # N m: converter limit + friction at OMEGA_G_MAX
+RIPPLE_RATE_MAX = 3.0 * OMEGA_R_MAX  # rad/s, the 3P frequency at the overspeed limit
+PITCH_TRIM_MAX = 5.0  # deg, the largest blade misalignment of the farm's fault model (wwcore.scenario.farm)
+STROKE_MAX = NOMINAL.stroke_max  # –, hydrostatic displacement units: a correction beyond ±stroke_max means nothing
+
 _SENSOR_UNITS = ", ".join(f"{c.name} [{c.unit}]" for c in SENSORS)
 
 TURBINE_SENSORS = MessageSchema(
     "turbine.sensors",
     1,
-    1,
+    2,  # v2: run
     "What a benchmark turbine measures at tick k, and its controller's outputs of tick k−1 (TurbineFrame row).",
     (
-        *_tick_fields(),
+        *_frame_fields(),
         WireField("sensors", "<f8", "per column", f"readings y_k: {_SENSOR_UNITS}", (N_SENSORS,), SENSOR_NAMES),
         WireField("tau_g_ref", "<f8", "N m", "converter torque reference issued at tick k−1"),
         WireField("beta_ref", "<f8", "deg", "collective pitch reference issued at tick k−1"),
@@ -169,6 +310,8 @@ TURBINE_SENSORS = MessageSchema(
         WireField("zone", "i1", "–", "controller zone at tick k−1 (0 region 2, 1 region 3)"),
     ),
 )
+
+_VALID = ("valid", "==", True)
 
 TURBINE_REFS = MessageSchema(
     "turbine.refs",
@@ -180,13 +323,38 @@ TURBINE_REFS = MessageSchema(
         WireField("tick", "<i8", "–", "tick of the sensor frame these refs were computed from"),
         WireField("turbine", "<u2", "–", "turbine number, 1-based"),
         WireField("valid", "?", "–", "the estimates may be used by the controller"),
-        WireField("omega_g", "<f8", "rad/s", "fault-tolerant generator speed estimate"),
-        WireField("omega_r", "<f8", "rad/s", "fault-tolerant rotor speed estimate"),
-        WireField("wind", "<f8", "m/s", "fault-tolerant rotor-effective wind estimate (FTE)"),
+        WireField(
+            "omega_g", "<f8", "rad/s", "fault-tolerant generator speed estimate", limits=(0.0, OMEGA_G_MAX), when=_VALID
+        ),
+        WireField(
+            "omega_r", "<f8", "rad/s", "fault-tolerant rotor speed estimate", limits=(0.0, OMEGA_R_MAX), when=_VALID
+        ),
+        WireField(
+            "wind",
+            "<f8",
+            "m/s",
+            "fault-tolerant rotor-effective wind estimate (FTE)",
+            limits=(0.0, WIND_MAX),
+            when=_VALID,
+        ),
         WireField("power_ref_set", "?", "–", "power_ref carries a reference (farm dispatch); false keeps P_r"),
-        WireField("power_ref", "<f8", "W", "per-turbine power reference, when power_ref_set"),
+        WireField(
+            "power_ref",
+            "<f8",
+            "W",
+            "per-turbine power reference, when power_ref_set",
+            limits=(0.0, POWER_MAX),
+            when=("power_ref_set", "==", True),
+        ),
         WireField("nfte_set", "?", "–", "wind_nfte carries an estimate"),
-        WireField("wind_nfte", "<f8", "m/s", "non-fault-tolerant wind estimate (observer 1 throughout), display"),
+        WireField(
+            "wind_nfte",
+            "<f8",
+            "m/s",
+            "non-fault-tolerant wind estimate (observer 1 throughout), display",
+            limits=(0.0, WIND_MAX),
+            when=("nfte_set", "==", True),
+        ),
         WireField("selected", "<i2", "–", "index of the observer in use (−1 none)"),
     ),
 )
@@ -213,10 +381,10 @@ TURBINE_TRUTH = MessageSchema(
 HYDRO_SENSORS = MessageSchema(
     "hydro.sensors",
     4,
-    1,
+    2,  # v2: run
     "What the hydrostatic turbine measures at tick k and the commands it received over tick k−1 (HydroFrame row).",
     (
-        *_tick_fields(),
+        *_frame_fields(),
         WireField("y", "<f8", ", ".join(Y_UNITS), "measured outputs y_k (with noise)", (len(Y_NAMES),), Y_NAMES),
         WireField("u", "<f8", "–, –, N m", "commands sent over tick k−1 (after correction)", (len(U_NAMES),), U_NAMES),
     ),
@@ -229,7 +397,16 @@ HYDRO_REFS = MessageSchema(
     "The supervisor's virtual-actuator correction (eq. 36) and its reconstruction (HydroRefs row).",
     (
         *_tick_fields(),
-        WireField("correction", "<f8", "–", "f̂_a,filt to subtract from [u_p, u_M]", (2,), FAULT_TARGETS),
+        WireField(
+            "correction",
+            "<f8",
+            "–",
+            "f̂_a,filt to subtract from [u_p, u_M]",
+            (2,),
+            FAULT_TARGETS,
+            limits=(-STROKE_MAX, STROKE_MAX),
+            when=("apply", "==", True),
+        ),
         WireField("apply", "?", "–", "the correction is valid and compensation is on"),
         WireField("f_hat", "<f8", "–", "unfiltered reconstruction, eq. (35)", (2,), FAULT_TARGETS),
         WireField("x_hat", "<f8", "SI per state", "observer states", (len(X_NAMES),), X_NAMES),
@@ -267,15 +444,18 @@ METMAST = MessageSchema(
 )
 
 _FARM_TYPES = ("debris", "pitch_misalignment", "drivetrain")  # wwcore.scenario.farm.FARM_FAULT_TYPES
+FARM_MODE_MAX = 5  # the last of wwcore.farm_frames.DISPATCH_MODES
+FARM_HOLD_MODE = 3  # wwcore.farm_frames.HOLD_TORQUE_MODE
+_SAMPLED = ("computed_tick", ">=", 0)  # farm.refs rows that carry a reference
 
 FARM_SENSORS = MessageSchema(
     "farm.sensors",
     8,
-    1,
+    2,  # v2: run
     "One farm turbine's frame at tick k (FarmFrame row): its own sensors and controller outputs (as turbine.sensors), "
     "and on 10 Hz farm samples its SCADA means, the met mast and the farm demand (the same on every turbine's row).",
     (
-        *_tick_fields(),
+        *_frame_fields(),
         WireField("sensors", "<f8", "per column", f"readings y_k: {_SENSOR_UNITS}", (N_SENSORS,), SENSOR_NAMES),
         WireField("tau_g_ref", "<f8", "N m", "converter torque reference issued at tick k−1"),
         WireField("beta_ref", "<f8", "deg", "collective pitch reference issued at tick k−1"),
@@ -298,7 +478,9 @@ FARM_REFS = MessageSchema(
         WireField("tick", "<i8", "–", "tick of the sensor frame these refs answer"),
         WireField("turbine", "<u2", "–", "turbine number, 1-based"),
         WireField("computed_tick", "<i8", "–", "tick of the 10 Hz farm sample the reference was computed from"),
-        WireField("power_ref", "<f8", "W", "per-turbine power reference P_ref,t"),
+        WireField(
+            "power_ref", "<f8", "W", "per-turbine power reference P_ref,t", limits=(0.0, POWER_MAX), when=_SAMPLED
+        ),
         WireField("flags", "?", "–", "fault flagged, per fault type", (3,), _FARM_TYPES),
         WireField(
             "statistic", "<f8", "–", "test statistic per fault type (CUSUM g or 3P amplitude)", (3,), _FARM_TYPES
@@ -310,9 +492,15 @@ FARM_REFS = MessageSchema(
             "–",
             "accommodation: 0 none, 1 debris (23)–(24), 2 derated (26), 3 derated at held torque, 4 pitch trim, "
             "5 normal laws with the 3P torque cancelled",
+            limits=(0, FARM_MODE_MAX),
         ),
         WireField(
-            "held_torque", "<f8", "N m", "mode 3: the most generator-side torque sum S = τ_g + B_g ω_g the hold keeps"
+            "held_torque",
+            "<f8",
+            "N m",
+            "mode 3: the most generator-side torque sum S = τ_g + B_g ω_g the hold keeps",
+            limits=(0.0, TORQUE_MAX),
+            when=("mode", "==", FARM_HOLD_MODE),
         ),
         WireField(
             "pitch_trim",
@@ -321,6 +509,7 @@ FARM_REFS = MessageSchema(
             "added to each blade's pitch command (mode 4)",
             (3,),
             ("blade_1", "blade_2", "blade_3"),
+            limits=(-PITCH_TRIM_MAX, PITCH_TRIM_MAX),
         ),
         WireField(
             "ripple_power",
@@ -329,8 +518,9 @@ FARM_REFS = MessageSchema(
             "phasor C: the turbine adds Re{C e^{jω(t − t_c)}} to its power, t_c = (computed_tick + 1)·Δt",
             (2,),
             ("re", "im"),
+            limits=(-POWER_MAX, POWER_MAX),
         ),
-        WireField("ripple_rate", "<f8", "rad/s", "ω of ripple_power (0: none)"),
+        WireField("ripple_rate", "<f8", "rad/s", "ω of ripple_power (0: none)", limits=(0.0, RIPPLE_RATE_MAX)),
     ),
 )
 
@@ -412,10 +602,17 @@ class DropCounter:
     def __init__(self) -> None:
         self._lock = threading.Lock()
         self.counts: Counter[tuple[str, str]] = Counter()
+        self.version = 0  # bumped by every add: a reader polls it without taking the lock
 
     def add(self, stream: str, reason: str) -> None:
         with self._lock:
             self.counts[(stream, str(reason))] += 1
+            self.version += 1
+
+    def of(self, stream: str) -> dict[str, int]:
+        """Counts of one stream, by reason."""
+        with self._lock:
+            return {reason: n for (s, reason), n in self.counts.items() if s == stream}
 
     def total(self) -> int:
         with self._lock:

@@ -4,9 +4,10 @@ Tick k (the step contract of ``wwcore.stepping``, the same calls as batch mode):
 
 1. apply the fault commands that arrived (inject/clear over the ``plant/faults`` queryable);
 2. take the refs that arrived, before ``sensors_k`` leaves (so tick k is controlled with refs from tick ≤ k − 1,
-   as in batch mode); the newest is used if computed from tick ≥ k − ``max_ref_age``, else the turbine
-   controller falls back to its own sensors and its last good reference;
-3. ``frame = plant.measure()``; publish ``sensors_k``; ``plant.control(refs)``;
+   as in batch mode), each checked by ``guard.RefsGuard`` (finite, in range, for a tick in the window, not a
+   repeat; refused ones counted and logged); the newest taken is used if computed from tick ≥ k − ``max_ref_age``,
+   else the turbine controller falls back to its own sensors and its last good reference;
+3. ``frame = plant.measure()``; publish ``sensors_k`` (with the run identity); ``plant.control(refs)``;
 4. ``plant.advance()``; append and publish the plant's events;
 5. lockstep: wait for ``refs_k`` (unless the supervisor is gone or has gone mute: then fall back, log, go on);
    realtime: sleep until the deadline t₀ + (k+1)·dt/speed; a tick whose work ends after it is an overrun.
@@ -19,6 +20,7 @@ from __future__ import annotations
 import gc
 import logging
 import queue
+import secrets
 import threading
 import time
 from collections.abc import Callable
@@ -32,6 +34,7 @@ from windwarden.live.adapters import adapter_for
 from windwarden.live.adapters.base import RunInfo
 from windwarden.live.config import PlantSettings
 from windwarden.live.faults import FaultBook, InjectionRefusedError
+from windwarden.live.guard import RefsGuard, RefusalLog, Verdict
 from windwarden.live.mailbox import TickMailbox
 from windwarden.live.runfolder import EVENTS, FAULTS, LIVE, RUN, SCENARIO, EventLog, write_json
 from windwarden.live.timing import LatencyStats, Pacer
@@ -80,12 +83,16 @@ class PlantNode:
         self.turbines = self.adapter.turbines(self.plant)
         self.dt = float(self.plant.dt)
         self.n_steps = round(scenario.duration_s / self.dt)
-        self.info = RunInfo.of(scenario, self.turbines, self.dt, run_id, settings.mode, settings.speed)
+        self.run_key = secrets.randbits(52)  # the run identity on every frame: a new one for every run
+        self.info = RunInfo.of(
+            scenario, self.turbines, self.dt, run_id, settings.mode, settings.speed, run_key=self.run_key
+        )
         self.book = FaultBook(
             scenario.plant.kind, scenario.plant.n_turbines, scenario.duration_s, list(scenario.faults)
         )
         self.score = self.adapter.score(scenario, self.n_steps, self.dt)
         self.drops = DropCounter()
+        self.guard = RefsGuard(self.adapter.refs, settings.max_ref_age, self.drops)
         self.latency = LatencyStats()
         self.pacer = Pacer(self.dt, settings.speed)
         self._stop = threading.Event()
@@ -105,19 +112,21 @@ class PlantNode:
         self.wall_start = time.time()
         self._loop_start = time.perf_counter()  # reset when tick 0 starts
         self._last_status = 0.0
+        self._last_checkpoint = 0.0
         self._open_transport()
 
     # -- set-up -------------------------------------------------------------------------------------------------
     def _open_transport(self) -> None:
         s, keys = self.session, self.keys
         self.events = EventLog(self.run_dir / EVENTS, self._publish_event)
+        self.refusals = RefusalLog(self.drops, "refs", Process.PLANT.value, self.events.write)
         self._events_pub = declare_publisher(s, keys.events, EVENT_QOS)
         self._status_pub = declare_publisher(s, keys.plant_status, DISPLAY_QOS)
         sensors_qos = COMMAND_QOS if self.settings.mode == "lockstep" else SENSORS_QOS
         unique = list(dict.fromkeys(self.turbines))
         self._sensor_pubs = {t: declare_publisher(s, keys.sensors(t), sensors_qos) for t in unique}
         self._truth_pubs = {t: declare_publisher(s, keys.truth(t), DISPLAY_QOS) for t in unique}
-        self.mailbox = TickMailbox(self.adapter.refs, self.turbines, self.drops, "refs")
+        self.mailbox = TickMailbox(self.adapter.refs, self.turbines, self.drops, "refs", self.guard.window)
         self._refs_sub = s.declare_subscriber(
             keys.refs("*"), lambda sample: self.mailbox.put(sample.payload.to_bytes())
         )
@@ -267,6 +276,8 @@ class PlantNode:
             "refs_stale_ticks": self.stale_ticks,
             "refs_stale_episodes": self.stale_episodes,
             "refs_received": self.refs_received,
+            "refs_refused": self.refusals.counts(),
+            "run_key": self.run_key,
             "supervisor_alive": self.watch.is_alive(Process.SUPERVISOR),
             "dropped": self.drops.as_dict(),
             "wall_s": wall,
@@ -297,20 +308,25 @@ class PlantNode:
             )
 
     def _take_refs(self) -> None:
-        """Fold arrived refs into the latest refs, the latency figures and the score."""
+        """Fold arrived refs into the latest refs, the latency figures and the score, as ``guard`` allows."""
+        k = self.plant.k
         for arrival in self.mailbox.drain():
+            verdict = self.guard.judge(arrival.tick, arrival.records, k)
+            if verdict == Verdict.REFUSED:
+                continue
             self.refs_received += 1
             self.mute = False
             sent = self._sent_at.pop(arrival.tick, None)
             if sent is not None:
                 self.latency.add(arrival.at - sent)
             self.score.on_refs(arrival.tick, arrival.records)
-            if arrival.tick > self.latest_refs_tick:
+            if verdict == Verdict.TAKE and arrival.tick > self.latest_refs_tick:
                 self.latest_refs_tick = arrival.tick
                 self.latest_refs = arrival.records
         if len(self._sent_at) > 4000:
             cutoff = self.plant.k - 2000
             self._sent_at = {k: v for k, v in self._sent_at.items() if k >= cutoff}
+        self.refusals.poll(self.plant.t)
 
     def _refs_for(self, k: int) -> Any | None:
         """The refs tick k uses, or None (stale: the controller falls back). Staleness is counted every tick; an
@@ -343,7 +359,7 @@ class PlantNode:
         if self.mute or not self._supervisor_ready():
             return
         got = self.mailbox.wait_for(
-            lambda: self.mailbox.latest_tick >= k or self._stop.is_set() or not self.watch.is_alive(Process.SUPERVISOR),
+            lambda: self.mailbox.arrived(k) or self._stop.is_set() or not self.watch.is_alive(Process.SUPERVISOR),
             self.settings.lockstep_timeout_s,
         )
         if not got:
@@ -391,12 +407,13 @@ class PlantNode:
         for k in range(self.n_steps):
             if self._stop.is_set():
                 break
-            self.k = k
+            self.k = self.guard.k = k
             self._apply_commands()
             self._take_refs()  # before sensors_k go out: tick k is controlled with refs from tick ≤ k − 1 only
             refs = self._refs_for(k)
             frame = plant.measure()
             records = adapter.frame_records(frame, self.turbines)
+            records["run"] = self.run_key
             self._sent_at[k] = time.perf_counter()
             for i, turbine in enumerate(self.turbines):
                 self._sensor_pubs[turbine].put(adapter.sensors.encode(records[i]))
@@ -426,7 +443,7 @@ class PlantNode:
     def _finish(self) -> None:
         last = self.plant.k - 1
         if self.settings.mode == "realtime" and self._supervisor_ready():
-            self.mailbox.wait_for(lambda: self.mailbox.latest_tick >= last, FINAL_REFS_WAIT_S)
+            self.mailbox.wait_for(lambda: self.mailbox.arrived(last), FINAL_REFS_WAIT_S)
         self._take_refs()
         completed = self.plant.k >= self.n_steps
         self.state = "ended"
