@@ -159,6 +159,41 @@ class RefsGuard:
         return Verdict.TAKE
 
 
+class RefsFreshness:
+    """Whether tick k has fresh refs (the newest taken is from a tick ≥ k − ``max_ref_age``), counted every tick
+    once refs have been fresh; an outage becomes a stream event (``event(False)``, then ``event(True)`` when it
+    ends) once it has lasted ``stale_event_ticks``: short hiccups are only counted."""
+
+    def __init__(self, max_ref_age: int, stale_event_ticks: int, event: Callable[[bool], None]):
+        self.max_ref_age = max_ref_age
+        self.stale_event_ticks = stale_event_ticks
+        self.event = event
+        self.fresh: bool | None = None  # None until the first refs are taken
+        self.stale_ticks = 0  # ticks run on the fallback after refs had been fresh
+        self.stale_episodes = 0
+        self._run = 0
+        self._logged = False
+
+    def update(self, k: int, newest_tick: int | None) -> bool:
+        fresh = newest_tick is not None and newest_tick >= k - self.max_ref_age
+        if fresh:
+            self._run = 0
+            if self.fresh is None or (self.fresh is False and self._logged):
+                self.event(True)
+            self._logged = False
+            self.fresh = True
+        elif self.fresh is not None:  # stale after having been fresh once
+            self.fresh = False
+            self.stale_ticks += 1
+            self._run += 1
+            if self._run == 1:
+                self.stale_episodes += 1
+            if self._run == self.stale_event_ticks:
+                self._logged = True
+                self.event(False)
+        return fresh
+
+
 class FrameSequencer:
     """The supervisor's decision for each complete sensor frame: drop it, restart the observers first, bridge a gap
     first, or step it (module docstring). ``confirm_run(run)`` and ``confirm_tick(tick)`` ask the plant."""
@@ -222,6 +257,18 @@ class FrameSequencer:
     def _drop(self, reason: DropReason) -> tuple[str, int]:
         self.drops.add(self.stream, reason)
         return self.DROP, 0
+
+
+def bridge_gap(bridge: Callable[[Any], None] | None, adapter: Any, before: np.ndarray, after: np.ndarray) -> int:
+    """Advance a supervisor through the ticks missing between two frames with its ``bridge`` (None: it holds);
+    returns the number of ticks bridged."""
+    if bridge is None:
+        return 0
+    n = 0
+    for missing in interpolated_records(before, after):
+        bridge(adapter.frame_from_records(missing))
+        n += 1
+    return n
 
 
 def interpolated_records(before: np.ndarray, after: np.ndarray) -> Iterable[np.ndarray]:

@@ -34,9 +34,9 @@ from windwarden.live.adapters import adapter_for
 from windwarden.live.adapters.base import RunInfo
 from windwarden.live.config import PlantSettings
 from windwarden.live.faults import FaultBook, InjectionRefusedError
-from windwarden.live.guard import RefsGuard, RefusalLog, Verdict
+from windwarden.live.guard import RefsFreshness, RefsGuard, RefusalLog, Verdict
 from windwarden.live.mailbox import TickMailbox
-from windwarden.live.runfolder import EVENTS, FAULTS, LIVE, RUN, SCENARIO, EventLog, write_json
+from windwarden.live.runfolder import EVENTS, FAULTS, LIVE, EventLog, write_json, write_run_start
 from windwarden.live.timing import LatencyStats, Pacer
 from windwarden.live.transport import JsonQueryable, LivenessWatch, QueryError, declare_publisher
 from wwcore.events import Event, EventType
@@ -57,6 +57,7 @@ log = logging.getLogger(__name__)
 
 COMMAND_TIMEOUT_S = 5.0  # a fault command not applied by the main loop within this is answered with an error
 FINAL_REFS_WAIT_S = 1.0  # realtime: how long the plant waits for the refs of its last tick
+CHECKPOINT_EVERY_S = 1.0  # s of wall time between two checkpoints of live.json
 
 
 class PlantNode:
@@ -100,11 +101,7 @@ class PlantNode:
         self._sent_at: dict[int, float] = {}
         self.k = 0
         self.state = "starting"
-        self.refs_fresh: bool | None = None  # None until the first refs arrive
-        self.stale_ticks = 0  # ticks run on the fallback after refs had been fresh
-        self.stale_episodes = 0
-        self._stale_run = 0
-        self._stale_logged = False
+        self.freshness = RefsFreshness(settings.max_ref_age, settings.stale_event_ticks, self._stream_event)
         self.latest_refs: Any | None = None
         self.latest_refs_tick = -1
         self.refs_received = 0
@@ -272,9 +269,9 @@ class PlantNode:
             "resyncs": self.pacer.resyncs,
             "latency": self.latency.summary(exact=exact),
             "latency_recent": self.latency.summary(recent=1000),
-            "refs_fresh": self.refs_fresh,
-            "refs_stale_ticks": self.stale_ticks,
-            "refs_stale_episodes": self.stale_episodes,
+            "refs_fresh": self.freshness.fresh,
+            "refs_stale_ticks": self.freshness.stale_ticks,
+            "refs_stale_episodes": self.freshness.stale_episodes,
             "refs_received": self.refs_received,
             "refs_refused": self.refusals.counts(),
             "run_key": self.run_key,
@@ -285,6 +282,9 @@ class PlantNode:
 
     def _publish_status(self, force: bool = False) -> None:
         now = time.monotonic()
+        if self.state == "running" and now - self._last_checkpoint >= CHECKPOINT_EVERY_S:
+            self._last_checkpoint = now
+            write_json(self.run_dir / LIVE, self._live_record(final=False))
         if force or now - self._last_status >= self.settings.status_every_s:
             self._last_status = now
             status = self.status()
@@ -329,25 +329,8 @@ class PlantNode:
         self.refusals.poll(self.plant.t)
 
     def _refs_for(self, k: int) -> Any | None:
-        """The refs tick k uses, or None (stale: the controller falls back). Staleness is counted every tick; an
-        outage is logged as an event once it has lasted ``stale_event_ticks`` (short hiccups are only counted)."""
-        fresh = self.latest_refs is not None and self.latest_refs_tick >= k - self.settings.max_ref_age
-        if fresh:
-            self._stale_run = 0
-            if self.refs_fresh is False and self._stale_logged:
-                self._stream_event(True)
-            self._stale_logged = False
-        elif self.refs_fresh is not None:  # stale after having been fresh once
-            self.stale_ticks += 1
-            self._stale_run += 1
-            if self._stale_run == 1:
-                self.stale_episodes += 1
-            if self._stale_run == self.settings.stale_event_ticks:
-                self._stale_logged = True
-                self._stream_event(False)
-        if fresh and self.refs_fresh is None:
-            self._stream_event(True)
-        self.refs_fresh = fresh if (fresh or self.refs_fresh is not None) else None
+        """The refs tick k uses, or None (stale: the controller falls back)."""
+        fresh = self.freshness.update(k, self.latest_refs_tick if self.latest_refs is not None else None)
         return self.adapter.refs_from_records(self.latest_refs) if fresh else None
 
     def _stream_event(self, fresh: bool) -> None:
@@ -372,22 +355,39 @@ class PlantNode:
 
     def _write_run_folder(self) -> None:
         s = self.settings
-        self.run_dir.mkdir(parents=True, exist_ok=True)
-        (self.run_dir / SCENARIO).write_text(dump_scenario(self.scenario))
         run = {
             "run_id": self.run_id,
+            "run_key": self.run_key,
             "scenario": self.scenario.name,
             "kind": self.scenario.plant.kind,
             "seed": s.seed,
             "mode": s.mode,
             "speed": s.speed,
+            "dt": self.dt,
             "farm": s.farm,
             "started": self.wall_start,
             "connect": s.connect_endpoints,
             "rerun_url": s.rerun_url,
         }
-        write_json(self.run_dir / RUN, run)
-        write_json(self.run_dir / FAULTS, self.book.listing(0.0))
+        write_run_start(self.run_dir, dump_scenario(self.scenario), run, self.book.listing(0.0))
+
+    def _live_record(self, final: bool) -> dict[str, Any]:
+        """``live.json``: the run's figures. Rewritten every ``CHECKPOINT_EVERY_S`` while the run goes (``final``
+        False: no metrics, the accumulators stay in memory), so a plant that is killed still leaves how far it
+        ran; ``finalize.finalize_scorecard`` then scores the events of that stretch and marks the card partial."""
+        live = {
+            "run_id": self.run_id,
+            "final": final,
+            "completed": final and self.plant.k >= self.n_steps,
+            "ticks_run": self.plant.k,
+            "n_steps": self.n_steps,
+            "timing": self.status(exact=final),
+            "faults": self.book.listing(self.plant.t),
+            "effective_faults": [f.model_dump(mode="json", exclude_none=True) for f in self.book.effective()],
+        }
+        if final:
+            live["metrics"] = self.score.result(self.book.effective())
+        return live
 
     def run(self) -> int:
         self._write_run_folder()
@@ -445,19 +445,9 @@ class PlantNode:
         if self.settings.mode == "realtime" and self._supervisor_ready():
             self.mailbox.wait_for(lambda: self.mailbox.arrived(last), FINAL_REFS_WAIT_S)
         self._take_refs()
-        completed = self.plant.k >= self.n_steps
         self.state = "ended"
-        metrics = self.score.result(self.book.effective())
-        live = {
-            "run_id": self.run_id,
-            "completed": completed,
-            "ticks_run": self.plant.k,
-            "n_steps": self.n_steps,
-            "metrics": metrics,
-            "timing": self.status(exact=True),
-            "faults": self.book.listing(self.plant.t),
-            "effective_faults": [f.model_dump(mode="json", exclude_none=True) for f in self.book.effective()],
-        }
+        live = self._live_record(final=True)
+        completed = live["completed"]
         write_json(self.run_dir / LIVE, live)
         write_json(self.run_dir / FAULTS, self.book.listing(self.plant.t))
         self.events.write(

@@ -30,7 +30,7 @@ import zenoh
 from windwarden.live.adapters import adapter_for, load_adapters
 from windwarden.live.adapters.base import KindAdapter, RunInfo
 from windwarden.live.config import SupervisorSettings
-from windwarden.live.guard import FrameSequencer, RefusalLog, interpolated_records
+from windwarden.live.guard import FrameSequencer, RefusalLog, bridge_gap
 from windwarden.live.mailbox import TickMailbox
 from windwarden.live.runfolder import EVENTS, EventLog
 from windwarden.live.timing import LatencyStats
@@ -319,12 +319,9 @@ class SupervisorNode:
 
     def _bridge_gap(self, records: np.ndarray) -> None:
         """Advance the supervisor through the ticks missing before ``records`` (held if it cannot bridge)."""
-        if self._bridge is None or self.last_records is None:
-            return
-        with self._lock:
-            for missing in interpolated_records(self.last_records, records):
-                self._bridge(self.adapter.frame_from_records(missing))
-                self.bridged += 1
+        if self.last_records is not None:
+            with self._lock:
+                self.bridged += bridge_gap(self._bridge, self.adapter, self.last_records, records)
 
     def status_rows(self) -> list[dict[str, Any]]:
         return self.adapter.status(self.supervisor, self.last_refs, self.turbines)

@@ -4,8 +4,11 @@ One process (this one) holds the embedded Zenoh router (or connects to an existi
 recorder (and a viewer on request), then the API, the supervisor and the plant as child processes of
 ``windwarden`` with their settings in ``WINDWARDEN_*`` variables, each in its own session with its output in
 ``runs/<id>/logs/``. It prints the events as they happen, restarts the supervisor or the API if one dies
-(``--restart``), and shuts everything down in order at the scenario's end or on Ctrl-C: plant, supervisor, API,
-then the recorder; finally it recomputes the scorecard from ``events.jsonl`` and closes the recording.
+(``--restart``), and shuts everything down in order at the scenario's end, on Ctrl-C or SIGTERM: plant,
+supervisor, API, then the recorder; finally it recomputes the scorecard from ``events.jsonl`` (partial if the
+plant was killed) and closes the recording. If ``up`` itself is killed, nothing is orphaned: the services get
+SIGTERM from the kernel (``cli.exit_with_parent``) and the watchdog (``watchdog``, started first, in its own
+session) stops every child, Rerun's included, and closes the run as ``up`` would have.
 
 Exit code: 0 when the scenario ran to its end and no child failed; 1 when a child failed (even if restarted);
 130 on Ctrl-C.
@@ -37,8 +40,9 @@ from windwarden.live.recorder import recorder_command
 from windwarden.live.recorder import start as start_rerun
 from windwarden.live.recorder import stop as stop_rerun
 from windwarden.live.router import DEFAULT_PORT, free_port, open_router
-from windwarden.live.runfolder import EVENTS, RECORDING, SCENARIO, write_json
+from windwarden.live.runfolder import EVENTS, RECORDING, SCENARIO, SCORECARD, write_json
 from windwarden.live.transport import open_session
+from windwarden.live.watchdog import WatchdogLink
 from wwcore.events import Event, EventType
 from wwcore.scenario import Scenario, dump_scenario
 from wwcore.wire import KeyTree, WireError, decode_json
@@ -151,6 +155,15 @@ class Up:
         self.interrupted = threading.Event()
         self.token = os.environ.get("WINDWARDEN_API_TOKEN") or secrets.token_urlsafe(24)
         self.info: dict[str, Any] = {}
+        self.watchdog: WatchdogLink | None = None
+        self.pids: dict[str, int] = {}  # every child as started last: in up.json, for the watchdog and for tests
+
+    def _started(self, name: str, pid: int) -> None:
+        self.pids[name] = pid
+        if self.watchdog is not None:
+            self.watchdog.child(name, pid)
+        if self.info:
+            write_json(self.run_dir / "up.json", self.info | {"pids": self.pids})
 
     # -- set-up ---------------------------------------------------------------------------------------------------
     def _endpoint(self) -> str:
@@ -184,20 +197,25 @@ class Up:
     def run(self) -> int:
         self.logs.mkdir(parents=True, exist_ok=True)
         (self.run_dir / SCENARIO).write_text(dump_scenario(self.scenario))
+        self.watchdog = WatchdogLink(self.run_dir, self.logs / "watchdog.log")
         endpoint = self._endpoint()
         router = None if self.o.connect else open_router([endpoint])
         try:
-            return self._run(endpoint, router)
+            code = self._run(endpoint, router)
         finally:
             if router is not None:
                 router.close()
+        self.watchdog.done()
+        return code
 
     def _run(self, endpoint: str, router: Any) -> int:
         o = self.o
         rec = recorder_command(self.run_dir / RECORDING, o.viewer)
         self.rerun.append(start_rerun(rec.recorder, self.logs / "recorder.log"))
+        self._started("recorder", self.rerun[-1].pid)
         if rec.viewer is not None:
             self.rerun.append(start_rerun(rec.viewer, self.logs / "viewer.log"))
+            self._started("viewer", self.rerun[-1].pid)
         for proc in self.rerun:
             lower_priority(proc.pid, 10)
         env = self._env(endpoint, rec.url)
@@ -225,8 +243,10 @@ class Up:
             "events": str(self.run_dir / EVENTS),
             "recording": str(self.run_dir / RECORDING),
             "started": time.time(),
+            "up_pid": os.getpid(),
+            "watchdog_pid": None if self.watchdog is None else self.watchdog.proc.pid,
         }
-        write_json(self.run_dir / "up.json", self.info)
+        write_json(self.run_dir / "up.json", self.info | {"pids": self.pids})
         previous = {
             sig: signal.signal(sig, lambda *_: self.interrupted.set()) for sig in (signal.SIGINT, signal.SIGTERM)
         }
@@ -235,6 +255,7 @@ class Up:
         try:
             for child in self.children:
                 child.start()
+                self._started(child.name, child.proc.pid)
                 if child.name == "api" and not _wait_http(f"{api_url}/health", 30.0, child.proc.poll):
                     console.print(f"[red]the API did not come up; see {child.log}[/red]")
                     child.failed = True
@@ -320,6 +341,7 @@ class Up:
                 child.restarts += 1
                 console.print(f"restarting {child.name} ({child.restarts}/{MAX_RESTARTS})")
                 child.start()
+                self._started(child.name, child.proc.pid)
             self.interrupted.wait(0.2)
 
     # -- shutdown -------------------------------------------------------------------------------------------------
@@ -339,29 +361,15 @@ class Up:
         failed = [c.name for c in self.children if c.failed]
         completed = bool(card and card["live"]["completed"])
         if not self.o.quiet:
-            if card is not None:
-                from windwarden.evaluation.report import render
-
-                console.print(render({k: v for k, v in card.items() if k != "live"}))
-                live = card["live"]
-                lat = live["latency"]
-                console.print(
-                    f"live: {live['ticks']} ticks, overruns {live['overruns']} ({live['overrun_pct']:.2f} %), "
-                    f"latency p50 {lat['p50_ms'] or float('nan'):.2f} ms p99 {lat['p99_ms'] or float('nan'):.2f}"
-                    f" ms, real-time factor {live['real_time_factor'] or float('nan'):.2f}"
-                )
-            console.print(
-                f"run folder {self.run_dir}: scorecard.json, events.jsonl, recording.rrd "
-                f"({'verified' if verified else 'NOT verified'})"
-            )
-            if failed:
-                console.print(f"[red]failed: {', '.join(failed)} (logs in {self.logs})[/red]")
+            self._print_report(card, verified, failed)
         write_json(
             self.run_dir / "up.json",
             self.info
             | {
+                "pids": self.pids,
                 "ended": time.time(),
                 "completed": completed,
+                "partial": bool(card and card["live"]["partial"]),
                 "failed": failed,
                 "recording_verified": verified,
                 "restarts": {c.name: c.restarts for c in self.children},
@@ -370,3 +378,30 @@ class Up:
         if self.interrupted.is_set():
             return 130
         return 0 if completed and not failed else 1
+
+    def _print_report(self, card: dict[str, Any] | None, verified: bool, failed: list[str]) -> None:
+        if card is not None:
+            from windwarden.evaluation.report import render
+
+            console.print(render({k: v for k, v in card.items() if k != "live"}))
+            live = card["live"]
+            lat = live["latency"]
+            nan = float("nan")
+            console.print(
+                f"live: {live['ticks'] if live['ticks'] is not None else '?'} ticks, overruns "
+                f"{live['overruns'] if live['overruns'] is not None else '?'} ({live['overrun_pct'] or nan:.2f} %), "
+                f"latency p50 {lat.get('p50_ms') or nan:.2f} ms p99 {lat.get('p99_ms') or nan:.2f} ms, "
+                f"real-time factor {live['real_time_factor'] or nan:.2f}"
+            )
+            if live.get("refs_refused"):
+                console.print(f"[yellow]refs refused by the plant: {live['refs_refused']}[/yellow]")
+            if live["partial"]:
+                console.print(f"[red]{live['note']}[/red]")
+        files = [name for name in (SCORECARD, EVENTS) if (self.run_dir / name).exists()]
+        if (self.run_dir / RECORDING).exists():
+            files.append(f"{RECORDING} ({'verified' if verified else 'NOT verified'})")
+        console.print(
+            f"run folder {self.run_dir}: {', '.join(files) if files else 'no run files (the plant never ran)'}"
+        )
+        if failed:
+            console.print(f"[red]failed: {', '.join(failed)} (logs in {self.logs})[/red]")
