@@ -5,8 +5,9 @@ fed to the same score accumulator the plant node uses, and scored by the same ``
 
 ``drop`` loses sensor frames as a congested real-time link does: the supervisor never sees frame k where
 ``drop[k]``, handles the gap as the supervisor node does (``guard.bridge_gap``) and the plant controls tick k with the
-newest refs while they are within ``max_ref_age`` ticks, else falls back, as the plant node does. Without ``drop``
-this is the lockstep reference.
+newest refs while they are within ``max_ref_age`` ticks, else falls back, as the plant node does
+(``bridge_gaps=False`` feeds the frames after a gap as if consecutive: the comparison ``tools/bench_drops.py``
+makes). Without ``drop`` this is the lockstep reference.
 """
 
 from __future__ import annotations
@@ -29,7 +30,9 @@ class BatchResult:
     scorecard: dict[str, Any]
 
 
-def run_batch(scenario: Scenario, seed: int, drop: np.ndarray | None = None, max_ref_age: int = 10) -> BatchResult:
+def run_batch(
+    scenario: Scenario, seed: int, drop: np.ndarray | None = None, max_ref_age: int = 10, bridge_gaps: bool = True
+) -> BatchResult:
     adapter = adapter_for(scenario.plant.kind)
     plant = adapter.make_plant(scenario, seed)
     turbines = adapter.turbines(plant)
@@ -48,7 +51,7 @@ def run_batch(scenario: Scenario, seed: int, drop: np.ndarray | None = None, max
             plant.advance()
             events += plant.drain_events() + supervisor.drain_events()
     else:
-        bridge = getattr(supervisor, "bridge", None)
+        bridge = getattr(supervisor, "bridge", None) if bridge_gaps else None
         before, refs_tick = None, -1
         for k in range(n_steps):
             frame = plant.measure()

@@ -235,7 +235,7 @@ class FrameSequencer:
         """(decision, missing ticks before this frame). DROP is already counted."""
         runs = records["run"]
         run, tick = int(runs[0]), int(records["tick"][0])
-        if (runs != runs[0]).any():
+        if len(runs) > 1 and (runs != run).any():  # rows of one tick assembled from two runs
             return self._drop(DropReason.FOREIGN_RUN)
         if run != self.run:
             self.confirmed = self.confirm_run(run) if self._may_query() else None

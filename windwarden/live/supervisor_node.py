@@ -39,6 +39,7 @@ from wwcore.events import Event, EventType
 from wwcore.wire import COMMAND_QOS, EVENT_QOS, DropCounter, Process, WireError, decode_json, encode_json
 
 log = logging.getLogger(__name__)
+PLANT_APPEARED = None  # put in the sensor queue by the liveliness callback: the main loop handles it in turn
 
 
 class SupervisorNode:
@@ -124,6 +125,8 @@ class SupervisorNode:
         )
         if not alive:
             self._mark(False)
+        else:  # a plant appeared: the main loop asks it which run it is (``_follow_plant``)
+            self._inbox.put(PLANT_APPEARED)
 
     def _on_event_sample(self, sample: zenoh.Sample) -> None:
         try:
@@ -250,11 +253,25 @@ class SupervisorNode:
                 self._mark(False)
                 self._publish_status()
                 continue
+            if payload is PLANT_APPEARED:
+                self._follow_plant()
+                continue
             self.mailbox.put(payload)
             for arrival in self.mailbox.drain():
                 self._on_frame(arrival.records)
             self._publish_status()
         return 0
+
+    def _follow_plant(self) -> None:
+        """A plant has appeared: if it runs a new run (its run identity is not the current one), build for it now,
+        so a plant that waits for a ready supervisor before its first tick (lockstep) need not wait."""
+        try:
+            info = RunInfo.from_json(query_json(self.session, self.keys.run, "plant.run", timeout=2.0))
+        except (QueryFailedError, KeyError, TypeError, ValueError):
+            return  # its frames will tell (``FrameSequencer``)
+        if self.info is not None and info.run_key != self.info.run_key:
+            self._start_run(info)
+            self.resets += 1
 
     def _confirm_run(self, run: int) -> RunInfo | None:
         """The plant's run description if the plant says ``run`` is its run identity, else None."""
