@@ -5,9 +5,10 @@ fed to the same score accumulator the plant node uses, and scored by the same ``
 
 ``drop`` loses sensor frames as a congested real-time link does: the supervisor never sees frame k where
 ``drop[k]``, handles the gap as the supervisor node does (``guard.bridge_gap``) and the plant controls tick k with the
-newest refs while they are within ``max_ref_age`` ticks, else falls back, as the plant node does
-(``bridge_gaps=False`` feeds the frames after a gap as if consecutive: the comparison ``tools/bench_drops.py``
-makes). Without ``drop`` this is the lockstep reference.
+newest refs while they are within ``max_ref_age`` ticks, else falls back, as the plant node does. ``gaps`` picks how a
+gap is handled, for the comparison ``tools/bench_drops.py`` makes: ``"bridge"`` (what the supervisor node does),
+``"consecutive"`` (the frames after a gap fed as if none was missing), ``"step"`` (the whole supervisor, detectors
+included, stepped on the interpolated frames). Without ``drop`` this is the lockstep reference.
 """
 
 from __future__ import annotations
@@ -31,7 +32,7 @@ class BatchResult:
 
 
 def run_batch(
-    scenario: Scenario, seed: int, drop: np.ndarray | None = None, max_ref_age: int = 10, bridge_gaps: bool = True
+    scenario: Scenario, seed: int, drop: np.ndarray | None = None, max_ref_age: int = 10, gaps: str = "bridge"
 ) -> BatchResult:
     adapter = adapter_for(scenario.plant.kind)
     plant = adapter.make_plant(scenario, seed)
@@ -51,7 +52,7 @@ def run_batch(
             plant.advance()
             events += plant.drain_events() + supervisor.drain_events()
     else:
-        bridge = getattr(supervisor, "bridge", None) if bridge_gaps else None
+        bridge = {"bridge": getattr(supervisor, "bridge", None), "consecutive": None, "step": supervisor.step}[gaps]
         before, refs_tick = None, -1
         for k in range(n_steps):
             frame = plant.measure()
