@@ -11,7 +11,11 @@ For each plant kind, the batch loop of the live adapters runs for ``--ticks`` ti
 It prints the medians in µs and each check as a share of the work it guards. A gap's bridge costs, per missing tick,
 about what a step costs (the observers advance); that is measured by ``tools/bench_drops.py``'s runs, not here.
 
+``--scan SCENARIO DURATION`` instead runs a scenario's batch loop and counts the supervisor's own refs the plant
+would refuse (the ranges must never refuse a genuine reference; lockstep runs count them as ``dropped``, too).
+
     .venv/bin/python tools/bench_guard.py --ticks 3000
+    .venv/bin/python tools/bench_guard.py --scan ftwse-2012 800 --scan farm-case1 500
 """
 
 from __future__ import annotations
@@ -70,11 +74,39 @@ def bench(kind: str, ticks: int) -> dict[str, float]:
     return {name: float(np.median(v[ticks // 10 :])) / 1e3 for name, v in cost.items()}
 
 
+def scan(name: str, duration: float, seed: int = 7) -> dict[str, int]:
+    """How many of the supervisor's refs, scenario ``name`` cut to ``duration`` s, the range check refuses."""
+    scenario = load_scenario(name)
+    if duration < scenario.duration_s:
+        faults = [f for f in scenario.faults if f.start_s < duration]
+        scenario = scenario.model_copy(update={"duration_s": duration, "faults": faults})
+    adapter = adapter_for(scenario.plant.kind)
+    plant = adapter.make_plant(scenario, seed)
+    turbines = adapter.turbines(plant)
+    supervisor = adapter.make_supervisor(RunInfo.of(scenario, turbines, plant.dt))
+    refused: dict[str, int] = {}
+    refs = None
+    for _ in range(round(scenario.duration_s / plant.dt)):
+        frame = plant.measure()
+        plant.control(refs)
+        refs = supervisor.step(frame)
+        reason = adapter.refs.refusal(adapter.refs_records(refs, supervisor, turbines))
+        if reason is not None:
+            refused[reason] = refused.get(reason, 0) + 1
+        plant.advance()
+    return refused
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--ticks", type=int, default=3000)
     parser.add_argument("--kind", choices=list(SCENARIOS), action="append")
+    parser.add_argument("--scan", nargs=2, action="append", metavar=("SCENARIO", "DURATION"))
     args = parser.parse_args()
+    for name, duration in args.scan or []:
+        print(f"{name} ({float(duration):g} s): genuine refs refused {scan(name, float(duration)) or 'none'}")
+    if args.scan:
+        return
     for kind in args.kind or list(SCENARIOS):
         us = bench(kind, args.ticks)
         print(

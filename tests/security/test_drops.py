@@ -71,3 +71,4 @@ def test_random_frame_drops_raise_no_false_alarm(tmp_path, monkeypatch):
     assert status["observer_restarts"] == 0
     assert card["false_alarms"]["count"] == 0, card["false_alarms"]
     assert [(f["detected_pct"], f["isolated_pct"]) for f in card["faults"]] == [(100.0, 100.0)]
+    print(f"\n{inbox.lost} of {inbox.seen} frames lost, {status['gaps']} gaps, {status['bridged_ticks']} ticks bridged")
