@@ -23,20 +23,17 @@ lockstep run sees bit for bit what the batch loop sees. JSON messages (the contr
 ``{"schema": name, "v": version, "body": {...}}``. A message with an unknown schema or version, a bad length or a
 bad body raises ``WireError``; receivers drop it and count it (``DropCounter``), never crash.
 
-A message that decodes is not yet trusted. The fields a plant acts on carry their physical range (``WireField.limits``,
-in the field's unit, declared here once per plant kind); ``MessageSchema.refusal`` says whether a refs record is
-finite and inside them, and the plant refuses it otherwise. Sensor frames carry the plant's run identity (``run``),
+A message that decodes is not yet trusted. The refs fields a plant acts on carry their physical range
+(``WireField.limits``, in the field's unit, declared once per plant kind next to its frames: ``*_REFS_LIMITS`` in
+``wwcore.turbine_frames``, ``hydro_frames``, ``farm_frames``); ``MessageSchema.refusal`` says whether a refs record
+is finite and inside them, and the plant refuses it otherwise. Sensor frames carry the plant's run identity (``run``),
 so the supervisor can tell a new run from an old or replayed frame.
 """
 
 from __future__ import annotations
 
 import json
-import math
 import re
-import struct
-import threading
-from collections import Counter
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from enum import StrEnum
@@ -46,8 +43,12 @@ from typing import Any
 import numpy as np
 
 from wwcore.channels import N_SENSORS, SENSOR_NAMES, SENSORS
-from wwcore.hydro_params import FAULT_TARGETS, NOMINAL, U_NAMES, X_NAMES, Y_NAMES, Y_UNITS
-from wwcore.turbine_params import BENCHMARK
+from wwcore.farm_frames import FARM_REFS_LIMITS
+from wwcore.hydro_frames import HYDRO_REFS_LIMITS
+from wwcore.hydro_params import FAULT_TARGETS, U_NAMES, X_NAMES, Y_NAMES, Y_UNITS
+from wwcore.turbine_frames import TURBINE_REFS_LIMITS
+from wwcore.wire_check import DropCounter as DropCounter  # exported with the codec: every receiver counts its drops
+from wwcore.wire_check import RangeCheck, with_limits
 
 MAGIC = b"WW"
 HEADER = np.dtype([("magic", "S2"), ("code", "u1"), ("version", "u1")])
@@ -148,12 +149,13 @@ class MessageSchema:
 
     @cached_property
     def range_check(self) -> RangeCheck:
-        return RangeCheck(self)
+        return RangeCheck(self.dtype, self.limited)
 
     def refusal(self, records: np.ndarray) -> DropReason | None:
         """Why the plant must refuse ``records`` (one row per turbine), or None: a limited field that is not finite
         (``NON_FINITE``) or outside its range (``OUT_OF_RANGE``) on a row where its limits hold."""
-        return self.range_check(records)
+        reason = self.range_check(records)
+        return None if reason is None else DropReason(reason)
 
     def describe(self) -> list[dict[str, Any]]:
         """The fields as a table (for docs and the API)."""
@@ -164,61 +166,6 @@ class MessageSchema:
             | ({"limits_when": " ".join(map(str, f.when))} if f.when else {})
             for f in self.fields
         ]
-
-
-_STRUCT_CODES = {"<f8": "d", "|i1": "b", "|b1": "?", "<i8": "q"}  # numpy dtype → struct code, little-endian
-
-
-class RangeCheck:
-    """A schema's limits compiled once: one ``struct`` unpack per row of exactly the values the limits need (the
-    limited values and the conditions' fields, at their byte offsets), then one comparison per value. For the live
-    loop's messages (one row, nine for the farm) this is 2–10 times cheaper than the dozen numpy calls a vectorised
-    check takes (``tools/bench_guard.py``); NaN fails every comparison, so it is caught with the range."""
-
-    def __init__(self, schema: MessageSchema):
-        dtype = schema.dtype
-        reads: dict[int, np.dtype] = {}  # byte offset → dtype of each value read
-
-        def read(offset: int, value_dtype: np.dtype) -> int:
-            reads.setdefault(offset, value_dtype)
-            return offset
-
-        checks = []
-        for f in schema.limited:
-            field_dtype, offset = dtype.fields[f.name][:2]
-            base = field_dtype.base
-            condition = None
-            if f.when is not None:
-                name, op, value = f.when
-                if op not in ("==", ">="):  # pragma: no cover - a declaration error
-                    raise ValueError(f"unsupported limit condition {f.when}")
-                when_dtype, when_offset = dtype.fields[name][:2]
-                condition = (read(when_offset, when_dtype), op == ">=", value)
-            for i in range(int(np.prod(field_dtype.shape, dtype=int))):
-                checks.append((read(offset + base.itemsize * i, base), *f.limits, condition))  # type: ignore[misc]
-        fmt, end, slot = "<", 0, {}
-        for offset in sorted(reads):
-            fmt += (f"{offset - end}x" if offset > end else "") + _STRUCT_CODES[reads[offset].str]
-            slot[offset] = len(slot)
-            end = offset + reads[offset].itemsize
-        self.row = struct.Struct(fmt + (f"{dtype.itemsize - end}x" if dtype.itemsize > end else ""))
-        self.checks = [(slot[at], lo, hi, None if c is None else (slot[c[0]], c[1], c[2])) for at, lo, hi, c in checks]
-
-    def __call__(self, records: np.ndarray) -> DropReason | None:
-        outside = False
-        for row in self.row.iter_unpack(records.tobytes()):
-            for at, lo, hi, condition in self.checks:
-                x = row[at]
-                if lo <= x <= hi:
-                    continue
-                if condition is not None:
-                    c, at_least, value = condition
-                    if not (row[c] >= value if at_least else row[c] == value):
-                        continue  # the limits do not hold on this row
-                if not math.isfinite(x):
-                    return DropReason.NON_FINITE
-                outside = True
-        return DropReason.OUT_OF_RANGE if outside else None
 
 
 def check_header(payload: bytes) -> tuple[int, int]:
@@ -245,31 +192,8 @@ def _tick_fields() -> tuple[WireField, ...]:
 
 def _frame_fields() -> tuple[WireField, ...]:
     """The head of every sensor frame: the tick fields and the plant's run identity."""
-    return (
-        *_tick_fields(),
-        WireField(
-            "run",
-            "<u8",
-            "–",
-            "run identity: a random number the plant draws when it starts a run (< 2⁵³), on every frame of the run",
-        ),
-    )
+    return (*_tick_fields(), WireField("run", "<u8", "–", "run identity: a random number the plant draws per run"))
 
-
-# -- physical ranges of what the plants act on: a reference outside them is refused (``MessageSchema.refusal``) --
-OVERSPEED = 1.2
-"""× rated generator speed: the overspeed limit of the benchmark turbine (a multi-MW turbine's overspeed protection
-trips at 1.1–1.2 × rated); no speed estimate above it is one the controller may act on."""
-OMEGA_G_MAX = OVERSPEED * BENCHMARK.omega_nom  # rad/s, 194.4
-OMEGA_R_MAX = OMEGA_G_MAX / BENCHMARK.N_g  # rad/s, 2.05
-WIND_MAX = 70.0  # m/s, the IEC class I extreme 3-s gust (1.4 × 50 m/s): no turbine runs in a stronger wind
-POWER_MAX = BENCHMARK.rated_power  # W: no turbine of the benchmark can be asked for more than P_r
-TORQUE_MAX = (
-    1.2 * BENCHMARK.rated_torque + BENCHMARK.B_g * OMEGA_G_MAX
-)  # N m: converter limit + friction at OMEGA_G_MAX
-RIPPLE_RATE_MAX = 3.0 * OMEGA_R_MAX  # rad/s, the 3P frequency at the overspeed limit
-PITCH_TRIM_MAX = 5.0  # deg, the largest blade misalignment of the farm's fault model (wwcore.scenario.farm)
-STROKE_MAX = NOMINAL.stroke_max  # –, hydrostatic displacement units: a correction beyond ±stroke_max means nothing
 
 _SENSOR_UNITS = ", ".join(f"{c.name} [{c.unit}]" for c in SENSORS)
 
@@ -288,8 +212,6 @@ TURBINE_SENSORS = MessageSchema(
     ),
 )
 
-_VALID = ("valid", "==", True)
-
 TURBINE_REFS = MessageSchema(
     "turbine.refs",
     2,
@@ -300,41 +222,17 @@ TURBINE_REFS = MessageSchema(
         WireField("tick", "<i8", "–", "tick of the sensor frame these refs were computed from"),
         WireField("turbine", "<u2", "–", "turbine number, 1-based"),
         WireField("valid", "?", "–", "the estimates may be used by the controller"),
-        WireField(
-            "omega_g", "<f8", "rad/s", "fault-tolerant generator speed estimate", limits=(0.0, OMEGA_G_MAX), when=_VALID
-        ),
-        WireField(
-            "omega_r", "<f8", "rad/s", "fault-tolerant rotor speed estimate", limits=(0.0, OMEGA_R_MAX), when=_VALID
-        ),
-        WireField(
-            "wind",
-            "<f8",
-            "m/s",
-            "fault-tolerant rotor-effective wind estimate (FTE)",
-            limits=(0.0, WIND_MAX),
-            when=_VALID,
-        ),
+        WireField("omega_g", "<f8", "rad/s", "fault-tolerant generator speed estimate"),
+        WireField("omega_r", "<f8", "rad/s", "fault-tolerant rotor speed estimate"),
+        WireField("wind", "<f8", "m/s", "fault-tolerant rotor-effective wind estimate (FTE)"),
         WireField("power_ref_set", "?", "–", "power_ref carries a reference (farm dispatch); false keeps P_r"),
-        WireField(
-            "power_ref",
-            "<f8",
-            "W",
-            "per-turbine power reference, when power_ref_set",
-            limits=(0.0, POWER_MAX),
-            when=("power_ref_set", "==", True),
-        ),
+        WireField("power_ref", "<f8", "W", "per-turbine power reference, when power_ref_set"),
         WireField("nfte_set", "?", "–", "wind_nfte carries an estimate"),
-        WireField(
-            "wind_nfte",
-            "<f8",
-            "m/s",
-            "non-fault-tolerant wind estimate (observer 1 throughout), display",
-            limits=(0.0, WIND_MAX),
-            when=("nfte_set", "==", True),
-        ),
+        WireField("wind_nfte", "<f8", "m/s", "non-fault-tolerant wind estimate (observer 1 throughout), display"),
         WireField("selected", "<i2", "–", "index of the observer in use (−1 none)"),
     ),
 )
+TURBINE_REFS = with_limits(TURBINE_REFS, TURBINE_REFS_LIMITS)
 
 TURBINE_TRUTH = MessageSchema(
     "turbine.truth",
@@ -374,22 +272,14 @@ HYDRO_REFS = MessageSchema(
     "The supervisor's virtual-actuator correction (eq. 36) and its reconstruction (HydroRefs row).",
     (
         *_tick_fields(),
-        WireField(
-            "correction",
-            "<f8",
-            "–",
-            "f̂_a,filt to subtract from [u_p, u_M]",
-            (2,),
-            FAULT_TARGETS,
-            limits=(-STROKE_MAX, STROKE_MAX),
-            when=("apply", "==", True),
-        ),
+        WireField("correction", "<f8", "–", "f̂_a,filt to subtract from [u_p, u_M]", (2,), FAULT_TARGETS),
         WireField("apply", "?", "–", "the correction is valid and compensation is on"),
         WireField("f_hat", "<f8", "–", "unfiltered reconstruction, eq. (35)", (2,), FAULT_TARGETS),
         WireField("x_hat", "<f8", "SI per state", "observer states", (len(X_NAMES),), X_NAMES),
         WireField("flagged", "?", "–", "the detector flags [u_p, u_M] as faulty", (2,), FAULT_TARGETS),
     ),
 )
+HYDRO_REFS = with_limits(HYDRO_REFS, HYDRO_REFS_LIMITS)
 
 HYDRO_TRUTH = MessageSchema(
     "hydro.truth",
@@ -421,9 +311,6 @@ METMAST = MessageSchema(
 )
 
 _FARM_TYPES = ("debris", "pitch_misalignment", "drivetrain")  # wwcore.scenario.farm.FARM_FAULT_TYPES
-FARM_MODE_MAX = 5  # the last of wwcore.farm_frames.DISPATCH_MODES
-FARM_HOLD_MODE = 3  # wwcore.farm_frames.HOLD_TORQUE_MODE
-_SAMPLED = ("computed_tick", ">=", 0)  # farm.refs rows that carry a reference
 
 FARM_SENSORS = MessageSchema(
     "farm.sensors",
@@ -455,9 +342,7 @@ FARM_REFS = MessageSchema(
         WireField("tick", "<i8", "–", "tick of the sensor frame these refs answer"),
         WireField("turbine", "<u2", "–", "turbine number, 1-based"),
         WireField("computed_tick", "<i8", "–", "tick of the 10 Hz farm sample the reference was computed from"),
-        WireField(
-            "power_ref", "<f8", "W", "per-turbine power reference P_ref,t", limits=(0.0, POWER_MAX), when=_SAMPLED
-        ),
+        WireField("power_ref", "<f8", "W", "per-turbine power reference P_ref,t"),
         WireField("flags", "?", "–", "fault flagged, per fault type", (3,), _FARM_TYPES),
         WireField(
             "statistic", "<f8", "–", "test statistic per fault type (CUSUM g or 3P amplitude)", (3,), _FARM_TYPES
@@ -469,15 +354,9 @@ FARM_REFS = MessageSchema(
             "–",
             "accommodation: 0 none, 1 debris (23)–(24), 2 derated (26), 3 derated at held torque, 4 pitch trim, "
             "5 normal laws with the 3P torque cancelled",
-            limits=(0, FARM_MODE_MAX),
         ),
         WireField(
-            "held_torque",
-            "<f8",
-            "N m",
-            "mode 3: the most generator-side torque sum S = τ_g + B_g ω_g the hold keeps",
-            limits=(0.0, TORQUE_MAX),
-            when=("mode", "==", FARM_HOLD_MODE),
+            "held_torque", "<f8", "N m", "mode 3: the most generator-side torque sum S = τ_g + B_g ω_g the hold keeps"
         ),
         WireField(
             "pitch_trim",
@@ -486,7 +365,6 @@ FARM_REFS = MessageSchema(
             "added to each blade's pitch command (mode 4)",
             (3,),
             ("blade_1", "blade_2", "blade_3"),
-            limits=(-PITCH_TRIM_MAX, PITCH_TRIM_MAX),
         ),
         WireField(
             "ripple_power",
@@ -495,11 +373,11 @@ FARM_REFS = MessageSchema(
             "phasor C: the turbine adds Re{C e^{jω(t − t_c)}} to its power, t_c = (computed_tick + 1)·Δt",
             (2,),
             ("re", "im"),
-            limits=(-POWER_MAX, POWER_MAX),
         ),
-        WireField("ripple_rate", "<f8", "rad/s", "ω of ripple_power (0: none)", limits=(0.0, RIPPLE_RATE_MAX)),
+        WireField("ripple_rate", "<f8", "rad/s", "ω of ripple_power (0: none)"),
     ),
 )
+FARM_REFS = with_limits(FARM_REFS, FARM_REFS_LIMITS)
 
 FARM_TRUTH = MessageSchema(
     "farm.truth",
@@ -571,33 +449,6 @@ def decode_json(schema: str, payload: bytes) -> dict[str, Any]:
     if not isinstance(body, dict):
         raise WireError(DropReason.BAD_BODY, f"{schema}: body is not an object")
     return body
-
-
-class DropCounter:
-    """Messages dropped by a receiver, by (stream, reason). Safe to bump from any thread."""
-
-    def __init__(self) -> None:
-        self._lock = threading.Lock()
-        self.counts: Counter[tuple[str, str]] = Counter()
-        self.version = 0  # bumped by every add: a reader polls it without taking the lock
-
-    def add(self, stream: str, reason: str) -> None:
-        with self._lock:
-            self.counts[(stream, str(reason))] += 1
-            self.version += 1
-
-    def of(self, stream: str) -> dict[str, int]:
-        """Counts of one stream, by reason."""
-        with self._lock:
-            return {reason: n for (s, reason), n in self.counts.items() if s == stream}
-
-    def total(self) -> int:
-        with self._lock:
-            return sum(self.counts.values())
-
-    def as_dict(self) -> dict[str, int]:
-        with self._lock:
-            return {f"{stream}:{reason}": n for (stream, reason), n in sorted(self.counts.items())}
 
 
 # -- the key-expression tree ---------------------------------------------------------------------------------------

@@ -15,11 +15,11 @@ from windwarden.live.guard import (
     Verdict,
     interpolated_records,
 )
+from wwcore.turbine_frames import OMEGA_G_MAX
 from wwcore.wire import (
     FARM_REFS,
     HYDRO_REFS,
     HYDRO_SENSORS,
-    OMEGA_G_MAX,
     TURBINE_REFS,
     TURBINE_SENSORS,
     DropCounter,
