@@ -84,6 +84,12 @@ class HydroSupervisor:
             flagged=flags.copy(),
         )
 
+    def bridge(self, frame: HydroFrame) -> None:
+        """Advance through tick ``frame.k``, whose frame was lost (``frame`` interpolated, ``wwcore.stepping``): the
+        observer steps (its states and f̂_filt move on); the detector does not, so its sample counters only count
+        measured samples and no decision changes."""
+        self.observer.step(frame.y, frame.u)
+
     def drain_events(self) -> list[Event]:
         events, self._events = self._events, []
         return events

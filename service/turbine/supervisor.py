@@ -65,6 +65,17 @@ class TurbineSupervisor:
             wind=estimates.wind,
         )
 
+    def bridge(self, frame: TurbineFrame) -> None:
+        """Advance through tick ``frame.k``, whose frame was lost (``frame`` interpolated, ``wwcore.stepping``): the
+        observer bank and the estimator step (flags held, outputs dropped); the detector does not, so its window
+        tests never take a made-up sample and no decision changes. A detector with state of its own may have a
+        ``bridge(frame)`` of its own: it is called."""
+        self.context.bank(frame)
+        self.estimator.step(frame, self.flags)
+        detector_bridge = getattr(self.detector, "bridge", None)
+        if detector_bridge is not None:
+            detector_bridge(frame)
+
     def drain_events(self) -> list[Event]:
         events, self._events = self._events, []
         return events

@@ -78,9 +78,15 @@ def apply_nice(settings: Any) -> None:
 
 
 def exit_with_parent(stop: Callable[[], None]) -> None:
-    """When started by ``windwarden up`` (``WINDWARDEN_PARENT_PID``), call ``stop`` if that process goes away."""
+    """When started by ``windwarden up`` (``WINDWARDEN_PARENT_PID``), call ``stop`` if that process goes away: on
+    Linux the kernel sends SIGTERM the moment it dies (``PR_SET_PDEATHSIG``, handled by ``on_signals``); a thread
+    that polls the parent pid every 0.5 s covers other systems."""
     parent = os.environ.get("WINDWARDEN_PARENT_PID")
     if not parent or not parent.isdigit():
+        return
+    _sigterm_when_parent_dies()
+    if os.getppid() != int(parent):  # it died before we asked
+        stop()
         return
 
     def watch() -> None:
@@ -90,6 +96,15 @@ def exit_with_parent(stop: Callable[[], None]) -> None:
         stop()
 
     threading.Thread(target=watch, name="parent-watch", daemon=True).start()
+
+
+def _sigterm_when_parent_dies() -> None:
+    if not sys.platform.startswith("linux"):
+        return
+    import ctypes
+
+    with contextlib.suppress(OSError, AttributeError):
+        ctypes.CDLL(None, use_errno=True).prctl(1, int(signal.SIGTERM), 0, 0, 0)  # PR_SET_PDEATHSIG = 1
 
 
 def truncated(scenario: Scenario, duration_s: float | None) -> Scenario:
@@ -405,6 +420,40 @@ def _add_demo(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(func=cmd_up)
 
 
+def _add_finalize(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser(
+        "finalize",
+        help="rescore an ended run from its folder (partial if the plant was killed) and close its recording",
+    )
+    p.add_argument("run_dir", type=Path, help="the run folder (runs/<run-id>)")
+    p.set_defaults(func=cmd_finalize)
+
+
+def cmd_finalize(args: argparse.Namespace) -> int:
+    """``scorecard.json`` from the run's files (``finalize.finalize_scorecard``); the recording compacted and given
+    its footer if it has none yet (run it on a run that has ended: the recorder must not be writing)."""
+    from rich.console import Console
+
+    from windwarden.cli import BadInputError
+    from windwarden.live.finalize import finalize_recording, finalize_scorecard, verify_recording
+    from windwarden.live.runfolder import RECORDING
+
+    console = Console(highlight=False)
+    if not args.run_dir.is_dir():
+        raise BadInputError(f"no run folder at {args.run_dir}")
+    card = finalize_scorecard(args.run_dir)
+    if card is None:
+        raise BadInputError(f"{args.run_dir} holds no run (no run.json and scenario.toml from a plant)")
+    live = card["live"]
+    state = "completed" if live["completed"] else ("partial" if live["partial"] else "stopped early")
+    console.print(f"scorecard.json: {state}, {live['scored_s']:g} s scored, {live['events']} events")
+    recording = args.run_dir / RECORDING
+    if recording.exists():
+        verified = verify_recording(recording) or finalize_recording(args.run_dir)
+        console.print(f"{RECORDING}: {'verified' if verified else 'does NOT verify'}")
+    return 0
+
+
 def _add_open(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("open", help="open a run's recording in the Rerun viewer")
     p.add_argument("path", type=Path, help="a run folder or an .rrd file")
@@ -470,5 +519,6 @@ LIVE_SUBCOMMANDS: list[Callable[[argparse._SubParsersAction], None]] = [
     _add_probe,
     _add_demo,
     _add_open,
+    _add_finalize,
     *ROUTER_SUBCOMMANDS,
 ]

@@ -246,8 +246,10 @@ class FarmScore:
         self.power_sum = 0.0
         self.over = self.missing = self.demand = 0.0
         self.have = np.zeros(n_steps, dtype=bool)  # ticks whose references reached the plant
+        self.ticks = 0  # ticks that ran
 
     def on_tick(self, k: int, frame: FarmFrame, plant: FarmBatch) -> None:
+        self.ticks = max(self.ticks, k + 1)
         self.power_sum += float(plant.power_output().sum())
         if frame.sample:
             j = (k + 1) // self.per_sample
@@ -270,7 +272,7 @@ class FarmScore:
         return {
             "over_production": {"mwh_per_run": self.over * mwh, "fraction_of_demand": frac(self.over)},
             "missing_power": {"mwh_per_run": self.missing * mwh, "fraction_of_demand": frac(self.missing)},
-            "ticks_without_refs": int((~self.have).sum()),
+            "ticks_without_refs": int((~self.have[: self.ticks]).sum()),
         }
 
 

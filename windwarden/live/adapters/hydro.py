@@ -192,8 +192,10 @@ class HydroScore:
         self.f_true = np.zeros((n_steps, 1, 2), dtype=np.float32)
         self.f_filt = np.full((n_steps, 1, 2), np.nan, dtype=np.float32)
         self.n_steps = n_steps
+        self.ticks = 0  # ticks that ran: the figures cover no tick beyond them
 
     def on_tick(self, k: int, frame: HydroFrame, plant: HydroTurbineBatch) -> None:
+        self.ticks = max(self.ticks, min(k + 1, self.n_steps))
         if k < self.n_steps:
             self.f_true[k] = (plant.fault_offsets(plant.t) * plant.fault_mask[:, None])[:1]
 
@@ -202,16 +204,20 @@ class HydroScore:
             self.f_filt[k] = refs["correction"][:1]
 
     def result(self, faults: list[FaultSpec]) -> dict[str, Any]:
-        f_filt = self.f_filt.copy()
+        ticks = self.ticks
+        f_filt = self.f_filt[:ticks].copy()
         last = np.zeros((1, 2), dtype=np.float32)
         for k in np.flatnonzero(np.isnan(f_filt[:, 0, 0])):  # carry the last received correction forward
             f_filt[k] = f_filt[k - 1] if k > 0 else last
-        ran = self.n_steps * self.dt
-        scenario = self.scenario.model_copy(update={"faults": [f for f in faults if f.start_s < ran]})
+        ran = ticks * self.dt
+        update = {"faults": [f for f in faults if f.start_s < ran]}
+        if ticks < self.n_steps:
+            update["duration_s"] = ran
+        scenario = self.scenario.model_copy(update=update)
         from windwarden.evaluation.hydro import reconstruction_metrics
 
-        traces = {"f_filt": f_filt, "f_true": self.f_true}
-        missing = int(np.isnan(self.f_filt[:, 0, 0]).sum())
+        traces = {"f_filt": f_filt, "f_true": self.f_true[:ticks]}
+        missing = int(np.isnan(self.f_filt[:ticks, 0, 0]).sum())
         return {"reconstruction": reconstruction_metrics(traces, scenario, self.dt), "ticks_without_refs": missing}
 
 

@@ -207,6 +207,7 @@ class TurbineScore:
         self.n_steps = n_steps
         self.dt = dt
         self.rows = 0
+        self.ticks = 0  # ticks that ran: the counters below count no tick beyond them
         self.err = {key: np.full(n_steps, np.nan) for key in self.KEYS}
         self.have = np.zeros(n_steps, dtype=bool)
         self.nfte_set = np.zeros(n_steps, dtype=bool)
@@ -214,6 +215,7 @@ class TurbineScore:
 
     def on_tick(self, k: int, frame: TurbineFrame, plant: TurbineBatch) -> None:
         self.rows = plant.n
+        self.ticks = max(self.ticks, k + 1)
         self._pending[k] = (plant.true_rotor_wind().copy(), frame.sensors[:, _ANEMOMETER].copy())
         if len(self._pending) > 4000:  # refs that never came (supervisor down)
             self._pending = {j: v for j, v in self._pending.items() if j >= k - 2000}
@@ -248,7 +250,7 @@ class TurbineScore:
             for i, label in enumerate(labels)
             if counts[i] > 0
         }
-        return {"wind_rmse": wind_rmse, "ticks_without_refs": int((~self.have).sum())}
+        return {"wind_rmse": wind_rmse, "ticks_without_refs": int((~self.have[: self.ticks]).sum())}
 
 
 ADAPTER = TurbineAdapter()
