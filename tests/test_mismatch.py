@@ -225,7 +225,7 @@ def test_the_drivetrain_damping_ratio_is_the_stated_one():
 def test_the_pitch_actuator_step_response_matches_the_stated_bandwidth(omega_n, zeta):
     plant = _batch({"pitch_omega_n_rads": omega_n, "pitch_zeta": zeta})
     step = DiscreteStep(P, 1)
-    step.update(FaultState(1, P, plant.plant))
+    step.update(FaultState(1, P, plant.mismatch))
     x = np.zeros((1, N_STATES))
     t = np.arange(1, 301) * P.dt
     beta = []
@@ -281,21 +281,21 @@ def test_draws_stay_within_their_spread_differ_by_run_and_leave_wind_and_noise_a
         "spread": {"cp_scale": 0.03, "pitch_omega_n_rads": 1.0, "sensor_bias_fraction": 0.5},
     }
     plant = _batch(spec, seed=5, runs=(0, 1, 2, 3), fault_free_twins=True)
-    m = plant.plant
+    m = plant.mismatch
     assert np.all(np.abs(m.cp_scale - 0.95) <= 0.03) and len(np.unique(m.cp_scale[:4])) == 4
     np.testing.assert_array_equal(m.cp_scale[:4], m.cp_scale[4:])  # twins: the same plant
     assert np.all(np.abs(m.pitch_omega_n - 11.0) <= 1.0) and len(np.unique(m.pitch_omega_n[0])) == 3  # per blade
     tol = np.array([SENSOR_BIAS_TOLERANCE[c.name] for c in SENSORS])
     assert np.all(np.abs(m.bias) <= 0.5 * tol)
     again = _batch(spec, seed=5, runs=(2,))
-    np.testing.assert_array_equal(again.plant.cp_scale, m.cp_scale[2:3])  # a run's draws are its own
+    np.testing.assert_array_equal(again.mismatch.cp_scale, m.cp_scale[2:3])  # a run's draws are its own
     # the same wind and noise draws as the design model's runs
     design = _batch(None, seed=5, runs=(0, 1, 2, 3), fault_free_twins=True)
     np.testing.assert_array_equal(
         plant.wind.sample(0, plant.x[:, 4]).blades, design.wind.sample(0, plant.x[:, 4]).blades
     )
     changed = _batch({**spec, "spread": {**spec["spread"], "cp_scale": 0.01}}, seed=5, runs=(0, 1, 2, 3))
-    np.testing.assert_array_equal(changed.plant.pitch_omega_n, m.pitch_omega_n[:4])  # one spread moves one field
+    np.testing.assert_array_equal(changed.mismatch.pitch_omega_n, m.pitch_omega_n[:4])  # one spread moves one field
 
 
 # ---- the design model itself, bit for bit ----------------------------------------------------------------------

@@ -142,7 +142,7 @@ class FarmBatch:
             mismatch=mismatch,
         )
         if mismatch is not None:
-            self.field.set_air_density(params.rho * self.turbines.plant.density_ratio)
+            self.field.set_air_density(params.rho * self.turbines.mismatch.density_ratio)
         self.n = self.turbines.n
         self.controller = FarmTurbineController(params, self.n, params.rated_power, plant.cancel_3p_in_hold)
         self.turbines.controller = self.controller
@@ -157,7 +157,7 @@ class FarmBatch:
     # -- set-up -----------------------------------------------------------------------------------------------
     def _trim(self, wind0: np.ndarray) -> None:
         """Start every turbine at the steady operating point of its row's initial mean wind, at rated reference."""
-        m = self.turbines.plant
+        m = self.turbines.mismatch
         if not m.aero_nominal:
             self._trim_each(wind0)
             return
@@ -176,7 +176,7 @@ class FarmBatch:
 
     def _trim_each(self, wind0: np.ndarray) -> None:
         """``_trim`` for turbines whose aerodynamics differ from the design's: each its own equilibrium."""
-        m, x = self.turbines.plant, self.turbines.x
+        m, x = self.turbines.mismatch, self.turbines.x
         keys = np.column_stack([wind0, m.aero_factor, m.tsr_shift])
         distinct, which = np.unique(keys, axis=0, return_inverse=True)
         points = [trim(self.p, float(v), None, PlantAero(float(f), float(s))) for v, f, s in distinct]

@@ -150,7 +150,7 @@ class TurbineDynamics:
         p = self.p
         out = np.zeros_like(x)
         omega_r, omega_g, theta, tau_g = x[:, OMEGA_R], x[:, OMEGA_G], x[:, THETA], x[:, TAU_G]
-        shift = faults.plant.tsr_shift if faults.plant.shifted else None
+        shift = faults.healthy.tsr_shift if faults.healthy.shifted else None
         tau_r = self.aero_torque(omega_r, x[:, PITCH] + faults.pitch_offset, wind, faults.aero_factor, shift)
         k_dt, b_dt = p.K_dt * faults.stiffness_factor, p.B_dt * faults.damping_factor
         shaft = k_dt * theta + b_dt * (omega_r - omega_g / p.N_g)

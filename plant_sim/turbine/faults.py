@@ -22,13 +22,13 @@ PITCH_COMPONENTS = {Component.PITCH_ACTUATOR_1: 0, Component.PITCH_ACTUATOR_2: 1
 class FaultState:
     """The effect of every active fault on every row of the batch, at the current tick.
 
-    ``plant`` holds the healthy plant's own parameters (``plant_sim.turbine.mismatch``): with no fault active the
+    ``healthy`` holds the healthy plant's own parameters (``plant_sim.turbine.mismatch``): with no fault active the
     pitch actuators, drive-train factors and aerodynamic factor are the plant's, not the design model's.
     """
 
     n: int
     params: TurbineParams
-    plant: RowMismatch | None = None
+    healthy: RowMismatch | None = None
     gain: np.ndarray = field(init=False)  # (n, N_SENSORS) multiplies truth + noise
     offset: np.ndarray = field(init=False)  # (n, N_SENSORS) added to the reading
     drift_rate: np.ndarray = field(init=False)  # (n, N_SENSORS) unit/s, times (t − drift_start)
@@ -55,12 +55,12 @@ class FaultState:
     mesh_active: bool = False
 
     def __post_init__(self) -> None:
-        if self.plant is None:
-            self.plant = nominal(self.params, self.n)
+        if self.healthy is None:
+            self.healthy = nominal(self.params, self.n)
         self.reset()
 
     def reset(self) -> None:
-        n, m = self.n, self.plant
+        n, m = self.n, self.healthy
         self.gain = np.ones((n, N_SENSORS))
         self.offset = np.zeros((n, N_SENSORS))
         self.drift_rate = np.zeros((n, N_SENSORS))
@@ -117,7 +117,7 @@ class FaultState:
                 # between the healthy plant's and faulty with the fault signal f (PARAMETERS.md a.2).
                 blade = PITCH_COMPONENTS[Component(fault.target)]
                 a0_fault, a1_fault = fault.omega_n**2, 2.0 * fault.zeta * fault.omega_n
-                healthy_a0, healthy_a1 = self.plant.pitch_a0[rows, blade], self.plant.pitch_a1[rows, blade]
+                healthy_a0, healthy_a1 = self.healthy.pitch_a0[rows, blade], self.healthy.pitch_a1[rows, blade]
                 self.pitch_a0[rows, blade] += f * (a0_fault - healthy_a0)
                 self.pitch_a1[rows, blade] += f * (a1_fault - healthy_a1)
             case FaultKind.PITCH_OFFSET:

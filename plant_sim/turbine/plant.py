@@ -65,8 +65,8 @@ class TurbineBatch:
     """n independent benchmark turbines (rows = Monte Carlo runs × turbines), one tick per step call.
 
     ``mismatch`` (a scenario's ``[mismatch]`` section) makes the plant differ from the design model: its rows get
-    their own aerodynamics, drive train, pitch actuators, sensor noise and calibration biases
-    (``plant_sim.turbine.mismatch``); the turbine's controller keeps the design values, as a real one would.
+    their own aerodynamics, drive train, pitch actuators, sensor noise and calibration biases (``self.mismatch``,
+    per row, ``plant_sim.turbine.mismatch``); the turbine's controller keeps the design values, as a real one would.
     """
 
     def __init__(
@@ -102,14 +102,14 @@ class TurbineBatch:
         self.wind = wind_field if wind_field is not None else WindField(wind, params, [w for w, _ in streams], self.dt)
         self.dynamics = TurbineDynamics(params)
         self.discrete = DiscreteStep(params, self.n)
-        self.plant = resolve(mismatch, params, seed, self.run_of_row, self.turbine_of_row)
-        self._tsr_shift = self.plant.tsr_shift if self.plant.shifted else None
+        self.mismatch = resolve(mismatch, params, seed, self.run_of_row, self.turbine_of_row)
+        self._tsr_shift = self.mismatch.tsr_shift if self.mismatch.shifted else None
         self.sigma = np.array([noise_std(c, plant.noise_convention) for c in SENSORS])
         self.bias = np.array([c.noise_mean for c in SENSORS])
-        if not self.plant.noise_nominal:  # σ per row and sensor, shaped to scale a (rows, ticks, sensors) block
-            self.sigma = (self.sigma * self.plant.noise_scale[: self.n // copies])[:, None, :]
-        if not self.plant.bias_nominal:
-            self.bias = self.bias + self.plant.bias
+        if not self.mismatch.noise_nominal:  # σ per row and sensor, shaped to scale a (rows, ticks, sensors) block
+            self.sigma = (self.sigma * self.mismatch.noise_scale[: self.n // copies])[:, None, :]
+        if not self.mismatch.bias_nominal:
+            self.bias = self.bias + self.mismatch.bias
         self.noise_chunk = noise_chunk
         # Noise blocks of noise_chunk ticks, refilled and σ-scaled in place: a fresh 10-MB array per block costs page
         # faults, and scaling through a transposed view took half as long again as the drawing. The draws of the
@@ -118,7 +118,7 @@ class TurbineBatch:
         self._tick_noise = np.empty((self.n, len(SENSORS)))
         self._noise_drawn = False
         self._quantities = np.empty((self.n, len(_QUANTITIES)))  # refilled every tick, read through _PICK
-        self.faults = FaultState(self.n, params, self.plant)
+        self.faults = FaultState(self.n, params, self.mismatch)
         self.schedule: list[ScheduledFault] = []
         self._next_change = 0  # tick at which the fault arrays may next change
         for fault in faults:
@@ -140,7 +140,7 @@ class TurbineBatch:
     # -- set-up -----------------------------------------------------------------------------------------------
     def _trim(self, wind0: float, power_reference: float) -> None:
         """Start every row at its own plant's equilibrium under the (design) controller in the initial wind."""
-        m = self.plant
+        m = self.mismatch
         if m.aero_nominal:
             groups = [(None, np.arange(self.n))]
         else:

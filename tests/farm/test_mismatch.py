@@ -42,7 +42,7 @@ def test_turbines_take_their_own_entry_or_a_draw_of_their_own():
         "turbines": [{"turbine": 4, "cp_scale": 0.85, "sensor_bias": {"p_g_m": 10e3}}],
     }
     plant = _farm(spec, runs=(0, 1, 2), twins=True)
-    m, turbine = plant.turbines.plant, plant.turbine_of_row
+    m, turbine = plant.turbines.mismatch, plant.turbine_of_row
     four = turbine == 4
     assert np.all(np.abs(m.cp_scale[four] - 0.85) <= 0.02) and np.all(np.abs(m.cp_scale[~four] - 0.96) <= 0.02)
     assert np.all(m.bias[four, -1] == 10e3) and np.all(m.bias[~four, -1] == 0.0)
