@@ -100,6 +100,7 @@ def simulate_chunk(
         duration_s=scenario.duration_s,
         runs=run_ids,
         fault_free_twins=twins,
+        mismatch=scenario.mismatch,
     )
     sup = FarmSupervisor(
         scenario.plant,

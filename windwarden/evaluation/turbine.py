@@ -86,7 +86,9 @@ def simulate_chunk(
     twins: bool = True,
 ) -> ChunkResult:
     """The runs ``run_ids``, and with ``twins`` the fault-free twin of each fault window (module docstring)."""
-    plant = TurbineBatch(scenario.plant, scenario.wind, scenario.faults, seed=seed, runs=run_ids)
+    plant = TurbineBatch(
+        scenario.plant, scenario.wind, scenario.faults, seed=seed, runs=run_ids, mismatch=scenario.mismatch
+    )
     supervisor = TurbineSupervisor(
         plant.n,
         detector=detector,

@@ -10,6 +10,7 @@ from pydantic import BaseModel, ConfigDict, Field
 from wwcore.scenario.farm import FarmPlant, check_farm_fault
 from wwcore.scenario.faults import FaultSpec
 from wwcore.scenario.hydro import HydroPlant, check_hydro_fault
+from wwcore.scenario.mismatch import Mismatch
 from wwcore.scenario.turbine import TurbinePlant, check_turbine_fault
 from wwcore.scenario.wind import WindSpec
 
@@ -59,6 +60,9 @@ class Scenario(BaseModel):
     wind: WindSpec = Field(default_factory=WindSpec)
     supervisor: SupervisorSpec = Field(default_factory=SupervisorSpec)
     faults: list[FaultSpec] = Field(default_factory=list)
+    mismatch: Mismatch | None = Field(
+        default=None, description="how the plant differs from the supervisor's design model; the plant alone reads it"
+    )
 
     def problems(self) -> list[tuple[str, str]]:
         """Checks that need the whole scenario, as (field path, message) pairs; empty when it is valid."""
@@ -78,6 +82,17 @@ class Scenario(BaseModel):
                 found.append((f"faults[{i}].{field}", message))
             if fault.start_s >= self.duration_s:
                 found.append((f"faults[{i}].start_s", f"{fault.start_s} s is after the run ends ({self.duration_s} s)"))
+        if self.mismatch is not None:
+            if self.plant.kind == "hydro":
+                found.append(
+                    (
+                        "mismatch",
+                        "the hydrostatic plant takes its uncertainties in [plant] (leak_factor, "
+                        "delta_cq, noise_pct); [mismatch] is for the turbine and the farm",
+                    )
+                )
+            else:
+                found += self.mismatch.problems(self.plant.n_turbines)
         labels = [f.label for f in self.faults]
         for i, label in enumerate(labels):
             if label in labels[:i]:

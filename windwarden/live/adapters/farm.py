@@ -49,7 +49,13 @@ class FarmAdapter:
         from plant_sim.farm import FarmBatch
 
         return FarmBatch(
-            scenario.plant, scenario.wind, scenario.faults, seed=seed, duration_s=scenario.duration_s, runs=[0]
+            scenario.plant,
+            scenario.wind,
+            scenario.faults,
+            seed=seed,
+            duration_s=scenario.duration_s,
+            runs=[0],
+            mismatch=scenario.mismatch,
         )
 
     def make_supervisor(self, info: RunInfo) -> FarmSupervisor:

@@ -47,7 +47,9 @@ class TurbineAdapter:
     def make_plant(self, scenario: Scenario, seed: int) -> TurbineBatch:
         from plant_sim.turbine import TurbineBatch
 
-        return TurbineBatch(scenario.plant, scenario.wind, scenario.faults, seed=seed, runs=[0])
+        return TurbineBatch(
+            scenario.plant, scenario.wind, scenario.faults, seed=seed, runs=[0], mismatch=scenario.mismatch
+        )
 
     def make_supervisor(self, info: RunInfo) -> TurbineSupervisor:
         from service.turbine.supervisor import DEFAULT_DETECTOR, DEFAULT_ESTIMATOR, TurbineSupervisor
