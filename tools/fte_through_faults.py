@@ -33,6 +33,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--sensors", default="r1,r2,g1,g2", help="speed sensors of the single faults")
     ap.add_argument("--kinds", default=",".join(ff.DEFAULT_SIZES), help="kinds of the single faults")
     ap.add_argument("--no-pairs", action="store_true", help="leave out the double faults")
+    ap.add_argument("--sizes", default="", help="override the sizes of the kinds, e.g. 'offset=5,-5;gain=1.05'")
     ap.add_argument("--runs", type=int, default=4, help="windows per cell")
     ap.add_argument("--seed", type=int, required=True)
     ap.add_argument("--window", type=float, default=100.0, help="fault window length, s")
@@ -47,9 +48,13 @@ def main(argv: list[str] | None = None) -> int:
     unknown = [k for k in kinds if k not in ff.DEFAULT_SIZES]
     if unknown or args.runs < 1:
         ap.error(f"unknown kinds {unknown}" if unknown else "--runs must be ≥ 1")
+    sizes = {k: ff.DEFAULT_SIZES[k] for k in kinds}
+    for part in (p for p in args.sizes.split(";") if p):
+        kind, values = part.split("=")
+        sizes[kind] = tuple(float(v) for v in values.split(","))
     cells = ff.grid(
         [s for s in args.sensors.split(",") if s],
-        {k: ff.DEFAULT_SIZES[k] for k in kinds},
+        sizes,
         () if args.no_pairs else ff.DEFAULT_PAIRS,
     )
     options = tomllib.loads(args.params)

@@ -184,6 +184,7 @@ def simulate_wind(
     options: dict | None = None,
     convention: str = "sigma",
     wind_spec: dict | None = None,
+    start_range: tuple[float, float] = START_S,
 ) -> WindResult:
     """Every cell × run of ``run_ids`` at mean wind ``wind``, with fault-free twins (module docstring)."""
     dt = BENCHMARK.dt
@@ -192,7 +193,7 @@ def simulate_wind(
     starts = []
     for run, c in keys:
         rng = np.random.default_rng(np.random.SeedSequence(seed, spawn_key=(run, c, 1)))
-        starts.append(round(rng.uniform(*START_S) / dt) * dt)
+        starts.append(round(rng.uniform(*start_range) / dt) * dt)
     faults = [
         spec
         for (run, c), turbine, start in zip(keys, turbines, starts, strict=True)
