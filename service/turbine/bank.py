@@ -8,12 +8,14 @@ paper  observer instances          sensors used (``y_j``, eqs. (4)–(10))
 1, 7   ``1``                       ω_r,m1 ω_r,m2 ω_g,m1 ω_g,m2 (7 = 1 here: the anemometer measures no state)
 2      ``2-r1``, ``2-r2``          one rotor-speed sensor left out
 3      ``3-g1``, ``3-g2``          one generator-speed sensor left out
-4      ``4``                       ω_g,m1 ω_g,m2 (no UIO exists: augmented Kalman filter, see ``uio``)
+4      ``4``                       ω_g,m1 ω_g,m2 (no UIO exists: the rigid drive train, ``uio.design_rigid``)
 5      ``5``                       ω_r,m1 ω_r,m2
 6      ``6-r1g1`` … ``6-r2g2``     one rotor- and one generator-speed sensor left out
-–      ``5-pe15`` … ``5-pe80``     ω_r,m1 ω_r,m2 and ω_g,pe = P_g,m/(η_gc τ_g,m), one per design torque (not
+–      ``5-pe15`` … ``5-pe-r3``    ω_r,m1 ω_r,m2 and ω_g,pe = P_g,m/(η_gc τ_g,m), four designs (not
                                    isolating; the estimate when both generator-speed sensors are flagged,
                                    ``docs/turbine.md``)
+–      ``4-g1``, ``4-g2``          observer 4 on one generator-speed sensor (not isolating: the estimate when
+                                   the other is flagged)
 =====  ==========================  ===================================================
 
 All observers are computed at each sample (seed 000, after eq. (20)); their states are stacked into one array
@@ -90,7 +92,7 @@ class BankDesign:
     ranks: np.ndarray  # (n_obs,)
     reference: int  # index of the NFTE copy of observer 1
     power_speed: tuple[int, ...]  # indices of the 5-pe observers (rotor-speed sensors and the power-speed channel)
-    # indices of the Kalman filters on one generator-speed sensor: the one that leaves out GENERATOR[i] is
+    # indices of observer 4 on one generator-speed sensor: the one that leaves out GENERATOR[i] is
     # single_generator[i] (not isolating: they serve the estimate only, ``builtin``)
     single_generator: tuple[int, ...] = ()
     gear_ratio: float = 1.0  # N_g, generator over rotor speed
@@ -121,7 +123,7 @@ def design_bank(
     """Design every observer of the bank. ``sigma``: noise σ of each speed sensor (its own units);
     ``power_speed``: (name, σ of the power-speed channel in rad/s, random-walk variance of the aerodynamic
     torque per tick, or None for the rigid form) of each 5-pe observer to add; with
-    ``single_generator``, the Kalman filters on one generator-speed sensor, ``4-g1`` (on ω_g,m2) and ``4-g2`` (on
+    ``single_generator``, observer 4 (rigid) on one generator-speed sensor, ``4-g1`` (on ω_g,m2) and ``4-g2`` (on
     ω_g,m1), observer 4 with one more sensor left out. Neither kind is isolating: they serve the estimate only."""
     left_outs = bank_subsets()
     inputs = (*SPEED_SENSORS, POWER_SPEED) if power_speed else SPEED_SENSORS
@@ -209,7 +211,7 @@ def design_bank(
 def estimate_observers(design: BankDesign, from_generator: bool = True, power_speed: bool = True) -> np.ndarray:
     """The observer the estimate comes from, for each bitmask of flagged speed sensors (16,), −1 where none.
 
-    ``from_generator``: the Kalman-form observer on the healthy generator-speed sensors (4 with both, 4-g1 or
+    ``from_generator``: observer 4, the rigid drive train on the healthy generator-speed sensors (4 with both, 4-g1 or
     4-g2 with one), whatever the rotor-speed sensors' flags, so no rotor-speed reading ever reaches the estimate
     while a generator-speed sensor is healthy; otherwise (seed 000) the observer of the healthy set. With both
     generator-speed sensors flagged: the first 5-pe design if ``power_speed`` and the bank has it (the caller
@@ -225,7 +227,7 @@ def estimate_observers(design: BankDesign, from_generator: bool = True, power_sp
     if not from_generator:
         return choice
     if len(design.single_generator) != len(GENERATOR):
-        raise ValueError("the bank has no Kalman filters on one generator-speed sensor (design_bank single_generator)")
+        raise ValueError("the bank has no observer 4 on one generator-speed sensor (design_bank single_generator)")
     both_rotor = design.index(frozenset(ROTOR))
     for mask in range(len(choice)):
         flagged = [g for g in GENERATOR if mask & bit[g]]

@@ -113,14 +113,14 @@ ESTIMATE_FROM = ("generator", "seed000")
 
 @TURBINE_ESTIMATORS.register("uio-bank")
 class UIOBankEstimator:
-    """Estimates of the observer whose sensor set matches the healthy sensors (active fault tolerance).
+    """Estimates of the observer chosen by the trusted speed sensors (active fault tolerance).
 
     Options: ``wind_cutoff_hz`` (default 0.3), ``speed_cutoff_hz`` (2.0), ``warmup_s`` (5.0),
     ``wind_every`` (20): the wind is inverted every that many ticks (5 Hz) and held in between; the torque it
     inverts is low-pass filtered at ``wind_cutoff_hz``, far below the 5 Hz this resolves. ``power_speed``
     (true): with both generator-speed sensors flagged, use observer 5-pe (the rotor-speed sensors and the
-    power-speed channel, ``docs/turbine.md``), the design nearest the torque reference, instead of seed 000's
-    observer 5. ``estimate_from`` (``"generator"``): the estimate comes from the Kalman-form observer on the
+    power-speed channel, ``docs/turbine.md``), the design for the torque reference and zone, instead of seed 000's
+    observer 5. ``estimate_from`` (``"generator"``): the estimate comes from observer 4, the rigid drive train on the
     healthy generator-speed sensors (4 with both, 4-g1 or 4-g2 with one), which never uses a rotor-speed sensor,
     so a rotor-speed fault cannot reach it whether or not it is flagged; only with both generator-speed sensors
     flagged does it fall back to the rotor-speed sensors (5-pe or 5). ``"seed000"``: the observer whose sensor set

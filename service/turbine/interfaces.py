@@ -43,7 +43,7 @@ POWER_SPEED_REGION3 = "5-pe-r3"
 # Design process noise of the observers (per step): the drive-train model is exact up to the efficiency fault
 # and the converter's torque offset, so Q is small.
 DESIGN_Q = np.diag([1e-8, 1e-6, 1e-12, 1.0])  # (rad/s)², (rad/s)², rad², (N m)²
-# The Kalman-form observers (4 and 5) model the aerodynamic torque as a random walk. Its variance per tick is
+# Observer 5 (a Kalman filter) models the aerodynamic torque as a random walk. Its variance per tick is
 # the one that reproduces how the benchmark turbine's aerodynamic torque spreads over 1 s, the time scale the
 # wind estimate resolves (0.3 Hz), in 12 % turbulence: fault-free simulation, torque low-passed at 1 Hz,
 # std of 1-s increments / √100 ticks = 9.7e3 N m (at 10 s: 6.9e3; unfiltered per tick: 1.0e4).

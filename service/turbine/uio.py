@@ -29,9 +29,10 @@ milliseconds. Two observers of seed 000 fail:
   generator side of the 4.5 Hz torsion mode is unobservable and damped only by friction (|λ| = 0.9994, a 17 s
   time constant); its estimate of ω_g would carry a resonant error of several rad/s.
 
-Where it fails the observer is a steady-state Kalman filter of the design model augmented with the unknown input
-as a random-walk state, written in the same (F, T, K, H) form so the bank runs it like the others
-(``kind == "kalman"``).
+Where it fails, observer 5 is a steady-state Kalman filter of the design model augmented with the unknown input
+as a random-walk state (``kind == "kalman"``), and observer 4 the drive train as one rigid body
+(``design_rigid``, ``kind == "rigid"``), both written in the same (F, T, K, H) form so the bank runs them like the
+others.
 
 Residual (decoupled from d): r_j[n] = y_j[n] − C_j x̂[n] = (I − C_j H_j) y_j[n] − C_j z[n]. With ε = T x − z,
 ε[n+1] = F ε[n] + T ξ[n] − K η[n] and r = C ε + (I − C H) η, so its stationary covariance is closed-form:
@@ -64,7 +65,7 @@ class ObserverDesign:
 
     sensors: tuple[str, ...]
     kind: str  # "uio", "kalman" (augmented with the unknown input) or "rigid" (``design_rigid``)
-    n_states: int  # 4 for a UIO, 5 for the augmented Kalman filter
+    n_states: int  # 4 for a UIO and the rigid drive train, 5 for the augmented Kalman filter
     C: np.ndarray  # (p, n_states)
     H: np.ndarray  # (n_states, p)
     T: np.ndarray  # (n_states, n_states)

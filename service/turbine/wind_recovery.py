@@ -7,11 +7,10 @@
    The rotor acceleration is taken from Ω̂ = ω̂_g/N_g where the observer uses a generator-speed sensor: below
    the 4.5 Hz torsion mode the shaft is rigid (the low-frequency part of θ̇_Δ = ω_r − ω_g/N_g is ~1e-4 rad/s),
    and the generator encoder is ~50× less noisy than the rotor-speed sensors once referred to the rotor side.
-   A UIO without one would use Ω̂ = ω̂_r; the bank has none. The Kalman-form observers on generator-speed
-   sensors (4, 4-g1, 4-g2) take this route too: their fifth state τ̂_r is the same torque seen through the
-   random walk's smoothing, which adds a lag that the 0.3 Hz filter then adds to (fault-free wind RMSE at
-   24 m/s: 0.858 against 0.999 m/s from the fifth state; below rated the two are within 3 %). Observers 5 and
-   5-pe, which have no generator encoder, use their fifth state.
+   A UIO without one would use Ω̂ = ω̂_r; the bank has none. Observer 4 (``uio.design_rigid``: no θ̂_Δ) takes
+   the two shaft equations summed instead, τ̂_r = (J_r/N_g + N_g J_g/η) dω̂_g/dt + (N_g/η)(τ̂_g + B_g ω̂_g) +
+   B_r ω̂_g/N_g, exact but for the torsion's own 4.5 Hz motion. Observers 5 and 5-pe's Kalman designs have no
+   generator encoder; their fifth state is τ̂_r.
 2. τ̂_r and the pitch are low-pass filtered by the same second-order Butterworth filter (cutoff
    ``wind_cutoff_hz``), so both carry the same delay, then
 3. v̂ solves τ̂_r = ½ρπR³ C_q(ω̂_r R / v, β̂) v² (``wwcore.aero.wind_from_torque``), started from the previous
