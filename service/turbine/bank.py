@@ -321,14 +321,17 @@ class ObserverBank:
     def restart(self, rows: np.ndarray, target: np.ndarray, source: np.ndarray) -> None:
         """Re-initialise observer ``target[i]`` of row ``rows[i]`` from observer ``source[i]``'s estimate of this
         tick: x̂_target = x̂_source, z_target = x̂_source − H_target y[n] (eq. (12)), so it goes on from a state
-        that never saw what the source left out."""
+        that never saw what the source left out. Only between observers of one kind (a UIO from a UIO, a Kalman
+        filter from a Kalman filter); a rigid drive train has no history to restart (its x̂ is the tick's
+        readings)."""
         d = self.d
         y = self._y_prev  # y[n], the readings of the last step
         for row, t, s in zip(rows, target, source, strict=True):
-            # the states both observers have: [ω_r, ω_g, θ_Δ, τ_g] (the Kalman filters' τ̂_r is kept)
-            shared = min(d.observers[t].n_states, d.observers[s].n_states)
-            tb = slice(d.offsets[t], d.offsets[t] + shared)
-            sb = slice(d.offsets[s], d.offsets[s] + shared)
+            kind = d.observers[t].kind
+            if kind == "rigid" or kind != d.observers[s].kind:
+                continue  # a rigid x̂ is this tick's readings; other kinds estimate different things (θ̂_Δ, τ̂_r)
+            tb = slice(d.offsets[t], d.offsets[t] + d.observers[t].n_states)
+            sb = slice(d.offsets[s], d.offsets[s] + d.observers[s].n_states)
             self.x_hat[row, tb] = self.x_hat[row, sb]
             self.z[row, tb] = self.x_hat[row, sb] - d.H_blk[tb] @ y[row]
 

@@ -267,21 +267,28 @@ class SpeedSensorFDI:
         before = self.flagged.copy()
         for i, row in enumerate(rows):
             explanation = self._explain(
-                row, self._explained(ratio[row]), self._explained(isolate[i]), int(frozen_mask[row])
+                row, self._explained(ratio[row]), self._explained(isolate[i]), int(frozen_mask[row]), isolate[i]
             )
             if self.ticks >= self.deadline[row]:
                 other = self._generator_alternative(explanation, self._explained(ratio[row]))
                 if other is not None:
                     if not decided[row] and self.ticks - self.started[row] < self.arbitration_ticks:
                         self.deadline[row] = self.ticks + 1  # wait for the arbitration, trusting neither
-                        both = explanation | other
-                        self.provisional[row] = both if self._estimable[both] else explanation
+                        both = self.provisional[row] | explanation | other
+                        if self._estimable[both]:
+                            self.provisional[row] = both
                         continue
                     if (self.arbiter.total[row] > 0.0) != bool(explanation & _BITS[2]):
                         explanation = other
                 self.flagged[row] = explanation
                 self.deadline[row] = -1
-            self.provisional[row] = explanation
+                self.provisional[row] = explanation
+            elif start[row]:
+                self.provisional[row] = explanation
+            elif self._estimable[self.provisional[row] | explanation]:
+                # suspicion only grows while the isolation is under way: an estimate that moved back and forth
+                # between explanations would re-admit a sensor at every move
+                self.provisional[row] |= explanation
         raised = self.flagged & ~before
         if raised.any():
             self.clearing.start(_SENSORS_OF_MASK[raised])
@@ -308,8 +315,11 @@ class SpeedSensorFDI:
         estimator should not lean on before they are flagged)."""
         return self._pending
 
-    def _explain(self, row: int, ratio: np.ndarray, isolate: np.ndarray, frozen: int) -> int:
-        """The smallest explanation of the data that keeps the flagged and frozen sensors (module docstring)."""
+    def _explain(self, row: int, ratio: np.ndarray, isolate: np.ndarray, frozen: int, own: np.ndarray) -> int:
+        """The smallest explanation of the data that keeps the flagged and frozen sensors (module docstring):
+        consistent when all its witnesses are (``ratio``, ``isolate``); among consistent ones of one size, the one
+        whose own observer's statistic (``own``, at the isolation level) is smallest, i.e. that leaves least of
+        the data unexplained."""
         current = int(self.flagged[row])
         keep = current | frozen
         supersets = ((self.masks & keep) == keep) & (self.masks != current)
@@ -319,7 +329,7 @@ class SpeedSensorFDI:
             pool = np.flatnonzero(pool_mask & (level <= 1.0))
             if len(pool):
                 self.ambiguous[row] = False
-                return int(self.masks[pool[np.lexsort((level[pool], self.sizes[pool]))[0]]])
+                return int(self.masks[pool[np.lexsort((own[pool], self.sizes[pool]))[0]]])
         self.ambiguous[row] = True
         candidates = np.flatnonzero(supersets if supersets.any() else with_frozen)
         if len(candidates) == 0:  # more sensors frozen than any observer can leave out
