@@ -27,6 +27,20 @@ def _floats(text: str) -> tuple[float, ...]:
     return tuple(float(v) for v in text.split(",") if v)
 
 
+def print_groups(records: list[dict]) -> None:
+    """The summary per wind and sensor group (``fte_faults.summarise_groups``)."""
+    print(
+        f"\n{'wind':>5} {'group':<10} {'windows':>7} {'det%':>5} {'iso1%':>5} {'flap%':>5} {'fmax':>4} "
+        f"{'multi%':>6} {'FTE/twin':>8} {'worst':>6} {'>1.1':>4}"
+    )
+    for g in ff.summarise_groups(records):
+        print(
+            f"{g['wind']:>5g} {g['group']:<10} {g['windows']:>7d} {g['detected_pct']:>5.0f} {g['isolated_pct']:>5.0f} "
+            f"{g['flapping_pct']:>5.0f} {g['flaps_max']:>4d} {g['multiple_detections_pct']:>6.0f} "
+            f"{g['ratio_mean']:>8.3f} {g['ratio_max']:>6.3f} {g['over_threshold']:>4d}"
+        )
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--winds", type=_floats, default=ff.DEFAULT_WINDS, help="mean winds, m/s (comma-separated)")
@@ -87,6 +101,8 @@ def main(argv: list[str] | None = None) -> int:
             f"{s.detections_mean:>6.2f} {s.flaps_mean:>6.2f} {s.flaps_max:>4d} {s.wrong_pct:>6.0f} {end:>5} "
             f"{end_max:>6} {s.ratio_mean:>8.3f} {s.ratio_max:>6.3f}"
         )
+    records = [{"wind": r.wind, "label": r.cells[w.cell].label, **asdict(w)} for r in results for w in r.windows]
+    print_groups(records)
     alarms = sum(r.twin_false_alarms for r in results)
     observed = sum(r.twin_observed_s for r in results)
     detected = [s for s in summaries if s.detected_pct > 0]
@@ -102,7 +118,7 @@ def main(argv: list[str] | None = None) -> int:
                 {
                     "args": {k: v for k, v in vars(args).items() if k != "json"},
                     "cells": [asdict(s) for s in summaries],
-                    "windows": [{"wind": r.wind, **asdict(w)} for r in results for w in r.windows],
+                    "windows": records,
                     "twin_false_alarms": alarms,
                     "twin_observed_s": observed,
                 },

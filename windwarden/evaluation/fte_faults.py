@@ -379,3 +379,39 @@ def summarise(result: WindResult) -> list[CellSummary]:
             )
         )
     return out
+
+
+def group_of(label: str) -> str:
+    """'rotor', 'generator' or 'pair' for a cell label."""
+    if " + " in label:
+        return "pair"
+    return "rotor" if label.startswith("r") else "generator"
+
+
+def summarise_groups(windows: Sequence[dict], threshold: float = 1.1) -> list[dict]:
+    """Per (wind, group) over window records (``WindowResult`` fields plus ``wind`` and ``label``): windows,
+    detected %, first-flag isolated % of the detected, windows with a flap %, most flaps, windows with more than
+    one detection %, mean and worst FTE/twin of the detected windows, and how many of them exceed ``threshold``."""
+    groups: dict[tuple[float, str], list[dict]] = {}
+    for w in windows:
+        groups.setdefault((w["wind"], group_of(w["label"])), []).append(w)
+    out = []
+    for (wind, group), ws in sorted(groups.items()):
+        detected = [w for w in ws if w["detected"]]
+        ratios = np.array([w["ratio"] for w in detected]) if detected else np.array([np.nan])
+        out.append(
+            {
+                "wind": wind,
+                "group": group,
+                "windows": len(ws),
+                "detected_pct": 100.0 * len(detected) / len(ws),
+                "isolated_pct": 100.0 * sum(w["first_flag_isolated"] for w in detected) / max(len(detected), 1),
+                "flapping_pct": 100.0 * sum(w["flaps"] > 0 for w in ws) / len(ws),
+                "flaps_max": max(w["flaps"] for w in ws),
+                "multiple_detections_pct": 100.0 * sum(w["detections"] > 1 for w in ws) / len(ws),
+                "ratio_mean": float(np.mean(ratios)),
+                "ratio_max": float(np.max(ratios)),
+                "over_threshold": int(np.sum(ratios > threshold)),
+            }
+        )
+    return out
