@@ -68,3 +68,62 @@ def test_damage_metrics_per_window_and_run_with_per_run_values():
 
 def test_no_twins_no_damage_figures():
     assert damage_metrics(np.ones((1, 9, 3)), None, 10.0, 0.0, [], [], np.zeros((1, 9, 0)), None) == ({}, {})
+
+
+def _variant(scenario, accommodation: bool, faulty_miner: float, others_miner: float, missing: list[float]):
+    from windwarden.evaluation.farm import DAMAGE_BIN_S, Variant
+
+    runs, bins = len(missing), round(scenario.duration_s / DAMAGE_BIN_S)
+    twin = np.ones((runs, 9, bins))
+    damage = twin.copy()
+    window = (np.arange(bins) * DAMAGE_BIN_S >= 3600.0) & (np.arange(bins) * DAMAGE_BIN_S < 4000.0)
+    damage[:, :, window] *= others_miner
+    damage[:, 3, window] = faulty_miner  # turbine 4's drive-train window
+    n_windows = len(scenario.faults)
+    return Variant(
+        scenario=scenario,
+        runs=runs,
+        seed=1,
+        detector="analytic",
+        controller="dispatch",
+        accommodation=accommodation,
+        events=[],
+        twin_events=[],
+        over_j=np.zeros(runs),
+        missing_j=np.asarray(missing) * 3.6e9,
+        demand_j=np.full(runs, 1e12),
+        damage=damage,
+        twin_damage=twin,
+        imbalance=np.zeros((runs, 9, n_windows), dtype=complex),
+        twin_imbalance=np.ones((runs, 9, n_windows), dtype=complex),
+        trace={},
+    )
+
+
+def test_table_7_gives_the_farm_beside_the_faulty_turbine_and_the_paired_differences():
+    from windwarden.evaluation.farm_tables import table7_lines
+    from wwcore.scenario import load_scenario
+
+    scenario = load_scenario("farm-case1")
+    none = _variant(scenario, False, 16.0, 1.0, [0.10, 0.20])
+    moved = _variant(scenario, True, 1.0, 1.5, [0.08, 0.20])  # faulty back to 1, the eight others × 1.5
+    text = "\n".join(table7_lines(scenario, moved, {"no_accommodation": none}))
+    rows = {line.split(" | ")[1]: line for line in text.splitlines() if line.startswith("| F3 drive train wt4 |")}
+    assert set(rows) == {"no accommodation", next(k for k in rows if "3P cancelled" in k)}
+    # window: no accommodation farm (16 + 8)/9 = 2.667, faulty excess 15/9; moved (1 + 12)/9 = 1.444, others 4/9
+    assert "| 16 | 1 | 2.667 | +1.667 +0.000 |" in rows["no accommodation"]
+    moved_row = next(v for k, v in rows.items() if k != "no accommodation")
+    assert "| 1 | 1.5 | 1.444 | +0.000 +0.444 |" in moved_row
+    paired = next(line for line in text.splitlines() if line.startswith("| missing power, MWh |"))
+    assert "| 0.15 | 0.14 | -0.01 ± 0.01 | 1 of 2 |" in paired
+
+
+def test_fig_4_draws_the_faulty_turbines_and_the_farm(tmp_path):
+    from windwarden.evaluation.farm_plots import write_plots
+    from wwcore.scenario import load_scenario
+
+    scenario = load_scenario("farm-case1")
+    none = _variant(scenario, False, 16.0, 1.0, [0.10, 0.20])
+    moved = _variant(scenario, True, 1.0, 1.5, [0.08, 0.20])
+    (path,) = write_plots(tmp_path, scenario, moved, {"no_accommodation": none})
+    assert path.name == "fig4_damage.png" and path.stat().st_size > 10_000
