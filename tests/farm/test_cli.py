@@ -101,4 +101,3 @@ def test_an_accommodation_rule_no_controller_knows_is_refused_before_running(tmp
     assert main(["eval", str(path), "--runs", "1", "--quiet", "--out", str(out)]) == 2
     assert named in capsys.readouterr().err
     assert not out.exists()
-

@@ -52,6 +52,8 @@ def test_damage_metrics_per_window_and_run_with_per_run_values():
     farm_window = [(10 + 16) / 18, (10 + 4 + 14) / 18]  # run 0: turbine 5 → 10; run 1: turbine 1 → 4 as well
     assert per_run["damage.F3 drive train wt5.farm_miner_ratio_window"] == pytest.approx(farm_window)
     assert entry["farm_miner_ratio_window"] == pytest.approx(np.mean(farm_window))
+    assert entry["farm_miner_ratio_window_pooled"] == pytest.approx((26 + 28) / 36)  # the runs' sums, then the ratio
+    assert entry["turbines_window"]["wt1"]["miner_ratio_pooled"] == pytest.approx(6 / 4)
     assert per_run["damage.F3 drive train wt5.others_miner_ratio_window"] == pytest.approx([1.0, 18 / 16])
     assert entry["faulty_excess_window"] + entry["others_excess_window"] == pytest.approx(
         entry["farm_miner_ratio_window"] - 1.0

@@ -15,7 +15,11 @@ D_t/K, so damage sums add across turbines. Per run and span:
 * **others' Miner ratio**: Σ_{t≠f} D_t / Σ_{t≠f} D'_t, the eight turbines without the window's fault.
 
 Spans: the fault window [start, end) and the run (every bin after the warm-up). Each figure is computed per run
-and averaged over the runs; the main ones are also kept per run (the scorecard's ``per_run``, in run order) so that
+and averaged over the runs, and also **pooled** (``*_pooled``: the sums of all runs before the ratio, the runs'
+total damage over their twins' total). A damage sum is dominated by its few largest cycles, so a run's ratio is
+noisy and skewed (a run whose twin happened to miss a large cycle gives a large ratio), and the mean of ratios
+lies above 1 for any change of trajectory, faulty or not; the pooled ratio weighs each run by its damage, as
+fatigue life does. The main ones are also kept per run (the scorecard's ``per_run``, in run order) so that
 two variants on the same seed and runs compare as paired differences (``windwarden compare``).
 """
 
@@ -37,7 +41,8 @@ DEFINITION = (
     "turbine; farm_miner_ratio = Σ_9 D_t / Σ_9 D'_t; others_miner_ratio the same over the eight turbines without the "
     "window's fault; faulty_excess = (D_f − D'_f)/Σ_9 D'_t and others_excess = Σ_(t≠f) (D_t − D'_t)/Σ_9 D'_t add "
     "up to farm_miner_ratio − 1. Span: the fault window ('window') or the run after the warm-up ('run'). Per run, "
-    "then the mean over runs (the scorecard's per_run keeps each run's value). imbalance: |mean rotating-frame "
+    "then the mean over runs (the scorecard's per_run keeps each run's value); *_pooled: the sums of all runs "
+    "before the ratio (the runs' total damage over their twins' total). imbalance: |mean rotating-frame "
     "phasor Σ τ_r,i e^(j2π(i−1)/3)| over the window, N m"
 )
 
@@ -63,17 +68,30 @@ def span_figures(damage: np.ndarray, twin: np.ndarray, faulty: int | None) -> di
     return out
 
 
-def _means(figures: dict[str, np.ndarray], suffix: str, skip: tuple[str, ...] = ()) -> dict[str, float]:
-    return {f"{name}_{suffix}": float(np.mean(v)) for name, v in figures.items() if name not in skip}
+def pooled(damage: np.ndarray, twin: np.ndarray, faulty: int | None) -> dict[str, float]:
+    """The figures of ``span_figures`` with the sums of all runs pooled (Σ over runs before the ratio): the runs'
+    total damage over their twins' total, which weighs each run by its damage rather than each run alike."""
+    return {k: float(v[0]) for k, v in span_figures(damage.sum(axis=0)[None], twin.sum(axis=0)[None], faulty).items()}
+
+
+def _means(
+    figures: dict[str, np.ndarray], pool: dict[str, float], suffix: str, skip: tuple[str, ...] = ()
+) -> dict[str, float]:
+    """Each figure's mean over the runs (``<name>_<span>``) and pooled (``<name>_<span>_pooled``)."""
+    out = {f"{name}_{suffix}": float(np.mean(v)) for name, v in figures.items() if name not in skip}
+    return out | {f"{name}_{suffix}_pooled": v for name, v in pool.items() if name not in skip}
 
 
 def turbine_numbers(damage: np.ndarray, twin: np.ndarray) -> dict[str, dict[str, float]]:
-    """Each turbine's mean damage number and Miner ratio over a span, from sums (runs, 9)."""
+    """Each turbine's mean damage number and Miner ratio over a span, from sums (runs, 9), and its pooled Miner
+    ratio (Σ over runs before the ratio)."""
     miner = _ratio(damage, twin)
+    pool = _ratio(damage.sum(axis=0), twin.sum(axis=0))
     return {
         f"wt{t + 1}": {
             "damage_number": float(np.mean(miner[:, t] ** (1.0 / WOHLER_M))),
             "miner_ratio": float(np.mean(miner[:, t])),
+            "miner_ratio_pooled": float(pool[t]),
         }
         for t in range(N_TURBINES)
     }
@@ -120,8 +138,9 @@ def damage_metrics(
         win, win_twin = damage[:, :, inside].sum(axis=2), twin_damage[:, :, inside].sum(axis=2)
         spans = {"run": span_figures(run_sums, run_twin, t), "window": span_figures(win, win_twin, t)}
         entry: dict[str, Any] = {"fault": w.name, "target": target}
-        entry |= _means(spans["run"], "run", skip=("farm_miner_ratio", "farm_damage_number"))  # in "run" below
-        entry |= _means(spans["window"], "window")
+        farm_only = ("farm_miner_ratio", "farm_damage_number")  # over the run: the same for every window, below
+        entry |= _means(spans["run"], pooled(run_sums, run_twin, t), "run", skip=farm_only)
+        entry |= _means(spans["window"], pooled(win, win_twin, t), "window")
         entry["turbines_window"] = turbine_numbers(win, win_twin)
         for span, names in PER_RUN_FIGURES.items():
             per_run |= {f"damage.{key}.{name}_{span}": spans[span][name].tolist() for name in names}
@@ -136,6 +155,7 @@ def damage_metrics(
             by_type[w.target].append(entry)
     keys = ["damage_number_run", "miner_ratio_run", "others_miner_ratio_run"]
     keys += [f"{name}_window" for name in ("damage_number", "miner_ratio", "farm_miner_ratio", "others_miner_ratio")]
+    keys += [f"{key}_pooled" for key in keys if not key.startswith("damage_number")]
     summary = {}
     for name, entries in by_type.items():
         if entries:
@@ -154,6 +174,7 @@ def damage_metrics(
         "by_type": summary,
         "farm_damage_number": float(np.mean(run["farm_damage_number"])),
         "farm_miner_ratio": float(np.mean(run["farm_miner_ratio"])),
+        "farm_miner_ratio_pooled": pooled(run_sums, run_twin, None)["farm_miner_ratio"],
         "turbines_run": turbine_numbers(run_sums, run_twin),
         "per_fault": per_window,
     }
