@@ -116,6 +116,10 @@ def test_table_7_gives_the_farm_beside_the_faulty_turbine_and_the_paired_differe
     assert "| 16 | 1 | 2.667 | +1.667 +0.000 |" in rows["no accommodation"]
     moved_row = next(v for k, v in rows.items() if k != "no accommodation")
     assert "| 1 | 1.5 | 1.444 | +0.000 +0.444 |" in moved_row
+    none_row = next(line for line in text.splitlines() if line.startswith("| no accommodation | inf |"))
+    # over the run (434 bins after the warm-up, nine turbines): farm (3906 + 15 × 40)/3906 = 1.154 in every run;
+    # damage 3 is the mean of the two drive-train windows' turbines: ((1034/434)^¼ + 1)/2 = 1.121, window (2 + 1)/2
+    assert "| 1.1212 | 1.5 | 1.154; 1.154 | 0.15 |" in none_row
     paired = next(line for line in text.splitlines() if line.startswith("| missing power, MWh |"))
     assert "| 0.15 | 0.14 | -0.01 ± 0.01 | 1 of 2 |" in paired
 
