@@ -137,6 +137,50 @@ def cmd_scenarios(args: argparse.Namespace) -> int:
     return 0
 
 
+def _add_compare(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser(
+        "compare",
+        help="paired per-run comparison of two scorecards of the same runs (B − A, standard error, runs lower)",
+    )
+    p.add_argument("a", type=Path, help="scorecard A (scorecard.json or the folder eval --out wrote)")
+    p.add_argument("b", type=Path, help="scorecard B, of the same runs (scenario, seed, runs)")
+    p.add_argument("--metric", action="append", default=[], help="only metrics matching this glob (repeatable)")
+    p.add_argument("--json", action="store_true", help="print the comparison as JSON")
+    p.set_defaults(func=cmd_compare)
+
+
+def cmd_compare(args: argparse.Namespace) -> int:
+    from fnmatch import fnmatch
+
+    from windwarden.evaluation import paired
+
+    try:
+        a, b = paired.load_scorecard(args.a), paired.load_scorecard(args.b)
+        rows, only = paired.compare(a, b)
+    except paired.NotPairedError as error:
+        raise BadInputError(str(error)) from None
+    if args.metric:
+        rows = [r for r in rows if any(fnmatch(r.metric, pattern) for pattern in args.metric)]
+        if not rows:
+            raise BadInputError(f"--metric: no per-run metric matches {', '.join(args.metric)}")
+    if args.json:
+        result = {"a": str(args.a), "b": str(args.b), "rows": [r.as_dict() for r in rows], "only_one": only}
+        sys.stdout.write(json.dumps(result) + "\n")
+        return 0
+    lines = [
+        f"A: {args.a} ({paired.describe(a)})",
+        f"B: {args.b} ({paired.describe(b)})",
+        f"the same {a['runs']} runs: seed {a['seed']}, runs digest {a['runs_digest']}; paired per run, "
+        "B − A = mean of the runs' differences ± its standard error",
+        "",
+        paired.table(rows),
+    ]
+    if only:
+        lines += ["", f"in one scorecard only (not compared): {', '.join(only)}"]
+    sys.stdout.write("\n".join(lines) + "\n")
+    return 0
+
+
 def _add_bench(sub: argparse._SubParsersAction) -> None:
     from windwarden.bench import add_parser
 
@@ -146,6 +190,7 @@ def _add_bench(sub: argparse._SubParsersAction) -> None:
 SUBCOMMANDS: list[Callable[[argparse._SubParsersAction], None]] = [
     _add_eval,
     _add_scenarios,
+    _add_compare,
     _add_bench,
     *LIVE_SUBCOMMANDS,
 ]

@@ -78,7 +78,9 @@ P_ref,farm < Σ P_avail; otherwise every turbine gets rated power (it produces w
 * **D-29, the ripple of a cancelled 3P torque**: a turbine whose 3P torque its converter cancels (modes 3 and 5)
   makes a 3P power ripple instead; the dispatch estimates it and asks the free turbines of the farm for its
   opposite (``service.farm.ripple``), and reads the turbines' power without it (eq. (22), the trim): the ripple is
-  not its power loop's to answer. Option ``ripple_compensation = false`` turns it off.
+  not its power loop's to answer. Option ``ripple_compensation = false`` turns it off (estimate and all: the
+  power loop then answers the ripple); ``ripple_share`` = s ∈ [0, 1] (default 1) asks the free turbines for s of
+  the ripple's opposite only, the estimate still taken off the readings.
 
 **Farm-power trim** [PROPOSED; not in the paper]. Eq. (18) shares the demand in proportion to P_avail, which
 eq. (21) low-passes over a rotor transit: a turbine in a lull cannot make its share while one in a gust is held
@@ -205,7 +207,9 @@ class Dispatch:
         self.trim_ki = float(options.get("trim_ki", TRIM_KI))
         self.trim_limit = float(options.get("trim_limit", TRIM_LIMIT))
         self.trim = np.zeros(context.farms)  # –, the trim's integral I per farm
-        self.ripple = RippleCompensation(self.p, self.n) if bool(options.get("ripple_compensation", True)) else None
+        ripple_share = _share_option(options, "ripple_share", 1.0)  # D-29: the part of the ripple the others cancel
+        compensate = bool(options.get("ripple_compensation", True))
+        self.ripple = RippleCompensation(self.p, self.n, ripple_share) if compensate else None
 
     def estimate_available(self, sample: FarmSample) -> np.ndarray:
         """Eqs. (20)–(22): P_avail,t (n,) in W."""
