@@ -14,6 +14,7 @@ from pathlib import Path
 from rich.console import Console
 
 from windwarden.live.cli import LIVE_SUBCOMMANDS
+from windwarden.sweep_cli import add_detectability_parser, add_random_parser, eval_random
 from wwcore.scenario import ScenarioError, load_scenario, shipped_scenarios
 
 EXIT_BAD_INPUT = 2
@@ -34,7 +35,7 @@ def _positive_int(text: str) -> int:
 
 def _add_eval(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("eval", help="score a scenario over Monte Carlo runs (batch mode, no transport)")
-    p.add_argument("scenario", help="shipped scenario name or path to a scenario file")
+    p.add_argument("scenario", help="shipped scenario name, path to a scenario file, or random:KIND (a random set)")
     p.add_argument("--runs", type=_positive_int, default=10, help="Monte Carlo runs (default 10)")
     p.add_argument("--seed", type=int, default=0, help="master seed (default 0)")
     p.add_argument("--out", type=Path, default=None, help="folder for scorecard.json and plots")
@@ -51,6 +52,7 @@ def _add_eval(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--workers", type=_positive_int, default=None, help="processes (default: all cores)")
     p.add_argument("--no-plots", action="store_true", help="skip the PNG plots")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
+    p.add_argument("--scenarios", type=_positive_int, default=None, help="random:KIND: scenarios drawn (default: runs)")
     p.set_defaults(func=cmd_eval)
 
 
@@ -63,7 +65,6 @@ def cmd_eval(args: argparse.Namespace) -> int:
         load_plugins(tuple(args.plugin))
     except ModuleNotFoundError as error:
         raise BadInputError(f"--plugin: cannot import {error.name!r}") from None
-    scenario = load_scenario(args.scenario)
     options = EvalOptions(
         detector=args.detector,
         estimator=args.estimator,
@@ -75,6 +76,11 @@ def cmd_eval(args: argparse.Namespace) -> int:
         workers=args.workers,
         progress=not args.quiet,
     )
+    if args.scenario.startswith("random:"):
+        return eval_random(args, options)
+    if args.scenarios is not None:
+        raise BadInputError("--scenarios: only a random set (random:KIND) is drawn from scenarios")
+    scenario = load_scenario(args.scenario)
     try:
         evaluation = evaluator_for(scenario)(scenario, args.runs, args.seed, options)
     except (UnknownAlgorithmError, AlgorithmOptionError) as error:
@@ -91,8 +97,9 @@ def cmd_eval(args: argparse.Namespace) -> int:
 
 
 def _add_scenarios(sub: argparse._SubParsersAction) -> None:
-    p = sub.add_parser("scenarios", help="list the shipped scenarios")
+    p = sub.add_parser("scenarios", help="list the shipped scenarios; 'scenarios random KIND' draws one")
     p.set_defaults(func=cmd_scenarios)
+    add_random_parser(p)
 
 
 def cmd_scenarios(args: argparse.Namespace) -> int:
@@ -118,6 +125,7 @@ SUBCOMMANDS: list[Callable[[argparse._SubParsersAction], None]] = [
     _add_eval,
     _add_scenarios,
     _add_bench,
+    add_detectability_parser,
     *LIVE_SUBCOMMANDS,
 ]
 
