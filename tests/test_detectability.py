@@ -7,13 +7,21 @@ from __future__ import annotations
 import itertools
 import json
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
 from scipy import stats
 
 from windwarden.cli import main
-from windwarden.evaluation.detectability import TIMINGS, base_scenario, check_sizes, make_layout, size_rows
+from windwarden.evaluation.detectability import (
+    TIMINGS,
+    base_scenario,
+    check_sizes,
+    make_layout,
+    size_rows,
+    timing_table,
+)
 from windwarden.evaluation.detectability_stats import (
     clopper_pearson,
     crossing,
@@ -21,7 +29,8 @@ from windwarden.evaluation.detectability_stats import (
     probit_size,
     threshold_sizes,
 )
-from windwarden.evaluation.fault_types import FAULT_TYPES, WIND_RANGES, fault_type, held_wind
+from windwarden.evaluation.fault_types import FAULT_TYPES, WIND_RANGES, catalogue_table, fault_type, held_wind
+from windwarden.evaluation.random_scenarios import distribution_table
 from windwarden.evaluation.scoring import windows_from_faults
 
 
@@ -176,3 +185,10 @@ def test_bad_sweep_arguments_are_refused_with_exit_2_and_nothing_written(tmp_pat
     out = tmp_path / "sweep"
     assert main([*argv, "--out", str(out), "--quiet"]) == 2
     assert not out.exists()
+
+
+def test_the_docs_show_the_fault_types_timing_and_random_distributions_as_the_code_has_them():
+    """docs/detectability.md's generated blocks (``tools/detectability_docs.py`` rewrites them)."""
+    text = (Path(__file__).resolve().parent.parent / "docs" / "detectability.md").read_text()
+    for table in (catalogue_table(), timing_table(), distribution_table()):
+        assert table in text

@@ -98,31 +98,22 @@ def cmd_detectability(args: argparse.Namespace) -> int:
         if problems:
             return _refuse(f"--sizes for {t.name}: " + "; ".join(problems))
         grids[t.name] = sizes
-    results = []
-    for t in types:
-        results.append(
-            sweep(
-                t,
-                grids[t.name],
-                runs=args.runs,
-                layouts=args.layouts,
-                seed=args.seed,
-                base=base,
-                workers=args.workers,
-                progress=not args.quiet,
-            )
-        )
-    console.print(console_table(results))
     if args.out is not None:
         args.out.mkdir(parents=True, exist_ok=True)
-        images = {}
-        if not args.no_plots:
-            for r in results:
-                plot(r, args.out / "img" / f"{r['fault_type']}.png")
-                images[r["fault_type"]] = f"img/{r['fault_type']}.png"
-        (args.out / "detectability.json").write_text(json.dumps(results, indent=1) + "\n")
-        (args.out / "detectability.md").write_text(markdown(results, images))
-        console.print(f"wrote {args.out / 'detectability.json'}, detectability.md and {len(images)} plots")
+    results = []
+    for t in types:
+        sweep_args = {"runs": args.runs, "layouts": args.layouts, "seed": args.seed, "base": base}
+        results.append(sweep(t, grids[t.name], **sweep_args, workers=args.workers, progress=not args.quiet))
+        if args.out is not None:  # after each type, so a long sweep keeps what it has measured
+            if not args.no_plots:
+                plot(results[-1], args.out / "img" / f"{t.name}.png")
+            images = {r["fault_type"]: f"img/{r['fault_type']}.png" for r in results if not args.no_plots}
+            (args.out / "detectability.json").write_text(json.dumps(results, indent=1) + "\n")
+            (args.out / "detectability.md").write_text(markdown(results, images))
+    console.print(console_table(results))
+    if args.out is not None:
+        plots = "" if args.no_plots else f" and {len(results)} plots in {args.out / 'img'}"
+        console.print(f"wrote {args.out / 'detectability.json'}, detectability.md{plots}")
     return 0
 
 

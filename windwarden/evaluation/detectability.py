@@ -26,7 +26,14 @@ from typing import Any
 import numpy as np
 
 from windwarden.evaluation.detectability_stats import clopper_pearson, threshold_sizes
-from windwarden.evaluation.fault_types import WIND_RANGES, FaultType, draw_winds, held_wind, place_windows
+from windwarden.evaluation.fault_types import (
+    FAULT_TYPES,
+    WIND_RANGES,
+    FaultType,
+    draw_winds,
+    held_wind,
+    place_windows,
+)
 from windwarden.evaluation.kinds import EvalOptions, evaluator_for
 from windwarden.evaluation.scoring_policy import policy_for
 from wwcore.scenario import Scenario, load_scenario, parse_scenario
@@ -60,10 +67,10 @@ TIMINGS: dict[str, Timing] = {
     ),
     "farm": Timing(
         120.0,
-        35.0,
+        30.0,
         10.0,
         0.0,
-        "after the 60 s warm-up and the 60-s mean of the demand; the gaps of 35–45 s hold the 10 s grace and the "
+        "after the 60 s warm-up and the 60-s mean of the demand; the gaps of 30–40 s hold the 10 s grace and the "
         "detectors' reverse CUSUM and 3P release",
     ),
     "hydro": Timing(
@@ -75,6 +82,22 @@ TIMINGS: dict[str, Timing] = {
         "of the wind and 5 s at the next wind",
     ),
 }
+
+
+def timing_table() -> str:
+    """The layouts' timing as ``docs/detectability.md`` shows it (``tests/test_detectability.py`` compares)."""
+    lines = [
+        "| kind | window | first window | gap between windows | wind held before a window | why |",
+        "|---|---|---|---|---|---|",
+    ]
+    windows = {t.kind: t.window_s for t in FAULT_TYPES}
+    for kind, t in TIMINGS.items():
+        held = f"{t.settle_s:g} s" if kind != "farm" else "(one wind per layout)"
+        lines.append(
+            f"| {kind} | {windows[kind]:g} s | {t.first_s:g} s + U(0, {t.extra_gap_s:g}) s | {t.min_gap_s:g} s + "
+            f"U(0, {t.extra_gap_s:g}) s | {held} | {t.reason} |"
+        )
+    return "\n".join(lines)
 
 
 @dataclass(frozen=True)

@@ -250,7 +250,7 @@ FAULT_TYPES: tuple[FaultType, ...] = (
         "≈ 0.45 σ at a 1e-5 budget per decision, less with persistence; 0.1 σ (9 N m) to 1 σ (90 N m, about the "
         "benchmark's 100 N m)",
         11.0,
-        "11 σ ≈ 1000 N m, the largest |offset| of the benchmark's scenario list (PARAMETERS.md a.8)",
+        "11 σ ≈ 1000 N m, the largest offset magnitude in the benchmark's scenario list (PARAMETERS.md a.8)",
         10.0,
         "tau_g_m",
     ),
@@ -267,7 +267,7 @@ FAULT_TYPES: tuple[FaultType, ...] = (
         "several % while the paper's CUSUM is tuned to 2.7 %; 0.25 % to 6 % brackets the paper's 3 %",
         10.0,
         "10 %, a heavily fouled rotor; beyond it the fault would be an aerodynamic failure",
-        30.0,
+        20.0,
     ),
     FaultType(
         "farm-pitch-misalignment",
@@ -282,7 +282,7 @@ FAULT_TYPES: tuple[FaultType, ...] = (
         "the paper's 0.3 deg sits mid-grid, 0.05 deg (a quarter of the pitch sensors' σ) to 2 deg",
         2.0,
         "2 deg, an order above the paper's 0.3 deg, well inside the ±5 deg a scenario allows",
-        30.0,
+        20.0,
     ),
     FaultType(
         "farm-drivetrain",
@@ -297,7 +297,7 @@ FAULT_TYPES: tuple[FaultType, ...] = (
         "drive-train damage by a few %, so the grid spans 0.25 mrad (lost in the turbulent 3P band) to 12 mrad",
         12.0,
         "12 mrad, well inside the scenario's 20 mrad limit",
-        30.0,
+        20.0,
     ),
     FaultType(
         "hydro-pump-offset",
@@ -390,3 +390,27 @@ def draw_winds(rng: np.random.Generator, kind: str, n: int) -> list[float]:
     """n mean winds uniform over the plant kind's range, to 0.1 m/s."""
     r = WIND_RANGES[kind]
     return [round(float(v), 1) for v in rng.uniform(r.lo, r.hi, n)]
+
+
+def catalogue_table() -> str:
+    """The fault types as ``docs/detectability.md`` shows them (``tests/test_detectability.py`` compares)."""
+    lines = [
+        "| fault type | kind | size unit | targets (one drawn per fault) | scenario fault | sweep grid "
+        "| why this grid |",
+        "|---|---|---|---|---|---|---|",
+    ]
+    for t in FAULT_TYPES:
+        unit = t.unit if t.rule != "sigma" else f"σ of `{t.sigma_channel}`"
+        targets = ", ".join(f"`{x}`" for x in t.targets)
+        value = {
+            "sigma": f"`{t.fault_kind.value}` ± size·σ",
+            "gain_pct": f"`{t.fault_kind.value}` 1 ± size/100",
+            "loss_pct": f"`{t.fault_kind.value}` 1 − size/100",
+            "signed": f"`{t.fault_kind.value}` ± size",
+            "magnitude": f"`{t.fault_kind.value}` size",
+        }[t.rule]
+        grid = ", ".join(f"{s:g}" for s in t.sizes)
+        lines.append(f"| `{t.name}` | {t.kind} | {unit} | {targets} | {value} | {grid} | {t.grid_reason} |")
+    lines += ["", "| kind | mean winds (m/s) | why |", "|---|---|---|"]
+    lines += [f"| {kind} | {r.lo:g}–{r.hi:g} | {r.reason} |" for kind, r in WIND_RANGES.items()]
+    return "\n".join(lines)

@@ -110,21 +110,25 @@ CASES: dict[str, tuple[tuple[str, float, tuple[str, ...]], ...]] = {
 Speed-sensor faults are 70 % of the turbine's windows (single 50 %, double 20 %), the rest pitch sensors and the
 converter; the farm's three faults and hydro's two actuators have equal odds."""
 
-SIZE_RANGES: dict[str, tuple[float, float]] = {
-    "speed-rotor-offset": (6.0, 20.0),
-    "speed-generator-offset": (6.0, 20.0),
-    "speed-rotor-gain": (3.0, 10.0),
-    "speed-generator-gain": (0.2, 10.0),
-    "pitch-sensor-offset": (4.0, 25.0),
-    "converter-offset": (0.5, 11.0),
-    "farm-debris": (3.0, 10.0),
-    "farm-pitch-misalignment": (0.5, 2.0),
-    "farm-drivetrain": (3.0, 12.0),
-    "hydro-pump-offset": (0.03, 0.4),
-    "hydro-motor-offset": (0.03, 0.4),
+DETECTED_95: dict[str, float] = {
+    "speed-rotor-offset": 6.0,
+    "speed-generator-offset": 6.0,
+    "speed-rotor-gain": 3.0,
+    "speed-generator-gain": 0.2,
+    "pitch-sensor-offset": 4.0,
+    "converter-offset": 0.5,
+    "farm-debris": 3.0,
+    "farm-pitch-misalignment": 0.5,
+    "farm-drivetrain": 3.0,
+    "hydro-pump-offset": 0.03,
+    "hydro-motor-offset": 0.03,
 }
-"""Sizes drawn log-uniformly in [lower, upper], in each type's size unit: lower = the size detected by 95 %
-(docs/detectability.md), upper = ``FaultType.upper``."""
+"""The size each type is detected at by 95 % (docs/detectability.md), in its size unit: the lower bound of the
+sizes random scenarios draw."""
+SIZE_RANGES: dict[str, tuple[float, float]] = {
+    name: (lower, FAULT_TYPE_BY_NAME[name].upper) for name, lower in DETECTED_95.items()
+}
+"""Sizes are drawn log-uniformly in [lower, upper]: from the 95 %-detected size to ``FaultType.upper``."""
 
 
 def scenario_seed(seed: int, k: int) -> int:
@@ -238,3 +242,30 @@ def evaluate_set(
         "scenarios": entries,
     }
     return RandomSet(card, drawn)
+
+
+def distribution_table() -> str:
+    """The generator's distributions as ``docs/detectability.md`` shows them (``tests/test_random_scenarios.py``
+    compares)."""
+    lines = [
+        "| kind | run | windows | first window | quiet time between | mean wind |",
+        "|---|---|---|---|---|---|",
+    ]
+    for kind, s in SCHEDULES.items():
+        r = WIND_RANGES[kind]
+        lines.append(
+            f"| {kind} | {s.duration_s:g} s | U({s.window_s[0]:g}, {s.window_s[1]:g}) s | {s.first_s:g} s + "
+            f"U(0, {s.extra_gap_s:g}) s | {s.min_gap_s:g} s + U(0, {s.extra_gap_s:g}) s | U({r.lo:g}, {r.hi:g}) "
+            f"m/s every {s.wind_every_s:g} s, linear between |"
+        )
+    lines += ["", "| kind | case | probability | fault types | size (log-uniform) | upper bound because |"]
+    lines.append("|---|---|---|---|---|---|")
+    for kind, cases in CASES.items():
+        for name, p, types in cases:
+            concrete = [t for pattern in types for t in SIZE_RANGES if t == pattern or t.startswith(pattern[:-1])]
+            sizes = "; ".join(
+                f"{t}: {SIZE_RANGES[t][0]:g}–{SIZE_RANGES[t][1]:g} {FAULT_TYPE_BY_NAME[t].unit}" for t in concrete
+            )
+            why = "; ".join(FAULT_TYPE_BY_NAME[t].upper_reason for t in concrete)
+            lines.append(f"| {kind} | {name} | {p:.3g} | {', '.join(types)} | {sizes} | {why} |")
+    return "\n".join(lines)
