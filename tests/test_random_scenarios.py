@@ -3,7 +3,9 @@ bad arguments refused with exit code 2 and nothing written."""
 
 from __future__ import annotations
 
+import dataclasses
 import itertools
+import json
 import math
 import tomllib
 from collections import Counter
@@ -195,3 +197,25 @@ def test_the_set_summary_pools_windows_by_their_runs():
     assert s["cases"]["converter-offset"]["detected_pct"] == 50.0
     assert s["speed_sensors"]["window_runs"] == 6  # the converter is not a speed sensor
     assert s["false_alarms"]["per_1000s"] == pytest.approx(1.0)  # 1 in 1000 s
+
+
+def test_a_small_random_set_is_scored_end_to_end_and_written(tmp_path, monkeypatch):
+    """Two short hydrostatic scenarios of one run each: every scenario's scorecard, the pooled summary, and the
+    scenario files, which replay as ordinary scenarios."""
+    monkeypatch.setitem(SCHEDULES, "hydro", dataclasses.replace(SCHEDULES["hydro"], duration_s=70.0))
+    out = tmp_path / "set"
+    assert main(["eval", "random:hydro", "--runs", "2", "--seed", "9", "--out", str(out), "--quiet"]) == 0
+    card = json.loads((out / "scorecard.json").read_text())
+    assert card["scenario"] == "random:hydro" and card["runs"] == 2 and len(card["scenarios"]) == 2
+    seeds = [s["scenario_seed"] for s in card["scenarios"]]
+    assert seeds == [scenario_seed(9, 0), scenario_seed(9, 1)]
+    windows = sum(len(s["scorecard"]["faults"]) for s in card["scenarios"])
+    summary = card["summary"]
+    assert sum(row["windows"] for row in summary["cases"].values()) == windows
+    assert set(summary["cases"]) <= {"hydro-pump-offset", "hydro-motor-offset"}
+    for row in summary["cases"].values():
+        assert 0.0 <= row["detected_pct"] <= 100.0 and "reconstruction_error_pct_mean" in row
+    files = sorted((out / "scenarios").glob("*.toml"))
+    assert [f.stem for f in files] == sorted(f"random-hydro-{s}" for s in seeds)
+    assert parse_scenario(tomllib.loads(files[0].read_text())) == generate("hydro", int(files[0].stem.split("-")[-1]))
+    assert "random:hydro" in (out / "summary.md").read_text()
