@@ -1,8 +1,8 @@
 """Rewrite the generated blocks of ``docs/detectability.md`` (between ``<!-- name ... -->`` and ``<!-- /name -->``).
 
     .venv/bin/python tools/detectability_docs.py                        # the tables generated from the code
-    .venv/bin/python tools/detectability_docs.py --sweeps A.json B.json  # and the measured curves (images are
-                                                                         # copied to docs/img/detectability/)
+    .venv/bin/python tools/detectability_docs.py --sweeps A.json B.json  # and the measured curves (plots drawn
+                                                                         # into docs/img/detectability/)
     .venv/bin/python tools/detectability_docs.py --random SET1/scorecard.json SET2/scorecard.json
 
 ``tests/test_detectability.py`` holds the code-generated blocks to the code.
@@ -13,11 +13,10 @@ from __future__ import annotations
 import argparse
 import json
 import re
-import shutil
 from pathlib import Path
 
 from windwarden.evaluation.detectability import timing_table
-from windwarden.evaluation.detectability_report import markdown
+from windwarden.evaluation.detectability_report import markdown, plot
 from windwarden.evaluation.fault_types import FAULT_TYPES, catalogue_table
 from windwarden.evaluation.random_scenarios import distribution_table
 from windwarden.evaluation.random_summary import markdown as random_markdown
@@ -38,16 +37,15 @@ def replace_block(text: str, name: str, body: str) -> str:
 
 
 def sweep_block(paths: list[Path]) -> str:
+    """The measured curves of the sweeps' ``detectability.json`` files, in catalogue order, their plots drawn
+    again into docs/img/detectability/."""
     results = [r for p in paths for r in json.loads(p.read_text())]
     order = [t.name for t in FAULT_TYPES]
     results.sort(key=lambda r: order.index(r["fault_type"]))
     images = {}
-    for p in paths:
-        for png in (p.parent / "img").glob("*.png"):
-            target = DOC.parent / IMAGES / png.name
-            target.parent.mkdir(parents=True, exist_ok=True)
-            shutil.copyfile(png, target)
-            images[png.stem] = f"{IMAGES}/{png.name}"
+    for r in results:
+        plot(r, DOC.parent / IMAGES / f"{r['fault_type']}.png")
+        images[r["fault_type"]] = f"{IMAGES}/{r['fault_type']}.png"
     text = markdown(results, images)
     return text.split("\n", 2)[2].replace("\n### ", "\n#### ")  # without the page title, one level down
 

@@ -151,6 +151,7 @@ def console_table(results: Sequence[dict[str, Any]]) -> Table:
 def plot(r: dict[str, Any], path: Path) -> Path:
     """Detected and isolated % (95 % intervals, fitted probit) and mean delay against size, log size axis."""
     import matplotlib
+    import matplotlib.ticker
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
@@ -159,11 +160,12 @@ def plot(r: dict[str, Any], path: Path) -> Path:
     rows = r["rows"]
     sizes = np.array([row["size"] for row in rows])
     fig, (top, bottom) = plt.subplots(2, 1, figsize=(5.6, 4.6), sharex=True, height_ratios=(2, 1))
-    for what, marker, colour in (("detected", "o", "tab:blue"), ("isolated", "s", "tab:orange")):
+    for what, marker, colour, shift in (("detected", "o", "tab:blue", 0.97), ("isolated", "s", "tab:orange", 1.03)):
         pct = np.array([row[f"{what}_pct"] for row in rows], dtype=float)
         ci = np.array([row[f"{what}_ci_pct"] for row in rows], dtype=float)
         err = np.vstack([pct - ci[:, 0], ci[:, 1] - pct])
-        top.errorbar(sizes, pct, yerr=err, fmt=marker, color=colour, ms=4, capsize=2, label=f"{what} %")
+        label = f"{what} % (first flag)" if what == "isolated" else f"{what} %"
+        top.errorbar(sizes * shift, pct, yerr=err, fmt=marker, color=colour, ms=4, capsize=2, label=label)
         fit = r["thresholds"][what]["fit"]
         if fit is not None:
             grid = np.exp(np.linspace(math.log(sizes[0]), math.log(sizes[-1]), 200))
@@ -182,6 +184,8 @@ def plot(r: dict[str, Any], path: Path) -> Path:
         bottom.set_yscale("log")
     bottom.set_ylabel("mean delay s")
     bottom.set_xscale("log")
+    bottom.set_xticks(sizes, [f"{s:g}" for s in sizes])
+    bottom.xaxis.set_minor_locator(matplotlib.ticker.NullLocator())
     bottom.set_xlabel(f"size ({_unit(r)})")
     for ax in (top, bottom):
         ax.grid(True, which="both", lw=0.3, alpha=0.5)
