@@ -179,6 +179,7 @@ def test_a_tiny_sweep_through_the_command_gives_well_formed_monotone_output(tmp_
         ["detectability", "farm", "--fault", "farm-debris", "--sizes", "1,60"],
         ["detectability", "hydro", "--fault", "hydro-pump-offset", "--sizes", "0.1,2"],
         ["detectability", "turbine", "--runs", "4", "--layouts", "5"],
+        ["detectability", "turbine", "--seed", "-3"],
     ],
 )
 def test_bad_sweep_arguments_are_refused_with_exit_2_and_nothing_written(tmp_path, argv):

@@ -84,6 +84,8 @@ def cmd_detectability(args: argparse.Namespace) -> int:
         types = [fault_type(name, kind) for name in args.fault] if args.fault else types_of(kind)
     except KeyError as error:
         return _refuse(str(error.args[0]))
+    if not 0 <= args.seed < 2**63:
+        return _refuse(f"--seed: {args.seed} is outside 0 … 2^63 − 1")
     if args.sizes is not None and len(types) != 1:
         return _refuse("--sizes needs exactly one --fault")
     if args.layouts > args.runs:
