@@ -15,6 +15,7 @@ from rich.console import Console
 from rich.markup import escape
 
 from windwarden.live.cli import LIVE_SUBCOMMANDS
+from windwarden.sweep_cli import add_detectability_parser, add_random_parser, eval_random
 from wwcore.scenario import Scenario, ScenarioError, load_scenario, shipped_scenarios
 
 EXIT_BAD_INPUT = 2
@@ -35,7 +36,7 @@ def _positive_int(text: str) -> int:
 
 def _add_eval(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("eval", help="score a scenario over Monte Carlo runs (batch mode, no transport)")
-    p.add_argument("scenario", help="shipped scenario name or path to a scenario file")
+    p.add_argument("scenario", help="shipped scenario name, path to a scenario file, or random:KIND (a random set)")
     p.add_argument("--runs", type=_positive_int, default=10, help="Monte Carlo runs (default 10)")
     p.add_argument("--seed", type=int, default=0, help="master seed (default 0)")
     p.add_argument("--out", type=Path, default=None, help="folder for scorecard.json and plots")
@@ -52,6 +53,7 @@ def _add_eval(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--workers", type=_positive_int, default=None, help="processes (default: all cores)")
     p.add_argument("--no-plots", action="store_true", help="skip the PNG plots")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
+    p.add_argument("--scenarios", type=_positive_int, default=None, help="random:KIND: scenarios drawn (default: runs)")
     p.set_defaults(func=cmd_eval)
 
 
@@ -64,7 +66,6 @@ def cmd_eval(args: argparse.Namespace) -> int:
         load_plugins(tuple(args.plugin))
     except ModuleNotFoundError as error:
         raise BadInputError(f"--plugin: cannot import {error.name!r}") from None
-    scenario = load_scenario(args.scenario)
     options = EvalOptions(
         detector=args.detector,
         estimator=args.estimator,
@@ -76,6 +77,11 @@ def cmd_eval(args: argparse.Namespace) -> int:
         workers=args.workers,
         progress=not args.quiet,
     )
+    if args.scenario.startswith("random:"):
+        return eval_random(args, options)
+    if args.scenarios is not None:
+        raise BadInputError("--scenarios: only a random set (random:KIND) is drawn from scenarios")
+    scenario = load_scenario(args.scenario)
     refused = [f"{flag}: {message}" for flag, message in unused_switches(scenario.plant.kind, options)]
     try:
         check_supervisor(scenario, detector=args.detector, estimator=args.estimator, controller=args.controller)
@@ -120,8 +126,9 @@ def check_supervisor(scenario: Scenario, **flags: str | None) -> None:
 
 
 def _add_scenarios(sub: argparse._SubParsersAction) -> None:
-    p = sub.add_parser("scenarios", help="list the shipped scenarios")
+    p = sub.add_parser("scenarios", help="list the shipped scenarios; 'scenarios random KIND' draws one")
     p.set_defaults(func=cmd_scenarios)
+    add_random_parser(p)
 
 
 def cmd_scenarios(args: argparse.Namespace) -> int:
@@ -192,6 +199,7 @@ SUBCOMMANDS: list[Callable[[argparse._SubParsersAction], None]] = [
     _add_scenarios,
     _add_compare,
     _add_bench,
+    add_detectability_parser,
     *LIVE_SUBCOMMANDS,
 ]
 
