@@ -29,6 +29,7 @@ from typing import Any
 import numpy as np
 
 from wwcore.scenario import Scenario
+from wwcore.scenario.mismatch import Mismatch
 
 IDENTITY = ("seed", "runs", "runs_digest")  # scorecard fields that must be equal for the runs to be the same
 
@@ -38,8 +39,12 @@ class NotPairedError(ValueError):
 
 
 def runs_digest(scenario: Scenario) -> str:
-    """SHA-256 (hex, first 16) of what draws a scenario's runs: everything but its name, description, supervisor."""
+    """SHA-256 (hex, first 16) of what draws a scenario's runs: everything but its name, description, supervisor.
+
+    An empty ``[mismatch]`` section is the design plant, the same runs as none."""
     body = scenario.model_dump(mode="json", exclude={"name", "description", "supervisor"})
+    if scenario.mismatch == Mismatch():
+        body["mismatch"] = None
     return hashlib.sha256(json.dumps(body, sort_keys=True).encode()).hexdigest()[:16]
 
 
