@@ -1,7 +1,8 @@
 """Sensor frames dropped at random (bursts of 1–10 ticks, ~5 % of the frames), as a congested real-time link drops
 them: the supervisor bridges each gap (observers advance on interpolated frames, detectors hold), so the drops raise
-no false alarm and the faults are still detected and isolated, as in lockstep. Fed as if consecutive (what the
-supervisor did before it bridged gaps), the same drops raise false alarms: the test can fail.
+no false alarm and the faults are still detected and isolated, as in lockstep. Fed as if consecutive, the same drops
+corrupt the observers: the turbine's FDI holds its decisions through them (persistence), but observer 1's
+non-fault-tolerant wind estimate doubles its fault-free error, so the test can fail.
 
 The loop is ``windwarden.live.batch.run_batch`` with ``drop``: the plant node's and the supervisor node's handling of
 a lost frame (``guard.bridge_gap``, the refs age window) without a network, so it is deterministic; lockstep equals
@@ -63,7 +64,11 @@ def test_turbine_drops_raise_no_false_alarm(monkeypatch):
 
     monkeypatch.setattr(TurbineSupervisor, "bridge", None)  # the gaps fed as if the frames were consecutive
     consecutive = run_batch(scn, 3, drop).scorecard
-    assert consecutive["false_alarms"]["count"] > 0
+
+    def nfte_rmse(card):
+        return card["metrics"]["wind_rmse"]["fault_free"]["nfte"]
+
+    assert nfte_rmse(consecutive) > 1.5 * nfte_rmse(bridged)
 
 
 @pytest.mark.parametrize("seed", [1, 2])
