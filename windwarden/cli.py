@@ -11,33 +11,25 @@ import sys
 from collections.abc import Callable, Sequence
 from pathlib import Path
 
-from rich.console import Console
 from rich.markup import escape
 
-from windwarden.live.cli import LIVE_SUBCOMMANDS
-from windwarden.sweep_cli import add_detectability_parser, add_random_parser, eval_random
-from wwcore.scenario import Scenario, ScenarioError, load_scenario, shipped_scenarios
-
-EXIT_BAD_INPUT = 2
-console = Console()
-err_console = Console(stderr=True)
-
-
-class BadInputError(Exception):
-    """Input refused before anything ran (exit code 2)."""
-
-
-def _positive_int(text: str) -> int:
-    value = int(text)
-    if value < 1:
-        raise argparse.ArgumentTypeError(f"must be ≥ 1, got {value}")
-    return value
+from windwarden.commands.common import (
+    EXIT_BAD_INPUT,
+    BadInputError,
+    check_supervisor,
+    console,
+    err_console,
+    positive_int,
+)
+from windwarden.commands.live import LIVE_SUBCOMMANDS
+from windwarden.commands.sweep import add_detectability_parser, add_random_parser, eval_random
+from wwcore.scenario import ScenarioError, load_scenario, shipped_scenarios
 
 
 def _add_eval(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("eval", help="score a scenario over Monte Carlo runs (batch mode, no transport)")
     p.add_argument("scenario", help="shipped scenario name, path to a scenario file, or random:KIND (a random set)")
-    p.add_argument("--runs", type=_positive_int, default=10, help="Monte Carlo runs (default 10)")
+    p.add_argument("--runs", type=positive_int, default=10, help="Monte Carlo runs (default 10)")
     p.add_argument("--seed", type=int, default=0, help="master seed (default 0)")
     p.add_argument("--out", type=Path, default=None, help="folder for scorecard.json and plots")
     p.add_argument("--detector", default=None, help="registered detector name (overrides the scenario)")
@@ -50,10 +42,10 @@ def _add_eval(sub: argparse._SubParsersAction) -> None:
         "--no-twins", action="store_true", help="no fault-free twins (turbine: as a live run; farm: no damage numbers)"
     )
     p.add_argument("--plugin", action="append", default=[], help="import this module first (registers algorithms)")
-    p.add_argument("--workers", type=_positive_int, default=None, help="processes (default: all cores)")
+    p.add_argument("--workers", type=positive_int, default=None, help="processes (default: all cores)")
     p.add_argument("--no-plots", action="store_true", help="skip the PNG plots")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
-    p.add_argument("--scenarios", type=_positive_int, default=None, help="random:KIND: scenarios drawn (default: runs)")
+    p.add_argument("--scenarios", type=positive_int, default=None, help="random:KIND: scenarios drawn (default: runs)")
     p.set_defaults(func=cmd_eval)
 
 
@@ -102,27 +94,6 @@ def cmd_eval(args: argparse.Namespace) -> int:
         written = [] if args.no_plots else evaluation.plot(args.out)
         console.print(f"wrote {args.out / 'scorecard.json'}" + (f" and {len(written)} plots" if written else ""))
     return 0
-
-
-def check_supervisor(scenario: Scenario, **flags: str | None) -> None:
-    """Refuse (exit 2), before anything runs, a scenario whose supervisor the registries would not build: a role
-    its plant kind does not have, an unknown algorithm, an option no selected algorithm declares or out of its
-    range (``service.plugins.choose``). ``flags``: role → name given on the command line (wins over the file)."""
-    from service.plugins import AlgorithmOptionError, UnknownAlgorithmError, choose
-
-    spec = scenario.supervisor
-    names = {role: flags.get(role) or getattr(spec, role) for role in ("detector", "estimator", "controller")}
-    try:
-        choose(scenario.plant.kind, spec.params, **names)
-    except UnknownAlgorithmError as error:
-        raise BadInputError(f"scenario {scenario.name}: {error}") from None
-    except AlgorithmOptionError as error:
-        # a role refused because of a flag names the flag; everything else the scenario file's key
-        lines = []
-        for key, text in error.problems:
-            role = key.removeprefix("supervisor.")
-            lines.append(f"  {'--' + role if flags.get(role) else key}: {text}")
-        raise BadInputError(f"scenario {scenario.name}: supervisor options refused:\n" + "\n".join(lines)) from None
 
 
 def _add_scenarios(sub: argparse._SubParsersAction) -> None:

@@ -14,7 +14,8 @@ import pytest
 from plant_sim.farm import FarmBatch
 from plant_sim.turbine.dynamics import OMEGA_R, THETA
 from tests.farm.conftest import farm_spec, wind
-from windwarden.evaluation import farm as farm_eval
+from windwarden.evaluation import farm as farm_runs
+from windwarden.evaluation import farm_eval
 from windwarden.evaluation.kinds import EvalOptions
 from wwcore.scenario import Mismatch, ScenarioError, load_scenario, parse_scenario
 from wwcore.scenario.farm import N_TURBINES
@@ -113,6 +114,6 @@ def test_no_mismatch_value_reaches_the_batch_farm_supervisor(monkeypatch):
     mismatched = parse_scenario({**data, "mismatch": {"cp_scale": 0.913, "spread": {"air_density_kgm3": 0.05}}})
     for scenario in (nominal, mismatched):
         with pytest.raises(_SeenError):
-            farm_eval.simulate_chunk([0], lambda s: None, scenario, 3, "analytic", "dispatch", True, {}, False)
+            farm_runs.simulate_chunk([0], lambda s: None, scenario, 3, "analytic", "dispatch", True, {}, False)
     assert seen[0] == seen[1]
     assert "0.913" not in repr(seen[1])

@@ -1,4 +1,5 @@
-"""``windwarden eval`` for the nine-turbine farm (seed 001): Monte Carlo runs of the farm and its supervisor.
+"""Monte Carlo runs of the nine-turbine farm (seed 001) and its supervisor, and their scorecard (the evaluator that
+``windwarden eval`` calls is ``farm_eval``).
 
 Per run (``FarmBatch``), and when the scenario has faults also its fault-free twin farm (same wind and noise
 streams, no faults, same supervisor), in one batch. The scorecard has the schema of the turbine kind:
@@ -16,8 +17,6 @@ streams, no faults, same supervisor), in one batch. The scorecard has the schema
   ``farm_damage``) of the faulty turbine and of the farm's nine, per fault window and over the run, each run's
   figure kept for paired comparisons; the rotor imbalance of pitch faults.
 
-``--compare`` adds the companion runs Tables 5–7 need (the paper's detector; the fault-free farm with the
-dispatch and with the PI; no accommodation) and writes ``farm_tables.md`` (``farm_tables``) and the plots.
 """
 
 from __future__ import annotations
@@ -30,10 +29,9 @@ import numpy as np
 from plant_sim.farm import FarmBatch
 from plant_sim.farm.damage import ReversalRecorder, damage_sums, imbalance_phasor
 from service.farm.interfaces import N_TYPES
-from service.farm.supervisor import DEFAULT_CONTROLLER, DEFAULT_DETECTOR, FarmSupervisor
-from service.plugins import FARM_CONTROLLERS, FARM_DETECTORS
+from service.farm.supervisor import FarmSupervisor
 from windwarden.evaluation import farm_damage
-from windwarden.evaluation.kinds import EvalOptions, Evaluation
+from windwarden.evaluation.kinds import EvalOptions
 from windwarden.evaluation.paired import runs_digest
 from windwarden.evaluation.parallel import run_chunks
 from windwarden.evaluation.scoring import FaultWindow, score_detection, twin_false_alarms
@@ -359,39 +357,3 @@ def scorecard_of(v: Variant) -> dict[str, Any]:
         whole_run = [(0.0, scenario.duration_s)]
         card["false_alarms_twin"] = twin_false_alarms(v.twin_events, observed, SCORING, whole_run)
     return card
-
-
-def evaluate(scenario: Scenario, runs: int, seed: int, options: EvalOptions) -> Evaluation:
-    detector = options.detector or scenario.supervisor.detector or DEFAULT_DETECTOR
-    controller = options.controller or scenario.supervisor.controller or DEFAULT_CONTROLLER
-    FARM_DETECTORS.factory(detector)  # unknown names are refused before anything runs
-    FARM_CONTROLLERS.factory(controller)
-    params = dict(scenario.supervisor.params)  # and so are options they refuse (AlgorithmOptionError)
-    FarmSupervisor(scenario.plant, N_TURBINES, detector=detector, controller=controller, options=params)
-    twins = bool(scenario.faults) and options.twins  # --no-twins: detection only, no damage numbers
-    main = run_variant(
-        scenario,
-        runs,
-        seed,
-        options,
-        detector=detector,
-        controller=controller,
-        accommodation=options.accommodation,
-        twins=twins,
-    )
-    card = scorecard_of(main)
-    extra: dict[str, str] = {}
-    companions: dict[str, Variant] = {}
-    if options.compare:
-        from windwarden.evaluation.farm_tables import comparison_runs, tables_markdown
-
-        companions = comparison_runs(scenario, runs, seed, options, main)
-        extra["farm_tables.md"] = tables_markdown(scenario, main, companions)
-        card["comparison"] = {name: scorecard_of(v)["metrics"] for name, v in companions.items()}
-
-    def plot(out_dir):
-        from windwarden.evaluation.farm_plots import write_plots
-
-        return write_plots(out_dir, scenario, main, companions)
-
-    return Evaluation(card, plot=plot, extra_files=extra)

@@ -13,7 +13,6 @@
 from __future__ import annotations
 
 from pathlib import Path
-from typing import TYPE_CHECKING
 
 import matplotlib
 
@@ -22,11 +21,9 @@ import matplotlib.pyplot as plt
 import numpy as np
 
 from plant_sim.farm.damage import WOHLER_M
+from windwarden.evaluation.farm import DAMAGE_BIN_S, WARMUP_S, Variant
 from wwcore.scenario import Scenario
-from wwcore.scenario.farm import FARM_FAULT_TYPES, N_TURBINES
-
-if TYPE_CHECKING:
-    from windwarden.evaluation.farm import Variant
+from wwcore.scenario.farm import FARM_FAULT_TYPES, N_TURBINES, farm_fault_name
 
 COLORS = {"debris": "tab:orange", "pitch_misalignment": "tab:purple", "drivetrain": "tab:red"}
 
@@ -114,8 +111,6 @@ def _statistics(path: Path, scenario: Scenario, v: Variant) -> Path:
 
 
 def _type(fault) -> str:
-    from wwcore.scenario.farm import farm_fault_name
-
     return farm_fault_name(fault)
 
 
@@ -147,7 +142,6 @@ def _timeline(path: Path, scenario: Scenario, v: Variant) -> Path:
 
 
 def _damage(path: Path, scenario: Scenario, with_acc: Variant, without: Variant) -> Path:
-    from windwarden.evaluation.farm import DAMAGE_BIN_S, WARMUP_S
 
     turbines = sorted({w.turbine for w in scenario.faults if _type(w) == "drivetrain"})
     fig, (ax, ax_farm) = plt.subplots(2, 1, figsize=(10, 7.5), sharex=True)

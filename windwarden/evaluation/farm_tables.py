@@ -16,17 +16,24 @@ together, per 1000 s of farm operation (the paper's basis) and per fault type.
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 
+from service.farm.dispatch import ACCOMMODATION_RULES
+from windwarden.evaluation.farm import (
+    WARMUP_S,
+    Variant,
+    detection_by_type,
+    farm_windows,
+    power_metrics,
+    run_variant,
+    scorecard_of,
+)
+from windwarden.evaluation.kinds import EvalOptions
 from windwarden.evaluation.paired import paired_row
 from wwcore.scenario import Scenario
 from wwcore.scenario.farm import FARM_FAULT_TYPES
-
-if TYPE_CHECKING:
-    from windwarden.evaluation.farm import Variant
-    from windwarden.evaluation.kinds import EvalOptions
 
 # seed 001, Table 5: (detection time s or None, missed %, false positives per 1000 s) per case and fault
 PAPER_TABLE5 = {
@@ -48,8 +55,6 @@ def fault_free(scenario: Scenario) -> Scenario:
 
 
 def accommodation_rule(scenario: Scenario) -> str:
-    from service.farm.dispatch import ACCOMMODATION_RULES
-
     return str(scenario.supervisor.params.get("accommodation_rule", ACCOMMODATION_RULES[0]))
 
 
@@ -61,7 +66,6 @@ def published(scenario: Scenario) -> Scenario:
 
 def comparison_runs(scenario: Scenario, runs: int, seed: int, options: EvalOptions, main: Variant) -> dict:
     """The companion configurations of Tables 5–7, on the same runs and seed as ``main``."""
-    from windwarden.evaluation.farm import run_variant
 
     det, ctrl = main.detector, main.controller
     ff = fault_free(scenario)
@@ -101,7 +105,6 @@ def _fmt(x: float | None, digits: int = 3) -> str:
 
 def table5_rows(scenario: Scenario, faulty: Variant | None, fault_free_run: Variant) -> dict[str, dict[str, Any]]:
     """Per fault type: delay, missed %, false positives per 1000 farm-s (fault-free runs + outside windows)."""
-    from windwarden.evaluation.farm import WARMUP_S, detection_by_type, farm_windows
 
     ff = detection_by_type(fault_free_run.events, [], fault_free_run.runs, fault_free_run.scenario.duration_s)
     rows: dict[str, dict[str, Any]] = {}
@@ -125,7 +128,6 @@ def table5_rows(scenario: Scenario, faulty: Variant | None, fault_free_run: Vari
 
 
 def tables_markdown(scenario: Scenario, main: Variant, comp: dict) -> str:
-    from windwarden.evaluation.farm import power_metrics
 
     case = scenario.plant.wind_case
     lines = [
@@ -188,7 +190,6 @@ PAIRED = (  # per-run metrics Table 7 gives as paired differences, accommodated 
 def table7_lines(scenario: Scenario, main: Variant, comp: dict) -> list[str]:
     """Table 7: the faulty turbine's damage beside the farm's (all nine turbines), per fault window and over the
     run, without accommodation, with eq. (26) as published and with the main rule; paired differences per run."""
-    from windwarden.evaluation.farm import scorecard_of
 
     case = scenario.plant.wind_case
     (p2n, p3n), (p2a, p3a) = PAPER_TABLE7[case]

@@ -17,7 +17,7 @@ from wwcore.scenario import Scenario
 
 EVALUATORS: dict[str, str] = {
     "turbine": "windwarden.evaluation.turbine",
-    "farm": "windwarden.evaluation.farm",
+    "farm": "windwarden.evaluation.farm_eval",
     "hydro": "windwarden.evaluation.hydro",
 }
 

@@ -1,4 +1,4 @@
-"""Commands for detectability and random scenarios (hooked into ``windwarden.cli``):
+"""Commands for detectability and random scenarios (registered by ``windwarden.cli``):
 
 * ``windwarden detectability KIND|SCENARIO [--fault TYPE ...] [--sizes S,S,...] --runs N --layouts D --seed S
   --out DIR``: detection %, isolation % and delay against fault size per fault type (``docs/detectability.md``);
@@ -17,26 +17,15 @@ import math
 import sys
 from pathlib import Path
 
-from rich.console import Console
-
+from windwarden.commands.common import EXIT_BAD_INPUT, console, err_console, positive_int
 from windwarden.evaluation.kinds import EvalOptions
 
-EXIT_BAD_INPUT = 2
 KINDS = ("turbine", "farm", "hydro")
-console = Console()
-err_console = Console(stderr=True)
 
 
 def _refuse(message: str) -> int:
     err_console.print(f"[red]error:[/red] {message}", highlight=False)
     return EXIT_BAD_INPUT
-
-
-def _positive_int(text: str) -> int:
-    value = int(text)
-    if value < 1:
-        raise argparse.ArgumentTypeError(f"must be ≥ 1, got {value}")
-    return value
 
 
 # ---- detectability ------------------------------------------------------------------------------------------------
@@ -45,11 +34,11 @@ def add_detectability_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("plant", help="turbine, farm or hydro, or a scenario (name or file) whose plant settings to keep")
     p.add_argument("--fault", action="append", default=[], help="fault type (repeat it); default: all of the kind")
     p.add_argument("--sizes", default=None, help="comma-separated sizes in the type's unit (with one --fault)")
-    p.add_argument("--runs", type=_positive_int, default=40, help="window-runs per size (default 40)")
-    p.add_argument("--layouts", type=_positive_int, default=8, help="random layouts (fault times, winds); default 8")
+    p.add_argument("--runs", type=positive_int, default=40, help="window-runs per size (default 40)")
+    p.add_argument("--layouts", type=positive_int, default=8, help="random layouts (fault times, winds); default 8")
     p.add_argument("--seed", type=int, default=0, help="master seed (default 0)")
     p.add_argument("--out", type=Path, default=None, help="folder for detectability.json, .md and img/*.png")
-    p.add_argument("--workers", type=_positive_int, default=None, help="processes per evaluation (default: all cores)")
+    p.add_argument("--workers", type=positive_int, default=None, help="processes per evaluation (default: all cores)")
     p.add_argument("--no-plots", action="store_true", help="skip the PNG plots")
     p.add_argument("--quiet", action="store_true", help="no progress bars")
     p.add_argument("--list", action="store_true", help="list the kind's fault types, units and grids, and exit")

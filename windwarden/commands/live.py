@@ -9,102 +9,25 @@ the command line wins.
 from __future__ import annotations
 
 import argparse
-import contextlib
 import logging
 import os
-import signal
-import sys
-import threading
-import time
-from collections.abc import Callable, Iterator
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-from windwarden.live.cli_router import ROUTER_SUBCOMMANDS
+from windwarden.commands.common import BadInputError, check_supervisor
+from windwarden.commands.router import ROUTER_SUBCOMMANDS
+from windwarden.live.process import (
+    ServiceError,
+    apply_nice,
+    exit_with_parent,
+    on_signals,
+    setup_logging,
+    zenoh_session,
+)
 from wwcore.scenario import Scenario, load_scenario
 
 log = logging.getLogger("windwarden.live")
-
-
-def setup_logging(name: str) -> None:
-    level = os.environ.get("WINDWARDEN_LOG_LEVEL", "INFO").upper()
-    logging.basicConfig(
-        level=level, stream=sys.stderr, format=f"%(asctime)s {name} %(levelname)s %(name)s: %(message)s"
-    )
-
-
-def on_signals(stop: Callable[[], None]) -> None:
-    """SIGINT and SIGTERM ask ``stop`` (called on a fresh thread: a handler must not take locks)."""
-
-    def handler(signum: int, frame: Any) -> None:
-        threading.Thread(target=stop, name="stop", daemon=True).start()
-
-    signal.signal(signal.SIGINT, handler)
-    signal.signal(signal.SIGTERM, handler)
-
-
-@contextlib.contextmanager
-def zenoh_session(settings: Any) -> Iterator[Any]:
-    """The process's Zenoh session; an unreachable router is a clean error (exit 1), not a traceback."""
-    import zenoh
-
-    from windwarden.live.transport import open_session
-
-    try:
-        session = open_session(settings)
-    except zenoh.ZError as error:
-        raise ServiceError(
-            f"cannot join Zenoh at {settings.connect or settings.listen or '(scouting)'}: {error}"
-        ) from None
-    with session:
-        yield session
-
-
-class ServiceError(Exception):
-    """A service could not start (exit code 1)."""
-
-
-def apply_nice(settings: Any) -> None:
-    """Run at the configured niceness; say so, and carry on, when the system does not allow it."""
-    if settings.nice is None:
-        return
-    try:
-        os.setpriority(os.PRIO_PROCESS, 0, settings.nice)
-        log.info("running at niceness %d", settings.nice)
-    except OSError as error:
-        log.warning(
-            "cannot set niceness %d (%s): running at %d", settings.nice, error, os.getpriority(os.PRIO_PROCESS, 0)
-        )
-
-
-def exit_with_parent(stop: Callable[[], None]) -> None:
-    """When started by ``windwarden up`` (``WINDWARDEN_PARENT_PID``), call ``stop`` if that process goes away: on
-    Linux the kernel sends SIGTERM the moment it dies (``PR_SET_PDEATHSIG``, handled by ``on_signals``); a thread
-    that polls the parent pid every 0.5 s covers other systems."""
-    parent = os.environ.get("WINDWARDEN_PARENT_PID")
-    if not parent or not parent.isdigit():
-        return
-    _sigterm_when_parent_dies()
-    if os.getppid() != int(parent):  # it died before we asked
-        stop()
-        return
-
-    def watch() -> None:
-        while os.getppid() == int(parent):
-            time.sleep(0.5)
-        log.warning("windwarden up (pid %s) is gone: stopping", parent)
-        stop()
-
-    threading.Thread(target=watch, name="parent-watch", daemon=True).start()
-
-
-def _sigterm_when_parent_dies() -> None:
-    if not sys.platform.startswith("linux"):
-        return
-    import ctypes
-
-    with contextlib.suppress(OSError, AttributeError):
-        ctypes.CDLL(None, use_errno=True).prctl(1, int(signal.SIGTERM), 0, 0, 0)  # PR_SET_PDEATHSIG = 1
 
 
 def truncated(scenario: Scenario, duration_s: float | None) -> Scenario:
@@ -174,7 +97,6 @@ def service_errors(command: Callable[[argparse.Namespace], int]) -> Callable[[ar
 
 @service_errors
 def cmd_plant(args: argparse.Namespace) -> int:
-    from windwarden.cli import BadInputError, check_supervisor
     from windwarden.live.config import PlantSettings, new_run_id, settings_from_flags
     from windwarden.live.finalize import finalize_scorecard
     from windwarden.live.plant_node import PlantNode
@@ -217,7 +139,6 @@ def cmd_plant(args: argparse.Namespace) -> int:
 
 
 def check_kind(kind: str) -> None:
-    from windwarden.cli import BadInputError
     from windwarden.live.adapters import ADAPTERS
 
     if kind not in ADAPTERS:
@@ -243,7 +164,6 @@ def _add_supervise(sub: argparse._SubParsersAction) -> None:
 @service_errors
 def cmd_supervise(args: argparse.Namespace) -> int:
     from service.plugins import AlgorithmOptionError, UnknownAlgorithmError
-    from windwarden.cli import BadInputError
     from windwarden.live.config import SupervisorSettings, settings_from_flags
     from windwarden.live.supervisor_node import SupervisorNode
 
@@ -304,7 +224,6 @@ def cmd_api(args: argparse.Namespace) -> int:
 
     from api.main import create_app
     from api.settings import ApiSettings
-    from windwarden.cli import BadInputError
     from windwarden.live.config import settings_from_flags
 
     setup_logging("api")
@@ -380,7 +299,6 @@ def _up_flags(p: argparse.ArgumentParser, viewer: str) -> None:
 
 
 def cmd_up(args: argparse.Namespace) -> int:
-    from windwarden.cli import BadInputError, check_supervisor
     from windwarden.live.up import Up, UpOptions
 
     setup_logging("up")
@@ -434,7 +352,6 @@ def cmd_finalize(args: argparse.Namespace) -> int:
     its footer if it has none yet (run it on a run that has ended: the recorder must not be writing)."""
     from rich.console import Console
 
-    from windwarden.cli import BadInputError
     from windwarden.live.finalize import finalize_recording, finalize_scorecard, verify_recording
     from windwarden.live.runfolder import RECORDING
 
@@ -461,7 +378,6 @@ def _add_open(sub: argparse._SubParsersAction) -> None:
 
 
 def cmd_open(args: argparse.Namespace) -> int:
-    from windwarden.cli import BadInputError
     from windwarden.live.finalize import rerun_binary
     from windwarden.live.runfolder import RECORDING
 
