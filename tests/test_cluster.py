@@ -1,0 +1,60 @@
+"""``eval --scheduler``: the chunks run on a Dask cluster and the scorecard is the local one bit for bit."""
+
+from __future__ import annotations
+
+import json
+import tomllib
+
+import pytest
+from distributed import LocalCluster
+
+from tests.live.helpers import TURBINE_SHORT
+from windwarden.cli import main
+from windwarden.evaluation import cluster
+from windwarden.evaluation.kinds import EvalOptions, evaluator_for
+from windwarden.evaluation.usage import ResourceMonitor
+from windwarden.live.router import free_port
+from wwcore.scenario import parse_scenario
+
+SEED = 9090  # fresh: no figure is tuned on it
+
+
+@pytest.fixture(scope="module")
+def two_workers():
+    """Two single-thread workers in this process (cheap to start), over TCP on loopback: the tasks and their
+    results travel through the scheduler serialised, as they would to another machine."""
+    with LocalCluster(
+        n_workers=2, threads_per_worker=1, processes=False, protocol="tcp://", host="127.0.0.1", dashboard_address=None
+    ) as local:
+        yield local.scheduler_address
+
+
+def test_the_cluster_scorecard_is_the_local_one_bit_for_bit(two_workers):
+    scenario = parse_scenario(tomllib.loads(TURBINE_SHORT))
+    evaluate = evaluator_for(scenario)
+    local = evaluate(scenario, 3, SEED, EvalOptions(workers=1, progress=False))
+    with ResourceMonitor() as usage:
+        remote = evaluate(scenario, 3, SEED, EvalOptions(scheduler=two_workers, progress=False))
+    assert json.dumps(remote.scorecard, sort_keys=True) == json.dumps(local.scorecard, sort_keys=True)
+    assert local.scorecard["false_alarms_twin"]["observed_s"] > 0  # the twins ran (in-process copies there)
+    report = usage.report()["cluster"]
+    assert 1 <= report["workers_used"] <= 2 and report["worker_peak_rss_bytes"] > 0
+
+
+def test_an_unreachable_scheduler_is_refused_and_writes_nothing(tmp_path, monkeypatch, capsys):
+    monkeypatch.setattr(cluster, "CONNECT_TIMEOUT_S", 1.0)
+    scenario = tmp_path / "short.toml"
+    scenario.write_text(TURBINE_SHORT)
+    out = tmp_path / "out"
+    address = f"tcp://127.0.0.1:{free_port()}"  # nothing listens there
+    code = main(["eval", str(scenario), "--runs", "2", "--scheduler", address, "--quiet", "--out", str(out)])
+    assert code == 2
+    assert f"--scheduler: cannot reach the Dask scheduler at {address}" in capsys.readouterr().err
+    assert not out.exists()
+
+
+def test_workers_and_a_scheduler_together_are_refused(tmp_path, capsys):
+    scenario = tmp_path / "short.toml"
+    scenario.write_text(TURBINE_SHORT)
+    code = main(["eval", str(scenario), "--runs", "2", "--workers", "2", "--scheduler", "tcp://127.0.0.1:1"])
+    assert code == 2 and "--workers" in capsys.readouterr().err
