@@ -3,7 +3,9 @@
 from __future__ import annotations
 
 import json
+import sys
 import tomllib
+from pathlib import Path
 
 import pytest
 from distributed import LocalCluster
@@ -17,6 +19,7 @@ from windwarden.live.router import free_port
 from wwcore.scenario import parse_scenario
 
 SEED = 9090  # fresh: no figure is tuned on it
+EXAMPLE_PLUGIN = Path(__file__).resolve().parents[1] / "docs" / "examples" / "median_voter.py"
 
 
 @pytest.fixture(scope="module")
@@ -58,3 +61,32 @@ def test_workers_and_a_scheduler_together_are_refused(tmp_path, capsys):
     scenario.write_text(TURBINE_SHORT)
     code = main(["eval", str(scenario), "--runs", "2", "--workers", "2", "--scheduler", "tcp://127.0.0.1:1"])
     assert code == 2 and "--workers" in capsys.readouterr().err
+
+
+def test_a_plugin_file_runs_on_the_cluster_and_the_run_is_recorded(two_workers, tmp_path):
+    scenario = tmp_path / "short.toml"
+    scenario.write_text(TURBINE_SHORT)
+    out = tmp_path / "out"
+    argv = ["eval", str(scenario), "--runs", "2", "--seed", str(SEED), "--quiet", "--no-plots", "--out", str(out)]
+    argv += ["--plugin", str(EXAMPLE_PLUGIN), "--detector", "median-voter", "--scheduler", two_workers]
+    assert main(argv) == 0
+    assert json.loads((out / "scorecard.json").read_text())["detector"] == "median-voter"
+    execution = json.loads((out / "execution.json").read_text())
+    assert execution["backend"] == "dask" and execution["scheduler"] == two_workers
+    assert execution["environment"]["code"] and execution["cluster"]["workers_used"] >= 1
+
+
+def test_a_plugin_file_travels_by_its_source_and_another_version_is_refused(tmp_path):
+    plugin = tmp_path / "tiny_probe.py"
+    plugin.write_text("VALUE = 1\n")
+    try:
+        cluster.PluginSet.of([str(plugin)]).load(tmp_path / "worker")
+        loaded = sys.modules["windwarden_plugin_tiny_probe"]
+        assert loaded.VALUE == 1 and Path(loaded.__file__).parent.parent == tmp_path / "worker"
+        cluster.PluginSet.of([str(plugin)]).load(tmp_path / "worker")  # the same source: nothing to do
+        plugin.write_text("VALUE = 2\n")
+        with pytest.raises(cluster.ClusterError, match=r"another version of the plug-in tiny_probe\.py"):
+            cluster.PluginSet.of([str(plugin)]).load(tmp_path / "worker")
+        assert loaded.VALUE == 1
+    finally:
+        sys.modules.pop("windwarden_plugin_tiny_probe", None)

@@ -87,12 +87,12 @@ def run_on_cluster(
 class PluginFile:
     stem: str
     sha256: str
-    text: str
+    source: bytes
 
 
 @dataclass(frozen=True)
 class PluginSet:
-    """The user's plug-ins as a task carries them: ``.py`` files by their text, modules by name."""
+    """The user's plug-ins as a task carries them: ``.py`` files by their source, modules by name."""
 
     files: tuple[PluginFile, ...] = ()
     modules: tuple[str, ...] = ()
@@ -102,8 +102,8 @@ class PluginSet:
         files, modules = [], []
         for spec in specs:
             if spec.endswith(".py"):
-                text = Path(spec).read_text()
-                files.append(PluginFile(Path(spec).stem, hashlib.sha256(text.encode()).hexdigest(), text))
+                source = Path(spec).read_bytes()
+                files.append(PluginFile(Path(spec).stem, hashlib.sha256(source).hexdigest(), source))
             else:
                 modules.append(spec)
         return cls(tuple(files), tuple(modules))
@@ -114,7 +114,7 @@ class PluginSet:
         for plugin in self.files:
             loaded = sys.modules.get(f"windwarden_plugin_{plugin.stem}")
             if loaded is not None:
-                if Path(loaded.__file__ or "").parent.name != plugin.sha256:
+                if _sha256_of(Path(loaded.__file__ or "")) != plugin.sha256:
                     raise ClusterError(
                         f"this worker already imported another version of the plug-in {plugin.stem}.py; restart the "
                         "workers (dask's client.restart(), or the dask worker processes) to load the new one"
@@ -122,9 +122,16 @@ class PluginSet:
                 continue
             path = folder / plugin.sha256 / f"{plugin.stem}.py"
             path.parent.mkdir(parents=True, exist_ok=True)
-            path.write_text(plugin.text)
+            path.write_bytes(plugin.source)
             paths.append(str(path))
         load_plugins((*self.modules, *paths))
+
+
+def _sha256_of(path: Path) -> str | None:
+    try:
+        return hashlib.sha256(path.read_bytes()).hexdigest()
+    except OSError:
+        return None
 
 
 def run_task(

@@ -1,6 +1,6 @@
 """What a scorecard's numbers depend on besides the scenario, runs and seed: windwarden's code, numpy, scipy and
-Python. A cluster's workers must match this process (``cluster.check_environments``); the scorecard's
-``execution`` section records it."""
+Python. A cluster's workers must match this process (``cluster.check_environments``); ``eval --out`` records it in
+``execution.json``."""
 
 from __future__ import annotations
 
