@@ -6,13 +6,14 @@ import json
 import sys
 import tomllib
 from pathlib import Path
+from typing import ClassVar
 
 import pytest
 from distributed import LocalCluster
 
 from tests.live.helpers import TURBINE_SHORT
 from windwarden.cli import main
-from windwarden.evaluation import cluster
+from windwarden.evaluation import cluster, parallel
 from windwarden.evaluation.kinds import EvalOptions, evaluator_for
 from windwarden.evaluation.usage import ResourceMonitor
 from windwarden.live.router import free_port
@@ -63,7 +64,24 @@ def test_workers_and_a_scheduler_together_are_refused(tmp_path, capsys):
     assert code == 2 and "--workers" in capsys.readouterr().err
 
 
-def test_a_plugin_file_runs_on_the_cluster_and_the_run_is_recorded(two_workers, tmp_path):
+class RecordingBar:
+    """Stands in for tqdm: keeps the bar's total and every update."""
+
+    made: ClassVar[list[RecordingBar]] = []
+
+    def __init__(self, total: float, **_: object):
+        self.total, self.updates = total, []
+        RecordingBar.made.append(self)
+
+    def update(self, n: float) -> None:
+        self.updates.append(n)
+
+    def close(self) -> None:
+        pass
+
+
+def test_a_plugin_file_runs_on_the_cluster_and_the_bar_follows_the_tasks(two_workers, tmp_path, monkeypatch):
+    monkeypatch.setattr(parallel, "tqdm", RecordingBar)
     scenario = tmp_path / "short.toml"
     scenario.write_text(TURBINE_SHORT)
     out = tmp_path / "out"
@@ -74,6 +92,9 @@ def test_a_plugin_file_runs_on_the_cluster_and_the_run_is_recorded(two_workers, 
     execution = json.loads((out / "execution.json").read_text())
     assert execution["backend"] == "dask" and execution["scheduler"] == two_workers
     assert execution["environment"]["code"] and execution["cluster"]["workers_used"] >= 1
+    [bar] = RecordingBar.made
+    assert bar.total == pytest.approx(2 * 30.0) and sum(bar.updates) == pytest.approx(bar.total)
+    assert len([n for n in bar.updates if n > 0]) > 2  # the workers' reports, not only the two chunks' ends
 
 
 def test_a_plugin_file_travels_by_its_source_and_another_version_is_refused(tmp_path):

@@ -2,9 +2,10 @@
 
 The client connects to the scheduler (its TLS settings, if any, come from Dask's own configuration), checks
 that every worker runs the same windwarden code, numpy and scipy as this process (the numbers depend on them),
-submits one task per chunk and gathers the results in chunk order; the progress bar advances by a chunk's
-run-seconds as each future completes. Nothing about the numbers changes: the chunks are those a local
-evaluation runs (``parallel.chunk_runs``), so the scorecard is the local one bit for bit (``tests/test_cluster.py``).
+submits one task per chunk and gathers the results in chunk order. The progress bar follows the tasks: the
+workers report their simulated seconds as Dask events, and a completed future completes its chunk's count.
+Nothing about the numbers changes: the chunks are those a local evaluation runs (``parallel.chunk_runs``), so
+the scorecard is the local one bit for bit (``tests/test_cluster.py``).
 
 On a worker each task first loads the plug-ins the user gave (``--plugin``): a ``.py`` file travels with the task
 (its text and hash) and is imported once per worker process; a module name must be importable there (installed
@@ -22,6 +23,7 @@ from __future__ import annotations
 import hashlib
 import resource
 import sys
+import threading
 import uuid
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
@@ -65,8 +67,13 @@ def run_on_cluster(
         here = environment()
         check_environments(here, client.run(environment, on_error="return"))
         token = uuid.uuid4().hex  # task keys are global on the scheduler: never share one with another client
+        progress = _Progress(tasks, bar)
+        topic = f"windwarden-progress-{token}"
+        client.subscribe_topic(topic, progress.on_event)
         futures = [
-            client.submit(run_task, worker, task.run_ids, task.args, plugins, here, key=f"windwarden-{i}-{token}")
+            client.submit(
+                run_task, worker, task.run_ids, task.args, plugins, here, (topic, i), key=f"windwarden-{i}-{token}"
+            )
             for i, task in enumerate(tasks)
         ]
         position = {future.key: i for i, future in enumerate(futures)}
@@ -76,11 +83,37 @@ def run_on_cluster(
                 i = position[future.key]
                 results[i], peak = future.result()
                 usage.note_remote_peak(peak)
-                bar.update(tasks[i].run_seconds)
+                progress.done(i)
         except BaseException:
             client.cancel(futures)
             raise
+        finally:
+            client.unsubscribe_topic(topic)
     return results
+
+
+class _Progress:
+    """The bar follows the tasks: a worker reports each chunk's simulated run-seconds as they pass (a Dask event,
+    ``(task, run-seconds)``), and a completed future brings its chunk to its full count. A chunk rerun after a
+    lost worker never counts twice."""
+
+    def __init__(self, tasks: list[Task], bar: tqdm):
+        self.remaining = [task.run_seconds for task in tasks]
+        self.bar = bar
+        self.lock = threading.Lock()
+
+    def on_event(self, event: tuple[float, Any]) -> None:
+        i, seconds = event[1]
+        self._advance(int(i), float(seconds))
+
+    def done(self, i: int) -> None:
+        self._advance(i, self.remaining[i])
+
+    def _advance(self, i: int, seconds: float) -> None:
+        with self.lock:
+            step = min(seconds, self.remaining[i])
+            self.remaining[i] -= step
+            self.bar.update(step)
 
 
 @dataclass(frozen=True)
@@ -135,18 +168,24 @@ def _sha256_of(path: Path) -> str | None:
 
 
 def run_task(
-    worker: Callable[..., R], run_ids: list[int], args: tuple, plugins: PluginSet, expected: dict[str, str]
+    worker: Callable[..., R],
+    run_ids: list[int],
+    args: tuple,
+    plugins: PluginSet,
+    expected: dict[str, str],
+    progress: tuple[str, int],
 ) -> tuple[R, dict]:
-    """On a worker: check its code (a worker may join after the client's check), load the plug-ins, run the chunk,
-    and return its result with the peak memory of this worker process (``getrusage``: the largest resident set it
-    has had, in bytes)."""
+    """On a worker: check its code (a worker may join after the client's check), load the plug-ins, run the chunk
+    reporting its progress as ``progress`` = (event topic, task index), and return its result with the peak memory
+    of this worker process (``getrusage``: the largest resident set it has had, in bytes)."""
     from distributed import get_worker  # already imported on a worker
 
     dask_worker = get_worker()
     check_environments(expected, {dask_worker.address: environment()})
     plugins.load(Path(dask_worker.local_directory) / "windwarden-plugins")
     with branch_mode("copy"):
-        result = worker(run_ids, lambda seconds: None, *args)
+        topic, index = progress
+        result = worker(run_ids, lambda seconds: dask_worker.log_event(topic, [index, seconds * len(run_ids)]), *args)
     kib = 1024  # ru_maxrss is in KiB on Linux
     peak = {
         "worker": dask_worker.address,
