@@ -48,7 +48,7 @@ from wwcore.scenario.farm import FARM_DT_S, FARM_FAULT_TYPES, N_TURBINES, farm_f
 WARMUP_S = SCORING.warmup_s  # s, not scored (scoring_policy says why)
 GRACE_S = SCORING.grace_s  # s after a fault ends during which its flags may still be up (scoring_policy)
 DAMAGE_BIN_S = 10.0  # s, time resolution of the damage sums (Fig. 4)
-MAX_CHUNK = 50  # runs per chunk at most (parallel.chunk_runs): 100 runs are two chunks of 50 (450 rows + twins)
+MAX_CHUNK = 50  # runs per process at most: 100 runs are two chunks of 50 (900 turbine rows and their twins)
 PROGRESS_EVERY = 1000  # ticks between progress reports
 TURBINES = tuple(range(1, N_TURBINES + 1))
 

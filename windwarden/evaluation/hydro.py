@@ -40,7 +40,7 @@ TRACES = ("f_filt", "f_hat", "f_true", "omega_r", "omega_g", "P_g", "x_p", "x_M"
 SETTLE_BAND = 0.05  # settled when |f̂_filt − f| ≤ 5 % of |f|
 ERROR_SKIP_S = 1.0  # reconstruction error measured from 1 s after a fault starts
 OVERSPEED_MARGIN = 0.05  # rotor overspeed: ω_r above its fault-free twin by 5 % of the rated rotor speed
-CHUNK = 10  # runs per chunk at most (parallel.chunk_runs): each keeps (ticks, 3 × runs) float32 traces
+CHUNK = 10  # runs per process: 20 runs use both cores
 WARMUP_S = SCORING.warmup_s  # s, left out of the fault-free statistics as of every detection figure
 
 

@@ -33,7 +33,7 @@ class EvalOptions:
     compensation: bool = True  # hydro: virtual actuator of eq. (36)
     compare: bool = False  # write the paper-comparison tables where the kind has them
     twins: bool = True  # turbine: run a fault-free twin of every run for the "fault-free RMSE" references
-    workers: int | None = None  # local processes; None: one per available core (``parallel.available_cores``)
+    workers: int | None = None  # local processes; None: one per available core (``usage.available_cores``)
     scheduler: str | None = None  # address of a Dask scheduler that runs the chunks instead (``docs/cluster.md``)
     plugins: tuple[str, ...] = ()  # the ``--plugin`` modules and files, loaded on a cluster's workers too
     progress: bool = True
