@@ -42,7 +42,8 @@ def _add_eval(sub: argparse._SubParsersAction) -> None:
         "--no-twins", action="store_true", help="no fault-free twins (turbine: as a live run; farm: no damage numbers)"
     )
     p.add_argument("--plugin", action="append", default=[], help="import this module first (registers algorithms)")
-    p.add_argument("--workers", type=positive_int, default=None, help="processes (default: all cores)")
+    p.add_argument("--workers", type=positive_int, default=None, help="local processes (default: one per core)")
+    p.add_argument("--scheduler", metavar="ADDRESS", help="run on this Dask scheduler (docs/cluster.md)")
     p.add_argument("--no-plots", action="store_true", help="skip the PNG plots")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.add_argument("--scenarios", type=positive_int, default=None, help="random:KIND: scenarios drawn (default: runs)")
@@ -51,8 +52,10 @@ def _add_eval(sub: argparse._SubParsersAction) -> None:
 
 def cmd_eval(args: argparse.Namespace) -> int:
     from service.plugins import AlgorithmOptionError, UnknownAlgorithmError, load_plugins
+    from windwarden.evaluation.cluster import ClusterError
     from windwarden.evaluation.kinds import EvalOptions, evaluator_for, unused_switches
     from windwarden.evaluation.report import render
+    from windwarden.evaluation.usage import ResourceMonitor, execution_line, execution_record
 
     try:
         load_plugins(tuple(args.plugin))
@@ -67,6 +70,8 @@ def cmd_eval(args: argparse.Namespace) -> int:
         compare=args.compare,
         twins=not args.no_twins,
         workers=args.workers,
+        scheduler=args.scheduler,
+        plugins=tuple(args.plugin),
         progress=not args.quiet,
     )
     if args.scenario.startswith("random:"):
@@ -82,13 +87,19 @@ def cmd_eval(args: argparse.Namespace) -> int:
     if refused:
         raise BadInputError("\n".join(refused))
     try:
-        evaluation = evaluator_for(scenario)(scenario, args.runs, args.seed, options)
+        with ResourceMonitor() as usage:
+            evaluation = evaluator_for(scenario)(scenario, args.runs, args.seed, options)
     except (UnknownAlgorithmError, AlgorithmOptionError) as error:
         raise BadInputError(str(error)) from None
+    except ClusterError as error:
+        raise BadInputError(f"--scheduler: {error}") from None
     console.print(render(evaluation.scorecard))
+    execution = execution_record(options, usage.report())
+    console.print(execution_line(execution), highlight=False)
     if args.out is not None:
         args.out.mkdir(parents=True, exist_ok=True)
         (args.out / "scorecard.json").write_text(json.dumps(evaluation.scorecard, indent=2) + "\n")
+        (args.out / "execution.json").write_text(json.dumps(execution, indent=2) + "\n")
         for name, text in evaluation.extra_files.items():
             (args.out / name).write_text(text)
         written = [] if args.no_plots else evaluation.plot(args.out)

@@ -238,11 +238,10 @@ def run_variant(
         simulate_chunk,
         runs,
         scenario.duration_s * (2 if twins else 1),
+        options,
         args=(scenario, seed, detector, controller, accommodation, dict(scenario.supervisor.params), twins),
-        chunk=min(MAX_CHUNK, max(1, -(-runs // 2))),  # two chunks or more: both cores work; depends on runs only
-        workers=options.workers,
+        max_chunk=MAX_CHUNK,
         label=label or scenario.name,
-        show_progress=options.progress,
     )
     order = np.argsort(np.concatenate([p.runs for p in parts]))
 

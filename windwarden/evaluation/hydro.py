@@ -249,11 +249,10 @@ def evaluate(scenario: Scenario, runs: int, seed: int, options: EvalOptions) -> 
         _worker,
         runs,
         scenario.duration_s * len(VARIANTS),
+        options,
         args=(scenario, seed, names),
-        chunk=CHUNK,
-        workers=options.workers,
+        max_chunk=CHUNK,
         label=f"{scenario.name} ({len(VARIANTS)} twins)",
-        show_progress=options.progress,
     )
     m = _merge(parts)
     dt = NOMINAL.dt

@@ -51,9 +51,9 @@ class ChunkResult:
 
 
 TURBINE_CHUNK = 50
-"""Runs per process. The turbine's step is mostly per-tick interpreter work: splitting runs between processes does
-not shorten anyone's ticks (50 runs of ftwse-2012 with in-batch twins: 8 min 9 s in one process, 8 min 16 s in two
-of 25, before the step was trimmed), and the development machine's two vCPUs give ~1.4 times one's throughput."""
+"""Runs per chunk at most (``parallel.chunk_runs``: 20 runs are two chunks of 10, 100 runs two of 50). The step is
+mostly per-tick interpreter work, so a batch of 50 runs costs about 1.7 times one run's tick (``windwarden bench
+turbine``); larger chunks would save little and hold more memory."""
 
 
 def _window_of_tick(scenario: Scenario, n_steps: int, dt: float) -> tuple[np.ndarray, list[str]]:
@@ -271,10 +271,9 @@ def evaluate(scenario: Scenario, runs: int, seed: int, options: EvalOptions) -> 
         simulate_chunk,
         runs,
         scenario.duration_s,
+        options,
         args=(scenario, seed, detector, estimator, dict(scenario.supervisor.params), twins),
-        chunk=TURBINE_CHUNK,
-        workers=options.workers,
-        show_progress=options.progress,
+        max_chunk=TURBINE_CHUNK,
         label=scenario.name,
     )
     all_events = sorted((e for r in results for e in r.events), key=lambda e: (e.run, e.t))
