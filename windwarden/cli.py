@@ -15,6 +15,7 @@ from rich.console import Console
 from rich.markup import escape
 
 from windwarden.live.cli import LIVE_SUBCOMMANDS
+from windwarden.sweep_cli import add_detectability_parser, add_random_parser, eval_random
 from wwcore.scenario import Scenario, ScenarioError, load_scenario, shipped_scenarios
 
 EXIT_BAD_INPUT = 2
@@ -35,7 +36,7 @@ def _positive_int(text: str) -> int:
 
 def _add_eval(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("eval", help="score a scenario over Monte Carlo runs (batch mode, no transport)")
-    p.add_argument("scenario", help="shipped scenario name or path to a scenario file")
+    p.add_argument("scenario", help="shipped scenario name, path to a scenario file, or random:KIND (a random set)")
     p.add_argument("--runs", type=_positive_int, default=10, help="Monte Carlo runs (default 10)")
     p.add_argument("--seed", type=int, default=0, help="master seed (default 0)")
     p.add_argument("--out", type=Path, default=None, help="folder for scorecard.json and plots")
@@ -52,6 +53,7 @@ def _add_eval(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--workers", type=_positive_int, default=None, help="processes (default: all cores)")
     p.add_argument("--no-plots", action="store_true", help="skip the PNG plots")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
+    p.add_argument("--scenarios", type=_positive_int, default=None, help="random:KIND: scenarios drawn (default: runs)")
     p.set_defaults(func=cmd_eval)
 
 
@@ -64,7 +66,6 @@ def cmd_eval(args: argparse.Namespace) -> int:
         load_plugins(tuple(args.plugin))
     except ModuleNotFoundError as error:
         raise BadInputError(f"--plugin: cannot import {error.name!r}") from None
-    scenario = load_scenario(args.scenario)
     options = EvalOptions(
         detector=args.detector,
         estimator=args.estimator,
@@ -76,6 +77,11 @@ def cmd_eval(args: argparse.Namespace) -> int:
         workers=args.workers,
         progress=not args.quiet,
     )
+    if args.scenario.startswith("random:"):
+        return eval_random(args, options)
+    if args.scenarios is not None:
+        raise BadInputError("--scenarios: only a random set (random:KIND) is drawn from scenarios")
+    scenario = load_scenario(args.scenario)
     refused = [f"{flag}: {message}" for flag, message in unused_switches(scenario.plant.kind, options)]
     try:
         check_supervisor(scenario, detector=args.detector, estimator=args.estimator, controller=args.controller)
@@ -120,8 +126,9 @@ def check_supervisor(scenario: Scenario, **flags: str | None) -> None:
 
 
 def _add_scenarios(sub: argparse._SubParsersAction) -> None:
-    p = sub.add_parser("scenarios", help="list the shipped scenarios")
+    p = sub.add_parser("scenarios", help="list the shipped scenarios; 'scenarios random KIND' draws one")
     p.set_defaults(func=cmd_scenarios)
+    add_random_parser(p)
 
 
 def cmd_scenarios(args: argparse.Namespace) -> int:
@@ -137,6 +144,50 @@ def cmd_scenarios(args: argparse.Namespace) -> int:
     return 0
 
 
+def _add_compare(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser(
+        "compare",
+        help="paired per-run comparison of two scorecards of the same runs (B − A, standard error, runs lower)",
+    )
+    p.add_argument("a", type=Path, help="scorecard A (scorecard.json or the folder eval --out wrote)")
+    p.add_argument("b", type=Path, help="scorecard B, of the same runs (scenario, seed, runs)")
+    p.add_argument("--metric", action="append", default=[], help="only metrics matching this glob (repeatable)")
+    p.add_argument("--json", action="store_true", help="print the comparison as JSON")
+    p.set_defaults(func=cmd_compare)
+
+
+def cmd_compare(args: argparse.Namespace) -> int:
+    from fnmatch import fnmatch
+
+    from windwarden.evaluation import paired
+
+    try:
+        a, b = paired.load_scorecard(args.a), paired.load_scorecard(args.b)
+        rows, only = paired.compare(a, b)
+    except paired.NotPairedError as error:
+        raise BadInputError(str(error)) from None
+    if args.metric:
+        rows = [r for r in rows if any(fnmatch(r.metric, pattern) for pattern in args.metric)]
+        if not rows:
+            raise BadInputError(f"--metric: no per-run metric matches {', '.join(args.metric)}")
+    if args.json:
+        result = {"a": str(args.a), "b": str(args.b), "rows": [r.as_dict() for r in rows], "only_one": only}
+        sys.stdout.write(json.dumps(result) + "\n")
+        return 0
+    lines = [
+        f"A: {args.a} ({paired.describe(a)})",
+        f"B: {args.b} ({paired.describe(b)})",
+        f"the same {a['runs']} runs: seed {a['seed']}, runs digest {a['runs_digest']}; paired per run, "
+        "B − A = mean of the runs' differences ± its standard error",
+        "",
+        paired.table(rows),
+    ]
+    if only:
+        lines += ["", f"in one scorecard only (not compared): {', '.join(only)}"]
+    sys.stdout.write("\n".join(lines) + "\n")
+    return 0
+
+
 def _add_bench(sub: argparse._SubParsersAction) -> None:
     from windwarden.bench import add_parser
 
@@ -146,7 +197,9 @@ def _add_bench(sub: argparse._SubParsersAction) -> None:
 SUBCOMMANDS: list[Callable[[argparse._SubParsersAction], None]] = [
     _add_eval,
     _add_scenarios,
+    _add_compare,
     _add_bench,
+    add_detectability_parser,
     *LIVE_SUBCOMMANDS,
 ]
 

@@ -54,7 +54,9 @@ class TurbineSupervisor:
 
     def step(self, frame: TurbineFrame) -> TurbineRefs:
         diagnosis = self.detector.step(frame)
-        estimates = self.estimator.step(frame, diagnosis.faulty)
+        # the estimator stops using a sensor as soon as the detector suspects it, before it is flagged
+        distrusted = diagnosis.faulty if diagnosis.suspect is None else diagnosis.suspect
+        estimates = self.estimator.step(frame, distrusted)
         self._record(frame.t, diagnosis, estimates)
         self.diagnosis, self.estimates = diagnosis, estimates
         return TurbineRefs(

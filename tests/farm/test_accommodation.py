@@ -104,6 +104,8 @@ def test_the_paper_pitch_rule_derates_by_eq_26_and_sends_no_trim():
 def test_unknown_pitch_and_accommodation_rules_are_refused():
     with pytest.raises(ValueError, match="pitch_rule"):
         _dispatch(pitch_rule="bend")
+    with pytest.raises(ValueError, match="ripple_share"):
+        _dispatch(ripple_share=1.5)
     with pytest.raises(ValueError, match="accommodation_rule"):
         _dispatch(accommodation_rule="stop")
 
@@ -114,16 +116,17 @@ def _block_means(power, omega_3: float, j: int) -> float:
     return float(np.mean(power(ticks)))
 
 
-def test_the_ripple_estimate_is_the_held_turbines_3p_power_and_the_free_ones_share_its_opposite():
+@pytest.mark.parametrize("share", [1.0, 0.4])
+def test_the_ripple_estimate_is_the_held_turbines_3p_power_and_the_free_ones_share_its_opposite(share):
     """A held turbine (row 3) whose power carries A cos(ω_3 t + φ) on a drifting mean: after settling, C_j is
-    A e^{j(ω_3 t_j + φ)} (closed form), and the seven other free turbines (row 7 is derated) get −C_j/7 each."""
+    A e^{j(ω_3 t_j + φ)} (closed form), and the seven other free turbines (row 7 is derated) get −s C_j/7 each."""
     amplitude, phase = 0.3 * MW, 0.7
     omega_3 = 3.0 * P.omega_nom / P.N_g
 
     def power(t):
         return 3.0 * MW + 0.02 * MW * t + amplitude * np.cos(omega_3 * t + phase)
 
-    ripple = RippleCompensation(P, 9)
+    ripple = RippleCompensation(P, 9, share)
     held = np.zeros(9, dtype=bool)
     held[3] = True
     free = np.ones(9, dtype=bool)
@@ -139,7 +142,7 @@ def test_the_ripple_estimate_is_the_held_turbines_3p_power_and_the_free_ones_sha
     assert abs(ripple.ripple[3]) == pytest.approx(amplitude, rel=0.05)
     assert np.angle(ripple.ripple[3] / expected) == pytest.approx(0.0, abs=0.05)
     shares = np.delete(ripple.power, [3, 7])
-    assert shares == pytest.approx(np.full(7, -ripple.ripple[3] / 7))
+    assert shares == pytest.approx(np.full(7, -share * ripple.ripple[3] / 7))
     assert ripple.power[3] == 0.0 and ripple.power[7] == 0.0
     assert ripple.rate[0] == pytest.approx(omega_3)
     ripple.step(_sample(121), np.zeros(9, dtype=bool), free)  # the hold ends: nothing is asked any more

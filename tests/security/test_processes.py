@@ -2,7 +2,7 @@
 
 * ``kill -9`` of the plant: ``up`` stops the rest and leaves a scorecard marked partial, scored over the stretch
   the plant ran, and its last message lists only files that exist; ``windwarden finalize`` gives the same card;
-* SIGKILL of ``up``: no child is left (router, plant, supervisor, recorder and web viewer, checked by process group), the
+* SIGKILL of ``up``: no child is left (router, plant, supervisor, recorder, web viewer; checked by process group), the
   watchdog closes the run (scorecard, a recording that passes ``rerun rrd verify``) and exits;
 * SIGTERM of ``up``: the same, by ``up`` itself (exit 130).
 Events written before the kill are intact.

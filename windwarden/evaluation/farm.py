@@ -12,8 +12,9 @@ streams, no faults, same supervisor), in one batch. The scorecard has the schema
   and turbine-seconds), on these runs;
 * ``metrics.over_production`` / ``metrics.missing_power``: ∫ pos(P_farm − P_ref,farm) dt and
   ∫ pos(P_ref,farm − P_farm) dt after the warm-up, P_farm the farm's true output (10 Hz block means), per run;
-* ``metrics.damage``: drive-train damage numbers (DEL of the shaft torque, rainflow, m = 4, over the fault-free
-  twin's; ``plant_sim.farm.damage``) per fault window and per farm, and the rotor imbalance of pitch faults.
+* ``metrics.damage``: drive-train damage (rainflow of the shaft torque, m = 4, against the fault-free twin's;
+  ``farm_damage``) of the faulty turbine and of the farm's nine, per fault window and over the run, each run's
+  figure kept for paired comparisons; the rotor imbalance of pitch faults.
 
 ``--compare`` adds the companion runs Tables 5–7 need (the paper's detector; the fault-free farm with the
 dispatch and with the PI; no accommodation) and writes ``farm_tables.md`` (``farm_tables``) and the plots.
@@ -27,17 +28,13 @@ from typing import Any
 import numpy as np
 
 from plant_sim.farm import FarmBatch
-from plant_sim.farm.damage import (
-    WOHLER_M,
-    ReversalRecorder,
-    damage_sums,
-    del_from_sums,
-    imbalance_phasor,
-)
+from plant_sim.farm.damage import ReversalRecorder, damage_sums, imbalance_phasor
 from service.farm.interfaces import N_TYPES
 from service.farm.supervisor import DEFAULT_CONTROLLER, DEFAULT_DETECTOR, FarmSupervisor
 from service.plugins import FARM_CONTROLLERS, FARM_DETECTORS
+from windwarden.evaluation import farm_damage
 from windwarden.evaluation.kinds import EvalOptions, Evaluation
+from windwarden.evaluation.paired import runs_digest
 from windwarden.evaluation.parallel import run_chunks
 from windwarden.evaluation.scoring import FaultWindow, score_detection, twin_false_alarms
 from windwarden.evaluation.scoring_policy import FARM as SCORING
@@ -293,82 +290,43 @@ def detection_by_type(events: list[Event], windows: list[FaultWindow], runs: int
     return {name: score.by_target(name, farm_seconds) for name in FARM_FAULT_TYPES}
 
 
-def damage_metrics(v: Variant, windows: list[FaultWindow]) -> dict[str, Any]:
-    """Damage numbers (DEL / twin DEL) per fault window and for the farm; imbalance of pitch faults."""
-    if v.twin_damage is None:
-        return {}
-    t_edges = np.arange(v.damage.shape[2] + 1) * DAMAGE_BIN_S
-    scored = t_edges[:-1] >= WARMUP_S  # the warm-up is left out, as everywhere
-    duration = scored.sum() * DAMAGE_BIN_S
-    if duration <= 0.0:
-        return {"note": f"the run is not longer than the {WARMUP_S:g} s warm-up"}
-    per_window, by_type = [], {name: [] for name in FARM_FAULT_TYPES}
-    for i, w in enumerate(windows):
-        t = w.turbine - 1
-        run_ratio = del_from_sums(v.damage[:, t, scored].sum(axis=1), duration) / del_from_sums(
-            v.twin_damage[:, t, scored].sum(axis=1), duration
-        )
-        inside = (t_edges[:-1] >= w.start_s) & (t_edges[:-1] < w.end_s)
-        span = max(inside.sum() * DAMAGE_BIN_S, DAMAGE_BIN_S)
-        win_ratio = del_from_sums(v.damage[:, t, inside].sum(axis=1), span) / del_from_sums(
-            v.twin_damage[:, t, inside].sum(axis=1), span
-        )
-        entry = {
-            "fault": w.name,
-            "target": scorecard_target(w),
-            "damage_number_run": float(np.mean(run_ratio)),
-            "damage_number_window": float(np.mean(win_ratio)),
-            "miner_ratio_run": float(np.mean(run_ratio**WOHLER_M)),  # Σ n S^m over the twin's: fatigue damage
-            "miner_ratio_window": float(np.mean(win_ratio**WOHLER_M)),
-        }
-        if w.target == "pitch_misalignment":
-            imb = np.abs(v.imbalance[:, t, i])
-            imb_ff = np.abs(v.twin_imbalance[:, t, i])
-            entry["imbalance_nm"] = float(np.mean(imb))
-            entry["imbalance_fault_free_nm"] = float(np.mean(imb_ff))
-            entry["imbalance_ratio"] = float(np.mean(imb) / max(np.mean(imb_ff), 1e-12))
-        per_window.append(entry)
-        if w.target in by_type:
-            by_type[w.target].append(entry)
-    farm = del_from_sums(v.damage[:, :, scored].sum(axis=(1, 2)), duration) / del_from_sums(
-        v.twin_damage[:, :, scored].sum(axis=(1, 2)), duration
+def damage_metrics(v: Variant, windows: list[FaultWindow]) -> tuple[dict[str, Any], dict[str, list[float]]]:
+    """Table 7's damage figures of a variant, the faulty turbine's and the farm's (``farm_damage``): the means
+    and each run's values."""
+    return farm_damage.damage_metrics(
+        v.damage,
+        v.twin_damage,
+        DAMAGE_BIN_S,
+        WARMUP_S,
+        windows,
+        [scorecard_target(w) for w in windows],
+        v.imbalance,
+        v.twin_imbalance,
     )
-    summary = {}
-    for name, entries in by_type.items():
-        if entries:
-            summary[name] = {
-                "damage_number_run": float(np.mean([e["damage_number_run"] for e in entries])),
-                "damage_number_window": float(np.mean([e["damage_number_window"] for e in entries])),
-                "miner_ratio_run": float(np.mean([e["miner_ratio_run"] for e in entries])),
-                "miner_ratio_window": float(np.mean([e["miner_ratio_window"] for e in entries])),
-            }
-            if name == "pitch_misalignment":
-                summary[name]["imbalance_nm"] = float(np.mean([e["imbalance_nm"] for e in entries]))
-                summary[name]["imbalance_ratio"] = float(np.mean([e["imbalance_ratio"] for e in entries]))
-    return {
-        "definition": "DEL of the low-speed shaft torque (rainflow, Wöhler m = 4, N_eq 1 Hz) of the faulty turbine "
-        "over the run ('run') or over the fault window ('window'), divided by the same turbine's DEL in the fault-"
-        "free twin run; imbalance: |mean rotating-frame phasor Σ τ_r,i e^(j2π(i−1)/3)| over the window, N m",
-        "by_type": summary,
-        "farm_damage_number": float(np.mean(farm)),
-        "per_fault": per_window,
-    }
+
+
+MWH_PER_J = 1.0 / 3.6e9
 
 
 def power_metrics(v: Variant) -> dict[str, Any]:
-    """∫ pos(P_farm − P_ref,farm) dt and ∫ pos(P_ref,farm − P_farm) dt after the warm-up, MWh per run, and each
-    run's (``mwh_by_run``, in run order: two variants on the same seed compare run by run, as paired differences)."""
-    mwh = 1.0 / 3.6e9
+    """∫ pos(P_farm − P_ref,farm) dt and ∫ pos(P_ref,farm − P_farm) dt after the warm-up, MWh per run."""
     demand = float(np.sum(v.demand_j))
 
     def energy(joules: np.ndarray) -> dict[str, Any]:
         return {
-            "mwh_per_run": float(np.mean(joules) * mwh),
+            "mwh_per_run": float(np.mean(joules) * MWH_PER_J),
             "fraction_of_demand": float(np.sum(joules) / demand) if demand > 0 else None,
-            "mwh_by_run": [float(x) for x in joules * mwh],
         }
 
     return {"over_production": energy(v.over_j), "missing_power": energy(v.missing_j)}
+
+
+def power_per_run(v: Variant) -> dict[str, list[float]]:
+    """Each run's over-production and missing power, MWh, in run order (the scorecard's ``per_run``)."""
+    return {
+        "over_production_mwh": (v.over_j * MWH_PER_J).tolist(),
+        "missing_power_mwh": (v.missing_j * MWH_PER_J).tolist(),
+    }
 
 
 def scorecard_of(v: Variant) -> dict[str, Any]:
@@ -379,7 +337,7 @@ def scorecard_of(v: Variant) -> dict[str, Any]:
     for entry, w in zip(detection.faults, windows, strict=True):
         entry["target"] = scorecard_target(w)
     metrics: dict[str, Any] = power_metrics(v)
-    metrics["damage"] = damage_metrics(v, windows)
+    metrics["damage"], damage_by_run = damage_metrics(v, windows)
     metrics["detection"] = {name: detection.by_target(name, farm_seconds) for name in FARM_FAULT_TYPES}
     card = {
         "scenario": scenario.name,
@@ -390,8 +348,11 @@ def scorecard_of(v: Variant) -> dict[str, Any]:
         "detector": v.detector,
         "controller": v.controller,
         "accommodation": v.accommodation,
+        "options": dict(scenario.supervisor.params),
+        "runs_digest": runs_digest(scenario),
         **detection.card_fields(),
         "metrics": metrics,
+        "per_run": power_per_run(v) | damage_by_run,  # run order; ``windwarden compare`` pairs two scorecards
     }
     if v.twin_events:
         observed = v.runs * (scenario.duration_s - WARMUP_S) * N_TURBINES
