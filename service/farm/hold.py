@@ -50,8 +50,30 @@ HOLD_MAX_TORQUE_TSR = float(_TSR_GRID[np.argmax(aero.torque_coefficient(_TSR_GRI
 HOLD_TSRS = _TSR_GRID[_TSR_GRID <= HOLD_MAX_TORQUE_TSR + 1e-9]  # the λ a hold may choose, slowest first
 
 
+class HoldRelease:
+    """D-30 (module docstring) for ``n`` turbine rows: which flagged drive trains' holds are released."""
+
+    def __init__(self, n: int, reserve: float = HOLD_RESERVE, after_s: float = RELEASE_AFTER_S):
+        self.reserve, self.after_s = reserve, after_s
+        self.released = np.zeros(n, dtype=bool)  # released holds, until their flag clears
+        self._needed_s = np.zeros(n)  # s, how long the farm has needed a held turbine's power
+
+    def keep_flagged(self, flagged: np.ndarray) -> None:
+        """A release lasts while the flag does: a new flag is a new hold."""
+        self.released &= flagged.reshape(-1)
+
+    def update(self, hold: np.ndarray, others_asked: np.ndarray, others_avail: np.ndarray, active: np.ndarray) -> None:
+        """Release the holds (``hold`` (farms, 9)) of farms whose other turbines have been asked for more than
+        1 − ``reserve`` of their available power (``others_asked``, ``others_avail`` (farms,) W), or whose demand
+        is beyond the farm's maximum (not ``active``), for ``after_s``."""
+        needed = ~active | (others_asked > (1.0 - self.reserve) * others_avail)
+        asked = (hold & needed[:, None]).reshape(-1)
+        self._needed_s = np.where(asked, self._needed_s + FARM_DT_S, 0.0)
+        self.released |= self._needed_s >= self.after_s - 1e-9
+
+
 class HoldTorqueRule(DrivetrainRule):
-    """The hold and its release (module docstring) for ``n`` turbine rows; reads w̄ from ``available``."""
+    """The hold (module docstring) for ``n`` turbine rows, with its ``release``; reads w̄ from ``available``."""
 
     def __init__(
         self,
@@ -66,11 +88,10 @@ class HoldTorqueRule(DrivetrainRule):
         super().__init__(n)
         self.p = params
         self.available = available
-        self.margin, self.reserve, self.release_after_s = margin, reserve, release_after_s
+        self.margin = margin
+        self.release = HoldRelease(n, reserve, release_after_s)
         self.speed_floor = np.full(n, np.nan)  # rad/s, ω_floor of turbines in the hold (NaN: none)
         self.held_sum = np.full(n, np.nan)  # N m, min(S_m, S_max) latched when the hold began (NaN: none)
-        self.released = np.zeros(n, dtype=bool)  # flagged drive trains whose hold D-30 released
-        self._needed_s = np.zeros(n)  # s, how long the farm has needed a held turbine's power
 
     def hold_point(self, held_sum: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(ω_floor, S_max) (n,) of a hold begun now with the generator-side torque sum ``held_sum`` (N m): the
@@ -90,8 +111,8 @@ class HoldTorqueRule(DrivetrainRule):
 
     def mark(self, plan: AccommodationPlan, flagged: np.ndarray, sample: FarmSample) -> None:
         """Hold the flagged turbines not released, at their latched floor; a hold begins on a new flag."""
-        self.released &= flagged.reshape(-1)
-        hold = flagged & ~self.released.reshape(flagged.shape)
+        self.release.keep_flagged(flagged)
+        hold = flagged & ~self.release.released.reshape(flagged.shape)
         plan.derate |= hold
         plan.hold = hold
         if hold.any():
@@ -117,7 +138,7 @@ class HoldTorqueRule(DrivetrainRule):
             fixed = np.where(hold, plan.floor, 0.0)
             others = np.where(hold, 0.0, avail)
             rest = np.maximum(demand - fixed.sum(axis=1), 0.0)
-            self._release_when_needed(hold, ~active | (rest > (1.0 - self.reserve) * others.sum(axis=1)))
+            self.release.update(hold, rest, others.sum(axis=1), active)
             share = np.where(hold, fixed, others / np.maximum(others.sum(axis=1), 1.0)[:, None] * rest[:, None])
         held = hold.reshape(-1)
         self.speed_floor = np.where(held, self.speed_floor, np.nan)
@@ -126,11 +147,4 @@ class HoldTorqueRule(DrivetrainRule):
         return share
 
     def cancelled(self, flagged: np.ndarray) -> np.ndarray:
-        return flagged & self.released.reshape(flagged.shape)
-
-    def _release_when_needed(self, hold: np.ndarray, needed: np.ndarray) -> None:
-        """Release the holds (``hold`` (farms, 9)) of farms whose demand has ``needed`` (farms,) them for
-        ``release_after_s``."""
-        asked = (hold & needed[:, None]).reshape(-1)
-        self._needed_s = np.where(asked, self._needed_s + FARM_DT_S, 0.0)
-        self.released |= self._needed_s >= self.release_after_s - 1e-9
+        return flagged & self.release.released.reshape(flagged.shape)
