@@ -16,11 +16,12 @@ from typing import Annotated, Literal
 
 import numpy as np
 
-from service.farm import dispatch as d
+from service.farm import accommodation, hold, power_loop
 from service.farm.analytic import AnalyticDetector
-from service.farm.dispatch import Dispatch, PIFarmController
+from service.farm.dispatch import ACCOMMODATION_RULES, PITCH_RULES, Dispatch
 from service.farm.interfaces import FarmContext, FarmDiagnosis, FarmSample, empty_diagnosis
 from service.farm.paper import PaperDetector
+from service.farm.power_loop import PIFarmController
 from service.plugins import FARM_CONTROLLERS, FARM_DETECTORS
 from wwcore.options import Bounds
 
@@ -43,22 +44,23 @@ class AnalyticOptions:
 @dataclass(frozen=True)
 class DispatchOptions:
     derate_floor: Annotated[float, Bounds(ge=0.0, le=1.0)] = 0.0  # share of its own P_avail a derate keeps
-    drivetrain_relief: Annotated[float, Bounds(ge=0.0, le=1.0)] = d.DRIVETRAIN_RELIEF  # D-32
-    accommodation_rule: Literal[d.ACCOMMODATION_RULES] = d.ACCOMMODATION_RULES[0]
-    pitch_rule: Literal[d.PITCH_RULES] = d.PITCH_RULES[0]
-    hold_margin: Annotated[float, Bounds(ge=1.0, le=3.0)] = d.HOLD_MARGIN
-    hold_reserve: Annotated[float, Bounds(ge=0.0, le=1.0)] = d.HOLD_RESERVE
-    release_after_s: Annotated[float, Bounds(ge=0.0, le=600.0, unit="s")] = d.RELEASE_AFTER_S
-    trim_kp: Annotated[float, Bounds(ge=0.0, le=10.0)] = d.TRIM_KP
-    trim_ki: Annotated[float, Bounds(ge=0.0, le=10.0, unit="1/s")] = d.TRIM_KI
-    trim_limit: Annotated[float, Bounds(ge=0.0, le=1.0)] = d.TRIM_LIMIT
+    drivetrain_relief: Annotated[float, Bounds(ge=0.0, le=1.0)] = accommodation.DRIVETRAIN_RELIEF  # D-32
+    accommodation_rule: Literal[ACCOMMODATION_RULES] = ACCOMMODATION_RULES[0]
+    pitch_rule: Literal[PITCH_RULES] = PITCH_RULES[0]
+    hold_margin: Annotated[float, Bounds(ge=1.0, le=3.0)] = hold.HOLD_MARGIN
+    hold_reserve: Annotated[float, Bounds(ge=0.0, le=1.0)] = hold.HOLD_RESERVE
+    release_after_s: Annotated[float, Bounds(ge=0.0, le=600.0, unit="s")] = hold.RELEASE_AFTER_S
+    trim_kp: Annotated[float, Bounds(ge=0.0, le=10.0)] = power_loop.TRIM_KP
+    trim_ki: Annotated[float, Bounds(ge=0.0, le=10.0, unit="1/s")] = power_loop.TRIM_KI
+    trim_limit: Annotated[float, Bounds(ge=0.0, le=1.0)] = power_loop.TRIM_LIMIT
     ripple_compensation: bool = True
+    ripple_share: Annotated[float, Bounds(ge=0.0, le=1.0)] = 1.0  # D-29: the part of the ripple the others cancel
 
 
 @dataclass(frozen=True)
 class PIOptions:
-    pi_kp: Annotated[float, Bounds(ge=0.0, le=10.0)] = d.PI_KP
-    pi_ki: Annotated[float, Bounds(ge=0.0, le=10.0, unit="1/s")] = d.PI_KI
+    pi_kp: Annotated[float, Bounds(ge=0.0, le=10.0)] = power_loop.PI_KP
+    pi_ki: Annotated[float, Bounds(ge=0.0, le=10.0, unit="1/s")] = power_loop.PI_KI
 
 
 FARM_DETECTORS.register("paper", options=PaperOptions)(PaperDetector)

@@ -8,17 +8,12 @@ import pytest
 from scipy import signal
 
 from plant_sim.farm import FarmBatch
-from service.farm.dispatch import (
-    ACCOMMODATION_RULES,
-    DRIVETRAIN_RELIEF,
-    HOLD_RESERVE,
-    RELEASE_AFTER_S,
-    TRIM_KI,
-    TRIM_KP,
-    Dispatch,
-)
+from service.farm.accommodation import DRIVETRAIN_RELIEF
+from service.farm.dispatch import ACCOMMODATION_RULES, Dispatch
+from service.farm.hold import HOLD_RESERVE, RELEASE_AFTER_S
 from service.farm.interfaces import BETA, OMEGA_G, P_G, TAU_G, FarmContext, FarmSample
 from service.farm.pitch_trim import AVERAGING_S
+from service.farm.power_loop import TRIM_KI, TRIM_KP
 from service.farm.ripple import SETTLE_S, RippleCompensation
 from service.farm.supervisor import FarmSupervisor
 from tests.farm.conftest import farm_spec, wind
@@ -157,7 +152,7 @@ def test_the_ripple_estimate_is_the_held_turbines_3p_power_and_the_free_ones_sha
 def _held_dispatch(**options) -> tuple[Dispatch, FarmSample]:
     """A dispatch (rule ``hold-torque`` unless ``options`` say) whose low-passed wind is 12 m/s."""
     d = _dispatch(**{"accommodation_rule": "hold-torque", **options})
-    d._slow_wind = np.full(9, 12.0)
+    d.available.slow_wind = np.full(9, 12.0)
     sample = _sample()
     sample.scada[:, TAU_G] = 15e3
     return d, sample
@@ -175,7 +170,7 @@ def test_a_hold_is_released_when_the_farm_has_needed_its_power_for_long_enough()
     refs = d.step(sample, _faulty(1, 2))
     refs = d.step(sample, _faulty(1, 2))
     assert d.mode[1] == CANCEL_3P_MODE and refs[1] == P.rated_power
-    assert np.isnan(d.speed_floor[1])
+    assert np.isnan(d.drivetrain.speed_floor[1])
     sample.demand[:] = 10.0 * MW  # plenty of headroom again: the release stands while the flag does
     d.step(sample, _faulty(1, 2))
     assert d.mode[1] == CANCEL_3P_MODE
@@ -190,7 +185,7 @@ def test_a_hold_is_released_when_the_others_would_need_more_than_their_margin(ma
     below that keeps the hold, just above it releases the hold after RELEASE_AFTER_S."""
     d, sample = _held_dispatch()
     d.step(sample, _faulty(1, 2))
-    floor = P.eta_gc * (d.held_sum[1] - P.B_g * d.speed_floor[1]) * d.speed_floor[1]
+    floor = P.eta_gc * (d.drivetrain.held_sum[1] - P.B_g * d.drivetrain.speed_floor[1]) * d.drivetrain.speed_floor[1]
     sample.demand[:] = floor + (1.0 - HOLD_RESERVE + margin) * 16.0 * MW
     for _ in range(round(RELEASE_AFTER_S / FARM_DT_S) + 1):
         d.step(sample, _faulty(1, 2))

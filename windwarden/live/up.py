@@ -51,6 +51,7 @@ from windwarden.live.router import (
     wait_listening,
 )
 from windwarden.live.runfolder import EVENTS, RECORDING, SCENARIO, SCORECARD, write_json
+from windwarden.live.status_line import StatusDisplay
 from windwarden.live.transport import open_session
 from windwarden.live.watchdog import WatchdogLink
 from wwcore.events import Event, EventType
@@ -175,6 +176,7 @@ class Up:
         self.info: dict[str, Any] = {}
         self.watchdog: WatchdogLink | None = None
         self.pids: dict[str, int] = {}  # every child as started last: in up.json, for the watchdog and for tests
+        self.status = StatusDisplay(console)  # the one-line run status (``status_line``)
 
     def _started(self, name: str, pid: int) -> None:
         self.pids[name] = pid
@@ -313,6 +315,7 @@ class Up:
         }
         session = open_session(self._watch_settings(endpoint))
         sub = session.declare_subscriber(KeyTree(o.farm).events_all, self._on_event)
+        status_sub = session.declare_subscriber(KeyTree(o.farm).plant_status, self._on_plant_status)
         try:
             for child in self.children:
                 child.start()
@@ -323,8 +326,12 @@ class Up:
                     break
             else:
                 self._banner()
+                if not o.quiet:
+                    self.status.start()
                 self._watch()
         finally:
+            self.status.stop()
+            status_sub.undeclare()
             sub.undeclare()
             session.close()
             self._shutdown()
@@ -366,6 +373,12 @@ class Up:
         console.print(f"  recording  {i['recording']}")
         console.print(f"  events     {i['events']}      logs {self.logs}/")
 
+    def _on_plant_status(self, sample: Any) -> None:
+        try:
+            self.status.on_status(decode_json("plant.status", sample.payload.to_bytes()))
+        except WireError:
+            return
+
     def _on_event(self, sample: Any) -> None:
         if self.o.quiet:
             return
@@ -373,6 +386,7 @@ class Up:
             event = Event.from_json(decode_json("events", sample.payload.to_bytes()))
         except (WireError, KeyError, ValueError):
             return
+        self.status.on_event(event)
         if event.type in (
             EventType.FAULT_INJECTED,
             EventType.FAULT_CLEARED,
@@ -405,6 +419,7 @@ class Up:
                 console.print(f"restarting {child.name} ({child.restarts}/{MAX_RESTARTS})")
                 child.start()
                 self._started(child.name, child.proc.pid)
+            self.status.tick()
             self.interrupted.wait(0.2)
 
     # -- shutdown -------------------------------------------------------------------------------------------------
