@@ -5,7 +5,9 @@ r"""Damage measures of the farm (PARAMETERS.md b: the benchmark's damage numbers
 reversals smaller than ``GATE_NM`` are filtered out, the usual hysteresis gate of fatigue practice: a cycle of
 30 kN m carries 8e-8 of the damage of a 1 MN m cycle at m = 4; on the shipped farm the DEL moves by 0.06–0.15 %
 against a 10 kN m gate while the turning points, and the rainflow time, drop 2.5-fold). The turning points are
-rainflow counted (ASTM E1049, the maintained ``rainflow`` package; half cycles count ½) and the damage-equivalent
+rainflow counted (ASTM E1049 as the maintained ``rainflow`` package counts it; half cycles count ½), as the run goes
+and in bounded memory by ``rainflow_stream.StreamingDamage``, equal bit for bit to ``damage_sums`` here, which
+counts a whole sequence with the package itself and is the reference the tests compare with. The damage-equivalent
 load at N_eq = 1 cycle per second over the span T is
 
 .. math::  \mathrm{DEL} = \Bigl(\frac{1}{T}\sum_i n_i S_i^{m}\Bigr)^{1/m},\qquad m = 4 \text{ (Wöhler exponent)}
@@ -67,6 +69,12 @@ class ReversalRecorder:
         self._ticks.append(np.full(len(rows), k, dtype=np.int64))
         self._rows.append(rows.astype(np.int32))
         self._values.append(values.astype(np.float64))
+
+    def drain(self) -> list[tuple[np.ndarray, np.ndarray]]:
+        """``sequences()`` of the turning points recorded since the last call, which are then forgotten."""
+        out = self.sequences()
+        self._ticks, self._rows, self._values = [], [], []
+        return out
 
     def sequences(self) -> list[tuple[np.ndarray, np.ndarray]]:
         """Per row: (ticks, values) of its turning points in time order."""

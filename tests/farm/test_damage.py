@@ -59,3 +59,62 @@ def test_damage_number_is_one_fault_free_and_above_one_with_the_drive_train_faul
     during = del_from_sums(sums[fault_row, 1], 40.0) / del_from_sums(sums[twin_row, 1], 40.0)
     assert during > 1.5
     assert DAMAGE_BIN_S > 0
+
+
+def _rough_signals(rng: np.random.Generator, n: int, ticks: int) -> np.ndarray:
+    """Random walks with plateaus and repeated values (the cases the reversal filter treats specially)."""
+    steps = rng.standard_normal((n, ticks)) * 4e4
+    steps[rng.random((n, ticks)) < 0.2] = 0.0  # plateaus: equal consecutive samples
+    x = np.cumsum(steps, axis=1) + 1e5 * np.sin(np.arange(ticks) * 0.05)
+    x[0] = np.round(x[0], -5)  # a row whose values repeat exactly
+    x[1, 5:] = x[1, 4]  # a row with one turning point after the start
+    return x
+
+
+@pytest.mark.parametrize("flush_ticks", [1, 7, 500, 10**9])
+def test_streaming_damage_equals_rainflow_of_the_whole_sequence_bit_for_bit(flush_ticks):
+    from plant_sim.farm.rainflow_stream import StreamingDamage
+
+    x = _rough_signals(np.random.default_rng(11), 5, 3000)
+    edges = np.array([0, 700, 701, 2500, 3000])
+    whole = ReversalRecorder(5)
+    streaming = StreamingDamage(5, edges, flush_ticks=flush_ticks)
+    for k in range(x.shape[1]):
+        whole.step(k, x[:, k])
+        streaming.step(k, x[:, k])
+    whole.finish(x.shape[1])
+    streaming.finish(x.shape[1])
+    reference = np.stack([damage_sums(tk, v, edges) for tk, v in whole.sequences()])
+    assert reference[2:].sum() > 0  # cycles were counted
+    assert np.array_equal(streaming.sums, reference)
+
+
+def test_rainflow_counter_fed_in_pieces_yields_the_packages_cycles():
+    from plant_sim.farm.rainflow_stream import RainflowCounter
+
+    rng = np.random.default_rng(5)
+    for n in (0, 1, 2, 3, 4, 50, 400):
+        values = np.round(rng.standard_normal(n) * 3.0)  # small integers: many equal neighbours
+        ticks = np.arange(n) * 10
+        counter = RainflowCounter()
+        cuts = np.sort(rng.integers(0, n + 1, size=4))
+        for a, b in zip(np.r_[0, cuts], np.r_[cuts, n], strict=True):
+            counter.feed(ticks[a:b], values[a:b])
+        counter.finish()
+        got = counter.take()
+        expected = [(r, c, ticks[i1]) for r, _m, c, _i0, i1 in rainflow.extract_cycles(values)]
+        assert list(zip(*(g.tolist() for g in got), strict=True)) == [
+            (float(r), float(c), int(t)) for r, c, t in expected
+        ]
+
+
+def test_streaming_damage_keeps_only_the_residue_between_flushes():
+    from plant_sim.farm.rainflow_stream import StreamingDamage
+
+    rng = np.random.default_rng(3)
+    streaming = StreamingDamage(4, np.array([0, 10**6]), flush_ticks=1000)
+    for k in range(60_000):  # a stationary turbulent-like signal: thousands of turning points per row
+        streaming.step(k, 1e6 * np.sin(0.05 * k + np.arange(4)) + 2e5 * rng.standard_normal(4))
+    held = max(c.kept() for c in streaming.counters)
+    assert held < 40  # the residue of a stationary signal, not the ~10^4 turning points seen
+    assert sum(len(v) for _t, v in streaming.recorder.sequences()) <= 1000 * 4  # at most one flush's worth

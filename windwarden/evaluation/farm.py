@@ -27,7 +27,8 @@ from typing import Any
 import numpy as np
 
 from plant_sim.farm import FarmBatch
-from plant_sim.farm.damage import ReversalRecorder, damage_sums, imbalance_phasor
+from plant_sim.farm.damage import imbalance_phasor
+from plant_sim.farm.rainflow_stream import StreamingDamage
 from service.farm.interfaces import N_TYPES
 from service.farm.supervisor import FarmSupervisor
 from windwarden.evaluation import farm_damage
@@ -115,7 +116,7 @@ def simulate_chunk(
         bins = np.append(bins, n_steps)
     # Damage numbers are ratios to the fault-free twin, so without twins nothing would read the shaft torque's
     # reversals (under cProfile they took ≈ 13 % of a detection-only run).
-    recorder = ReversalRecorder(n) if twins else None
+    damage_counter = StreamingDamage(n, bins) if twins else None
     power_sum = np.zeros(n)
     over = np.zeros(farms)
     missing = np.zeros(farms)
@@ -134,8 +135,8 @@ def simulate_chunk(
         plant.control(refs)
         refs = sup.step(frame)
         power_sum += plant.power_output()
-        if recorder is not None:
-            recorder.step(k, plant.shaft_torque())
+        if damage_counter is not None:
+            damage_counter.step(k, plant.shaft_torque())
         if frame.sample:
             j = (k + 1) // per_sample
             p_farm = (power_sum * (1.0 / per_sample)).reshape(farms, N_TURBINES).sum(axis=1)
@@ -168,9 +169,9 @@ def simulate_chunk(
             progress(PROGRESS_EVERY * dt)
     events += plant.drain_events() + sup.drain_events()
     progress((n_steps % PROGRESS_EVERY) * dt)
-    if recorder is not None:
-        recorder.finish(n_steps)
-        damage = np.stack([damage_sums(tk, v, bins) for tk, v in recorder.sequences()]).reshape(farms, N_TURBINES, -1)
+    if damage_counter is not None:
+        damage_counter.finish(n_steps)
+        damage = damage_counter.sums.reshape(farms, N_TURBINES, -1)
     else:
         damage = np.zeros((farms, N_TURBINES, 0))
     with np.errstate(invalid="ignore"):
