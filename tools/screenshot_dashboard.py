@@ -1,13 +1,15 @@
 """A screenshot of the Rerun dashboard (the web viewer in headless Chromium) for README.md.
 
-With ``--live`` it first makes the recording: ``windwarden up SCENARIO`` for ``--duration`` s in real time, a fault
-injected through the REST API at ``--inject-at`` s and cleared at ``--clear-at`` s, the run's ``recording.rrd``.
-Then it serves the recording with Rerun's web viewer (``rerun --serve-web FILE.rrd``), opens it in headless
-Chromium (software WebGL: SwiftShader), waits until two screenshots in a row are the same, and writes the last one
-as an optimised PNG. Every child process is stopped on the way out; Rerun's analytics are off
-(``RERUN_ANALYTICS=0`` and ``rerun analytics disable``).
+``--live``: ``windwarden up SCENARIO --viewer web`` for ``--duration`` s in real time (free ports, its own API
+token), the web viewer's page opened in headless Chromium (software WebGL: SwiftShader) as soon as it is served,
+one generator-speed sensor stuck at 100 rad/s injected through ``POST /faults`` at ``--inject-at`` s and cleared
+at ``--clear-at`` s; after the run, once two screenshots ``--settle`` s apart are equal (the viewer draws behind
+real time without a GPU), the last one is written as a 256-colour PNG. With a run folder or a ``.rrd`` file
+instead, the recording is served with ``rerun --serve-web`` and captured the same way (the viewer opens it at its
+end). Every child process is stopped on the way out; Rerun's analytics are off (``RERUN_ANALYTICS=0`` and
+``rerun analytics disable``).
 
-    .venv/bin/python tools/screenshot_dashboard.py --live --out docs/img/dashboard.png
+    .venv/bin/python tools/screenshot_dashboard.py --live --runs-root /tmp/ww-runs --out docs/img/dashboard.png
     .venv/bin/python tools/screenshot_dashboard.py runs/<run-id> --out /tmp/dashboard.png
 
 Chromium talks the DevTools protocol over a WebSocket; the few lines of RFC 6455 that needs are below, so the tool
@@ -238,19 +240,6 @@ class Browser:
     def open(self, url: str) -> None:
         self.tools.call("Page.navigate", url=url)
 
-    def double_click(self, x: float, y: float) -> None:
-        """What a user does to fit a Rerun plot to its data (the views open zoomed on the time cursor)."""
-        for count in (1, 2):
-            for kind in ("mousePressed", "mouseReleased"):
-                self.tools.call("Input.dispatchMouseEvent", type=kind, x=x, y=y, button="left", clickCount=count)
-
-    def fit_grid(self, columns: int, rows: int, top: float, bottom: float) -> None:
-        """Double-click the middle of every cell of the tab's grid of views (between ``top`` and ``bottom`` px)."""
-        cell_h = (bottom - top) / rows
-        for r in range(rows):
-            for c in range(columns):
-                self.double_click((c + 0.5) * self.width / columns, top + (r + 0.5) * cell_h)
-
     def capture(self) -> bytes:
         return base64.b64decode(self.tools.call("Page.captureScreenshot", format="png")["data"])
 
@@ -279,10 +268,6 @@ def save_png(png: bytes, out: Path) -> None:
     out.parent.mkdir(parents=True, exist_ok=True)
     image.quantize(colors=256, method=Image.Quantize.MEDIANCUT).save(out, optimize=True)
     print(f"{out}: {image.width}×{image.height}, {out.stat().st_size / 1024:.0f} KiB", flush=True)
-
-
-def viewer_url(web_url: str, when: str | None) -> str:
-    return web_url + (f"#when={when}" if when else "")
 
 
 def live(args: argparse.Namespace, work: Path, width: int, height: int) -> Path:
@@ -336,10 +321,7 @@ def from_recording(args: argparse.Namespace, work: Path, width: int, height: int
         wait_for("the web viewer", lambda: urllib.request.urlopen(page, timeout=2), 60, viewer)
         with Browser(work, width, height) as browser:
             proxy = quote(f"rerun+http://127.0.0.1:{grpc_port}/proxy", safe="")
-            browser.open(viewer_url(f"{page}/?url={proxy}", args.when))
-            browser.settled(args.settle, args.timeout)
-            if args.fit:
-                browser.fit_grid(2, 3, 75, height - 40)
+            browser.open(f"{page}/?url={proxy}")
             save_png(browser.settled(args.settle, args.timeout), args.out)
     finally:
         stop(viewer)
@@ -354,15 +336,12 @@ def main(argv: list[str] | None = None) -> None:
     live_args.add_argument("--live", action="store_true", help="run windwarden up and watch it live")
     live_args.add_argument("--scenario", default="ftwse-2012", help="default ftwse-2012")
     live_args.add_argument("--seed", type=int, default=0, help="default 0")
-    live_args.add_argument("--duration", type=float, default=100.0, help="s of simulated time (default 100)")
-    live_args.add_argument("--inject-at", type=float, default=30.0, help="s, when to inject (default 30)")
-    live_args.add_argument("--clear-at", type=float, default=60.0, help="s, the fault's end (default 60)")
+    live_args.add_argument("--duration", type=float, default=80.0, help="s of simulated time (default 80)")
+    live_args.add_argument("--inject-at", type=float, default=52.0, help="s, when to inject (default 52)")
+    live_args.add_argument("--clear-at", type=float, default=70.0, help="s, the fault's end (default 70)")
     live_args.add_argument("--runs-root", type=Path, default=Path("runs"), help="default runs")
-    rec_args = p.add_argument_group("a recording")
-    rec_args.add_argument("--when", help="where the time cursor starts, e.g. sim_time@75s (default: the end)")
-    rec_args.add_argument("--fit", action="store_true", help="double-click each view to fit it to the data")
-    rec_args.add_argument("--settle", type=float, default=8.0, help="s between screenshots compared (default 8)")
-    rec_args.add_argument("--timeout", type=float, default=180.0, help="s to wait for the page to settle")
+    p.add_argument("--settle", type=float, default=10.0, help="s between screenshots compared (default 10)")
+    p.add_argument("--timeout", type=float, default=600.0, help="s to wait for the page to settle (default 600)")
     args = p.parse_args(argv)
     if args.live == (args.source is not None):
         p.error("give a run folder or .rrd file, or --live")

@@ -153,7 +153,7 @@ def cmd_compare(args: argparse.Namespace) -> int:
     lines = [
         f"A: {args.a} ({paired.describe(a)})",
         f"B: {args.b} ({paired.describe(b)})",
-        f"the same {a['runs']} runs: seed {a['seed']}, runs digest {a['runs_digest']}; paired per run, "
+        f"the same {a['runs']} runs: seed {a['seed']}, runs digest {a['runs_digest']}; paired per run:",
         "B − A = mean of the runs' differences ± its standard error",
         "",
         paired.table(rows, window_numbers(a)),
