@@ -158,7 +158,11 @@ def _turbine_views(turbine: int) -> list[Any]:
             f"{base}/wind",
             f"T{turbine}: wind m/s: FTE (green), NFTE (orange), anemometer (blue), true rotor-effective (black)",
         ),
-        _residual_view(f"{base}/residuals", f"T{turbine}: {_RESIDUAL_SCALE} per observer"),
+        _residual_view(  # 11 observers: a legend would cover the traces; hovering a trace names its observer
+            f"{base}/residuals",
+            f"T{turbine}: {_RESIDUAL_SCALE}: each observer (grey), trip line (red)",
+            legend=False,
+        ),
         _series_view(f"{base}/power", f"T{turbine}: power MW: measured (blue), truth (black)"),
         _states_view(turbine),
     ]

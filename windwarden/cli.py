@@ -22,6 +22,7 @@ from windwarden.commands.common import (
     positive_int,
 )
 from windwarden.commands.live import LIVE_SUBCOMMANDS
+from windwarden.commands.scenario_list import scenarios_listing
 from windwarden.commands.sweep import add_detectability_parser, add_random_parser, eval_random
 from wwcore.scenario import ScenarioError, load_scenario, shipped_scenarios
 
@@ -114,15 +115,7 @@ def _add_scenarios(sub: argparse._SubParsersAction) -> None:
 
 
 def cmd_scenarios(args: argparse.Namespace) -> int:
-    from rich.table import Table
-
-    table = Table(title="shipped scenarios")
-    for column in ("name", "plant", "duration s", "faults", "description"):
-        table.add_column(column)
-    for name, path in sorted(shipped_scenarios().items()):
-        s = load_scenario(path)
-        table.add_row(name, s.plant.kind, f"{s.duration_s:g}", str(len(s.faults)), s.description)
-    console.print(table)
+    console.print(scenarios_listing({name: load_scenario(path) for name, path in shipped_scenarios().items()}))
     return 0
 
 
@@ -142,6 +135,7 @@ def cmd_compare(args: argparse.Namespace) -> int:
     from fnmatch import fnmatch
 
     from windwarden.evaluation import paired
+    from windwarden.evaluation.report import window_numbers
 
     try:
         a, b = paired.load_scorecard(args.a), paired.load_scorecard(args.b)
@@ -159,10 +153,10 @@ def cmd_compare(args: argparse.Namespace) -> int:
     lines = [
         f"A: {args.a} ({paired.describe(a)})",
         f"B: {args.b} ({paired.describe(b)})",
-        f"the same {a['runs']} runs: seed {a['seed']}, runs digest {a['runs_digest']}; paired per run, "
+        f"the same {a['runs']} runs: seed {a['seed']}, runs digest {a['runs_digest']}; paired per run:",
         "B − A = mean of the runs' differences ± its standard error",
         "",
-        paired.table(rows),
+        paired.table(rows, window_numbers(a)),
     ]
     if only:
         lines += ["", f"in one scorecard only (not compared): {', '.join(only)}"]

@@ -68,3 +68,13 @@ def test_residual_views_fix_their_axis_and_signal_views_hide_the_legend(kind):
         else:
             assert _prop(view, "PlotLegend", "visible") == [False]
     assert blueprint(kind, [1, 2]) is not None
+
+
+def test_the_turbine_residual_view_names_its_colours_instead_of_a_legend_over_eleven_traces():
+    """Eleven observers' statistics in one view: a legend that lists them fills the band above the traces and
+    runs over them, so the view names its colours in the title and hovering a trace names its observer."""
+    (view,) = [
+        v for v in PANELS["turbine"].views(1) if isinstance(v, rrb.TimeSeriesView) and "ScalarAxis" in v.properties
+    ]
+    assert _prop(view, "PlotLegend", "visible") == [False]
+    assert "observer (grey)" in str(view.name) and "trip line (red)" in str(view.name)

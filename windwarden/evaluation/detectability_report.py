@@ -132,14 +132,24 @@ def markdown(results: Sequence[dict[str, Any]], images: dict[str, str] | None = 
 
 
 def console_table(results: Sequence[dict[str, Any]]) -> Table:
-    table = Table(title="detectability (sizes at which 50 % / 95 % of windows are detected)")
-    for column in ("fault type", "unit", "runs/size", "50 % det.", "95 % det.", "95 % isol.", "FA/1000 s"):
-        table.add_column(column)
+    """The sweep's summary within 100 columns; the runs per size are in the caption."""
+    runs = {r["runs_per_size"] for r in results}
+    if len(runs) == 1:
+        caption = f"{runs.pop()} runs per size"
+    else:
+        caption = "runs per size: " + ", ".join(f"{r['fault_type']} {r['runs_per_size']}" for r in results)
+    table = Table(
+        title="detectability (sizes at which 50 % / 95 % of windows are detected)",
+        caption=caption,
+        caption_justify="left",
+        pad_edge=False,
+    )
+    for column in ("fault type", "unit", "50 % det.", "95 % det.", "95 % isol.", "FA/1000 s"):
+        table.add_column(column, no_wrap=column == "fault type")
     for r in results:
         table.add_row(
             r["fault_type"],
             _unit(r),
-            str(r["runs_per_size"]),
             level_text(r, "detected", "p50", ci=False),
             level_text(r, "detected", "p95"),
             level_text(r, "isolated", "p95", ci=False),

@@ -22,6 +22,7 @@ from __future__ import annotations
 import hashlib
 import json
 import math
+import textwrap
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -31,6 +32,7 @@ import numpy as np
 from wwcore.scenario import Scenario
 from wwcore.scenario.mismatch import Mismatch
 
+WIDTH = 100  # columns the table fits
 IDENTITY = ("seed", "runs", "runs_digest")  # scorecard fields that must be equal for the runs to be the same
 
 
@@ -142,16 +144,23 @@ def _num(x: float) -> str:
     return "–" if math.isnan(x) else f"{x:.4g}"
 
 
-def table(rows: list[PairedRow]) -> str:
-    """The paired rows as plain text (one line per metric, whatever the terminal's width): the means, B − A ± SE,
-    t = (B − A)/SE, and how many runs B had lower / equal / higher than A."""
-    header = ("metric", "n", "A", "B", "B − A ± SE", "t", "B lower / equal / higher")
+def table(rows: list[PairedRow], numbers: dict[str, str] | None = None, width: int = WIDTH) -> str:
+    """The paired rows as plain text within ``width`` columns: the means, B − A ± SE, t = (B − A)/SE, and how
+    many runs B had lower / equal / higher than A. A fault window's name in a metric is written as its number
+    (``numbers``, from ``report.window_numbers``; listed under the table); a metric name longer than its column
+    continues on the next lines, in its column."""
+    numbers = numbers or {}
+    header = ("metric", "n", "A", "B", "B − A ± SE", "t", "runs B < / = / > A")
+    used = sorted((name for name in numbers if any(name in r.metric for r in rows)), key=len, reverse=True)
     lines = []
     for r in rows:
         t = r.diff / r.se if r.se > 0 else float("nan")
+        metric = r.metric
+        for name in used:  # longest first: a name inside another is not replaced first
+            metric = metric.replace(name, numbers[name])
         lines.append(
             (
-                r.metric,
+                metric,
                 str(r.n),
                 _num(r.mean_a),
                 _num(r.mean_b),
@@ -161,10 +170,15 @@ def table(rows: list[PairedRow]) -> str:
             )
         )
     widths = [max(len(x[i]) for x in [header, *lines]) for i in range(len(header))]
+    widths[0] = max(12, min(widths[0], width - sum(widths[1:]) - 2 * (len(widths) - 1)))
 
-    def line(cells: tuple[str, ...]) -> str:
-        return "  ".join(
-            c.ljust(w) if i == 0 else c.rjust(w) for i, (c, w) in enumerate(zip(cells, widths, strict=True))
-        )
+    def line(cells: tuple[str, ...]) -> list[str]:
+        first, *more = textwrap.wrap(cells[0], widths[0], break_on_hyphens=False) or [""]
+        rest = [c.rjust(w) for c, w in zip(cells[1:], widths[1:], strict=True)]
+        return ["  ".join([first.ljust(widths[0]), *rest]).rstrip(), *more]
 
-    return "\n".join([line(header), "  ".join("-" * w for w in widths), *map(line, lines)])
+    out = [*line(header), "  ".join("-" * w for w in widths)]
+    for cells in lines:
+        out += line(cells)
+    out += [f"{numbers[name]} {name}" for name in sorted(used, key=lambda n: int(numbers[n][1:]))]
+    return "\n".join(out)

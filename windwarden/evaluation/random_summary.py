@@ -11,6 +11,8 @@ from collections import defaultdict
 from collections.abc import Sequence
 from typing import Any
 
+from rich import box
+from rich.console import Group
 from rich.table import Table
 
 from windwarden.evaluation.scoring_policy import FARM as FARM_POLICY
@@ -192,10 +194,43 @@ def markdown(card: dict[str, Any]) -> str:
     return "\n".join(lines) + "\n"
 
 
-def console_table(card: dict[str, Any]) -> Table:
-    table = Table(title=f"random scenarios, {card['scenario']}", caption=_caption(card))
-    for column in COLUMNS:
-        table.add_column(column)
-    for cells in _rows(card["summary"]):
-        table.add_row(*cells)
+CONSOLE_HEADERS = dict(
+    zip(
+        COLUMNS,
+        (
+            "case",
+            "windows (runs)",
+            "det. %",
+            "isol. % first flag",
+            "delay s mean / max",
+            "wrong isol. %",
+            "lost %",
+            "flaps per window",
+            "FTE / twin RMSE mean / max",
+            "recon. error % mean / max",
+        ),
+        strict=True,
+    )
+)
+
+
+def _console_part(rows: list[list[str]], columns: list[int], **kw: Any) -> Table:
+    keep = [i for i in columns if i == 0 or any(r[i] != "–" for r in rows)]
+    table = Table(caption_justify="left", title_justify="left", box=box.SIMPLE_HEAD, pad_edge=False, **kw)
+    for i in keep:
+        table.add_column(CONSOLE_HEADERS[COLUMNS[i]], no_wrap=i == 0, justify="left" if i == 0 else "right")
+    for cells in rows:
+        table.add_row(*(cells[i] for i in keep))
     return table
+
+
+def console_table(card: dict[str, Any]) -> Group:
+    """The summary in two tables within 100 columns (detection, then what followed), with shorter headers (the
+    caption spells them out) and without the column the plant kind leaves empty (the FTE ratio is the turbine's,
+    the reconstruction error the hydrostatic turbine's)."""
+    rows = _rows(card["summary"])
+    legend = "det.: detected; isol.: isolated; windows (runs): fault windows (window-runs); recon.: reconstruction"
+    return Group(
+        _console_part(rows, [0, 1, 2, 3, 4, 5], title=f"random scenarios, {card['scenario']}"),
+        _console_part(rows, [0, 6, 7, 8, 9], caption=f"{_caption(card)}\n{legend}"),
+    )

@@ -1,8 +1,9 @@
 """Scorecards as rich tables for the terminal, readable at 100 columns.
 
 Two tables of the detection figures (``docs/scorecards.md``): how each fault window was detected and isolated,
-then what its flags did afterwards (lost, flaps, the end); the false alarms and the scoring policy in the caption;
-then the plant kind's own metrics.
+then what its flags did afterwards (lost, flaps, the end); the windows' names, the abbreviations, the false alarms
+and the scoring policy in the caption; then the plant kind's own metrics. Rows stay on one line at ``WIDTH``: the
+tables refer to a fault window by its number (``#1``, ``#2``, …) and name each window once, under the first table.
 """
 
 from __future__ import annotations
@@ -38,44 +39,68 @@ def _table(title: str | None, text: list[tuple[str, int, int]], numbers: list[tu
     return table
 
 
+def window_numbers(scorecard: dict[str, Any]) -> dict[str, str]:
+    """Each fault window's name → its number in the tables (``#1``, ``#2``, …), in the scorecard's order. The
+    names (up to ~90 characters for a double fault) are listed once under the first table: a column of them would
+    fold every row over several lines at 100 columns."""
+    return {f["name"]: f"#{i}" for i, f in enumerate(scorecard.get("faults", []), start=1)}
+
+
 def faults_table(scorecard: dict[str, Any]) -> Table:
-    """Detection and isolation per fault window; the caption has the false alarms and the policy."""
+    """Detection and isolation per fault window; the caption names the windows and has the false alarms and the
+    policy."""
     table = _table(
         f"{scorecard['scenario']}: {scorecard['runs']} runs, seed {scorecard['seed']}",
-        [("fault", 3, 16), ("target", 2, 12)],
+        [("target", 1, 10)],
         [
-            ("detected %", 8),
+            ("#", 3),
+            ("window s", 9),
+            ("det. %", 5),
             ("delay s mean / max", 11),
-            ("isolated % first flag", 8),
-            ("isolated % of time", 8),
-            ("wrong isolation %", 9),
+            ("isol. % first flag", 6),
+            ("isol. % of time", 6),
+            ("wrong isol. %", 6),
         ],
     )
+    table.columns.insert(0, table.columns.pop(1))  # the window's number first, then its target
+    numbers = window_numbers(scorecard)
     for f in scorecard["faults"]:
-        target = f["target"].replace("+", "+ ")  # a double fault's targets wrap between them
+        cells = [numbers[f["name"]], f["target"].replace("+", "+ "), f"{f['start_s']:g}–{f['end_s']:g}"]
         if "detected_pct" not in f:
-            table.add_row(f["name"], target, f.get("note", "not scored"), "", "", "", "")
+            table.add_row(*cells, "–", "–", "–", "–", "–")  # why: in the window's line of the caption
             continue
         table.add_row(
-            f["name"],
-            target,
+            *cells,
             _fmt(f["detected_pct"]),
             _pair(f["delay_s_mean"], f["delay_s_max"]),
             _fmt(f["isolated_pct"]),
             _fmt(f["isolated_time_pct"]),
             _fmt(f["wrong_isolation_pct"]),
         )
-    table.caption = _caption(scorecard)
+    table.caption = "\n".join([*_window_legend(scorecard, numbers), _ABBREVIATIONS, _caption(scorecard)])
     return table
 
 
+_ABBREVIATIONS = (
+    "det.: detected; isol.: isolated (the right target flagged), on the first flag and as a share of the "
+    "window's time; wrong isol.: windows whose first flag named another target"
+)
+
+
+def _window_legend(scorecard: dict[str, Any], numbers: dict[str, str]) -> list[str]:
+    return [
+        f"{numbers[f['name']]} {f['name']}" + ("" if "detected_pct" in f else f" ({f.get('note', 'not scored')})")
+        for f in scorecard["faults"]
+    ]
+
+
 def after_detection_table(scorecard: dict[str, Any]) -> Table:
-    """Per fault window: its time, flags lost while the fault acted, flaps, wrong isolations, and the end."""
+    """Per fault window (by its number): flags lost while the fault acted, flaps, wrong isolations, and the end."""
     table = _table(
         None,
-        [("fault", 1, 20)],
+        [],
         [
-            ("window s", 9),
+            ("#", 3),
             ("lost %", 6),
             ("losses", 6),
             ("flaps mean / max", 9),
@@ -84,12 +109,12 @@ def after_detection_table(scorecard: dict[str, Any]) -> Table:
             ("end delay s mean / max", 11),
         ],
     )
+    numbers = window_numbers(scorecard)
     for f in scorecard["faults"]:
         if "detected_pct" not in f:
             continue
         table.add_row(
-            f["name"],
-            f"{f['start_s']:g}–{f['end_s']:g}",
+            numbers[f["name"]],
             _fmt(f["lost_pct"]),
             _fmt(f["lost"]),
             _pair(f["flaps_mean"], f["flaps_max"]),
@@ -119,22 +144,35 @@ def _caption(scorecard: dict[str, Any]) -> str:
     return "\n".join(lines)
 
 
-def metrics_table(metrics: dict[str, Any], title: str = "metrics") -> Table:
-    table = Table(title=title)
-    table.add_column("metric")
-    table.add_column("value", justify="right")
+LONG_TEXT = 24  # characters: a text metric longer than this (a rule's description) goes under the table
+
+
+def metrics_table(metrics: dict[str, Any], title: str = "metrics", numbers: dict[str, str] | None = None) -> Table:
+    """Every metric as a dotted path and its value, one line each; a fault window's name in a path is written as
+    its number (``window_numbers``); a long text value (a rule's description) is written under the table."""
+    numbers = numbers or {}
+    table = Table(title=title, caption_justify="left")
+    table.add_column("metric", overflow="fold")
+    table.add_column("value", justify="right", no_wrap=True)
+    notes: list[str] = []
 
     def walk(prefix: str, node: Any) -> None:
         if isinstance(node, dict):
             for key, value in node.items():
-                walk(f"{prefix}.{key}" if prefix else str(key), value)
+                key = numbers.get(str(key), str(key))
+                walk(f"{prefix}.{key}" if prefix else key, value)
         elif isinstance(node, list):
             for i, value in enumerate(node):
                 walk(f"{prefix}[{i}]", value)
+        elif isinstance(node, str) and len(node) > LONG_TEXT:
+            notes.append(f"{prefix}: {node}")
+            table.add_row(prefix, f"(note {len(notes)})")
         else:
             table.add_row(prefix, _fmt(node, 4))
 
     walk("", metrics)
+    if notes:
+        table.caption = "\n".join(f"note {i}: {text}" for i, text in enumerate(notes, start=1))
     return table
 
 
@@ -143,5 +181,5 @@ def render(scorecard: dict[str, Any]) -> Group:
     if any("detected_pct" in f for f in scorecard["faults"]):
         parts.append(after_detection_table(scorecard))
     if scorecard.get("metrics"):
-        parts.append(metrics_table(scorecard["metrics"]))
+        parts.append(metrics_table(scorecard["metrics"], numbers=window_numbers(scorecard)))
     return Group(*parts)
