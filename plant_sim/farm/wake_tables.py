@@ -120,63 +120,89 @@ class WakeTables:
             )
 
     # -- combination -----------------------------------------------------------------------------------------------
-    def _bins(self, direction_deg: float) -> tuple[tuple[np.ndarray, ...], float]:
-        """The entries of the two table directions k, k + 1 around θ (cached per k) and θ's weight on k + 1."""
-        x = (float(direction_deg) % 360.0) / self.direction_step_deg
-        k0 = math.floor(x) % self.n_directions
-        w = x - math.floor(x)
+    def _bin(self, k0: int) -> tuple[np.ndarray, ...]:
+        """Entries of table directions k0 and k0 + 1 (cached): up, flat pair index, first-bin mask, table rows."""
         cached = self._cache.get(k0)
         if cached is None:
             k1 = (k0 + 1) % self.n_directions
             if not (self.covered[k0] and self.covered[k1]):
-                raise ValueError(f"wind direction {direction_deg:g} deg is outside the sector the wake tables cover")
+                raise ValueError(
+                    f"wind direction {k0 * self.direction_step_deg:g}–{(k0 + 1) * self.direction_step_deg:g} "
+                    "deg is outside the sector the wake tables cover"
+                )
             idx = np.r_[self.bin_start[k0] : self.bin_start[k0 + 1], self.bin_start[k1] : self.bin_start[k1 + 1]]
-            up, down = self.upstream[idx], self.downstream[idx]
+            up = self.upstream[idx]
             first = np.arange(len(idx)) < self.bin_start[k0 + 1] - self.bin_start[k0]
             n_thrust, n_ti = len(self.thrust_grid), len(self.ti_grid)
-            cached = (up, down, up * self.n_turbines + down, first, idx * n_thrust, idx * (n_thrust * n_ti))
+            cached = (up, up * self.n_turbines + self.downstream[idx], first, idx * n_thrust, idx * (n_thrust * n_ti))
             if len(self._cache) > 64:
                 self._cache.clear()
             self._cache[k0] = cached
-        return cached, w
+        return cached
 
     def waked(
-        self, direction_deg: float, thrust: np.ndarray, free_speed: float | np.ndarray
+        self, direction_deg: float | np.ndarray, thrust: np.ndarray, free_speed: float | np.ndarray
     ) -> tuple[np.ndarray, np.ndarray]:
-        """(waked speed (N,) m/s, turbulence intensity (N,)) of every turbine of one farm.
+        """(waked speed m/s, turbulence intensity) of every turbine, for one farm or a batch of F farms.
 
-        ``thrust``: (N,) each turbine's C_T, or (N, N) with [i, j] the C_T of i as its wake reaches j (delayed).
-        ``free_speed``: the free stream, one value or one per turbine (each turbine's own, delayed, m/s).
+        One farm: ``direction_deg`` a number, ``thrust`` (N,) each turbine's C_T or (N, N) with [i, j] the C_T of i
+        as its wake reaches j (delayed), ``free_speed`` one value or (N,) each turbine's own (delayed) free stream;
+        returns two (N,) arrays. A batch: ``direction_deg`` (F,), ``thrust`` (F, N) or (F, N, N), ``free_speed``
+        (F,) or (F, N); returns two (F, N) arrays. Farms whose directions share a table interval are combined in one
+        vectorised pass.
         """
         n = self.n_turbines
+        single = np.ndim(direction_deg) == 0
+        directions = np.atleast_1d(np.asarray(direction_deg, dtype=float))
+        farms = len(directions)
         thrust = np.asarray(thrust, dtype=float)
-        if thrust.shape not in ((n,), (n, n)):
-            raise ValueError(f"thrust must have shape ({n},) or ({n}, {n}), got {thrust.shape}")
-        (up, _, flat, first, row_m, row_mt), w = self._bins(direction_deg)
-        weight = np.where(first, 1.0 - w, w)
-        ct = thrust[up] if thrust.ndim == 1 else thrust.ravel()[flat]
+        if single:
+            thrust = thrust[None]
+        if thrust.shape not in ((farms, n), (farms, n, n)):
+            expected = f"({n},) or ({n}, {n})" if single else f"({farms}, {n}) or ({farms}, {n}, {n})"
+            raise ValueError(f"thrust must have shape {expected}, got {thrust.shape[single:]}")
+        free = np.asarray(free_speed, dtype=float)
+        free = np.broadcast_to(free[..., None] if free.ndim == (0 if single else 1) else free, (farms, n))
+        x = (directions % 360.0) / self.direction_step_deg
+        k0 = np.floor(x).astype(np.intp) % self.n_directions
+        w = x - np.floor(x)
+        speed, ti = np.empty((farms, n)), np.empty((farms, n))
+        for k in np.unique(k0):
+            group = np.flatnonzero(k0 == k)
+            speed[group], ti[group] = self._combine(self._bin(int(k)), w[group], thrust[group], free[group])
+        return (speed[0], ti[0]) if single else (speed, ti)
+
+    def _combine(self, entries, w, thrust, free) -> tuple[np.ndarray, np.ndarray]:
+        """The module docstring's combination for G farms in one table interval (w: (G,), weight of k0 + 1)."""
+        up, flat, first, row_m, row_mt = entries
+        n = self.n_turbines
+        g_farms = len(w)
+        weight = np.where(first[None, :], 1.0 - w[:, None], w[:, None])  # (G, E)
+        ct = thrust[:, up] if thrust.ndim == 2 else thrust.reshape(g_farms, -1)[:, flat]
         x = (1.0 - np.sqrt(1.0 - np.minimum(np.maximum(ct, 0.0), self._ct_max))) * self._inv_s_step
         m = np.minimum(x.astype(np.intp), self._m_last)
         f = x - m
         lin = row_m + m
-        added_flat = self.added_ti.reshape(-1)
-        tau = added_flat[lin] + (added_flat[lin + 1] - added_flat[lin]) * f
-        added = np.bincount(flat, weights=weight * tau, minlength=n * n).reshape(n, n)
-        ti = np.sqrt(self.ambient_ti**2 + added.max(axis=0) ** 2)
+        a = self.added_ti.reshape(-1)
+        tau = a[lin] + (a[lin + 1] - a[lin]) * f
+        scatter = (np.arange(g_farms)[:, None] * (n * n) + flat).reshape(-1)
+        size = g_farms * n * n
+        added = np.bincount(scatter, weights=(weight * tau).reshape(-1), minlength=size).reshape(g_farms, n, n)
+        ti = np.sqrt(self.ambient_ti**2 + added.max(axis=1) ** 2)  # (G, N)
         d = self.deficit.reshape(-1)
         n_ti = len(self.ti_grid)
         if n_ti == 1:
             delta = d[lin] + (d[lin + 1] - d[lin]) * f
         else:
-            y = np.minimum((ti[up] - self.ti_grid[0]) * self._inv_ti_step, n_ti - 1.0)
+            y = np.minimum((ti[:, up] - self.ti_grid[0]) * self._inv_ti_step, n_ti - 1.0)
             t = np.minimum(y.astype(np.intp), n_ti - 2)
-            g = y - t
+            h = y - t
             base = row_mt + m * n_ti + t
-            low = d[base] + (d[base + 1] - d[base]) * g
-            high = d[base + n_ti] + (d[base + n_ti + 1] - d[base + n_ti]) * g
+            low = d[base] + (d[base + 1] - d[base]) * h
+            high = d[base + n_ti] + (d[base + n_ti + 1] - d[base + n_ti]) * h
             delta = low + (high - low) * f
-        deficit = np.bincount(flat, weights=weight * delta, minlength=n * n).reshape(n, n)
-        return np.asarray(free_speed, dtype=float) * (1.0 - np.sqrt(np.einsum("ij,ij->j", deficit, deficit))), ti
+        deficit = np.bincount(scatter, weights=(weight * delta).reshape(-1), minlength=size).reshape(g_farms, n, n)
+        return free * (1.0 - np.sqrt(np.einsum("gij,gij->gj", deficit, deficit))), ti
 
     def waked_speeds(self, direction_deg: float, thrust: np.ndarray, free_speed: float | np.ndarray) -> np.ndarray:
         """Waked speed (N,) m/s of every turbine (``waked`` without the turbulence)."""

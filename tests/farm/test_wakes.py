@@ -146,10 +146,28 @@ def test_combination_invariants(tables_3x3):
     assert tables.waked_speeds(270.0, ct, free) == pytest.approx(v / 10.0 * free)
 
 
+def test_batch_equals_farm_by_farm(tables_3x3):
+    """A batch of farms (Monte Carlo runs) with their own directions, thrusts and free streams is combined as each
+    farm alone, whether the farms share a table interval or not."""
+    rng = np.random.default_rng(5)
+    directions = np.array([270.2, 270.7, 315.0, 92.5, 270.2])
+    thrust = rng.uniform(0.2, 0.85, (5, 9, 9))
+    free = rng.uniform(6.0, 14.0, (5, 9))
+    for tables in tables_3x3.values():
+        speed, ti = tables.waked(directions, thrust, free)
+        for f in range(5):
+            one = tables.waked(directions[f], thrust[f], free[f])
+            assert np.allclose(speed[f], one[0], rtol=0, atol=1e-12) and np.allclose(ti[f], one[1], rtol=0, atol=1e-12)
+        per_turbine = tables.waked(directions, thrust[:, :, 0], free[:, 0])[0]
+        assert per_turbine[2] == pytest.approx(tables.waked_speeds(315.0, thrust[2, :, 0], free[2, 0]))
+
+
 def test_bad_inputs_are_refused(tables_3x3, seed001, cache):
     tables = tables_3x3["gauss"]
     with pytest.raises(ValueError, match=r"shape \(9,\) or \(9, 9\)"):
         tables.waked_speeds(270.0, np.zeros(8), 10.0)
+    with pytest.raises(ValueError, match=r"shape \(2, 9\) or \(2, 9, 9\)"):
+        tables.waked(np.array([270.0, 271.0]), np.zeros((3, 9)), 10.0)
     with pytest.raises(ValueError, match="does not divide 360"):
         floris_wakes.build_wake_tables(seed001, WakeSettings(direction_step_deg=0.7), BENCHMARK)
     other = FarmLayout(seed001.x * 2.0, seed001.y * 2.0, 2.0 * D)
