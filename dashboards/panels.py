@@ -4,6 +4,13 @@ One ``Panel`` per kind, chosen by name (``PANELS``). A panel maps the wire recor
 truth and refs records of ``wwcore.wire``, the supervisor's per-turbine status) to groups of scalar series under
 ``/turbine/<id>/…``: the plant's ``…/plant`` and the supervisor's ``…/supervisor`` entities side by side in one
 view. It also lays out the views of one turbine. The farm kind adds its panel (and a farm overview).
+
+**Residual views** show each test statistic over its threshold, so every detector trips at 1, drawn by
+``display_margin``: linear up to the trip line at 1, 1 + log₁₀ above it (2 = 10×, 3 = 100× the threshold), at most
+``MARGIN_DISPLAY_MAX`` (1000×). A CUSUM that has run to 9 000× its threshold would otherwise squash the trip line
+and everything below it into the bottom pixel. Their y axis is fixed to ``RESIDUAL_AXIS``: the traces stay in
+[0, 4] and the legend sits in the band above them. **Signal views** name their series and colours in the title
+and hide the in-plot legend, which would cover the traces (hovering a trace names it).
 """
 
 from __future__ import annotations
@@ -22,6 +29,8 @@ Rows = dict[str, dict[str, float]]
 """One row of every series group: group path under ``/turbine/<id>/`` → series name → value. A group is one entity
 holding several scalar series (one ``send_columns`` call for all of them); its names stay the same from row to row."""
 WINDOW_S = 120.0  # s of simulation time the time-series views follow behind the cursor
+MARGIN_DISPLAY_MAX = 4.0  # 1 + log10(1000): statistics above 1000× their threshold are drawn at the top
+RESIDUAL_AXIS = (0.0, 7.0)  # y range of the residual views: traces in [0, MARGIN_DISPLAY_MAX], the legend above
 
 # Colours: sensors grey/blue, fault-tolerant estimate green, non-fault-tolerant orange, truth black, faults red.
 SENSOR_1, SENSOR_2 = (120, 144, 200), (150, 150, 150)
@@ -52,8 +61,40 @@ def _window() -> list[rrb.VisibleTimeRange]:
     ]
 
 
+def display_margin(margin: Any) -> np.ndarray:
+    """Statistic / threshold as the residual views draw it: itself up to the trip line at 1, 1 + log₁₀ above
+    (monotonic and continuous at 1), at most ``MARGIN_DISPLAY_MAX``; NaN (no statistic) stays NaN."""
+    m = np.asarray(margin, dtype=float)
+    above = 1.0 + np.log10(np.maximum(m, 1.0), where=~np.isnan(m), out=np.full(m.shape, np.nan))
+    return np.minimum(np.where(m > 1.0, above, m), MARGIN_DISPLAY_MAX)
+
+
+def _margins(names: Any, margins: Any) -> dict[str, float]:
+    """The residual group's row: each statistic / threshold as drawn, and the trip line at 1."""
+    shown = display_margin(np.asarray(list(margins), dtype=float))
+    return dict(zip(names, map(float, shown), strict=True)) | {"threshold": 1.0}
+
+
 def _series_view(origin: str, name: str, window: bool = True) -> rrb.TimeSeriesView:
-    return rrb.TimeSeriesView(origin=origin, name=name, time_ranges=_window() if window else None)
+    """A signal view: its title names the series and their colours; no in-plot legend over the traces."""
+    return rrb.TimeSeriesView(
+        origin=origin,
+        name=name,
+        time_ranges=_window() if window else None,
+        plot_legend=rrb.PlotLegend(visible=False),
+    )
+
+
+def _residual_view(origin: str, name: str, contents: list[str] | None = None, legend: bool = True) -> Any:
+    """A residual view (module docstring): fixed y axis with the legend in the band above the traces."""
+    return rrb.TimeSeriesView(
+        origin=origin,
+        contents=contents if contents is not None else "$origin/**",
+        name=name,
+        time_ranges=_window(),
+        axis_y=rrb.ScalarAxis(range=RESIDUAL_AXIS),
+        plot_legend=rrb.PlotLegend(corner=rrb.Corner2D.LeftTop, visible=legend),
+    )
 
 
 def _states_view(turbine: int) -> rrb.StateTimelineView:
@@ -90,23 +131,35 @@ def _turbine_plant(sensors: np.void, truth: np.void | None) -> Rows:
 
 
 def _turbine_supervisor(sensors: np.void, refs: np.void, status: dict[str, Any]) -> Rows:
-    margins = {name: (float("nan") if m is None else m) for name, m in (status.get("margins") or {}).items()}
+    margins = status.get("margins") or {}
+    nan = float("nan")
     return {
         "speed/omega_g/supervisor": {"fault-tolerant estimate": refs["omega_g"]},
         "speed/omega_r/supervisor": {"fault-tolerant estimate": refs["omega_r"]},
         "wind/supervisor": {"FTE": refs["wind"], "NFTE": refs["wind_nfte"] if refs["nfte_set"] else float("nan")},
-        "residuals/supervisor": margins | {"threshold": 1.0},
+        "residuals/supervisor": _margins(margins, (nan if m is None else m for m in margins.values())),
     }
+
+
+_RESIDUAL_SCALE = "statistic / threshold, trips above 1 (above 1: 1 + log₁₀, 2 = 10×, 3 = 100×)"
 
 
 def _turbine_views(turbine: int) -> list[Any]:
     base = f"/turbine/{turbine}"
     return [
-        _series_view(f"{base}/speed/omega_g", f"T{turbine}: generator speed rad/s: sensors vs FTE vs truth"),
-        _series_view(f"{base}/speed/omega_r", f"T{turbine}: rotor speed rad/s: sensors vs FTE vs truth"),
-        _series_view(f"{base}/wind", f"T{turbine}: wind m/s: FTE vs NFTE vs anemometer vs true rotor-effective"),
-        _series_view(f"{base}/residuals", f"T{turbine}: residual / threshold per observer (trips above 1)"),
-        _series_view(f"{base}/power", f"T{turbine}: power MW"),
+        _series_view(
+            f"{base}/speed/omega_g",
+            f"T{turbine}: generator speed rad/s: sensors (blue, grey), FTE (green), truth (black)",
+        ),
+        _series_view(
+            f"{base}/speed/omega_r", f"T{turbine}: rotor speed rad/s: sensors (blue, grey), FTE (green), truth (black)"
+        ),
+        _series_view(
+            f"{base}/wind",
+            f"T{turbine}: wind m/s: FTE (green), NFTE (orange), anemometer (blue), true rotor-effective (black)",
+        ),
+        _residual_view(f"{base}/residuals", f"T{turbine}: {_RESIDUAL_SCALE} per observer"),
+        _series_view(f"{base}/power", f"T{turbine}: power MW: measured (blue), truth (black)"),
         _states_view(turbine),
     ]
 
@@ -166,21 +219,31 @@ def _hydro_supervisor(sensors: np.void, refs: np.void, status: dict[str, Any]) -
         rows[f"hydro/f/{target}/supervisor"] = {"f̂ (35)": refs["f_hat"][j], "f̂ filtered (37)": refs["correction"][j]}
         theta = thresholds.get(target)
         margins[target] = abs(float(refs["correction"][j])) / theta if theta else float("nan")
-    rows["residuals/supervisor"] = margins | {"threshold": 1.0}
+    rows["residuals/supervisor"] = _margins(margins, margins.values())
     return rows
 
 
 def _hydro_views(turbine: int) -> list[Any]:
     base = f"/turbine/{turbine}"
     return [
-        _series_view(f"{base}/hydro/f/u_p", f"T{turbine}: pump offset f_a1: true vs reconstruction (35) vs filtered"),
-        _series_view(f"{base}/hydro/f/u_M", f"T{turbine}: motor offset f_a2: true vs reconstruction vs filtered"),
         _series_view(
-            f"{base}/hydro/commands", f"T{turbine}: displacement commands: nominal vs corrected (36) vs applied"
+            f"{base}/hydro/f/u_p",
+            f"T{turbine}: pump offset f_a1: true (black), reconstruction (35) (orange), filtered (37) (green)",
         ),
-        _series_view(f"{base}/speed", f"T{turbine}: rotor and generator speed rad/s: sensor vs observer vs truth"),
-        _series_view(f"{base}/hydro/pressure", f"T{turbine}: pressure difference MPa: observer vs truth"),
-        _series_view(f"{base}/residuals", f"T{turbine}: |f̂_filt| / threshold (trips above 1)"),
+        _series_view(
+            f"{base}/hydro/f/u_M",
+            f"T{turbine}: motor offset f_a2: true (black), reconstruction (35) (orange), filtered (37) (green)",
+        ),
+        _series_view(
+            f"{base}/hydro/commands",
+            f"T{turbine}: displacement commands: nominal (grey), corrected (36) (green), applied (red)",
+        ),
+        _series_view(
+            f"{base}/speed",
+            f"T{turbine}: rotor and generator speed rad/s: sensor (blue), observer (green), truth (black)",
+        ),
+        _series_view(f"{base}/hydro/pressure", f"T{turbine}: pressure difference MPa: observer (green), truth (black)"),
+        _residual_view(f"{base}/residuals", f"T{turbine}: |f̂_filt| / {_RESIDUAL_SCALE}"),
         _states_view(turbine),
     ]
 
@@ -229,16 +292,18 @@ def _farm_turbine_supervisor(sensors: np.void, refs: np.void, status: dict[str, 
         margins = np.asarray(refs["statistic"], dtype=float) / np.asarray(refs["threshold"], dtype=float)
     return {
         "power/supervisor": {"reference": float(refs["power_ref"]) / 1e6},
-        "detector/supervisor": dict(zip(_FARM_TYPES, map(float, margins), strict=True)) | {"threshold": 1.0},
+        "detector/supervisor": _margins(_FARM_TYPES, margins),
     }
 
 
 def _farm_turbine_views(turbine: int) -> list[Any]:
     base = f"/turbine/{turbine}"
     return [
-        _series_view(f"{base}/power", f"T{turbine}: power MW: measured vs truth vs farm reference"),
-        _series_view(f"{base}/detector", f"T{turbine}: test statistic / threshold per fault type (trips above 1)"),
-        _series_view(f"{base}/wind", f"T{turbine}: wind m/s: anemometer vs rotor-effective vs row mean"),
+        _series_view(f"{base}/power", f"T{turbine}: power MW: measured (blue), truth (black), farm reference (orange)"),
+        _residual_view(f"{base}/detector", f"T{turbine}: CUSUM {_RESIDUAL_SCALE} per fault type"),
+        _series_view(
+            f"{base}/wind", f"T{turbine}: wind m/s: anemometer (blue), rotor-effective (black), row mean (grey)"
+        ),
         _states_view(turbine),
     ]
 
@@ -260,18 +325,19 @@ def _farm_supervisor(sensors: np.ndarray, refs: np.ndarray) -> Rows:
 
 def _farm_overview(turbines: list[int]) -> list[Any]:
     views: list[Any] = [
-        _series_view("/farm/power", "farm power vs demand MW (and the sum of the references)"),
-        rrb.TimeSeriesView(
-            origin="/turbine",
+        _series_view("/farm/power", "farm power MW (green) vs demand (black) and the sum of the references (orange)"),
+        _residual_view(  # 27 series: no legend; hovering a trace names its turbine
+            "/turbine",
+            f"CUSUM {_RESIDUAL_SCALE}, all turbines: debris (orange), pitch (purple), drive train (red)",
             contents=[f"/turbine/{t}/detector/**" for t in turbines],
-            name="CUSUM statistics / thresholds, all turbines (trips above 1)",
-            time_ranges=_window(),
+            legend=False,
         ),
         rrb.TimeSeriesView(
             origin="/turbine",
             contents=[f"/turbine/{t}/power/**" for t in turbines],
-            name="power per turbine vs its reference MW",
+            name="power per turbine MW: measured (blue), truth (black), its reference (orange)",
             time_ranges=_window(),
+            plot_legend=rrb.PlotLegend(visible=False),
         ),
         rrb.StateTimelineView(
             origin="/turbine",

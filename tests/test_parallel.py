@@ -16,10 +16,13 @@ from wwcore.scenario import parse_scenario
 def test_chunks_cover_every_run_once_and_depend_on_the_run_count_only():
     assert chunk_runs(1) == [[0]]
     assert chunk_runs(10, 5) == [[0, 2, 4, 6, 8], [1, 3, 5, 7, 9]]
-    for runs, chunk in ((3, 25), (25, 25), (51, 25), (100, 50), (100, 25)):
+    assert chunk_runs(20, 50) == [list(range(0, 20, 2)), list(range(1, 20, 2))]  # two cores busy below 50 runs
+    for runs, chunk in ((2, 25), (3, 25), (25, 25), (51, 25), (100, 50), (100, 25), (101, 50), (7, 1)):
         chunks = chunk_runs(runs, chunk)
-        assert len(chunks) == -(-runs // chunk)
+        fewest = -(-runs // chunk)
+        assert len(chunks) == min(runs, fewest + fewest % 2)  # the fewest, in pairs (one per run at most)
         assert max(len(c) for c in chunks) <= chunk
+        assert max(len(c) for c in chunks) - min(len(c) for c in chunks) <= 1
         assert sorted(r for c in chunks for r in c) == list(range(runs))
 
 

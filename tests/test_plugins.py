@@ -10,6 +10,7 @@ import pytest
 from service.plugins import (
     FARM_CONTROLLERS,
     FARM_DETECTORS,
+    HYDRO_DETECTORS,
     HYDRO_OBSERVERS,
     TURBINE_DETECTORS,
     TURBINE_ESTIMATORS,
@@ -22,12 +23,14 @@ EXAMPLE = Path(__file__).resolve().parents[1] / "docs" / "examples" / "median_vo
 
 
 def test_every_role_has_a_none_entry():
-    for registry in (TURBINE_DETECTORS, TURBINE_ESTIMATORS, FARM_DETECTORS, FARM_CONTROLLERS, HYDRO_OBSERVERS):
+    registries = (TURBINE_DETECTORS, TURBINE_ESTIMATORS, FARM_DETECTORS, FARM_CONTROLLERS, HYDRO_OBSERVERS)
+    for registry in (*registries, HYDRO_DETECTORS):
         assert "none" in registry.names(), registry.role
+        assert registry.default in registry.names(), registry.role
 
 
 def test_registry_refuses_unknown_and_duplicate_names():
-    registry: Registry[object] = Registry("test role", "for this test")
+    registry: Registry[object] = Registry("test role", "for this test", default="a")
 
     @registry.register("a")
     class A:

@@ -56,10 +56,15 @@ def test_each_torque_picks_the_design_nearest_it_on_a_log_scale():
     np.testing.assert_array_equal(power_speed_band(edges * 0.999, P), np.arange(len(edges)))
     np.testing.assert_array_equal(power_speed_band(edges * 1.001, P), np.arange(1, len(designs)))
     assert power_speed_band(np.array([0.0, 2.0 * P.rated_torque]), P).tolist() == [0, len(designs) - 1]
+    # in region 3 (zone 1) the rigid design that follows the torque bands, whatever the torque
+    zone = np.array([0, 1, 1])
+    torque = np.array([0.1, 0.1, 1.0]) * P.rated_torque
+    assert power_speed_band(torque, P, zone).tolist() == [0, len(designs), len(designs)]
 
 
 def test_observers_5pe_read_no_generator_speed_sensor():
-    assert [DESIGN.names[j] for j in PE] == ["5-pe15", "5-pe35", "5-pe80"]
+    assert [DESIGN.names[j] for j in PE] == ["5-pe15", "5-pe35", "5-pe80", "5-pe-r3"]
+    assert [DESIGN.observers[j].kind for j in PE] == ["kalman", "kalman", "kalman", "rigid"]
     assert min(PE) >= DESIGN.n_isolating and DESIGN.reference == len(DESIGN.names) - 1
     generator = [DESIGN.inputs.index(s) for s in GENERATOR]
     for j in PE:

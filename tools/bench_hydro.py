@@ -39,7 +39,7 @@ def bench_loop(n: int, seconds: float) -> float:
     scenario = load_scenario("hydro-fig9")
     seeds = [np.random.SeedSequence(0, spawn_key=(0, i)) for i in range(n)]
     plant = HydroTurbineBatch(scenario.plant, scenario.wind, list(scenario.faults), seeds)
-    sup = HydroSupervisor(n=n, params=plant.nominal, observer_params=scenario.supervisor.params)
+    sup = HydroSupervisor(n=n, params=plant.nominal, options=scenario.supervisor.params)
     refs = None
     t0 = time.perf_counter()
     for _ in range(round(seconds / plant.dt)):

@@ -13,7 +13,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from wwcore.turbine_frames import TurbineFrame
+from wwcore.turbine_frames import OMEGA_G_MAX, OMEGA_R_MAX, POWER_MAX, TurbineFrame
+from wwcore.turbine_params import BENCHMARK
 
 MIN_SPEED_FRACTION = 0.5  # –, ω_min = 0.5 Ω_nom: the lowest speed set point a farm turbine derates to [PROPOSED]
 DEBRIS_MODE = 1  # accommodation mode (wire ``mode``): eqs. (23)–(24), the reference raised by 1/0.97
@@ -66,3 +67,19 @@ class FarmRefs:
     @property
     def source_tick(self) -> int:
         return self.tick if self.computed_tick is None else self.computed_tick
+
+
+# -- what the plant takes: the physical range of each farm.refs field it acts on (wwcore.wire.WireField.limits) ----
+TORQUE_MAX = 1.2 * BENCHMARK.rated_torque + BENCHMARK.B_g * OMEGA_G_MAX  # N m: converter limit + friction at overspeed
+RIPPLE_RATE_MAX = 3.0 * OMEGA_R_MAX  # rad/s, the 3P frequency at the overspeed limit
+PITCH_TRIM_MAX = 5.0  # deg, the largest blade misalignment of the farm's fault model (wwcore.scenario.farm)
+
+FARM_REFS_LIMITS = {
+    "power_ref": (0.0, POWER_MAX, ("computed_tick", ">=", 0)),  # W, on the rows that carry a reference
+    "mode": (0, len(DISPATCH_MODES) - 1, None),
+    "held_torque": (0.0, TORQUE_MAX, ("mode", "==", HOLD_TORQUE_MODE)),  # N m
+    "pitch_trim": (-PITCH_TRIM_MAX, PITCH_TRIM_MAX, None),  # deg
+    "ripple_power": (-POWER_MAX, POWER_MAX, None),  # W
+    "ripple_rate": (0.0, RIPPLE_RATE_MAX, None),  # rad/s
+}
+"""``farm.refs`` field → (lowest, highest, the rows the range holds on), as ``turbine_frames.TURBINE_REFS_LIMITS``."""

@@ -11,6 +11,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from wwcore.hydro_params import NOMINAL
+
 
 @dataclass(frozen=True)
 class HydroFrame:
@@ -33,3 +35,8 @@ class HydroRefs:
     f_hat: np.ndarray  # (n, 2) unfiltered reconstruction, eq. (35)
     x_hat: np.ndarray  # (n, 6) observer states [ω_r, ω_g, Δp, T_g, x̃_p, x̃_M]
     flagged: np.ndarray  # (n, 2) bool: the detector flags [u_p, u_M] as faulty
+
+
+HYDRO_REFS_LIMITS = {"correction": (-NOMINAL.stroke_max, NOMINAL.stroke_max, ("apply", "==", True))}
+"""What the plant takes (``wwcore.wire.WireField.limits``): a correction of the displacement commands (normalised
+stroke) beyond ± the stroke limit means nothing; it holds on the rows whose correction is to be applied."""

@@ -12,6 +12,12 @@ One tick k of a plant (sample time ``dt``):
 Batch mode runs these four calls in one loop; lockstep runs 1–2–4 in the plant process and 3 in the
 supervisor process, the plant waiting for refs_k before tick k+1; realtime is lockstep that does not wait past
 the tick's deadline. The same objects run in all three, so the same scenario and seed give the same results.
+
+Over the network a sensor frame can be lost (real time: best effort). A supervisor may then be given, before the
+frame that follows the gap, ``supervisor.bridge(frame)`` once per missing tick, with ``frame`` interpolated from
+the frames either side: it advances its observers through the tick and takes no decision (no test statistic takes
+the made-up sample, no event). A supervisor without ``bridge`` holds everything through the gap.
+``windwarden.live.guard`` says why and when; batch and lockstep never lose a frame, so they never call it.
 """
 
 from __future__ import annotations
@@ -38,3 +44,9 @@ class Plant(Protocol):
 class Supervisor(Protocol):
     def step(self, frame: Any) -> Any: ...
     def drain_events(self) -> list[Event]: ...
+
+
+class Bridging(Protocol):
+    """A supervisor that can advance through a tick whose frame was lost (optional, see the module docstring)."""
+
+    def bridge(self, frame: Any) -> None: ...

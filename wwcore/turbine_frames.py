@@ -10,6 +10,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from wwcore.turbine_params import BENCHMARK
+
 
 @dataclass
 class TurbineFrame:
@@ -38,3 +40,23 @@ class TurbineRefs:
     omega_r: np.ndarray  # (n,) rad/s, fault-tolerant rotor speed estimate
     wind: np.ndarray  # (n,) m/s, fault-tolerant rotor-effective wind estimate
     power_ref: np.ndarray | None = None  # (n,) W, per-turbine power reference (farm dispatch); None keeps P_r
+
+
+# -- what the plant takes: the physical range of each refs field it acts on (wwcore.wire.WireField.limits) --------
+OVERSPEED = 1.2
+"""× rated generator speed: the overspeed limit of the benchmark turbine (a multi-MW turbine's overspeed protection
+trips at 1.1–1.2 × rated); no speed estimate above it is one the controller may act on."""
+OMEGA_G_MAX = OVERSPEED * BENCHMARK.omega_nom  # rad/s, 194.4
+OMEGA_R_MAX = OMEGA_G_MAX / BENCHMARK.N_g  # rad/s, 2.05
+REFS_WIND_MAX = 70.0  # m/s, the IEC class I extreme 3-s gust (1.4 × 50 m/s): no turbine runs in a stronger wind
+POWER_MAX = BENCHMARK.rated_power  # W: no benchmark turbine can be asked for more than P_r
+_VALID = ("valid", "==", True)  # the estimates may be used
+
+TURBINE_REFS_LIMITS = {
+    "omega_g": (0.0, OMEGA_G_MAX, _VALID),  # rad/s
+    "omega_r": (0.0, OMEGA_R_MAX, _VALID),  # rad/s
+    "wind": (0.0, REFS_WIND_MAX, _VALID),  # m/s
+    "power_ref": (0.0, POWER_MAX, ("power_ref_set", "==", True)),  # W
+    "wind_nfte": (0.0, REFS_WIND_MAX, ("nfte_set", "==", True)),  # m/s
+}
+"""``turbine.refs`` field → (lowest, highest, the rows the range holds on: (field, "==" or ">=", value) or None)."""

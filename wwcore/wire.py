@@ -26,14 +26,18 @@ one packed little-endian record whose layout is the schema's fields in order. Fl
 lockstep run sees bit for bit what the batch loop sees. JSON messages (the control plane, a few per second) are
 ``{"schema": name, "v": version, "body": {...}}``. A message with an unknown schema or version, a bad length or a
 bad body raises ``WireError``; receivers drop it and count it (``DropCounter``), never crash.
+
+A message that decodes is not yet trusted. The refs fields a plant acts on carry their physical range
+(``WireField.limits``, in the field's unit, declared once per plant kind next to its frames: ``*_REFS_LIMITS`` in
+``wwcore.turbine_frames``, ``hydro_frames``, ``farm_frames``); ``MessageSchema.refusal`` says whether a refs record
+is finite and inside them, and the plant refuses it otherwise. Sensor frames carry the plant's run identity (``run``),
+so the supervisor can tell a new run from an old or replayed frame.
 """
 
 from __future__ import annotations
 
 import json
 import re
-import threading
-from collections import Counter
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from enum import StrEnum
@@ -43,7 +47,12 @@ from typing import Any
 import numpy as np
 
 from wwcore.channels import N_SENSORS, SENSOR_NAMES, SENSORS
+from wwcore.farm_frames import FARM_REFS_LIMITS
+from wwcore.hydro_frames import HYDRO_REFS_LIMITS
 from wwcore.hydro_params import FAULT_TARGETS, U_NAMES, X_NAMES, Y_NAMES, Y_UNITS
+from wwcore.turbine_frames import TURBINE_REFS_LIMITS
+from wwcore.wire_check import DropCounter as DropCounter  # exported with the codec: every receiver counts its drops
+from wwcore.wire_check import RangeCheck, with_limits
 
 MAGIC = b"WW"
 HEADER = np.dtype([("magic", "S2"), ("code", "u1"), ("version", "u1")])
@@ -65,6 +74,15 @@ class DropReason(StrEnum):
     BAD_LENGTH = "bad_length"
     BAD_BODY = "bad_body"
     INCOMPLETE = "incomplete"  # a tick whose rows never all arrived (multi-turbine plants)
+    # Messages that decode but are refused (``MessageSchema.refusal`` and the nodes' tick and run checks):
+    NON_FINITE = "non_finite"  # a field the plant acts on is NaN or infinite
+    OUT_OF_RANGE = "out_of_range"  # a field the plant acts on is outside its physical range
+    FUTURE_TICK = "future_tick"  # refs for a tick the plant has not measured yet
+    STALE_TICK = "stale_tick"  # refs older than the plant's window (max_ref_age ticks)
+    REPEATED_TICK = "repeated_tick"  # a second message for a tick already taken
+    OLD_TICK = "old_tick"  # a sensor frame older than the last one stepped, same run
+    FOREIGN_RUN = "foreign_run"  # a sensor frame whose run identity the plant does not confirm
+    UNCONFIRMED_TICK = "unconfirmed_tick"  # a sensor frame far ahead of the last, beyond the plant's own tick
 
 
 # -- binary schemas ------------------------------------------------------------------------------------------------
@@ -78,6 +96,8 @@ class WireField:
     doc: str
     shape: tuple[int, ...] = ()
     columns: tuple[str, ...] = ()  # names of the elements of a vector field, in order
+    limits: tuple[float, float] | None = None  # physical range [lo, hi] in ``unit``; NaN and ±inf are outside it
+    when: tuple[str, str, float] | None = None  # (field, "==" or ">=", value): the rows the limits hold on
 
 
 @dataclass(frozen=True)
@@ -126,11 +146,28 @@ class MessageSchema:
             raise WireError(DropReason.BAD_LENGTH, f"{self.name}: {len(payload)} bytes, expected {self.size}")
         return np.frombuffer(payload, dtype=self.dtype, count=1, offset=HEADER.itemsize)[0]
 
+    @cached_property
+    def limited(self) -> tuple[WireField, ...]:
+        """The fields with a physical range, in declaration order."""
+        return tuple(f for f in self.fields if f.limits is not None)
+
+    @cached_property
+    def range_check(self) -> RangeCheck:
+        return RangeCheck(self.dtype, self.limited)
+
+    def refusal(self, records: np.ndarray) -> DropReason | None:
+        """Why the plant must refuse ``records`` (one row per turbine), or None: a limited field that is not finite
+        (``NON_FINITE``) or outside its range (``OUT_OF_RANGE``) on a row where its limits hold."""
+        reason = self.range_check(records)
+        return None if reason is None else DropReason(reason)
+
     def describe(self) -> list[dict[str, Any]]:
         """The fields as a table (for docs and the API)."""
         return [
             {"field": f.name, "dtype": np.dtype(f.dtype).name, "shape": list(f.shape), "unit": f.unit, "doc": f.doc}
             | ({"columns": list(f.columns)} if f.columns else {})
+            | ({"limits": list(f.limits)} if f.limits else {})
+            | ({"limits_when": " ".join(map(str, f.when))} if f.when else {})
             for f in self.fields
         ]
 
@@ -157,15 +194,20 @@ def _tick_fields() -> tuple[WireField, ...]:
     )
 
 
+def _frame_fields() -> tuple[WireField, ...]:
+    """The head of every sensor frame: the tick fields and the plant's run identity."""
+    return (*_tick_fields(), WireField("run", "<u8", "–", "run identity: a random number the plant draws per run"))
+
+
 _SENSOR_UNITS = ", ".join(f"{c.name} [{c.unit}]" for c in SENSORS)
 
 TURBINE_SENSORS = MessageSchema(
     "turbine.sensors",
     1,
-    1,
+    2,  # v2: run
     "What a benchmark turbine measures at tick k, and its controller's outputs of tick k−1 (TurbineFrame row).",
     (
-        *_tick_fields(),
+        *_frame_fields(),
         WireField("sensors", "<f8", "per column", f"readings y_k: {_SENSOR_UNITS}", (N_SENSORS,), SENSOR_NAMES),
         WireField("tau_g_ref", "<f8", "N m", "converter torque reference issued at tick k−1"),
         WireField("beta_ref", "<f8", "deg", "collective pitch reference issued at tick k−1"),
@@ -194,6 +236,7 @@ TURBINE_REFS = MessageSchema(
         WireField("selected", "<i2", "–", "index of the observer in use (−1 none)"),
     ),
 )
+TURBINE_REFS = with_limits(TURBINE_REFS, TURBINE_REFS_LIMITS)
 
 TURBINE_TRUTH = MessageSchema(
     "turbine.truth",
@@ -217,10 +260,10 @@ TURBINE_TRUTH = MessageSchema(
 HYDRO_SENSORS = MessageSchema(
     "hydro.sensors",
     4,
-    1,
+    2,  # v2: run
     "What the hydrostatic turbine measures at tick k and the commands it received over tick k−1 (HydroFrame row).",
     (
-        *_tick_fields(),
+        *_frame_fields(),
         WireField("y", "<f8", ", ".join(Y_UNITS), "measured outputs y_k (with noise)", (len(Y_NAMES),), Y_NAMES),
         WireField("u", "<f8", "–, –, N m", "commands sent over tick k−1 (after correction)", (len(U_NAMES),), U_NAMES),
     ),
@@ -240,6 +283,7 @@ HYDRO_REFS = MessageSchema(
         WireField("flagged", "?", "–", "the detector flags [u_p, u_M] as faulty", (2,), FAULT_TARGETS),
     ),
 )
+HYDRO_REFS = with_limits(HYDRO_REFS, HYDRO_REFS_LIMITS)
 
 HYDRO_TRUTH = MessageSchema(
     "hydro.truth",
@@ -275,11 +319,11 @@ _FARM_TYPES = ("debris", "pitch_misalignment", "drivetrain")  # wwcore.scenario.
 FARM_SENSORS = MessageSchema(
     "farm.sensors",
     8,
-    1,
+    2,  # v2: run
     "One farm turbine's frame at tick k (FarmFrame row): its own sensors and controller outputs (as turbine.sensors), "
     "and on 10 Hz farm samples its SCADA means, the met mast and the farm demand (the same on every turbine's row).",
     (
-        *_tick_fields(),
+        *_frame_fields(),
         WireField("sensors", "<f8", "per column", f"readings y_k: {_SENSOR_UNITS}", (N_SENSORS,), SENSOR_NAMES),
         WireField("tau_g_ref", "<f8", "N m", "converter torque reference issued at tick k−1"),
         WireField("beta_ref", "<f8", "deg", "collective pitch reference issued at tick k−1"),
@@ -337,6 +381,7 @@ FARM_REFS = MessageSchema(
         WireField("ripple_rate", "<f8", "rad/s", "ω of ripple_power (0: none)"),
     ),
 )
+FARM_REFS = with_limits(FARM_REFS, FARM_REFS_LIMITS)
 
 FARM_TRUTH = MessageSchema(
     "farm.truth",
@@ -408,26 +453,6 @@ def decode_json(schema: str, payload: bytes) -> dict[str, Any]:
     if not isinstance(body, dict):
         raise WireError(DropReason.BAD_BODY, f"{schema}: body is not an object")
     return body
-
-
-class DropCounter:
-    """Messages dropped by a receiver, by (stream, reason). Safe to bump from any thread."""
-
-    def __init__(self) -> None:
-        self._lock = threading.Lock()
-        self.counts: Counter[tuple[str, str]] = Counter()
-
-    def add(self, stream: str, reason: str) -> None:
-        with self._lock:
-            self.counts[(stream, str(reason))] += 1
-
-    def total(self) -> int:
-        with self._lock:
-            return sum(self.counts.values())
-
-    def as_dict(self) -> dict[str, int]:
-        with self._lock:
-            return {f"{stream}:{reason}": n for (stream, reason), n in sorted(self.counts.items())}
 
 
 # -- the key-expression tree ---------------------------------------------------------------------------------------

@@ -22,7 +22,7 @@ loop and the constant-power torque of the benchmark are used unchanged with Ω_n
     zone 0: β_ref = 0, τ_g,r = K_opt ω_g²;      zone 1: β_ref = PI(ω_g − ω_set), τ_g,r = P_r/(η_gc ω_g)
 
 **Derating at held torque** [PROPOSED], for a turbine whose reference comes with ``hold_torque`` (the dispatch's
-drive-train accommodation, ``service.farm.dispatch``). The sum S = τ_g,r + B_g ω_g (N_g S/η_dt is the shaft torque
+drive-train accommodation, ``service.farm.hold``). The sum S = τ_g,r + B_g ω_g (N_g S/η_dt is the shaft torque
 in steady state) is latched when the hold begins, capped by ``held_torque`` when the reference carries one (S then
 slews down to the cap at the torque equivalent of ``RAMP_FRACTION_PER_S``), and the speed set point carries the
 derating:

@@ -36,12 +36,13 @@ from plant_sim.farm.wind import (
 from plant_sim.turbine import TurbineBatch
 from plant_sim.turbine.dynamics import OMEGA_G, OMEGA_R, PITCH, TAU_G, THETA
 from plant_sim.turbine.plant import row_streams
-from plant_sim.turbine.trim import trim
+from plant_sim.turbine.trim import PlantAero, trim
 from wwcore.channels import N_SENSORS
 from wwcore.events import Event
 from wwcore.farm_frames import FarmFrame, FarmRefs
 from wwcore.scenario.farm import FARM_DT_S, N_TURBINES, FarmPlant
 from wwcore.scenario.faults import FaultSpec
+from wwcore.scenario.mismatch import Mismatch
 from wwcore.scenario.turbine import TurbinePlant
 from wwcore.scenario.wind import WindSpec
 from wwcore.turbine_params import BENCHMARK, TurbineParams
@@ -78,7 +79,13 @@ def demand_series(plant: FarmPlant, params: TurbineParams, mast: MastSeries, dur
 
 
 class FarmBatch:
-    """``runs`` Monte Carlo runs of the farm (and their fault-free twins), one 100 Hz tick per step call."""
+    """``runs`` Monte Carlo runs of the farm (and their fault-free twins), one 100 Hz tick per step call.
+
+    ``mismatch`` (a scenario's ``[mismatch]`` section) gives each turbine of each run its own plant
+    (``plant_sim.turbine.mismatch``): drawn per turbine and run from the section's spread, or set per turbine. The
+    wakes see each rotor's own air density; the demand's available-power estimate stays the design model's, as a
+    grid operator's would.
+    """
 
     def __init__(
         self,
@@ -91,6 +98,7 @@ class FarmBatch:
         runs: Sequence[int] = (0,),
         params: TurbineParams = BENCHMARK,
         fault_free_twins: bool = False,
+        mismatch: Mismatch | None = None,
     ):
         self.spec = plant
         self.p = params
@@ -131,7 +139,10 @@ class FarmBatch:
             params=params,
             wind_field=self.field,
             fault_free_twins=fault_free_twins,
+            mismatch=mismatch,
         )
+        if mismatch is not None:
+            self.field.set_air_density(params.rho * self.turbines.mismatch.density_ratio)
         self.n = self.turbines.n
         self.controller = FarmTurbineController(params, self.n, params.rated_power, plant.cancel_3p_in_hold)
         self.turbines.controller = self.controller
@@ -146,18 +157,39 @@ class FarmBatch:
     # -- set-up -----------------------------------------------------------------------------------------------
     def _trim(self, wind0: np.ndarray) -> None:
         """Start every turbine at the steady operating point of its row's initial mean wind, at rated reference."""
+        m = self.turbines.mismatch
+        if not m.aero_nominal:
+            self._trim_each(wind0)
+            return
         points = [trim(self.p, float(v)) for v in TRIM_WINDS]
         x = self.turbines.x
         table = {name: np.array([getattr(op, name) for op in points]) for name in ("omega_r", "theta", "tau_g")}
         x[:, OMEGA_R] = np.interp(wind0, TRIM_WINDS, table["omega_r"])
         x[:, OMEGA_G] = x[:, OMEGA_R] * self.p.N_g
-        x[:, THETA] = np.interp(wind0, TRIM_WINDS, table["theta"])
+        x[:, THETA] = np.interp(wind0, TRIM_WINDS, table["theta"]) / m.stiffness_factor
         x[:, TAU_G] = np.interp(wind0, TRIM_WINDS, table["tau_g"])
         pitch = np.interp(wind0, TRIM_WINDS, [op.pitch for op in points])
         zone = np.interp(wind0, TRIM_WINDS, [op.zone for op in points]) >= 0.5
         x[:, PITCH] = pitch[:, None]
         x[:, PITCH + 1] = 0.0
         self.controller.initialise(zone.astype(np.int8), pitch, x[:, TAU_G].copy())
+
+    def _trim_each(self, wind0: np.ndarray) -> None:
+        """``_trim`` for turbines whose aerodynamics differ from the design's: each its own equilibrium."""
+        m, x = self.turbines.mismatch, self.turbines.x
+        keys = np.column_stack([wind0, m.aero_factor, m.tsr_shift])
+        distinct, which = np.unique(keys, axis=0, return_inverse=True)
+        points = [trim(self.p, float(v), None, PlantAero(float(f), float(s))) for v, f, s in distinct]
+        which = which.ravel()
+        for name, col in (("omega_r", OMEGA_R), ("theta", THETA), ("tau_g", TAU_G)):
+            x[:, col] = np.array([getattr(op, name) for op in points])[which]
+        x[:, OMEGA_G] = x[:, OMEGA_R] * self.p.N_g
+        x[:, THETA] /= m.stiffness_factor
+        pitch = np.array([op.pitch for op in points])[which]
+        x[:, PITCH] = pitch[:, None]
+        x[:, PITCH + 1] = 0.0
+        zone = np.array([op.zone for op in points], dtype=np.int8)[which]
+        self.controller.initialise(zone, pitch, x[:, TAU_G].copy())
 
     def row_of(self, farm: int, turbine: int) -> int:
         return farm * N_TURBINES + turbine - 1

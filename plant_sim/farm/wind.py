@@ -239,6 +239,10 @@ class FarmWindField(WindField):
         self._base = vm + own * (self._base - vm) + shared * (rf._base[:, idx] - rf._mean[:, idx])
         self._u3 = own * self._u3 + shared * rf._u3[:, idx]
 
+    def set_air_density(self, rho: np.ndarray) -> None:
+        """Each turbine's own air density (n,) kg/m³: its C_T is read from its aerodynamic power against ½ρπR²v³."""
+        self._area_power = 0.5 * np.asarray(rho, dtype=float) * math.pi * self.params.radius**2
+
     # -- the farm sample --------------------------------------------------------------------------------------
     def row_means(self, j: int, ct_rows: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(free stream, waked mean) of every row at farm sample j (t = j·FARM_DT_S), each (farms, rows), m/s."""

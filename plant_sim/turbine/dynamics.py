@@ -22,7 +22,8 @@ Drive train (two-mass model, a.2) and converter::
     τ̇_g     = α_gc (τ_g,r + Δτ − τ_g),       ψ̇ = ω_r
 
 Pitch actuator i: β̈_i = ω_n,i² (β_ref,i − β_i) − 2ζ_i ω_n,i β̇_i.
-Aerodynamics per blade: τ_r,i = (ρπR³/6) C_q(λ_i, β_i + δβ_i) v_i², λ_i = ω_r R / v_i, τ_r = Σ τ_r,i.
+Aerodynamics per blade: τ_r,i = (ρπR³/6) C_q(λ_i, β_i + δβ_i) v_i², λ_i = ω_r R / v_i, τ_r = Σ τ_r,i; a plant
+that differs from the design model scales this by s ρ/ρ_0 and moves C_p by Δλ (``plant_sim.turbine.mismatch``).
 
 Given the aerodynamic torque, everything above is linear. The plant therefore integrates exactly: the linear
 part is discretised with a zero-order hold on its inputs (τ_r, τ_g,r + Δτ, β_ref,i) by the matrix exponential,
@@ -80,6 +81,32 @@ def pitch_matrices(a0: np.ndarray, a1: np.ndarray) -> tuple[np.ndarray, np.ndarr
     return A, B
 
 
+def plant_torque_coefficient(tsr: np.ndarray, pitch_deg: np.ndarray, tsr_shift: np.ndarray) -> np.ndarray:
+    """C_p(λ − Δλ, β)/λ (–): a plant's C_q before its scale s (``plant_sim.turbine.mismatch``), held below
+    λ_e = 1 + |Δλ|.
+
+    ``tsr`` (–) and ``pitch_deg`` (deg) broadcast with ``tsr_shift`` (–). With Δλ = 0 this is C_q(λ, β).
+    """
+    lam = np.maximum(tsr, 1.0 + np.abs(tsr_shift))
+    return aero.power_coefficient(lam - tsr_shift, pitch_deg) / lam
+
+
+def plant_power_coefficient(
+    tsr: np.ndarray, pitch_deg: np.ndarray, cp_scale: np.ndarray, tsr_shift: np.ndarray
+) -> np.ndarray:
+    """C_p,plant(λ, β) = s C_p(λ − Δλ, β) (–) for λ ≥ 1 + |Δλ| (``plant_sim.turbine.mismatch``)."""
+    return cp_scale * aero.power_coefficient(tsr - tsr_shift, pitch_deg)
+
+
+def torsion_mode(p: TurbineParams, stiffness_factor: float, damping_factor: float) -> tuple[float, float]:
+    """(damping ratio ζ (–), damped frequency (Hz)) of the drive train's torsion mode: the oscillatory eigenvalue
+    pair of the [ω_r, ω_g, θ_Δ] block of ``mechanical_matrices`` with K_dt and B_dt scaled by the factors."""
+    a, _ = mechanical_matrices(p, np.array([p.eta_dt]), np.array([stiffness_factor]), np.array([damping_factor]))
+    poles = np.linalg.eigvals(a[0, :3, :3])
+    mode = poles[np.argmax(np.abs(poles.imag))]
+    return float(-mode.real / abs(mode)), float(abs(mode.imag) / (2.0 * np.pi))
+
+
 class TurbineDynamics:
     """Aerodynamic torque and the continuous-time derivative (the latter for tests and reference)."""
 
@@ -87,14 +114,35 @@ class TurbineDynamics:
         self.p = params
         self.blade_gain = params.rho * np.pi * params.radius**3 / 6.0  # ρπR³/6, per blade
 
-    def aero_torque(self, omega_r: np.ndarray, pitch: np.ndarray, wind: np.ndarray, factor: np.ndarray) -> np.ndarray:
+    def aero_torque(
+        self,
+        omega_r: np.ndarray,
+        pitch: np.ndarray,
+        wind: np.ndarray,
+        factor: np.ndarray,
+        tsr_shift: np.ndarray | None = None,
+    ) -> np.ndarray:
         """τ_r = Σ_i (ρπR³/6) C_q(λ_i, β_i) v_i² in N m; pitch (n,3) in deg, wind (n,3) in m/s."""
-        return self.blade_torques(omega_r, pitch, wind, factor).sum(axis=1)
+        return self.blade_torques(omega_r, pitch, wind, factor, tsr_shift).sum(axis=1)
 
-    def blade_torques(self, omega_r: np.ndarray, pitch: np.ndarray, wind: np.ndarray, factor: np.ndarray) -> np.ndarray:
-        """τ_r,i = (ρπR³/6) C_q(λ_i, β_i) v_i² of each blade, (n, 3) in N m (``aero_torque`` is their sum)."""
+    def blade_torques(
+        self,
+        omega_r: np.ndarray,
+        pitch: np.ndarray,
+        wind: np.ndarray,
+        factor: np.ndarray,
+        tsr_shift: np.ndarray | None = None,
+    ) -> np.ndarray:
+        """τ_r,i = factor (ρπR³/6) C_q(λ_i, β_i) v_i² of each blade, (n, 3) in N m (``aero_torque`` is their sum).
+
+        ``factor`` (n,) multiplies the gain (the plant's s ρ/ρ_0); ``tsr_shift`` (n,) Δλ, when given, evaluates the
+        plant's surface C_p(λ − Δλ, β)/λ instead of the design's C_q (``plant_sim.turbine.mismatch``).
+        """
         tsr = omega_r[:, None] * (self.p.radius / wind)
-        cq = aero.torque_coefficient(tsr, pitch)
+        if tsr_shift is None:
+            cq = aero.torque_coefficient(tsr, pitch)
+        else:
+            cq = plant_torque_coefficient(tsr, pitch, np.asarray(tsr_shift, dtype=float)[:, None])
         return (self.blade_gain * np.asarray(factor, dtype=float))[..., None] * (cq * (wind * wind))
 
     def derivative(self, x, tau_g_ref, pitch_ref, wind, faults) -> np.ndarray:
@@ -102,7 +150,8 @@ class TurbineDynamics:
         p = self.p
         out = np.zeros_like(x)
         omega_r, omega_g, theta, tau_g = x[:, OMEGA_R], x[:, OMEGA_G], x[:, THETA], x[:, TAU_G]
-        tau_r = self.aero_torque(omega_r, x[:, PITCH] + faults.pitch_offset, wind, faults.aero_factor)
+        shift = faults.healthy.tsr_shift if faults.healthy.shifted else None
+        tau_r = self.aero_torque(omega_r, x[:, PITCH] + faults.pitch_offset, wind, faults.aero_factor, shift)
         k_dt, b_dt = p.K_dt * faults.stiffness_factor, p.B_dt * faults.damping_factor
         shaft = k_dt * theta + b_dt * (omega_r - omega_g / p.N_g)
         out[:, OMEGA_R] = (tau_r - shaft - p.B_r * omega_r) / p.J_r

@@ -10,6 +10,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from plant_sim.turbine.mismatch import RowMismatch, nominal
 from wwcore.channels import N_SENSORS, SENSOR_INDEX, Component
 from wwcore.scenario.faults import FaultKind, FaultSpec
 from wwcore.turbine_params import TurbineParams
@@ -19,10 +20,15 @@ PITCH_COMPONENTS = {Component.PITCH_ACTUATOR_1: 0, Component.PITCH_ACTUATOR_2: 1
 
 @dataclass
 class FaultState:
-    """The effect of every active fault on every row of the batch, at the current tick."""
+    """The effect of every active fault on every row of the batch, at the current tick.
+
+    ``healthy`` holds the healthy plant's own parameters (``plant_sim.turbine.mismatch``): with no fault active the
+    pitch actuators, drive-train factors and aerodynamic factor are the plant's, not the design model's.
+    """
 
     n: int
     params: TurbineParams
+    healthy: RowMismatch | None = None
     gain: np.ndarray = field(init=False)  # (n, N_SENSORS) multiplies truth + noise
     offset: np.ndarray = field(init=False)  # (n, N_SENSORS) added to the reading
     drift_rate: np.ndarray = field(init=False)  # (n, N_SENSORS) unit/s, times (t − drift_start)
@@ -37,7 +43,7 @@ class FaultState:
     pitch_offset: np.ndarray = field(init=False)  # (n, 3) deg added to each blade's actual pitch
     torque_offset: np.ndarray = field(init=False)  # (n,) N m added to the converter's torque reference
     eta_dt: np.ndarray = field(init=False)  # (n,) drive-train efficiency
-    aero_factor: np.ndarray = field(init=False)  # (n,) multiplies the aerodynamic torque (no kind sets it yet)
+    aero_factor: np.ndarray = field(init=False)  # (n,) multiplies the aerodynamic torque (the plant's s ρ/ρ_0)
     stiffness_factor: np.ndarray = field(init=False)  # (n,) multiplies K_dt
     damping_factor: np.ndarray = field(init=False)  # (n,) multiplies B_dt
     power_factor: np.ndarray = field(init=False)  # (n,) multiplies the electrical power output (farm debris)
@@ -49,10 +55,12 @@ class FaultState:
     mesh_active: bool = False
 
     def __post_init__(self) -> None:
+        if self.healthy is None:
+            self.healthy = nominal(self.params, self.n)
         self.reset()
 
     def reset(self) -> None:
-        n, p = self.n, self.params
+        n, m = self.n, self.healthy
         self.gain = np.ones((n, N_SENSORS))
         self.offset = np.zeros((n, N_SENSORS))
         self.drift_rate = np.zeros((n, N_SENSORS))
@@ -62,14 +70,14 @@ class FaultState:
         self.fixed_value = np.zeros((n, N_SENSORS))
         self.stuck = np.zeros((n, N_SENSORS), dtype=bool)
         self.stuck_value = np.zeros((n, N_SENSORS))
-        self.pitch_a0 = np.full((n, 3), p.pitch.omega_n**2)
-        self.pitch_a1 = np.full((n, 3), 2.0 * p.pitch.zeta * p.pitch.omega_n)
+        self.pitch_a0 = m.pitch_a0
+        self.pitch_a1 = m.pitch_a1
         self.pitch_offset = np.zeros((n, 3))
         self.torque_offset = np.zeros(n)
-        self.eta_dt = np.full(n, p.eta_dt)
-        self.aero_factor = np.ones(n)
-        self.stiffness_factor = np.ones(n)
-        self.damping_factor = np.ones(n)
+        self.eta_dt = np.full(n, self.params.eta_dt)
+        self.aero_factor = m.aero_factor
+        self.stiffness_factor = m.stiffness_factor.copy()
+        self.damping_factor = m.damping_factor.copy()
         self.power_factor = np.ones(n)
         self.pitch_command_offset = np.zeros((n, 3))
         self.transmission_error = np.zeros(n)
@@ -106,11 +114,12 @@ class FaultState:
         match fault.kind:
             case FaultKind.PITCH_DYNAMICS:
                 # Fault 7 of the benchmark: the actuator's state-space matrices are interpolated linearly
-                # between nominal and faulty with the fault signal f (PARAMETERS.md a.2).
+                # between the healthy plant's and faulty with the fault signal f (PARAMETERS.md a.2).
                 blade = PITCH_COMPONENTS[Component(fault.target)]
                 a0_fault, a1_fault = fault.omega_n**2, 2.0 * fault.zeta * fault.omega_n
-                self.pitch_a0[rows, blade] += f * (a0_fault - p.pitch.omega_n**2)
-                self.pitch_a1[rows, blade] += f * (a1_fault - 2.0 * p.pitch.zeta * p.pitch.omega_n)
+                healthy_a0, healthy_a1 = self.healthy.pitch_a0[rows, blade], self.healthy.pitch_a1[rows, blade]
+                self.pitch_a0[rows, blade] += f * (a0_fault - healthy_a0)
+                self.pitch_a1[rows, blade] += f * (a1_fault - healthy_a1)
             case FaultKind.PITCH_OFFSET:
                 self.pitch_offset[rows, PITCH_COMPONENTS[Component(fault.target)]] += f * fault.value
             case FaultKind.TORQUE_OFFSET:

@@ -29,11 +29,13 @@ from plant_sim.turbine.dynamics import (
     TurbineDynamics,
 )
 from plant_sim.turbine.faults import FaultState, ScheduledFault
-from plant_sim.turbine.trim import trim
+from plant_sim.turbine.mismatch import resolve
+from plant_sim.turbine.trim import PlantAero, trim
 from plant_sim.wind import WindField
 from wwcore.channels import SENSOR_INDEX, SENSORS, noise_std
 from wwcore.events import Event, EventType
 from wwcore.scenario.faults import FaultKind, FaultSpec
+from wwcore.scenario.mismatch import Mismatch
 from wwcore.scenario.turbine import TurbinePlant
 from wwcore.scenario.wind import WindSpec
 from wwcore.turbine_frames import TurbineFrame, TurbineRefs
@@ -60,7 +62,12 @@ def row_streams(seed: int, run: int, turbine: int) -> tuple[np.random.Generator,
 
 
 class TurbineBatch:
-    """n independent benchmark turbines (rows = Monte Carlo runs × turbines), one tick per step call."""
+    """n independent benchmark turbines (rows = Monte Carlo runs × turbines), one tick per step call.
+
+    ``mismatch`` (a scenario's ``[mismatch]`` section) makes the plant differ from the design model: its rows get
+    their own aerodynamics, drive train, pitch actuators, sensor noise and calibration biases (``self.mismatch``,
+    per row, ``plant_sim.turbine.mismatch``); the turbine's controller keeps the design values, as a real one would.
+    """
 
     def __init__(
         self,
@@ -75,6 +82,7 @@ class TurbineBatch:
         wind_field: object | None = None,
         noise_chunk: int = 1000,
         fault_free_twins: bool = False,
+        mismatch: Mismatch | None = None,
     ):
         self.p = params
         self.dt = params.dt
@@ -94,8 +102,14 @@ class TurbineBatch:
         self.wind = wind_field if wind_field is not None else WindField(wind, params, [w for w, _ in streams], self.dt)
         self.dynamics = TurbineDynamics(params)
         self.discrete = DiscreteStep(params, self.n)
+        self.mismatch = resolve(mismatch, params, seed, self.run_of_row, self.turbine_of_row)
+        self._tsr_shift = self.mismatch.tsr_shift if self.mismatch.shifted else None
         self.sigma = np.array([noise_std(c, plant.noise_convention) for c in SENSORS])
         self.bias = np.array([c.noise_mean for c in SENSORS])
+        if not self.mismatch.noise_nominal:  # σ per row and sensor, shaped to scale a (rows, ticks, sensors) block
+            self.sigma = (self.sigma * self.mismatch.noise_scale[: self.n // copies])[:, None, :]
+        if not self.mismatch.bias_nominal:
+            self.bias = self.bias + self.mismatch.bias
         self.noise_chunk = noise_chunk
         # Noise blocks of noise_chunk ticks, refilled and σ-scaled in place: a fresh 10-MB array per block costs page
         # faults, and scaling through a transposed view took half as long again as the drawing. The draws of the
@@ -104,7 +118,7 @@ class TurbineBatch:
         self._tick_noise = np.empty((self.n, len(SENSORS)))
         self._noise_drawn = False
         self._quantities = np.empty((self.n, len(_QUANTITIES)))  # refilled every tick, read through _PICK
-        self.faults = FaultState(self.n, params)
+        self.faults = FaultState(self.n, params, self.mismatch)
         self.schedule: list[ScheduledFault] = []
         self._next_change = 0  # tick at which the fault arrays may next change
         for fault in faults:
@@ -125,15 +139,26 @@ class TurbineBatch:
 
     # -- set-up -----------------------------------------------------------------------------------------------
     def _trim(self, wind0: float, power_reference: float) -> None:
-        op = trim(self.p, wind0, power_reference)
-        self.x[:, OMEGA_R], self.x[:, OMEGA_G], self.x[:, THETA], self.x[:, TAU_G] = (
-            op.omega_r,
-            op.omega_g,
-            op.theta,
-            op.tau_g,
-        )
-        self.x[:, PITCH] = op.pitch
-        self.controller.initialise(np.full(self.n, op.zone), np.full(self.n, op.pitch), np.full(self.n, op.tau_g))
+        """Start every row at its own plant's equilibrium under the (design) controller in the initial wind."""
+        m = self.mismatch
+        if m.aero_nominal:
+            groups = [(None, np.arange(self.n))]
+        else:
+            keys, which = np.unique(np.column_stack([m.aero_factor, m.tsr_shift]), axis=0, return_inverse=True)
+            groups = [(PlantAero(*key), np.flatnonzero(which.ravel() == i)) for i, key in enumerate(keys)]
+        zone, pitch, tau_g = np.zeros(self.n, dtype=np.int8), np.zeros(self.n), np.zeros(self.n)
+        for aero_plant, rows in groups:
+            op = trim(self.p, wind0, power_reference, aero_plant)
+            self.x[rows, OMEGA_R], self.x[rows, OMEGA_G], self.x[rows, THETA], self.x[rows, TAU_G] = (
+                op.omega_r,
+                op.omega_g,
+                op.theta,
+                op.tau_g,
+            )
+            self.x[rows[:, None], PITCH] = op.pitch
+            zone[rows], pitch[rows], tau_g[rows] = op.zone, op.pitch, op.tau_g
+        self.x[:, THETA] /= m.stiffness_factor  # the shaft's steady twist under the plant's own stiffness
+        self.controller.initialise(zone, pitch, tau_g)
 
     def inject(self, fault: FaultSpec) -> None:
         """Schedule a fault (from the scenario, or at run time from the API: start ≥ now)."""
@@ -175,7 +200,7 @@ class TurbineBatch:
         pitch = x[:, PITCH]
         f = self.faults
         self.blade_torque = torque = self.dynamics.blade_torques(
-            x[:, OMEGA_R], pitch + f.pitch_offset, ws.blades, f.aero_factor
+            x[:, OMEGA_R], pitch + f.pitch_offset, ws.blades, f.aero_factor, self._tsr_shift
         )
         self.tau_aero = (torque[:, 0] + torque[:, 1]) + torque[:, 2]  # Σ_i τ_r,i, in the order sum(axis=1) adds
         # [ω_r, ω_g, v_hub, β_1..3, τ_g, P_g] (``_QUANTITIES``) written into a reused buffer: cheaper than stacking

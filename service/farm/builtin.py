@@ -4,22 +4,69 @@ Detectors (``FARM_DETECTORS``): ``paper`` (seed 001 as published, ``service.farm
 analytic redundancy with budget-derived thresholds, ``service.farm.analytic``; the default), ``none``.
 Controllers (``FARM_CONTROLLERS``): ``dispatch`` (eqs. (18)–(26), the default), ``pi`` (the benchmark's farm PI),
 ``none`` (every turbine at rated power: no farm control).
+
+The algorithms read their options from a dict; the dataclasses below declare them (type, default, range) for
+``service.plugins.choose``, which refuses what no selected algorithm declares.
 """
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+from typing import Annotated, Literal
+
 import numpy as np
 
+from service.farm import accommodation, hold, power_loop
 from service.farm.analytic import AnalyticDetector
-from service.farm.dispatch import Dispatch, PIFarmController
+from service.farm.dispatch import ACCOMMODATION_RULES, PITCH_RULES, Dispatch
 from service.farm.interfaces import FarmContext, FarmDiagnosis, FarmSample, empty_diagnosis
 from service.farm.paper import PaperDetector
+from service.farm.power_loop import PIFarmController
 from service.plugins import FARM_CONTROLLERS, FARM_DETECTORS
+from wwcore.options import Bounds
 
-FARM_DETECTORS.register("paper")(PaperDetector)
-FARM_DETECTORS.register("analytic")(AnalyticDetector)
-FARM_CONTROLLERS.register("dispatch")(Dispatch)
-FARM_CONTROLLERS.register("pi")(PIFarmController)
+# The options each farm algorithm reads from ``[supervisor.params]``, with their ranges: what ``service.plugins``
+# validates before anything runs. ``tests/test_options.py`` checks that every key an algorithm reads is declared.
+
+
+@dataclass(frozen=True)
+class PaperOptions:
+    wind_case: Annotated[int | None, Bounds(ge=1, le=2)] = None  # give the wind case instead of estimating it
+
+
+@dataclass(frozen=True)
+class AnalyticOptions:
+    # design rate of false alarms per fault type, per 1000 s of farm operation
+    false_alarms_per_1000s: Annotated[float, Bounds(gt=0.0, le=1000.0, unit="1/1000 s")] = 0.01
+    warmup_s: Annotated[float, Bounds(ge=0.0, le=600.0, unit="s")] = 10.0  # no decisions before this
+
+
+@dataclass(frozen=True)
+class DispatchOptions:
+    derate_floor: Annotated[float, Bounds(ge=0.0, le=1.0)] = 0.0  # share of its own P_avail a derate keeps
+    drivetrain_relief: Annotated[float, Bounds(ge=0.0, le=1.0)] = accommodation.DRIVETRAIN_RELIEF  # D-32
+    accommodation_rule: Literal[ACCOMMODATION_RULES] = ACCOMMODATION_RULES[0]
+    pitch_rule: Literal[PITCH_RULES] = PITCH_RULES[0]
+    hold_margin: Annotated[float, Bounds(ge=1.0, le=3.0)] = hold.HOLD_MARGIN
+    hold_reserve: Annotated[float, Bounds(ge=0.0, le=1.0)] = hold.HOLD_RESERVE
+    release_after_s: Annotated[float, Bounds(ge=0.0, le=600.0, unit="s")] = hold.RELEASE_AFTER_S
+    trim_kp: Annotated[float, Bounds(ge=0.0, le=10.0)] = power_loop.TRIM_KP
+    trim_ki: Annotated[float, Bounds(ge=0.0, le=10.0, unit="1/s")] = power_loop.TRIM_KI
+    trim_limit: Annotated[float, Bounds(ge=0.0, le=1.0)] = power_loop.TRIM_LIMIT
+    ripple_compensation: bool = True
+    ripple_share: Annotated[float, Bounds(ge=0.0, le=1.0)] = 1.0  # D-29: the part of the ripple the others cancel
+
+
+@dataclass(frozen=True)
+class PIOptions:
+    pi_kp: Annotated[float, Bounds(ge=0.0, le=10.0)] = power_loop.PI_KP
+    pi_ki: Annotated[float, Bounds(ge=0.0, le=10.0, unit="1/s")] = power_loop.PI_KI
+
+
+FARM_DETECTORS.register("paper", options=PaperOptions)(PaperDetector)
+FARM_DETECTORS.register("analytic", options=AnalyticOptions)(AnalyticDetector)
+FARM_CONTROLLERS.register("dispatch", options=DispatchOptions)(Dispatch)
+FARM_CONTROLLERS.register("pi", options=PIOptions)(PIFarmController)
 
 
 @FARM_DETECTORS.register("none")

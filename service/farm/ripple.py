@@ -23,9 +23,10 @@ its gain (≈ 0.99). The ripple is then P_rip(t) ≈ Re{C_j e^{jω_3 (t − t_j)
 checks the closed form).
 
 **Compensation**: each of the m free turbines of the farm (not held, derated or cancelling) is sent
-C_i = −C_j/m and ω_3 (``FarmRefs.ripple_power``, ``ripple_rate``); its converter adds Re{C_i e^{jω_3 (t − t_j)}}
-to its power until the next reference (``plant_sim.farm.controller``). Nothing is sent until the estimate has
-settled, ``SETTLE_S`` after the turbine's cancellation began.
+C_i = −s C_j/m and ω_3 (``FarmRefs.ripple_power``, ``ripple_rate``); its converter adds Re{C_i e^{jω_3 (t − t_j)}}
+to its power until the next reference (``plant_sim.farm.controller``). s = ``share`` is 1 by default (the whole
+ripple); with s < 1 the farm's output keeps (1 − s) of it, which the dispatch's power loop still does not answer.
+Nothing is sent until the estimate has settled, ``SETTLE_S`` after the turbine's cancellation began.
 """
 
 from __future__ import annotations
@@ -53,9 +54,10 @@ def block_mean_gain(omega: np.ndarray, dt: float) -> np.ndarray:
 class RippleCompensation:
     """The estimate and the compensating phasors for ``n`` turbine rows (farm-major, nine per farm)."""
 
-    def __init__(self, params: TurbineParams, n: int):
+    def __init__(self, params: TurbineParams, n: int, share: float = 1.0):
         self.p = params
         self.n = n
+        self.share = share  # s: the part of the ripple the free turbines are asked to cancel
         self.block_centre_s = 0.5 * (BLOCK_TICKS + 1) * params.dt  # s before t_j: the readings' mean time
         self._reset()
 
@@ -119,7 +121,7 @@ class RippleCompensation:
         free = free.reshape(farms, N_TURBINES)
         largest = np.argmax(np.abs(ripple), axis=1)
         rows = np.arange(farms)
-        share = -ripple[rows, largest] / np.maximum(free.sum(axis=1), 1)
+        share = -self.share * ripple[rows, largest] / np.maximum(free.sum(axis=1), 1)
         self.power = np.where(free, share[:, None], 0.0).reshape(-1)
         rate = omega_3.reshape(farms, N_TURBINES)[rows, largest]
         self.rate = np.where(free & (share != 0.0)[:, None], rate[:, None], 0.0).reshape(-1)

@@ -13,14 +13,14 @@ from dataclasses import replace
 import numpy as np
 
 from service.farm.interfaces import FarmContext, FarmDiagnosis, FarmSample
-from service.plugins import FARM_CONTROLLERS, FARM_DETECTORS
+from service.plugins import FARM_CONTROLLERS, FARM_DETECTORS, choose
 from wwcore.events import Event, EventType
 from wwcore.farm_frames import CANCEL_3P_MODE, DISPATCH_MODES, HOLD_TORQUE_MODE, FarmFrame, FarmRefs
 from wwcore.scenario.farm import FARM_FAULT_TYPES, N_TURBINES, FarmPlant
 from wwcore.turbine_params import BENCHMARK, TurbineParams
 
-DEFAULT_DETECTOR = "analytic"
-DEFAULT_CONTROLLER = "dispatch"
+DEFAULT_DETECTOR = FARM_DETECTORS.default
+DEFAULT_CONTROLLER = FARM_CONTROLLERS.default
 
 
 class FarmSupervisor:
@@ -37,11 +37,12 @@ class FarmSupervisor:
         options: dict | None = None,
         params: TurbineParams = BENCHMARK,
     ):
-        options = options or {}
+        self.choice = choose("farm", options, detector=detector, controller=controller)  # refuses bad options
         self.context = FarmContext(plant, n, params)
-        self.detector = FARM_DETECTORS.create(detector or DEFAULT_DETECTOR, context=self.context, options=options)
+        names, chosen = self.choice.names, self.choice.options
+        self.detector = FARM_DETECTORS.create(names["detector"], context=self.context, options=chosen["detector"])
         self.controller = FARM_CONTROLLERS.create(
-            controller or DEFAULT_CONTROLLER, context=self.context, options=options
+            names["controller"], context=self.context, options=chosen["controller"]
         )
         self.accommodation = accommodation
         self.n = n

@@ -32,6 +32,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from typing import Annotated
 
 import numpy as np
 from scipy.linalg import solve_continuous_lyapunov
@@ -39,32 +40,24 @@ from scipy.linalg import solve_continuous_lyapunov
 from service.hydro.canonical import CanonicalForm, canonical_form, check_existence
 from service.hydro.ts_model import OUTPUT_STATES, TSModel, build_ts_model, memberships
 from wwcore.hydro_params import HydroParams
+from wwcore.options import Bounds
 
 
 @dataclass(frozen=True)
 class SMOSettings:
-    """Observer settings; defaults are the paper's eq. (39) and Section 4.3."""
+    """Observer settings, the ``ts-smo`` options of ``[supervisor.params]``; defaults are the paper's eq. (39) and
+    Section 4.3, ``Bounds`` the accepted ranges."""
 
-    a22s: float = -20.0  # 1/s, 𝒜ˢ_22 = diag(a22s, …) (39)
-    rho: float = 100.0  # per-unit/s, ρ (39)
-    delta: float = 0.002  # per-unit, δ (39)
-    tau_filter: tuple[float, float] = (0.1, 0.1)  # s, τ_1, τ_2 of (37)
-    q2: tuple[float, ...] = (1.0, 1.0, 1.0, 1.0, 1.0)  # Q_2 = diag(q2) of (26) [PROPOSED: identity]
-    x1_pole: float | None = -2.0  # 1/s, eigenvalue of 𝒜_11 + L𝒜_21 (pressure error) [PROPOSED]; None: L = 0
-    substeps: int | None = None  # None: the smallest N with h (ρλ_max(P_2)/δ + |a22s|) ≤ 1
-
-    @classmethod
-    def from_params(cls, params: dict) -> SMOSettings:
-        """Settings from a scenario's ``[supervisor.params]`` (keys as the fields; unknown keys refused)."""
-        known = set(cls.__dataclass_fields__)
-        extra = set(params) - known
-        if extra:
-            raise ValueError(f"unknown observer setting(s) {sorted(extra)}; known: {sorted(known)}")
-        values = dict(params)
-        for key in ("tau_filter", "q2"):
-            if key in values:
-                values[key] = tuple(float(v) for v in values[key])
-        return cls(**values)
+    a22s: Annotated[float, Bounds(ge=-1000.0, lt=0.0, unit="1/s")] = -20.0  # 𝒜ˢ_22 = diag(a22s, …) (39)
+    rho: Annotated[float, Bounds(gt=0.0, le=10_000.0, unit="per-unit/s")] = 100.0  # ρ (39)
+    delta: Annotated[float, Bounds(gt=0.0, le=1.0, unit="per-unit")] = 0.002  # δ (39)
+    tau_filter: Annotated[tuple[float, float], Bounds(gt=0.0, le=10.0, unit="s")] = (0.1, 0.1)  # τ_1, τ_2 of (37)
+    # Q_2 = diag(q2) of (26) [PROPOSED: identity]
+    q2: Annotated[tuple[float, float, float, float, float], Bounds(gt=0.0, le=1e6)] = (1.0, 1.0, 1.0, 1.0, 1.0)
+    # eigenvalue of 𝒜_11 + L𝒜_21 (pressure error) [PROPOSED]; None: L = 0
+    x1_pole: Annotated[float | None, Bounds(ge=-100.0, lt=0.0, unit="1/s")] = -2.0
+    # None: the smallest N with h (ρλ_max(P_2)/δ + |a22s|) ≤ 1
+    substeps: Annotated[int | None, Bounds(ge=1, le=1000)] = None
 
 
 @dataclass

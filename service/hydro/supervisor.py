@@ -1,8 +1,12 @@
 """The hydrostatic turbine's supervisor, following ``wwcore.stepping.Supervisor``.
 
-Per frame: the registered observer reconstructs the displacement offsets (eqs. (23)–(37)), the detector turns
-the filtered reconstruction into DETECTION/RECOVERY events, and the refs carry f̂_a,filt as the correction of
-eq. (36) with a validity flag. The supervisor sees only the frame (measurements and commands), never truth.
+Per frame: the registered observer reconstructs the displacement offsets (eqs. (23)–(37)), the registered
+detector flags the actuators from the reconstruction, every change of a flag becomes a DETECTION or RECOVERY
+event, and the refs carry f̂_a,filt as the correction of eq. (36) with a validity flag. The supervisor sees only
+the frame (measurements and commands), never truth.
+
+``options`` (a scenario's ``[supervisor.params]``) are checked by ``service.plugins.choose`` against what the
+observer and the detector declare; each receives the keys it declared.
 """
 
 from __future__ import annotations
@@ -11,11 +15,15 @@ from typing import Any
 
 import numpy as np
 
-from service.hydro.detector import DetectionSettings, OffsetDetector
-from service.plugins import HYDRO_OBSERVERS
-from wwcore.events import Event
+from service.hydro.builtin import HydroContext
+from service.plugins import HYDRO_DETECTORS, HYDRO_OBSERVERS, choose
+from wwcore.events import Event, EventType
 from wwcore.hydro_frames import HydroFrame, HydroRefs
-from wwcore.hydro_params import NOMINAL, HydroParams
+from wwcore.hydro_params import FAULT_TARGETS, NOMINAL, HydroParams
+
+DEFAULT_OBSERVER = HYDRO_OBSERVERS.default
+DEFAULT_DETECTOR = HYDRO_DETECTORS.default
+CONVERGENCE_S = 1.0  # s, no correction is applied before the observer has converged from its first sample
 
 
 class HydroSupervisor:
@@ -23,7 +31,7 @@ class HydroSupervisor:
 
     ``compensation`` False (per turbine, or for all) still reconstructs and detects but marks the correction
     as not to be applied.
-    The correction is valid once the warm-up is over and the observer is in its sliding mode
+    The correction is valid once the observer has converged (``CONVERGENCE_S``) and is in its sliding mode
     (‖P_2 e_y‖ < δ); otherwise (35) does not hold and the controller gets no correction.
     """
 
@@ -33,25 +41,39 @@ class HydroSupervisor:
         n: int,
         run_ids: list[int] | None = None,
         params: HydroParams = NOMINAL,
-        observer: str = "ts-smo",
-        observer_params: dict[str, Any] | None = None,
-        detection: DetectionSettings | None = None,
+        observer: str | None = None,
+        detector: str | None = None,
+        options: dict[str, Any] | None = None,
         compensation: bool | np.ndarray = True,
     ):
+        self.choice = choose("hydro", options, estimator=observer, detector=detector)  # refuses bad options
         self.n = n
         self.run_ids = list(range(n)) if run_ids is None else list(run_ids)
-        self.observer_name = observer
-        self.observer = HYDRO_OBSERVERS.create(observer, n=n, params=params, settings=dict(observer_params or {}))
-        self.detection = DetectionSettings() if detection is None else detection
-        self.detector = OffsetDetector(n, self.run_ids, self.detection)
+        self.observer_name = self.choice.names["estimator"]
+        self.detector_name = self.choice.names["detector"]
+        settings = self.choice.options["estimator"]
+        self.observer = HYDRO_OBSERVERS.create(self.observer_name, n=n, params=params, settings=settings)
+        self.context = HydroContext(n, params, self.observer_name, settings)
+        self.detector = HYDRO_DETECTORS.create(
+            self.detector_name, context=self.context, options=self.choice.options["detector"]
+        )
         self.compensation = np.broadcast_to(np.asarray(compensation, dtype=bool), (n,)).copy()
+        self.flags = np.zeros((n, len(FAULT_TARGETS)), dtype=bool)
         self.last: Any = None
+        self._events: list[Event] = []
+
+    @property
+    def thresholds(self) -> np.ndarray | None:
+        """θ (2,) of the detector, if it has thresholds."""
+        theta = getattr(self.detector, "theta", None)
+        return None if theta is None else np.asarray(theta, dtype=float)
 
     def step(self, frame: HydroFrame) -> HydroRefs:
         rec = self.observer.step(frame.y, frame.u)
         self.last = rec
-        flagged = self.detector.step(frame.t, rec.f_filt)
-        valid = rec.sliding & (frame.t >= self.detection.warmup_s) & np.all(np.isfinite(rec.f_filt), axis=1)
+        flags = np.asarray(self.detector.step(frame.t, rec), dtype=bool)
+        self._record(frame.t, flags, rec.f_filt)
+        valid = rec.sliding & (frame.t >= CONVERGENCE_S) & np.all(np.isfinite(rec.f_filt), axis=1)
         return HydroRefs(
             t=frame.t,
             k=frame.k,
@@ -59,8 +81,28 @@ class HydroSupervisor:
             apply=valid & self.compensation,
             f_hat=rec.f_hat,
             x_hat=rec.x_hat,
-            flagged=flagged.copy(),
+            flagged=flags.copy(),
         )
 
+    def bridge(self, frame: HydroFrame) -> None:
+        """Advance through tick ``frame.k``, whose frame was lost (``frame`` interpolated, ``wwcore.stepping``): the
+        observer steps (its states and f̂_filt move on); the detector does not, so its sample counters only count
+        measured samples and no decision changes."""
+        self.observer.step(frame.y, frame.u)
+
     def drain_events(self) -> list[Event]:
-        return self.detector.drain()
+        events, self._events = self._events, []
+        return events
+
+    def _record(self, t: float, flags: np.ndarray, f_filt: np.ndarray) -> None:
+        changed = flags != self.flags
+        if not changed.any():
+            return
+        theta = self.thresholds
+        for i, j in zip(*np.nonzero(changed), strict=True):
+            kind = EventType.DETECTION if flags[i, j] else EventType.RECOVERY
+            detail: dict[str, Any] = {"f_hat_filt": float(f_filt[i, j])}
+            if theta is not None:
+                detail["threshold"] = float(theta[j])
+            self._events.append(Event(t, kind, 1, FAULT_TARGETS[j], self.run_ids[i], detail))
+        self.flags = flags.copy()

@@ -8,12 +8,14 @@ paper  observer instances          sensors used (``y_j``, eqs. (4)–(10))
 1, 7   ``1``                       ω_r,m1 ω_r,m2 ω_g,m1 ω_g,m2 (7 = 1 here: the anemometer measures no state)
 2      ``2-r1``, ``2-r2``          one rotor-speed sensor left out
 3      ``3-g1``, ``3-g2``          one generator-speed sensor left out
-4      ``4``                       ω_g,m1 ω_g,m2 (no UIO exists: augmented Kalman filter, see ``uio``)
+4      ``4``                       ω_g,m1 ω_g,m2 (no UIO exists: the rigid drive train, ``uio.design_rigid``)
 5      ``5``                       ω_r,m1 ω_r,m2
 6      ``6-r1g1`` … ``6-r2g2``     one rotor- and one generator-speed sensor left out
-–      ``5-pe15`` … ``5-pe80``     ω_r,m1 ω_r,m2 and ω_g,pe = P_g,m/(η_gc τ_g,m), one per design torque (not
+–      ``5-pe15`` … ``5-pe-r3``    ω_r,m1 ω_r,m2 and ω_g,pe = P_g,m/(η_gc τ_g,m), four designs (not
                                    isolating; the estimate when both generator-speed sensors are flagged,
                                    ``docs/turbine.md``)
+–      ``4-g1``, ``4-g2``          observer 4 on one generator-speed sensor (not isolating: the estimate when
+                                   the other is flagged)
 =====  ==========================  ===================================================
 
 All observers are computed at each sample (seed 000, after eq. (20)); their states are stacked into one array
@@ -33,7 +35,13 @@ import numpy as np
 from scipy.linalg import block_diag
 
 from service.turbine.design_model import DesignModel
-from service.turbine.uio import ObserverDesign, design_augmented_kalman, design_uio, existence_problem
+from service.turbine.uio import (
+    ObserverDesign,
+    design_augmented_kalman,
+    design_rigid,
+    design_uio,
+    existence_problem,
+)
 from wwcore.channels import SPEED_SENSORS
 
 SHORT = {"omega_r_m1": "r1", "omega_r_m2": "r2", "omega_g_m1": "g1", "omega_g_m2": "g2"}
@@ -84,6 +92,10 @@ class BankDesign:
     ranks: np.ndarray  # (n_obs,)
     reference: int  # index of the NFTE copy of observer 1
     power_speed: tuple[int, ...]  # indices of the 5-pe observers (rotor-speed sensors and the power-speed channel)
+    # indices of observer 4 on one generator-speed sensor: the one that leaves out GENERATOR[i] is
+    # single_generator[i] (not isolating: they serve the estimate only, ``builtin``)
+    single_generator: tuple[int, ...] = ()
+    gear_ratio: float = 1.0  # N_g, generator over rotor speed
 
     @property
     def n_isolating(self) -> int:
@@ -105,29 +117,43 @@ def design_bank(
     sigma: dict[str, float],
     Q: np.ndarray,
     q_unknown: float,
-    power_speed: Sequence[tuple[str, float]] = (),
+    power_speed: Sequence[tuple[str, float, float | None]] = (),
+    single_generator: bool = False,
 ) -> BankDesign:
     """Design every observer of the bank. ``sigma``: noise σ of each speed sensor (its own units);
-    ``power_speed``: (name, σ of the power-speed channel in rad/s) of each 5-pe observer to add (not isolating:
-    they serve the estimate only)."""
+    ``power_speed``: (name, σ of the power-speed channel in rad/s, random-walk variance of the aerodynamic
+    torque per tick, or None for the rigid form) of each 5-pe observer to add; with
+    ``single_generator``, observer 4 (rigid) on one generator-speed sensor, ``4-g1`` (on ω_g,m2) and ``4-g2`` (on
+    ω_g,m1), observer 4 with one more sensor left out. Neither kind is isolating: they serve the estimate only."""
     left_outs = bank_subsets()
     inputs = (*SPEED_SENSORS, POWER_SPEED) if power_speed else SPEED_SENSORS
 
+    gear_ratio = -1.0 / model.A[2, 1]  # dθ_Δ/dt = ω_r − ω_g/N_g
+
     def seed_observer(sensors: tuple[str, ...]) -> ObserverDesign:
-        """The UIO of eqs. (11)–(20), or the augmented Kalman filter where it does not exist."""
+        """The UIO of eqs. (11)–(20); where it does not exist, the rigid drive train on the generator-speed
+        sensors (observer 4) or the augmented Kalman filter (observer 5)."""
         R = np.diag([sigma[s] ** 2 for s in sensors])
         problem = existence_problem(model, sensors)
         if problem is None:
             return design_uio(model, sensors, R, Q)
+        if set(sensors) <= set(GENERATOR):
+            return design_rigid(model, sensors, R, gear_ratio, note=f"rigid drive train; no UIO: {problem}")
         return design_augmented_kalman(model, sensors, R, Q, q_unknown, note=problem)
 
     observers = [seed_observer(tuple(s for s in SPEED_SENSORS if s not in left_out)) for left_out in left_outs]
     # 5-pe: a UIO exists here but decouples τ_r through the noisy rotor-speed sensors; the Kalman form weighs all
     # three channels by their noise (wind RMSE 0.21 against the UIO's 0.37 m/s, docs/turbine.md).
     note = "Kalman form by choice: rotor-speed sensors plus the power-speed channel"
-    for _, pe_sigma in power_speed:
+    for _, pe_sigma, pe_q in power_speed:
         R = np.diag([sigma[s] ** 2 for s in ROTOR] + [pe_sigma**2])
-        observers.append(design_augmented_kalman(model, (*ROTOR, POWER_SPEED), R, Q, q_unknown, note=note))
+        if pe_q is None:
+            observers.append(design_rigid(model, (*ROTOR, POWER_SPEED), R, gear_ratio, note="5-pe, rigid form"))
+        else:
+            observers.append(design_augmented_kalman(model, (*ROTOR, POWER_SPEED), R, Q, pe_q, note=note))
+    one_generator = [tuple(g for g in GENERATOR if g != left) for left in GENERATOR] if single_generator else []
+    for sensors in one_generator:  # observer 4 on the one generator-speed sensor left
+        observers.append(seed_observer(sensors))
     observers.append(seed_observer(SPEED_SENSORS))  # the NFTE copy of observer 1, last
     sizes = [o.n_states for o in observers]
     offsets = np.concatenate([[0], np.cumsum(sizes)[:-1]])
@@ -156,7 +182,12 @@ def design_bank(
     ranks = np.array([o.rank for o in observers])
     return BankDesign(
         left_out=tuple(left_outs),
-        names=(*(observer_name(s) for s in left_outs), *(name for name, _ in power_speed), "1-nfte"),
+        names=(
+            *(observer_name(s) for s in left_outs),
+            *(name for name, _, _ in power_speed),
+            *(f"4-{SHORT[g]}" for g in GENERATOR[: len(one_generator)]),
+            "1-nfte",
+        ),
         observers=tuple(observers),
         inputs=inputs,
         offsets=offsets,
@@ -172,7 +203,39 @@ def design_bank(
         ranks=ranks,
         reference=reference,
         power_speed=tuple(range(len(left_outs), len(left_outs) + len(power_speed))),
+        single_generator=tuple(range(len(left_outs) + len(power_speed), reference)),
+        gear_ratio=float(gear_ratio),
     )
+
+
+def estimate_observers(design: BankDesign, from_generator: bool = True, power_speed: bool = True) -> np.ndarray:
+    """The observer the estimate comes from, for each bitmask of flagged speed sensors (16,), −1 where none.
+
+    ``from_generator``: observer 4, the rigid drive train on the healthy generator-speed sensors (4 with both, 4-g1 or
+    4-g2 with one), whatever the rotor-speed sensors' flags, so no rotor-speed reading ever reaches the estimate
+    while a generator-speed sensor is healthy; otherwise (seed 000) the observer of the healthy set. With both
+    generator-speed sensors flagged: the first 5-pe design if ``power_speed`` and the bank has it (the caller
+    picks the design for the torque, ``interfaces.power_speed_band``), else observer 5.
+    """
+    choice = np.full(1 << len(SPEED_SENSORS), -1)
+    bit = {s: 1 << SPEED_SENSORS.index(s) for s in SPEED_SENSORS}
+    for j, left_out in enumerate(design.left_out):
+        choice[sum(bit[s] for s in left_out)] = j
+    both_generator = bit[GENERATOR[0]] | bit[GENERATOR[1]]
+    if power_speed and design.power_speed:
+        choice[both_generator] = design.power_speed[0]
+    if not from_generator:
+        return choice
+    if len(design.single_generator) != len(GENERATOR):
+        raise ValueError("the bank has no observer 4 on one generator-speed sensor (design_bank single_generator)")
+    both_rotor = design.index(frozenset(ROTOR))
+    for mask in range(len(choice)):
+        flagged = [g for g in GENERATOR if mask & bit[g]]
+        if not flagged:
+            choice[mask] = both_rotor
+        elif len(flagged) == 1:
+            choice[mask] = design.single_generator[GENERATOR.index(flagged[0])]
+    return choice
 
 
 class ObserverBank:
@@ -254,6 +317,23 @@ class ObserverBank:
         m = len(self.d.ranks)
         self.chi2 = terms[:, :m] + (terms[:, m : 2 * m] + terms[:, 2 * m :])  # = reduceat(w², res_starts)
         self._y_prev = y
+
+    def restart(self, rows: np.ndarray, target: np.ndarray, source: np.ndarray) -> None:
+        """Re-initialise observer ``target[i]`` of row ``rows[i]`` from observer ``source[i]``'s estimate of this
+        tick: x̂_target = x̂_source, z_target = x̂_source − H_target y[n] (eq. (12)), so it goes on from a state
+        that never saw what the source left out. Only between observers of one kind (a UIO from a UIO, a Kalman
+        filter from a Kalman filter); a rigid drive train has no history to restart (its x̂ is the tick's
+        readings)."""
+        d = self.d
+        y = self._y_prev  # y[n], the readings of the last step
+        for row, t, s in zip(rows, target, source, strict=True):
+            kind = d.observers[t].kind
+            if kind == "rigid" or kind != d.observers[s].kind:
+                continue  # a rigid x̂ is this tick's readings; other kinds estimate different things (θ̂_Δ, τ̂_r)
+            tb = slice(d.offsets[t], d.offsets[t] + d.observers[t].n_states)
+            sb = slice(d.offsets[s], d.offsets[s] + d.observers[s].n_states)
+            self.x_hat[row, tb] = self.x_hat[row, sb]
+            self.z[row, tb] = self.x_hat[row, sb] - d.H_blk[tb] @ y[row]
 
     def states(self, j: int) -> np.ndarray:
         """x̂ of observer j, (n, n_states_j)."""

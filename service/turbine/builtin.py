@@ -4,17 +4,25 @@ Detectors: ``benchmark`` (the default: ``uio-bank`` plus the pitch-sensor, pitch
 ``component_fdi``), ``uio-bank`` (seed 000's bank with the speed-sensor FDI of ``fdi``), ``none``.
 Estimators: ``uio-bank`` (the observer matching the healthy set, wind from ``wind_recovery``), ``none``
 (passes the raw sensors through, i.e. the benchmark controller as published).
+
+Options are declared at registration (``service.plugins``): the detectors' are the fields of ``FDISettings`` (and,
+prefixed ``component_``, of ``ComponentSettings``), the estimator's those of ``EstimatorSettings``; a field added
+to one of these dataclasses is an option at once. ``none`` declares none.
 """
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+from typing import Annotated, Literal
+
 import numpy as np
 
 from service.plugins import TURBINE_DETECTORS, TURBINE_ESTIMATORS
-from service.turbine.bank import GENERATOR
+from service.turbine.bank import estimate_observers
 from service.turbine.component_fdi import ComponentFDI, ComponentSettings
 from service.turbine.fdi import FDISettings, SpeedSensorFDI
 from service.turbine.interfaces import (
+    POWER_SPEED_MIN_TORQUE,
     SPEED_COLUMNS,
     Diagnosis,
     Estimates,
@@ -25,6 +33,7 @@ from service.turbine.interfaces import (
 )
 from service.turbine.wind_recovery import WindRecovery
 from wwcore.channels import DIAGNOSIS_TARGETS, SENSOR_INDEX, SPEED_SENSORS, TARGET_INDEX
+from wwcore.options import Bounds
 from wwcore.turbine_frames import TurbineFrame
 
 SPEED_TARGETS = np.array([TARGET_INDEX[s] for s in SPEED_SENSORS])
@@ -39,12 +48,30 @@ _DIAGNOSIS_OF_MASK = np.zeros((1 << len(SPEED_SENSORS), len(DIAGNOSIS_TARGETS)),
 _DIAGNOSIS_OF_MASK[:, SPEED_TARGETS] = (np.arange(1 << len(SPEED_SENSORS))[:, None] & _MASK_WEIGHTS) != 0
 
 
+DETECTOR_OPTIONS = {"": FDISettings}
+BENCHMARK_OPTIONS = {"": FDISettings, "component_": ComponentSettings}
+
+
+@dataclass(frozen=True)
+class EstimatorSettings:
+    """Options of the ``uio-bank`` estimator (``[supervisor.params]``); ``Bounds``: the accepted range."""
+
+    # the torque the wind inversion uses is low-pass filtered at this frequency
+    wind_cutoff_hz: Annotated[float, Bounds(gt=0.0, le=5.0, unit="Hz")] = 0.3
+    speed_cutoff_hz: Annotated[float, Bounds(gt=0.0, le=50.0, unit="Hz")] = 2.0  # low-pass of the speed estimates
+    warmup_s: Annotated[float, Bounds(ge=0.0, le=600.0, unit="s")] = 5.0  # estimates not valid before this
+    wind_every: Annotated[int, Bounds(ge=1, le=1000, unit="ticks")] = 20  # the wind is inverted every this many ticks
+    power_speed: bool = True  # both generator-speed sensors flagged: use observer 5-pe
+    # "generator": observer 4 on the healthy generator-speed sensors; "seed000": the published selection
+    estimate_from: Literal["generator", "seed000"] = "generator"
+
+
 def _settings(cls, options: dict):
     known = {k: v for k, v in options.items() if k in cls.__dataclass_fields__}
     return cls(**known)
 
 
-@TURBINE_DETECTORS.register("uio-bank")
+@TURBINE_DETECTORS.register("uio-bank", options=DETECTOR_OPTIONS)
 class UIOBankDetector:
     """Speed-sensor FDI on the residuals of seed 000's observer bank (see ``service.turbine.fdi``)."""
 
@@ -56,12 +83,26 @@ class UIOBankDetector:
 
     def step(self, frame: TurbineFrame) -> Diagnosis:
         bank = self.context.bank(frame)
-        self.fdi.step(self.context.speed_readings(frame), bank.chi2)
+        speed = self.context.speed_readings(frame)
+        p = self.context.params
+        power, torque = frame.sensors[:, SENSOR_INDEX["p_g_m"]], frame.sensors[:, SENSOR_INDEX["tau_g_m"]]
+        usable = torque >= POWER_SPEED_MIN_TORQUE * p.rated_torque
+        self.fdi.step(
+            speed,
+            bank.chi2,
+            bank.x_hat,
+            power_speed_band(frame.tau_g_ref, p, frame.zone),
+            np.where(usable, power / (p.eta_gc * np.where(usable, torque, 1.0)), np.nan),
+        )
         # = empty_diagnosis with the speed-sensor columns set to fdi.faulty, and margins = fdi.margins(bank.chi2)
-        return Diagnosis(_DIAGNOSIS_OF_MASK[self.fdi.flagged], self.fdi.ratio, self._margin_names)
+        fdi = self.fdi
+        suspect = _DIAGNOSIS_OF_MASK[np.where(fdi.deadline >= 0, fdi.flagged | fdi.provisional, fdi.flagged)]
+        return Diagnosis(
+            _DIAGNOSIS_OF_MASK[fdi.flagged], fdi.ratio, self._margin_names, suspect if fdi.pending else None
+        )
 
 
-@TURBINE_DETECTORS.register("benchmark")
+@TURBINE_DETECTORS.register("benchmark", options=BENCHMARK_OPTIONS)
 class BenchmarkDetector(UIOBankDetector):
     """``uio-bank`` for the speed sensors plus ``component_fdi``'s tests for the benchmark's other faults."""
 
@@ -77,6 +118,8 @@ class BenchmarkDetector(UIOBankDetector):
         diagnosis = super().step(frame)
         flags = self.components.step(frame)
         diagnosis.faulty |= flags
+        if diagnosis.suspect is not None:
+            diagnosis.suspect |= flags
         return diagnosis
 
 
@@ -91,39 +134,41 @@ class NoDetector:
         return empty_diagnosis(self.n)
 
 
-@TURBINE_ESTIMATORS.register("uio-bank")
+@TURBINE_ESTIMATORS.register("uio-bank", options=EstimatorSettings)
 class UIOBankEstimator:
-    """Estimates of the observer whose sensor set matches the healthy sensors (active fault tolerance).
+    """Estimates of the observer chosen by the trusted speed sensors (active fault tolerance).
 
-    Options: ``wind_cutoff_hz`` (default 0.3), ``speed_cutoff_hz`` (2.0), ``warmup_s`` (5.0),
-    ``wind_every`` (20): the wind is inverted every that many ticks (5 Hz) and held in between; the torque it
-    inverts is low-pass filtered at ``wind_cutoff_hz``, far below the 5 Hz this resolves. ``power_speed``
+    Options (``EstimatorSettings``): ``wind_cutoff_hz`` (default 0.3), ``speed_cutoff_hz`` (2.0), ``warmup_s``
+    (5.0), ``wind_every`` (20): the wind is inverted every that many ticks (5 Hz) and held in between; the torque
+    it inverts is low-pass filtered at ``wind_cutoff_hz``, far below the 5 Hz this resolves. ``power_speed``
     (true): with both generator-speed sensors flagged, use observer 5-pe (the rotor-speed sensors and the
-    power-speed channel, ``docs/turbine.md``), the design nearest the torque reference, instead of seed 000's
-    observer 5.
+    power-speed channel, ``docs/turbine.md``), the design for the torque reference and zone, instead of seed 000's
+    observer 5. ``estimate_from`` (``"generator"``): the estimate comes from observer 4, the rigid drive train on the
+    healthy generator-speed sensors (4 with both, 4-g1 or 4-g2 with one), which never uses a rotor-speed sensor,
+    so a rotor-speed fault cannot reach it whether or not it is flagged; only with both generator-speed sensors
+    flagged does it fall back to the rotor-speed sensors (5-pe or 5). ``"seed000"``: the observer whose sensor set
+    matches the healthy sensors, as published (observer 1 when nothing is flagged).
     """
 
     def __init__(self, *, context: TurbineContext, options: dict | None = None):
-        options = options or {}
+        settings = _settings(EstimatorSettings, options or {})
         self.context = context
         design = context.bank_design
         self.recovery = WindRecovery(
             context.params,
             design,
             context.n,
-            wind_cutoff_hz=float(options.get("wind_cutoff_hz", 0.3)),
-            speed_cutoff_hz=float(options.get("speed_cutoff_hz", 2.0)),
+            wind_cutoff_hz=settings.wind_cutoff_hz,
+            speed_cutoff_hz=settings.speed_cutoff_hz,
         )
-        self.warmup_ticks = round(float(options.get("warmup_s", 5.0)) / context.dt)
-        self.wind_every = int(options.get("wind_every", 20))
-        self.observer_of_mask = np.full(1 << len(SPEED_SENSORS), -1)
-        for j, left_out in enumerate(design.left_out):
-            self.observer_of_mask[sum(1 << SPEED_SENSORS.index(s) for s in left_out)] = j
+        self.warmup_ticks = round(settings.warmup_s / context.dt)
+        self.wind_every = settings.wind_every
+        self.observer_of_mask = estimate_observers(design, settings.estimate_from == "generator", settings.power_speed)
         # With both generator-speed sensors flagged: the 5-pe observer designed nearest the torque (step)
-        self._power_speed = np.array(design.power_speed if bool(options.get("power_speed", True)) else ())
-        if len(self._power_speed):
-            both_generator = sum(1 << SPEED_SENSORS.index(s) for s in GENERATOR)
-            self.observer_of_mask[both_generator] = self._power_speed[0]
+        self._power_speed = np.array(design.power_speed if settings.power_speed else ())
+        self._previous: np.ndarray | None = None  # ``selected`` of the last tick
+        self._previous_mask = np.zeros(context.n, dtype=np.int64)  # the distrusted speed sensors of the last tick
+        self._switched = False  # whether any row distrusted a speed sensor at the last tick
         self.reference = design.reference
         self._reference_columns = np.full(context.n, design.reference)
         self._all_healthy = np.full(context.n, self.observer_of_mask[0])  # ``selected`` when nothing is flagged
@@ -131,6 +176,21 @@ class UIOBankEstimator:
         self.names = design.names
         self.ticks = 0
         self._winds: np.ndarray | None = None  # (2, n): FTE, NFTE
+
+    def _take_over(self, bank, selected: np.ndarray, mask: np.ndarray) -> None:
+        """Where a distrusted speed sensor is trusted again (``mask``: the distrusted ones, bitmask per row), the
+        observer the estimate moves to restarts from the previous one's state and filters (``ObserverBank.restart``,
+        ``WindRecovery.transfer``): it ran on the faulty readings all along, and its filtered torque still carries
+        them for seconds (the wind filter's 0.3 Hz)."""
+        previous, previous_mask = self._previous, self._previous_mask
+        self._previous, self._previous_mask = selected, mask
+        self._switched = bool(mask.any())
+        if previous is None:
+            return
+        rows = np.flatnonzero((previous_mask & ~mask != 0) & (selected != previous) & (selected >= 0) & (previous >= 0))
+        if len(rows):
+            bank.restart(rows, selected[rows], previous[rows])
+            self.recovery.transfer(rows, selected[rows], previous[rows], self.context.bank_design, bank.x_hat)
 
     def step(self, frame: TurbineFrame, faulty: np.ndarray) -> Estimates:
         bank = self.context.bank(frame)
@@ -144,21 +204,25 @@ class UIOBankEstimator:
         pitch_m1, pitch_m2 = pitch[:, :3], pitch[:, 3:]
         recovery = self.recovery
         if faulty.any():
-            recovery.step(
-                bank.x_hat, frame.beta_ref, pitch_m1, pitch_m2, ~faulty[:, PITCH_M1_T], ~faulty[:, PITCH_M2_T]
-            )
-            selected = self.observer_of_mask[faulty[:, SPEED_TARGETS] @ _MASK_WEIGHTS]
+            mask = faulty[:, SPEED_TARGETS] @ _MASK_WEIGHTS
+            selected = self.observer_of_mask[mask]
             if len(self._power_speed):
                 on_pe = selected == self._power_speed[0]
                 if on_pe.any():
-                    band = power_speed_band(frame.tau_g_ref, self.context.params)
+                    band = power_speed_band(frame.tau_g_ref, self.context.params, frame.zone)
                     selected = np.where(on_pe, self._power_speed[band], selected)
+            self._take_over(bank, selected, mask)
+            recovery.step(
+                bank.x_hat, frame.beta_ref, pitch_m1, pitch_m2, ~faulty[:, PITCH_M1_T], ~faulty[:, PITCH_M2_T]
+            )
             columns = np.maximum(selected, 0)
             rows = self._rows
             omega_r, omega_g = recovery.omega_r[rows, columns], recovery.omega_g[rows, columns]
         else:  # the common tick: every sensor healthy, every row on the observer that uses all four speed sensors
-            recovery.step(bank.x_hat, frame.beta_ref, pitch_m1, pitch_m2, None, None)
             selected = self._all_healthy.copy()
+            if self._switched:
+                self._take_over(bank, selected, np.zeros(len(selected), dtype=np.int64))
+            recovery.step(bank.x_hat, frame.beta_ref, pitch_m1, pitch_m2, None, None)
             columns = self._all_healthy
             healthy = int(columns[0])
             omega_r, omega_g = recovery.omega_r[:, healthy].copy(), recovery.omega_g[:, healthy].copy()

@@ -25,12 +25,15 @@ treats the rotor torque as unknown, exactly like a different aerodynamic torque 
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Annotated
 
 import numpy as np
 
+from service.plugins import AlgorithmOptionError
 from service.turbine.frozen import FrozenReadings
 from wwcore.channels import SENSOR_INDEX, TARGET_INDEX, Component
 from wwcore.lti import second_order_tf, zoh
+from wwcore.options import Bounds
 from wwcore.quantiles import chi2_isf, norm_isf
 from wwcore.turbine_frames import TurbineFrame
 from wwcore.turbine_params import TurbineParams
@@ -49,14 +52,21 @@ OTHERS = np.array([[1, 2], [0, 2], [0, 1]])
 
 @dataclass(frozen=True)
 class ComponentSettings:
-    false_alarms_per_1000s: float = 0.01  # design rate of each family of tests
-    clear_alpha: float = 0.01
-    parity_window: int = 10  # ticks averaged by the pitch-sensor window test
-    actuator_window: int = 200  # ticks summed by the pitch-actuator χ² test (2 s)
-    converter_window: int = 100  # ticks averaged by the converter test (1 s)
-    block: int = 10  # the actuator and converter tests decide every this many ticks, on every tick's residual
-    frozen_ticks: int = 3
-    warmup_s: float = 5.0
+    """Options of the component tests, ``component_<field>`` in ``[supervisor.params]``; ``Bounds``: the range."""
+
+    # design rate of each family of tests
+    false_alarms_per_1000s: Annotated[float, Bounds(gt=0.0, le=1000.0, unit="1/1000 s")] = 0.01
+    clear_alpha: Annotated[float, Bounds(gt=0.0, lt=1.0)] = 0.01
+    # ticks averaged by the pitch-sensor window test
+    parity_window: Annotated[int, Bounds(ge=1, le=10_000, unit="ticks")] = 10
+    # ticks summed by the pitch-actuator χ² test (2 s)
+    actuator_window: Annotated[int, Bounds(ge=1, le=10_000, unit="ticks")] = 200
+    # ticks averaged by the converter test (1 s)
+    converter_window: Annotated[int, Bounds(ge=1, le=10_000, unit="ticks")] = 100
+    # the actuator and converter tests decide every this many ticks, on every tick's residual
+    block: Annotated[int, Bounds(ge=1, le=1000, unit="ticks")] = 10
+    frozen_ticks: Annotated[int, Bounds(ge=2, le=1000, unit="ticks")] = 3
+    warmup_s: Annotated[float, Bounds(ge=0.0, le=600.0, unit="s")] = 5.0
 
 
 class _Window:
@@ -97,7 +107,10 @@ class ComponentFDI:
 
     def __init__(self, p: TurbineParams, n: int, sigma: dict[str, float], settings: ComponentSettings):
         if settings.actuator_window % settings.block or settings.converter_window % settings.block:
-            raise ValueError("the actuator and converter windows must be whole numbers of blocks")
+            raise AlgorithmOptionError(
+                f"component_actuator_window ({settings.actuator_window}) and component_converter_window "
+                f"({settings.converter_window}) must be whole numbers of component_block ({settings.block}) ticks"
+            )
         self.s = settings
         self.n = n
         alpha = settings.false_alarms_per_1000s * p.dt / 1000.0

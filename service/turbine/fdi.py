@@ -2,56 +2,100 @@
 
 In the manner of Odgaard & Stoustrup (2010): each observer's residual is decoupled from the unknown input, so
 it stays at its noise level unless a sensor it uses is faulty. The decision logic is a generalised observer
-scheme on the bank:
+scheme on the bank, with hysteresis: a flag is raised by the residuals' consistency tests and dropped only by
+evidence that its sensor is healthy again.
 
 * **Consistency.** Observer j is consistent at tick n when both its whitened residual's χ² statistic
   χ²_j[n] = ‖W_j r_j[n]‖² and the sum of the last ``window`` of them stay below their thresholds. The sum is
   what catches small biases: a UIO cannot predict the rotor speed one tick ahead (any change might be
   aerodynamic torque), so a bias of a few σ on a rotor-speed sensor shows in the residuals only as the
   observers' states drift from it over several ticks.
-* **Detection and isolation.** While the selected observer (the one that leaves out the flagged sensors) is
-  consistent, nothing changes. When it is not, the supervisor searches the whole bank and selects the
-  consistent observer that leaves out the fewest sensors (ties: smallest statistic over threshold); the
-  sensors it leaves out are the isolated faults. Searching the whole bank, not only observers that leave out
-  more, lets an early isolation that missed a small second fault correct itself at the next inconsistency.
-* **Fault end.** A flagged sensor is cleared when the window sum of the observer that uses it again (selected
-  set plus that sensor) falls below the clearing threshold.
+* **Detection.** While the selected observer (the one that leaves out the flagged sensors) is consistent,
+  nothing is raised. When it is not, a fault is detected.
+* **Isolation.** The new flagged set is the smallest set containing the flagged and frozen sensors whose
+  observer explains the data, i.e. is consistent at the isolation level α_iso (default 1e-3), ties broken by
+  the smaller statistic over threshold. Isolation is a choice between explanations once a fault is known to be
+  there, so it can afford a test far less strict than detection's: a second fault a few σ in size, too small
+  to trip detection on its own, still rejects the observer that leaves out only the first, and a simultaneous
+  pair is flagged together from the first tick. The price is a healthy sensor flagged with the faulty one
+  with probability about α_iso per isolation; its flag then clears on its own (below). Where no such set
+  passes, the detection level is used, and where no superset of the flags passes either, the whole bank is
+  searched (an isolation that went wrong may be replaced).
+* **Fault end.** A flag drops only when its sensor's CUSUM (``clearing``) has gathered enough evidence that the
+  exclusion residual (the sensor against the selected observer's prediction, which never uses it) is back at
+  zero mean, with a false-clear budget like the false-alarm one, and the observer that uses the sensor again
+  is consistent over its last ``clear_window`` ticks at level ``clear_alpha`` (so that re-admitting the sensor
+  does not trip detection again while that observer still carries the fault).
 * **Frozen signals.** A reading that does not change at all for ``frozen_ticks`` ticks is flagged at once
   (fixed-value and stuck faults carry no noise; this also catches a fixed value that happens to equal the
-  truth, which no residual can see).
+  truth, which no residual can see), and its flag cannot drop while it stays frozen.
 
 Thresholds come from the false-alarm budget (PARAMETERS.md d), not from fault data. A design rate of false
 alarms per 1000 s (default 0.01: the requirement is 1, the aim none) gives α = rate·Ts/1000 per tick, split
 evenly between the single-tick and the window test: h_j = χ²⁻¹_{rank_j}(1 − α/2), and for the window sum a
 scaled χ², c·χ²_ν, with the sum's exact mean and variance from the residual's closed-form autocovariance
-(Satterthwaite: c = Var/2E, ν = 2E²/Var; ``uio``). Clearing uses α_clear (default 1 %) on the window sum.
+(Satterthwaite: c = Var/2E, ν = 2E²/Var; ``uio``). Isolation and the re-admission test use the same forms at
+α_iso and α_clear.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Annotated
 
 import numpy as np
 
 from service.plugins import AlgorithmOptionError
-from service.turbine.bank import BankDesign
+from service.turbine.arbitration import GeneratorArbiter
+from service.turbine.bank import GENERATOR, BankDesign, estimate_observers
+from service.turbine.clearing import FlagClearing
 from service.turbine.frozen import FrozenReadings
+from service.turbine.uio import LAGS
 from wwcore.channels import SPEED_SENSORS
+from wwcore.options import Bounds
 from wwcore.quantiles import chi2_isf
 
 N_SPEED = len(SPEED_SENSORS)
 _BITS = 1 << np.arange(N_SPEED)
 _SENSORS_OF_MASK = (np.arange(1 << N_SPEED)[:, None] >> np.arange(N_SPEED)) & 1 == 1  # (16, 4): bitmask → flags
+_GENERATOR_BITS = sum(1 << SPEED_SENSORS.index(g) for g in GENERATOR)
 
 
 @dataclass(frozen=True)
 class FDISettings:
-    false_alarms_per_1000s: float = 0.01  # design rate of the detection tests (requirement: < 1, aim: none)
-    clear_alpha: float = 0.01  # probability that a healthy sensor's window fails the clearing test
-    window: int = 4  # ticks summed by the window test
-    clear_window: int = 3  # ticks summed by the clearing test (≤ window): ends recognised a tick sooner
-    frozen_ticks: int = 3  # identical consecutive readings that mark a sensor frozen
-    warmup_s: float = 5.0  # no decisions while the observers converge from their initial state
+    """Options of the speed-sensor FDI (``[supervisor.params]``); each field's ``Bounds`` is its accepted range."""
+
+    # design rate of the detection tests (requirement: < 1, aim: none)
+    false_alarms_per_1000s: Annotated[float, Bounds(ge=1e-6, le=10.0, unit="1/1000 s")] = 0.01
+    # level at which an explanation (flagged set) is rejected when a fault is isolated
+    isolation_alpha: Annotated[float, Bounds(ge=1e-9, le=0.1)] = 1e-3
+    # design rate of flags dropping while their fault persists (clearing)
+    false_clears_per_1000s: Annotated[float, Bounds(ge=1e-6, le=10.0, unit="1/1000 s")] = 0.01
+    # smallest fault size the clearing CUSUM assumes, in σ of the exclusion residual
+    clear_floor: Annotated[float, Bounds(ge=0.25, le=10.0, unit="σ")] = 1.0
+    # memory of the clearing CUSUM's fault-size estimate
+    fault_memory_s: Annotated[float, Bounds(ge=0.01, le=60.0, unit="s")] = 0.5
+    # level of the re-admission test (observer using the sensor again, clear_window sum)
+    clear_alpha: Annotated[float, Bounds(ge=1e-6, le=0.5)] = 0.01
+    # time an isolation may wait for the generator-speed arbitration (0: take the smaller statistic)
+    arbitration_s: Annotated[float, Bounds(ge=0.0, le=60.0, unit="s")] = 5.0
+    window: Annotated[int, Bounds(ge=1, le=LAGS, unit="ticks")] = 4  # ticks summed by the window test
+    # ticks of evidence gathered after a detection before isolating (< window)
+    isolation_delay: Annotated[int, Bounds(ge=0, le=LAGS - 1, unit="ticks")] = 2
+    # ticks summed by the re-admission test (≤ window)
+    clear_window: Annotated[int, Bounds(ge=1, le=LAGS, unit="ticks")] = 3
+    # identical consecutive readings that mark a sensor frozen
+    frozen_ticks: Annotated[int, Bounds(ge=2, le=1000, unit="ticks")] = 3
+    # no decisions while the observers converge from their initial state
+    warmup_s: Annotated[float, Bounds(ge=0.0, le=600.0, unit="s")] = 5.0
+
+    def __post_init__(self) -> None:
+        if self.isolation_delay >= self.window:
+            raise AlgorithmOptionError(
+                f"isolation_delay must be 0 … window − 1 ({self.window - 1}), not {self.isolation_delay}"
+            )
+        if self.clear_window > self.window:
+            raise AlgorithmOptionError(f"clear_window must be 1 … window ({self.window}), not {self.clear_window}")
 
 
 def window_threshold(autocov: np.ndarray, window: int, alpha: float) -> float:
@@ -84,12 +128,16 @@ class SpeedSensorFDI:
         observers = bank.observers[: bank.n_isolating]
         self.h_detect = chi2_isf(alpha / 2.0, ranks)
         self.h_window = np.array([window_threshold(o.autocov, settings.window, alpha / 2.0) for o in observers])
-        if not 1 <= settings.clear_window <= settings.window:
-            raise AlgorithmOptionError(
-                f"clear_window must be 1 … window ({settings.window}), not {settings.clear_window}"
-            )
+        iso = max(settings.isolation_alpha, alpha)
+        self.h_isolate = chi2_isf(iso / 2.0, ranks)
+        self.h_isolate_window = np.array([window_threshold(o.autocov, settings.window, iso / 2.0) for o in observers])
         self.h_clear = np.array(
             [window_threshold(o.autocov, settings.clear_window, settings.clear_alpha) for o in observers]
+        )
+        predictors = estimate_observers(bank, from_generator=len(bank.single_generator) > 0)
+        self._estimable = predictors >= 0  # masks for which some observer gives the estimate
+        self.clearing = FlagClearing(
+            bank, n, dt, settings.false_clears_per_1000s, settings.clear_floor, settings.fault_memory_s, predictors
         )
         self._history = np.zeros((settings.window, n, bank.n_isolating))  # ring of the last χ² statistics
         self._window_sum = np.zeros((n, bank.n_isolating))
@@ -100,6 +148,16 @@ class SpeedSensorFDI:
             self.observer_of_mask[m] = j
         self.masks = np.array(masks)
         self.sizes = np.array([len(s) for s in bank.left_out])
+        # witnesses[k, j]: observer j must be consistent for explanation k: every observer that leaves out at least
+        # k's sensors, where the flags would be right, except the Kalman-form ones (their random walk of the
+        # aerodynamic torque is too slow above rated to keep their residuals white there) unless j is k's own
+        kinds = [o.kind for o in bank.observers[: bank.n_isolating]]
+        self.witnesses = np.array(
+            [
+                [(mj & mk) == mk and (j == k or kinds[j] != "kalman") for j, mj in enumerate(masks)]
+                for k, mk in enumerate(masks)
+            ]
+        ).astype(float)
         self.flagged = np.zeros(n, dtype=np.int64)  # bitmask of flagged sensors per turbine
         self.readings = FrozenReadings((n, N_SPEED), settings.frozen_ticks)
         self.ticks = 0
@@ -108,6 +166,12 @@ class SpeedSensorFDI:
         # Cheap state for the common tick on which no sensor is flagged or frozen (each skips a few numpy calls):
         self.ratio = np.zeros((n, bank.n_isolating))  # ``margins`` of the last step
         self._maybe_flagged = False  # False only while no row has a flagged sensor
+        self.deadline = np.full(n, -1, dtype=np.int64)  # tick at which a pending isolation is decided, −1 none
+        self.started = np.zeros(n, dtype=np.int64)  # tick at which the pending isolation started
+        self.arbiter = GeneratorArbiter(bank, n, iso)
+        self.arbitration_ticks = round(settings.arbitration_s / dt)
+        self.provisional = np.zeros(n, dtype=np.int64)  # the pending isolation's current explanation
+        self._pending = False  # whether any row has a pending isolation
         self._all_healthy = int(self.observer_of_mask[0])  # the observer that leaves nothing out
         self._no_frozen = np.zeros(n, dtype=np.int64)
 
@@ -124,8 +188,17 @@ class SpeedSensorFDI:
         """max(χ²_j/h_j, Σχ²_j/h_window,j) for every isolating observer (n, n_isolating): above 1 is inconsistent."""
         return np.maximum(chi2_stat[:, : self.bank.n_isolating] / self.h_detect, self._window_sum / self.h_window)
 
-    def step(self, y: np.ndarray, chi2_stat: np.ndarray) -> None:
-        """Update the flags from speed readings y (n, 4) and the bank's χ² statistics (n, n_obs)."""
+    def step(
+        self,
+        y: np.ndarray,
+        chi2_stat: np.ndarray,
+        x_hat: np.ndarray,
+        torque_band: np.ndarray | None = None,
+        power_speed: np.ndarray | None = None,
+    ) -> None:
+        """Update the flags from speed readings y (n, 4), the bank's χ² statistics (n, n_obs), its stacked
+        state estimates x̂ (n, width), the 5-pe design for the torque (``clearing``) and the power-speed
+        channel (n,) (NaN where it is only the rotor-speed mean; ``arbitration``)."""
         chi2_stat = chi2_stat[:, : self.bank.n_isolating]
         slot = self.ticks % self.s.window
         self._window_sum += chi2_stat - self._history[slot]
@@ -135,50 +208,133 @@ class SpeedSensorFDI:
         self.ratio = ratio = np.maximum(chi2_stat / self.h_detect, self._window_sum / self.h_window)
         if self.ticks <= self.warmup_ticks:
             return
-        if any_frozen:
-            frozen_mask = self.readings.frozen @ _BITS
-            self.flagged |= frozen_mask
-            self._maybe_flagged = True
-        else:
-            frozen_mask = self._no_frozen
-        if self._maybe_flagged:
+        frozen_mask = self.readings.frozen @ _BITS if any_frozen else self._no_frozen
+        if self._maybe_flagged or self._pending:
             selected = self.observer_of_mask[self.flagged]
-            usable = np.maximum(selected, 0)
-            inconsistent = (ratio[self._rows, usable] > 1.0) | (selected < 0)
+            inconsistent = (ratio[self._rows, np.maximum(selected, 0)] > 1.0) | (selected < 0)
         else:  # every row selects the observer that uses all four sensors
             inconsistent = ratio[:, self._all_healthy] > 1.0
-        if inconsistent.any():
-            for row in np.flatnonzero(inconsistent):
-                self._search(row, ratio[row], int(frozen_mask[row]))
-            self._maybe_flagged = True
+        trouble = inconsistent | ((frozen_mask & ~self.flagged) != 0) if any_frozen else inconsistent
+        if self._pending or trouble.any():
+            self._isolate(trouble, chi2_stat, ratio, frozen_mask, y, torque_band, power_speed)
         if self._maybe_flagged:
             if self.flagged.any():
-                self._clear(frozen_mask, inconsistent)
+                self._clear(y, x_hat, frozen_mask, trouble | (self.deadline >= 0), torque_band)
             self._maybe_flagged = bool(self.flagged.any())
 
-    def _search(self, row: int, ratio: np.ndarray, frozen: int) -> None:
-        """Select the consistent observer that leaves out the fewest sensors (and every frozen one)."""
-        current = int(self.flagged[row])
-        candidates = np.flatnonzero(((self.masks & frozen) == frozen) & (self.masks != current))
-        if len(candidates) == 0:  # more sensors frozen than any observer can leave out
-            self.flagged[row] = current | frozen
-            self.ambiguous[row] = True
-            return
-        ratio = ratio[candidates]
-        consistent = ratio <= 1.0
-        self.ambiguous[row] = not consistent.any()
-        pool, pool_ratio = (candidates[consistent], ratio[consistent]) if consistent.any() else (candidates, ratio)
-        self.flagged[row] = self.masks[pool[np.lexsort((pool_ratio, self.sizes[pool]))[0]]]
+    def _isolate(
+        self,
+        trouble: np.ndarray,
+        chi2_stat: np.ndarray,
+        ratio: np.ndarray,
+        frozen_mask: np.ndarray,
+        y: np.ndarray,
+        torque_band: np.ndarray | None,
+        power_speed: np.ndarray | None,
+    ) -> None:
+        """Start an isolation where trouble begins; decide those whose ``isolation_delay`` has run out, unless
+        the choice between the two generator-speed sensors is still open (``arbitration``)."""
+        start = trouble & (self.deadline < 0)
+        self.deadline[start] = self.ticks + self.s.isolation_delay
+        self.started[start] = self.ticks
+        self.arbiter.reset(start)
+        suspected = _SENSORS_OF_MASK[self.flagged | self.provisional]
+        trusted_power = None if power_speed is None else np.isfinite(power_speed)
+        self.arbiter.step(
+            y,
+            None if power_speed is None else np.nan_to_num(power_speed),
+            np.zeros(self.n, dtype=np.int64) if torque_band is None else torque_band,
+            ~suspected[:, :2],
+            trusted_power,
+        )
+        decided = self.arbiter.decided()
+        rows = np.flatnonzero(self.deadline >= 0)
+        isolate = np.maximum(chi2_stat[rows] / self.h_isolate, self._window_sum[rows] / self.h_isolate_window)
+        before = self.flagged.copy()
+        for i, row in enumerate(rows):
+            explanation = self._explain(
+                row, self._explained(ratio[row]), self._explained(isolate[i]), int(frozen_mask[row]), isolate[i]
+            )
+            if self.ticks >= self.deadline[row]:
+                other = self._generator_alternative(explanation, self._explained(ratio[row]))
+                if other is not None:
+                    if not decided[row] and self.ticks - self.started[row] < self.arbitration_ticks:
+                        self.deadline[row] = self.ticks + 1  # wait for the arbitration, trusting neither
+                        both = self.provisional[row] | explanation | other
+                        if self._estimable[both]:
+                            self.provisional[row] = both
+                        continue
+                    if (self.arbiter.total[row] > 0.0) != bool(explanation & _BITS[2]):
+                        explanation = other
+                self.flagged[row] = explanation
+                self.deadline[row] = -1
+                self.provisional[row] = explanation
+            elif start[row]:
+                self.provisional[row] = explanation
+            elif self._estimable[self.provisional[row] | explanation]:
+                # suspicion only grows while the isolation is under way: an estimate that moved back and forth
+                # between explanations would re-admit a sensor at every move
+                self.provisional[row] |= explanation
+        raised = self.flagged & ~before
+        if raised.any():
+            self.clearing.start(_SENSORS_OF_MASK[raised])
+        self._pending = bool((self.deadline >= 0).any())
+        self._maybe_flagged = True
 
-    def _clear(self, frozen_mask: np.ndarray, skip: np.ndarray) -> None:
-        """Unflag sensor s where the window sum of 'selected set + s' is below the clearing threshold."""
+    def _explained(self, ratio: np.ndarray) -> np.ndarray:
+        """For each explanation (observer index), the largest ratio among its witnesses (n_isolating,)."""
+        return (self.witnesses * ratio).max(axis=1)
+
+    def _generator_alternative(self, explanation: int, isolate: np.ndarray) -> int | None:
+        """The same explanation with the other generator-speed sensor, if the residuals do not rule it out
+        (consistent at the detection level: only the arbitration can tell a small fault's sensor)."""
+        generator = explanation & _GENERATOR_BITS
+        if generator not in (_BITS[2], _BITS[3]):
+            return None
+        other = explanation ^ _GENERATOR_BITS
+        j = self.observer_of_mask[other]
+        return int(other) if j >= 0 and isolate[j] <= 1.0 else None
+
+    @property
+    def pending(self) -> bool:
+        """Whether an isolation is under way on any row (``provisional`` holds its current explanation: sensors an
+        estimator should not lean on before they are flagged)."""
+        return self._pending
+
+    def _explain(self, row: int, ratio: np.ndarray, isolate: np.ndarray, frozen: int, own: np.ndarray) -> int:
+        """The smallest explanation of the data that keeps the flagged and frozen sensors (module docstring):
+        consistent when all its witnesses are (``ratio``, ``isolate``); among consistent ones of one size, the one
+        whose own observer's statistic (``own``, at the isolation level) is smallest, i.e. that leaves least of
+        the data unexplained."""
+        current = int(self.flagged[row])
+        keep = current | frozen
+        supersets = ((self.masks & keep) == keep) & (self.masks != current)
+        with_frozen = ((self.masks & frozen) == frozen) & (self.masks != current)
+        order = ((supersets, isolate), (supersets, ratio), (with_frozen, isolate), (with_frozen, ratio))
+        for pool_mask, level in order:
+            pool = np.flatnonzero(pool_mask & (level <= 1.0))
+            if len(pool):
+                self.ambiguous[row] = False
+                return int(self.masks[pool[np.lexsort((own[pool], self.sizes[pool]))[0]]])
+        self.ambiguous[row] = True
+        candidates = np.flatnonzero(supersets if supersets.any() else with_frozen)
+        if len(candidates) == 0:  # more sensors frozen than any observer can leave out
+            return keep
+        return int(self.masks[candidates[np.lexsort((ratio[candidates], self.sizes[candidates]))[0]]])
+
+    def _clear(self, y: np.ndarray, x_hat: np.ndarray, frozen_mask: np.ndarray, skip: np.ndarray, torque_band) -> None:
+        """Unflag sensor s where its CUSUM says healthy and the observer 'selected set + s' is consistent."""
+        ready = self.clearing.step(y, x_hat, self.flagged, _SENSORS_OF_MASK[frozen_mask], torque_band)
+        ready &= ~skip[:, None]
+        if not ready.any():
+            return
+        recent = self._history[(self.ticks - 1 - np.arange(self.s.clear_window)) % self.s.window].sum(axis=0)
         for s in range(N_SPEED):
             bit = 1 << s
-            rows = np.flatnonzero((self.flagged & bit).astype(bool) & ~skip & ((frozen_mask & bit) == 0))
+            rows = np.flatnonzero(ready[:, s])
             if len(rows) == 0:
                 continue
             with_s = self.observer_of_mask[self.flagged[rows] & ~bit]
             rows, with_s = rows[with_s >= 0], with_s[with_s >= 0]
-            recent = self._history[(self.ticks - 1 - np.arange(self.s.clear_window)) % self.s.window]
-            done = rows[recent[:, rows, with_s].sum(axis=0) <= self.h_clear[with_s]]
+            done = rows[recent[rows, with_s] <= self.h_clear[with_s]]
             self.flagged[done] &= ~bit

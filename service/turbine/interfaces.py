@@ -31,11 +31,19 @@ POWER_SPEED_MIN_TORQUE = 0.05
 # 5-pe is designed at these torques (fractions of rated, on the K ω² law of region 2), and the estimator uses the
 # design nearest the torque reference (``power_speed_band``).
 POWER_SPEED_DESIGN_TORQUES = (0.15, 0.35, 0.8)
+# Their random walk of the aerodynamic torque, measured as DESIGN_Q_UNKNOWN is below at the wind where region 2
+# has each torque (5.8, 8.0, 11.5 m/s): std of 1-s increments / √100 = 3.8e3, 7.6e3, 1.35e4 N m (at 9.5 m/s:
+# 1.05e4). The torque changes faster as the wind rises, and a filter that expects slower changes lags them.
+POWER_SPEED_DESIGN_Q = (3.8e3**2, 7.6e3**2, 1.35e4**2)  # (N m)² per tick
+# In region 3 the torque changes far faster still (1.4e4 at 11.5 m/s, 2.4e4 at 14, 7.9e4 at 18, 4.8e5 at 24 m/s),
+# and no random walk fits all of it: there 5-pe is the rigid drive train on the three channels
+# (``uio.design_rigid``), designed at rated torque, which needs no model of the torque at all.
+POWER_SPEED_REGION3 = "5-pe-r3"
 
 # Design process noise of the observers (per step): the drive-train model is exact up to the efficiency fault
 # and the converter's torque offset, so Q is small.
 DESIGN_Q = np.diag([1e-8, 1e-6, 1e-12, 1.0])  # (rad/s)², (rad/s)², rad², (N m)²
-# The Kalman-form observers (4 and 5) model the aerodynamic torque as a random walk. Its variance per tick is
+# Observer 5 (a Kalman filter) models the aerodynamic torque as a random walk. Its variance per tick is
 # the one that reproduces how the benchmark turbine's aerodynamic torque spreads over 1 s, the time scale the
 # wind estimate resolves (0.3 Hz), in 12 % turbulence: fault-free simulation, torque low-passed at 1 Hz,
 # std of 1-s increments / √100 ticks = 9.7e3 N m (at 10 s: 6.9e3; unfiltered per tick: 1.0e4).
@@ -49,6 +57,9 @@ class Diagnosis:
     faulty: np.ndarray  # (n, len(DIAGNOSIS_TARGETS)) bool, wwcore.channels.DIAGNOSIS_TARGETS order
     margins: np.ndarray | None = None  # (n, m) test statistic / threshold of each named residual; > 1 trips
     margin_names: tuple[str, ...] = ()  # names of the m residuals
+    # (n, len(DIAGNOSIS_TARGETS)) bool or None: ``faulty`` plus targets under suspicion while an isolation is
+    # under way; the supervisor gives the estimator this instead of ``faulty`` (events come from ``faulty`` only)
+    suspect: np.ndarray | None = None
 
 
 @dataclass
@@ -137,10 +148,12 @@ def power_speed_name(torque_fraction: float) -> str:
     return f"5-pe{round(100 * torque_fraction)}"
 
 
-def power_speed_band(torque: np.ndarray, p: TurbineParams) -> np.ndarray:
-    """Index into ``POWER_SPEED_DESIGN_TORQUES`` of the design nearest each torque (N m), on a log scale."""
+def power_speed_band(torque: np.ndarray, p: TurbineParams, zone: np.ndarray | None = None) -> np.ndarray:
+    """Index of the 5-pe design for each row: into ``POWER_SPEED_DESIGN_TORQUES``, the design nearest the torque
+    (N m) on a log scale; where the controller's ``zone`` is region 3 (1), the region-3 design after them."""
     edges = np.sqrt(np.multiply(POWER_SPEED_DESIGN_TORQUES[:-1], POWER_SPEED_DESIGN_TORQUES[1:])) * p.rated_torque
-    return np.searchsorted(edges, torque)
+    band = np.searchsorted(edges, torque)
+    return band if zone is None else np.where(zone == 1, len(POWER_SPEED_DESIGN_TORQUES), band)
 
 
 def power_speed_sigma(sigma: dict[str, float], p: TurbineParams, torque_fraction: float) -> float:
@@ -169,7 +182,12 @@ def _cached_bank_design(params: TurbineParams, convention: str) -> BankDesign:
     if key not in _BANKS:
         all_sigma = {c.name: noise_std(c, convention) for c in SENSORS}
         sigma = {name: all_sigma[name] for name in SPEED_SENSORS}
-        torques = POWER_SPEED_DESIGN_TORQUES
-        power_speed = [(power_speed_name(t), power_speed_sigma(all_sigma, params, t)) for t in torques]
-        _BANKS[key] = design_bank(design_model(params), sigma, DESIGN_Q, DESIGN_Q_UNKNOWN, power_speed)
+        torques, qs = POWER_SPEED_DESIGN_TORQUES, POWER_SPEED_DESIGN_Q
+        power_speed = [
+            (power_speed_name(t), power_speed_sigma(all_sigma, params, t), q) for t, q in zip(torques, qs, strict=True)
+        ]
+        power_speed.append((POWER_SPEED_REGION3, power_speed_sigma(all_sigma, params, 1.0), None))
+        _BANKS[key] = design_bank(
+            design_model(params), sigma, DESIGN_Q, DESIGN_Q_UNKNOWN, power_speed, single_generator=True
+        )
     return _BANKS[key]

@@ -1,4 +1,8 @@
-"""The turbine supervisor: a detector and an estimator chosen by name, composed into the step contract."""
+"""The turbine supervisor: a detector and an estimator chosen by name, composed into the step contract.
+
+``options`` (a scenario's ``[supervisor.params]``) are checked by ``service.plugins.choose`` against what the two
+algorithms declare; each algorithm receives the keys it declared.
+"""
 
 from __future__ import annotations
 
@@ -6,15 +10,15 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from service.plugins import TURBINE_DETECTORS, TURBINE_ESTIMATORS
+from service.plugins import TURBINE_DETECTORS, TURBINE_ESTIMATORS, choose
 from service.turbine.interfaces import Diagnosis, Estimates, TurbineContext
 from wwcore.channels import DIAGNOSIS_TARGETS
 from wwcore.events import Event, EventType
 from wwcore.turbine_frames import TurbineFrame, TurbineRefs
 from wwcore.turbine_params import BENCHMARK, TurbineParams
 
-DEFAULT_DETECTOR = "benchmark"
-DEFAULT_ESTIMATOR = "uio-bank"
+DEFAULT_DETECTOR = TURBINE_DETECTORS.default
+DEFAULT_ESTIMATOR = TURBINE_ESTIMATORS.default
 
 
 class TurbineSupervisor:
@@ -32,11 +36,12 @@ class TurbineSupervisor:
         run_of_row: Sequence[int] | None = None,
         turbine_of_row: Sequence[int] | None = None,
     ):
-        options = options or {}
+        self.choice = choose("turbine", options, detector=detector, estimator=estimator)  # refuses bad options
         self.context = TurbineContext(params, n, noise_convention)
-        self.detector = TURBINE_DETECTORS.create(detector or DEFAULT_DETECTOR, context=self.context, options=options)
+        names, chosen = self.choice.names, self.choice.options
+        self.detector = TURBINE_DETECTORS.create(names["detector"], context=self.context, options=chosen["detector"])
         self.estimator = TURBINE_ESTIMATORS.create(
-            estimator or DEFAULT_ESTIMATOR, context=self.context, options=options
+            names["estimator"], context=self.context, options=chosen["estimator"]
         )
         self.n = n
         self.run_of_row = np.zeros(n, dtype=int) if run_of_row is None else np.asarray(run_of_row)
@@ -49,7 +54,9 @@ class TurbineSupervisor:
 
     def step(self, frame: TurbineFrame) -> TurbineRefs:
         diagnosis = self.detector.step(frame)
-        estimates = self.estimator.step(frame, diagnosis.faulty)
+        # the estimator stops using a sensor as soon as the detector suspects it, before it is flagged
+        distrusted = diagnosis.faulty if diagnosis.suspect is None else diagnosis.suspect
+        estimates = self.estimator.step(frame, distrusted)
         self._record(frame.t, diagnosis, estimates)
         self.diagnosis, self.estimates = diagnosis, estimates
         return TurbineRefs(
@@ -59,6 +66,17 @@ class TurbineSupervisor:
             omega_r=estimates.omega_r,
             wind=estimates.wind,
         )
+
+    def bridge(self, frame: TurbineFrame) -> None:
+        """Advance through tick ``frame.k``, whose frame was lost (``frame`` interpolated, ``wwcore.stepping``): the
+        observer bank and the estimator step (flags held, outputs dropped); the detector does not, so its window
+        tests never take a made-up sample and no decision changes. A detector with state of its own may have a
+        ``bridge(frame)`` of its own: it is called."""
+        self.context.bank(frame)
+        self.estimator.step(frame, self.flags)
+        detector_bridge = getattr(self.detector, "bridge", None)
+        if detector_bridge is not None:
+            detector_bridge(frame)
 
     def drain_events(self) -> list[Event]:
         events, self._events = self._events, []

@@ -29,9 +29,10 @@ milliseconds. Two observers of seed 000 fail:
   generator side of the 4.5 Hz torsion mode is unobservable and damped only by friction (|λ| = 0.9994, a 17 s
   time constant); its estimate of ω_g would carry a resonant error of several rad/s.
 
-Where it fails the observer is a steady-state Kalman filter of the design model augmented with the unknown input
-as a random-walk state, written in the same (F, T, K, H) form so the bank runs it like the others
-(``kind == "kalman"``).
+Where it fails, observer 5 is a steady-state Kalman filter of the design model augmented with the unknown input
+as a random-walk state (``kind == "kalman"``), and observer 4 the drive train as one rigid body
+(``design_rigid``, ``kind == "rigid"``), both written in the same (F, T, K, H) form so the bank runs them like the
+others.
 
 Residual (decoupled from d): r_j[n] = y_j[n] − C_j x̂[n] = (I − C_j H_j) y_j[n] − C_j z[n]. With ε = T x − z,
 ε[n+1] = F ε[n] + T ξ[n] − K η[n] and r = C ε + (I − C H) η, so its stationary covariance is closed-form:
@@ -63,8 +64,8 @@ class ObserverDesign:
     """Matrices of one observer of the bank. Steady-state gains plus the transient from P[0] = 0."""
 
     sensors: tuple[str, ...]
-    kind: str  # "uio" or "kalman"
-    n_states: int  # 4 for a UIO, 5 for the augmented Kalman filter
+    kind: str  # "uio", "kalman" (augmented with the unknown input) or "rigid" (``design_rigid``)
+    n_states: int  # 4 for a UIO and the rigid drive train, 5 for the augmented Kalman filter
     C: np.ndarray  # (p, n_states)
     H: np.ndarray  # (n_states, p)
     T: np.ndarray  # (n_states, n_states)
@@ -78,6 +79,8 @@ class ObserverDesign:
     whitening: np.ndarray  # (rank, p): w = W r has identity covariance
     autocov: np.ndarray  # (LAGS, rank, rank): E[w[n+k] w[n]ᵀ] of the whitened residual, k = 0 … LAGS−1
     note: str = ""
+    R: np.ndarray | None = None  # (p, p) measurement noise covariance of the sensors the design assumed
+    Q: np.ndarray | None = None  # process noise covariance of the design (n_states × n_states)
 
     @property
     def rank(self) -> int:
@@ -199,6 +202,59 @@ def design_augmented_kalman(
     return _finish(sensors, "kalman", C, L, T, T @ B, F, K, *empty, R, Qa, note=note)
 
 
+def design_rigid(
+    model: DesignModel, sensors: tuple[str, ...], R: np.ndarray, gear_ratio: float, note: str
+) -> ObserverDesign:
+    """The drive train as one rigid body below its torsion mode, in the observer form (F, T, K, H).
+
+    Every sensor of the set measures the same speed once referred to the generator side (a rotor-speed sensor
+    times N_g), so x̂ = z + H y takes their inverse-variance weighted mean as ω̂_g and ω̂_g/N_g as ω̂_r; θ̂_Δ is
+    not estimated (0); z carries only the converter torque, τ̂_g[n] = a τ̂_g[n−1] + (1 − a) τ_g,r[n−1] (the
+    design model's exact first-order converter, a = e^(−α_gc Ts)), so F = diag(0, 0, 0, a) and K = 0. No model of
+    the aerodynamic torque is involved: ``wind_recovery`` takes τ_r from the two shaft equations summed,
+    τ_r = (J_r/N_g + N_g J_g/η) dω_g/dt + (N_g/η)(τ_g + B_g ω_g) + B_r ω_g/N_g, whose error is the torsion's
+    own motion (4.5 Hz, removed by the 0.3 Hz wind filter). The residual (I − C H) y is the sensors' parity:
+    white with covariance (I − C H) R (I − C H)ᵀ whatever the wind (rank p − 1; none for one sensor).
+    """
+    C = model.C(sensors)
+    refer = np.where(C[:, 0] > 0, gear_ratio, 1.0)  # a rotor-speed reading times N_g is a generator speed
+    inverse = 1.0 / (np.diag(R) * refer**2)
+    weights = inverse / inverse.sum()
+    H = np.zeros((4, len(sensors)))
+    H[1] = weights * refer
+    H[0] = H[1] / gear_ratio
+    T = np.eye(4) - H @ C
+    a = float(model.A_d[3, 3])
+    F = np.diag([0.0, 0.0, 0.0, a])
+    TB = np.array([[0.0], [0.0], [0.0], [1.0 - a]])
+    K = np.zeros((4, len(sensors)))
+    I_CH = np.eye(len(sensors)) - C @ H
+    S = I_CH @ R @ I_CH.T
+    W = _whitening(S) if np.abs(S).max() > 0.0 else np.zeros((0, len(sensors)))
+    lags = np.zeros((LAGS, W.shape[0], W.shape[0]))
+    lags[0] = np.eye(W.shape[0])
+    return ObserverDesign(
+        sensors=sensors,
+        kind="rigid",
+        n_states=4,
+        C=C,
+        H=H,
+        T=T,
+        TB=TB,
+        F=F,
+        K=K,
+        F_transient=np.zeros((0, 4, 4)),
+        K_transient=np.zeros((0, 4, len(sensors))),
+        residual_cov=S,
+        state_error_cov=H @ R @ H.T,
+        whitening=W,
+        autocov=lags,
+        note=note,
+        R=R,
+        Q=np.zeros((4, 4)),
+    )
+
+
 def stationary_covariance(F: np.ndarray, W: np.ndarray, iterations: int = 64) -> np.ndarray:
     """Σ = F Σ Fᵀ + W for a stable F, by Smith's doubling Σ = Σ_k F^(2^k)-sums.
 
@@ -247,4 +303,6 @@ def _finish(sensors, kind, C, H, T, TB, F, K, F_seq, K_seq, R, Q, note: str = ""
         whitening=W,
         autocov=np.array(lags),
         note=note,
+        R=R,
+        Q=Q,
     )

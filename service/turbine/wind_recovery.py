@@ -7,8 +7,10 @@
    The rotor acceleration is taken from Ω̂ = ω̂_g/N_g where the observer uses a generator-speed sensor: below
    the 4.5 Hz torsion mode the shaft is rigid (the low-frequency part of θ̇_Δ = ω_r − ω_g/N_g is ~1e-4 rad/s),
    and the generator encoder is ~50× less noisy than the rotor-speed sensors once referred to the rotor side.
-   A UIO without one would use Ω̂ = ω̂_r; the bank has none (observers 4, 5 and 5-pe are Kalman filters whose
-   fifth state is τ̂_r itself).
+   A UIO without one would use Ω̂ = ω̂_r; the bank has none. Observer 4 (``uio.design_rigid``: no θ̂_Δ) takes
+   the two shaft equations summed instead, τ̂_r = (J_r/N_g + N_g J_g/η) dω̂_g/dt + (N_g/η)(τ̂_g + B_g ω̂_g) +
+   B_r ω̂_g/N_g, exact but for the torsion's own 4.5 Hz motion. Observers 5 and 5-pe's Kalman designs have no
+   generator encoder; their fifth state is τ̂_r.
 2. τ̂_r and the pitch are low-pass filtered by the same second-order Butterworth filter (cutoff
    ``wind_cutoff_hz``), so both carry the same delay, then
 3. v̂ solves τ̂_r = ½ρπR³ C_q(ω̂_r R / v, β̂) v² (``wwcore.aero.wind_from_torque``), started from the previous
@@ -28,7 +30,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from service.turbine.bank import BankDesign
+from service.turbine.bank import GENERATOR, BankDesign
 from wwcore import aero
 from wwcore.lti import biquad_steady_state, butter2_lowpass, zoh
 from wwcore.turbine_params import TurbineParams
@@ -107,9 +109,15 @@ class WindRecovery:
         for j, o in enumerate(bank.observers):
             i0 = bank.offsets[j]
             uses_generator = any(s.startswith("omega_g") for s in o.sensors)
+            encoder = any(s in GENERATOR for s in o.sensors)  # a generator-speed sensor, not the power-speed channel
             col = torque.start + j
-            if o.kind == "kalman":  # the augmented Kalman filter estimates τ_r as its fifth state
+            if o.kind == "kalman" and not encoder:  # τ_r from the filter's fifth state (observers 5 and 5-pe)
                 now[i0 + 4, col] = 1.0
+            elif o.kind == "rigid":  # the two shaft equations summed (``uio.design_rigid``)
+                inertia = (p.J_r / p.N_g + p.N_g * p.J_g / p.eta_dt) / p.dt
+                now[i0 + 1, col] += inertia + p.N_g * p.B_g / p.eta_dt + p.B_r / p.N_g
+                prev[i0 + 1, col] -= inertia
+                now[i0 + 3, col] += p.N_g / p.eta_dt
             else:
                 accel_col, accel_gain = (i0 + 1, p.J_r / (p.N_g * p.dt)) if uses_generator else (i0, p.J_r / p.dt)
                 now[accel_col, col] += accel_gain
@@ -156,6 +164,24 @@ class WindRecovery:
         self.filter.start(np.column_stack([raw, beta0]))
         self._filtered = np.column_stack([raw, beta0])
         self._x_prev = x_hat
+
+    def transfer(
+        self, rows: np.ndarray, target: np.ndarray, source: np.ndarray, bank: BankDesign, x_hat: np.ndarray
+    ) -> None:
+        """Observer ``target[i]`` of row ``rows[i]`` takes over observer ``source[i]``'s filtered torque and speeds
+        and its change over this tick (x̂ the bank's estimates of this tick, after ``ObserverBank.restart``): its
+        columns then go on as the source's would have, without the history it had before."""
+        for group in self._groups:
+            t_col, s_col = group.start + target, group.start + source
+            for state in (self.filter.s1, self.filter.s2, self._filtered):
+                state[rows, t_col] = state[rows, s_col]
+        for row, t, s in zip(rows, target, source, strict=True):
+            width = min(bank.observers[t].n_states, bank.observers[s].n_states)
+            tb = slice(bank.offsets[t], bank.offsets[t] + width)
+            sb = slice(bank.offsets[s], bank.offsets[s] + width)
+            # x̂_T[n−1] such that the target's change over this tick is the source's (no step, hence no torque
+            # impulse, where the two estimates differ)
+            self._x_prev[row, tb] = x_hat[row, tb] - (x_hat[row, sb] - self._x_prev[row, sb])
 
     def step(
         self,

@@ -8,17 +8,12 @@ import pytest
 from scipy import signal
 
 from plant_sim.farm import FarmBatch
-from service.farm.dispatch import (
-    ACCOMMODATION_RULES,
-    DRIVETRAIN_RELIEF,
-    HOLD_RESERVE,
-    RELEASE_AFTER_S,
-    TRIM_KI,
-    TRIM_KP,
-    Dispatch,
-)
+from service.farm.accommodation import DRIVETRAIN_RELIEF
+from service.farm.dispatch import ACCOMMODATION_RULES, Dispatch
+from service.farm.hold import HOLD_RESERVE, RELEASE_AFTER_S
 from service.farm.interfaces import BETA, OMEGA_G, P_G, TAU_G, FarmContext, FarmSample
 from service.farm.pitch_trim import AVERAGING_S
+from service.farm.power_loop import TRIM_KI, TRIM_KP
 from service.farm.ripple import SETTLE_S, RippleCompensation
 from service.farm.supervisor import FarmSupervisor
 from tests.farm.conftest import farm_spec, wind
@@ -109,6 +104,8 @@ def test_the_paper_pitch_rule_derates_by_eq_26_and_sends_no_trim():
 def test_unknown_pitch_and_accommodation_rules_are_refused():
     with pytest.raises(ValueError, match="pitch_rule"):
         _dispatch(pitch_rule="bend")
+    with pytest.raises(ValueError, match="ripple_share"):
+        _dispatch(ripple_share=1.5)
     with pytest.raises(ValueError, match="accommodation_rule"):
         _dispatch(accommodation_rule="stop")
 
@@ -119,16 +116,17 @@ def _block_means(power, omega_3: float, j: int) -> float:
     return float(np.mean(power(ticks)))
 
 
-def test_the_ripple_estimate_is_the_held_turbines_3p_power_and_the_free_ones_share_its_opposite():
+@pytest.mark.parametrize("share", [1.0, 0.4])
+def test_the_ripple_estimate_is_the_held_turbines_3p_power_and_the_free_ones_share_its_opposite(share):
     """A held turbine (row 3) whose power carries A cos(ω_3 t + φ) on a drifting mean: after settling, C_j is
-    A e^{j(ω_3 t_j + φ)} (closed form), and the seven other free turbines (row 7 is derated) get −C_j/7 each."""
+    A e^{j(ω_3 t_j + φ)} (closed form), and the seven other free turbines (row 7 is derated) get −s C_j/7 each."""
     amplitude, phase = 0.3 * MW, 0.7
     omega_3 = 3.0 * P.omega_nom / P.N_g
 
     def power(t):
         return 3.0 * MW + 0.02 * MW * t + amplitude * np.cos(omega_3 * t + phase)
 
-    ripple = RippleCompensation(P, 9)
+    ripple = RippleCompensation(P, 9, share)
     held = np.zeros(9, dtype=bool)
     held[3] = True
     free = np.ones(9, dtype=bool)
@@ -144,7 +142,7 @@ def test_the_ripple_estimate_is_the_held_turbines_3p_power_and_the_free_ones_sha
     assert abs(ripple.ripple[3]) == pytest.approx(amplitude, rel=0.05)
     assert np.angle(ripple.ripple[3] / expected) == pytest.approx(0.0, abs=0.05)
     shares = np.delete(ripple.power, [3, 7])
-    assert shares == pytest.approx(np.full(7, -ripple.ripple[3] / 7))
+    assert shares == pytest.approx(np.full(7, -share * ripple.ripple[3] / 7))
     assert ripple.power[3] == 0.0 and ripple.power[7] == 0.0
     assert ripple.rate[0] == pytest.approx(omega_3)
     ripple.step(_sample(121), np.zeros(9, dtype=bool), free)  # the hold ends: nothing is asked any more
@@ -154,7 +152,7 @@ def test_the_ripple_estimate_is_the_held_turbines_3p_power_and_the_free_ones_sha
 def _held_dispatch(**options) -> tuple[Dispatch, FarmSample]:
     """A dispatch (rule ``hold-torque`` unless ``options`` say) whose low-passed wind is 12 m/s."""
     d = _dispatch(**{"accommodation_rule": "hold-torque", **options})
-    d._slow_wind = np.full(9, 12.0)
+    d.available.slow_wind = np.full(9, 12.0)
     sample = _sample()
     sample.scada[:, TAU_G] = 15e3
     return d, sample
@@ -172,7 +170,7 @@ def test_a_hold_is_released_when_the_farm_has_needed_its_power_for_long_enough()
     refs = d.step(sample, _faulty(1, 2))
     refs = d.step(sample, _faulty(1, 2))
     assert d.mode[1] == CANCEL_3P_MODE and refs[1] == P.rated_power
-    assert np.isnan(d.speed_floor[1])
+    assert np.isnan(d.drivetrain.speed_floor[1])
     sample.demand[:] = 10.0 * MW  # plenty of headroom again: the release stands while the flag does
     d.step(sample, _faulty(1, 2))
     assert d.mode[1] == CANCEL_3P_MODE
@@ -187,7 +185,7 @@ def test_a_hold_is_released_when_the_others_would_need_more_than_their_margin(ma
     below that keeps the hold, just above it releases the hold after RELEASE_AFTER_S."""
     d, sample = _held_dispatch()
     d.step(sample, _faulty(1, 2))
-    floor = P.eta_gc * (d.held_sum[1] - P.B_g * d.speed_floor[1]) * d.speed_floor[1]
+    floor = P.eta_gc * (d.drivetrain.held_sum[1] - P.B_g * d.drivetrain.speed_floor[1]) * d.drivetrain.speed_floor[1]
     sample.demand[:] = floor + (1.0 - HOLD_RESERVE + margin) * 16.0 * MW
     for _ in range(round(RELEASE_AFTER_S / FARM_DT_S) + 1):
         d.step(sample, _faulty(1, 2))

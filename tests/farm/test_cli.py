@@ -56,12 +56,16 @@ def test_the_scorecard_keeps_each_runs_energy_for_paired_comparisons(tmp_path):
     path.write_text(SCENARIO.replace("duration_s = 80.0", "duration_s = 70.0"))
     out = tmp_path / "out"
     assert main(["eval", str(path), "--runs", "2", "--out", str(out), "--quiet", "--workers", "1", "--no-plots"]) == 0
-    metrics = json.loads((out / "scorecard.json").read_text())["metrics"]
+    card = json.loads((out / "scorecard.json").read_text())
+    metrics, per_run = card["metrics"], card["per_run"]
     for name in ("over_production", "missing_power"):
-        by_run = metrics[name]["mwh_by_run"]
+        by_run = per_run[f"{name}_mwh"]
         assert len(by_run) == 2 and min(by_run) >= 0.0
         assert sum(by_run) / 2 == pytest.approx(metrics[name]["mwh_per_run"])
-    assert max(metrics["missing_power"]["mwh_by_run"]) > 0.0
+    assert max(per_run["missing_power_mwh"]) > 0.0
+    for key in ("damage.run.farm_miner_ratio", "damage.run.wt9.damage_number", "damage.debris.miner_ratio_window"):
+        assert len(per_run[key]) == 2
+    assert card["runs_digest"] and card["options"] == {}
 
 
 def test_eval_takes_the_paper_detector_the_pi_and_no_accommodation(tmp_path):

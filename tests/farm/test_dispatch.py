@@ -6,8 +6,10 @@ import numpy as np
 import pytest
 
 from plant_sim.turbine.trim import trim
-from service.farm.dispatch import HOLD_MARGIN, HOLD_MAX_TORQUE_TSR, HOLD_MIN_TSR, Dispatch, PIFarmController
+from service.farm.dispatch import Dispatch
+from service.farm.hold import HOLD_MARGIN, HOLD_MAX_TORQUE_TSR, HOLD_MIN_TSR
 from service.farm.interfaces import BETA, OMEGA_G, OMEGA_R, P_G, TAU_G, FarmContext, FarmSample
+from service.farm.power_loop import PIFarmController
 from wwcore import aero
 from wwcore.channels import N_SENSORS
 from wwcore.farm_frames import MIN_SPEED_FRACTION
@@ -112,10 +114,10 @@ def test_the_trim_saturates_and_restarts_when_the_farm_cannot_meet_the_demand():
     nothing = np.zeros(9)
     for _ in range(50):
         refs = d.step(_sample(12.0, nothing), _faulty()) / MW
-    assert refs == pytest.approx(np.full(9, 12.0 / 9 * (1.0 + d.trim_limit)))  # u = +10 % at most
-    assert d.trim[0] == pytest.approx(d.trim_limit)
+    assert refs == pytest.approx(np.full(9, 12.0 / 9 * (1.0 + d.power_trim.limit)))  # u = +10 % at most
+    assert d.power_trim.integral[0] == pytest.approx(d.power_trim.limit)
     refs = d.step(_sample(20.0, nothing), _faulty())  # beyond Σ P_avail: rated, and the integral restarts
-    assert np.all(refs == P.rated_power) and d.trim[0] == 0.0
+    assert np.all(refs == P.rated_power) and d.power_trim.integral[0] == 0.0
 
 
 def test_without_gains_the_trim_leaves_eq_18_alone():
@@ -126,7 +128,7 @@ def test_without_gains_the_trim_leaves_eq_18_alone():
 def _held(wind: float, tau_g: float) -> tuple[Dispatch, FarmSample]:
     """A hold-torque dispatch whose low-passed wind is set by hand; SCADA torque τ_g."""
     d = _dispatch([2.0] * 9, rule="hold-torque")
-    d._slow_wind = np.full(9, wind)
+    d.available.slow_wind = np.full(9, wind)
     sample = _sample(12.0)
     sample.scada[:, TAU_G] = tau_g
     return d, sample
@@ -151,7 +153,7 @@ def test_hold_torque_keeps_the_torque_at_the_slowest_speed_that_holds_it(tau_g, 
     wind = 12.0
     d, sample = _held(wind, tau_g)
     refs = d.step(sample, _faulty(t2=2)) / MW
-    omega_floor = d.speed_floor[1]
+    omega_floor = d.drivetrain.speed_floor[1]
     tsr = _tsr(omega_floor, wind)
     cap = _hold_cap(wind, omega_floor)
     assert d.held_torque[1] == pytest.approx(cap)
@@ -178,8 +180,8 @@ def test_hold_torque_keeps_the_torque_at_the_slowest_speed_that_holds_it(tau_g, 
 def test_hold_torque_speed_floor_stays_at_the_lowest_set_point_in_low_wind():
     d, sample = _held(6.0, 8e3)  # λ_f = 5 would ask for 0.31 Ω_nom
     d.step(sample, _faulty(t2=2))
-    assert d.speed_floor[1] == pytest.approx(MIN_SPEED_FRACTION * P.omega_nom)
-    assert d.held_torque[1] == pytest.approx(_hold_cap(6.0, d.speed_floor[1]))
+    assert d.drivetrain.speed_floor[1] == pytest.approx(MIN_SPEED_FRACTION * P.omega_nom)
+    assert d.held_torque[1] == pytest.approx(_hold_cap(6.0, d.drivetrain.speed_floor[1]))
 
 
 def test_a_held_turbine_stays_at_its_floor_when_the_farm_cannot_meet_the_demand():
@@ -187,7 +189,7 @@ def test_a_held_turbine_stays_at_its_floor_when_the_farm_cannot_meet_the_demand(
     d, sample = _held(12.0, 15e3)
     sample.demand[:] = 20.0 * MW  # above Σ P_avail = 18 MW: no dispatch, every other turbine at rated
     refs = d.step(sample, _faulty(t2=2))
-    floor = P.eta_gc * (15e3 - P.B_g * d.speed_floor[1]) * d.speed_floor[1]
+    floor = P.eta_gc * (15e3 - P.B_g * d.drivetrain.speed_floor[1]) * d.drivetrain.speed_floor[1]
     assert refs[1] == pytest.approx(floor)
     assert np.all(np.delete(refs, 1) == P.rated_power)
 
@@ -195,12 +197,12 @@ def test_a_held_turbine_stays_at_its_floor_when_the_farm_cannot_meet_the_demand(
 def test_hold_torque_floor_is_fixed_while_the_hold_lasts_and_forgotten_after():
     d, sample = _held(15.0, 26e3)
     d.step(sample, _faulty(t2=2))
-    first, cap = d.speed_floor[1], d.held_torque[1]
-    d._slow_wind = np.full(9, 25.0)  # eq. (20) reads nonsense while the rotor slows
+    first, cap = d.drivetrain.speed_floor[1], d.held_torque[1]
+    d.available.slow_wind = np.full(9, 25.0)  # eq. (20) reads nonsense while the rotor slows
     d.step(sample, _faulty(t2=2))
-    assert d.speed_floor[1] == first and d.held_torque[1] == cap
+    assert d.drivetrain.speed_floor[1] == first and d.held_torque[1] == cap
     d.step(sample, _faulty())
-    assert np.isnan(d.speed_floor).all() and np.isnan(d.held_torque).all() and np.all(d.mode == 0)
+    assert np.isnan(d.drivetrain.speed_floor).all() and np.isnan(d.held_torque).all() and np.all(d.mode == 0)
 
 
 def test_a_held_turbine_keeps_its_floor_when_its_torque_falls_in_a_lull():
@@ -209,13 +211,13 @@ def test_a_held_turbine_keeps_its_floor_when_its_torque_falls_in_a_lull():
     until the rotor stalled (measured: λ 2.7, 0.7 MN m on the shaft for 200 s at 12 m/s)."""
     d, sample = _held(12.0, 26e3)
     first = d.step(sample, _faulty(t2=2))[1]
-    floor = P.eta_gc * (26e3 - P.B_g * d.speed_floor[1]) * d.speed_floor[1]
+    floor = P.eta_gc * (26e3 - P.B_g * d.drivetrain.speed_floor[1]) * d.drivetrain.speed_floor[1]
     assert first == pytest.approx(floor)
     sample.scada[:, TAU_G] = 15e3  # the rotor could not make the held torque: the taper gave it away
     again = d.step(sample, _faulty(t2=2))[1]
     assert again == first
     d.step(sample, _faulty())
-    assert np.isnan(d.held_sum).all()  # forgotten with the hold
+    assert np.isnan(d.drivetrain.held_sum).all()  # forgotten with the hold
 
 
 def test_hold_torque_applies_to_the_drive_train_only():

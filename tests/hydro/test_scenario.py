@@ -6,7 +6,16 @@ import pytest
 
 from wwcore.scenario import ScenarioError, load_scenario, parse_scenario
 
-SHIPPED = ["hydro-fig5", "hydro-fig6", "hydro-fig9", "hydro-leakage", "hydro-aero", "hydro-noise", "hydro-fault-free"]
+SHIPPED = [
+    "hydro-fig5",
+    "hydro-fig6",
+    "hydro-fig9",
+    "hydro-leakage",
+    "hydro-aero",
+    "hydro-noise",
+    "hydro-fault-free",
+    "hydro-noise-fault-free",
+]
 
 
 def _scenario(**fault):
@@ -26,6 +35,10 @@ def test_uncertainty_options():
     assert load_scenario("hydro-leakage").plant.leak_factor == 1.15
     assert load_scenario("hydro-aero").plant.delta_cq == 0.2
     assert load_scenario("hydro-noise").plant.noise_pct == 2.0
+    # the noise cases' supervisors are designed for the sensors they read (service.hydro.detector)
+    for name in ("hydro-noise", "hydro-noise-fault-free"):
+        s = load_scenario(name)
+        assert s.supervisor.params["sensor_noise_pct"] == s.plant.noise_pct == 2.0
 
 
 @pytest.mark.parametrize(

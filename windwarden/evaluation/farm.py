@@ -1,20 +1,22 @@
-"""``windwarden eval`` for the nine-turbine farm (seed 001): Monte Carlo runs of the farm and its supervisor.
+"""Monte Carlo runs of the nine-turbine farm (seed 001) and its supervisor, and their scorecard (the evaluator that
+``windwarden eval`` calls is ``farm_eval``).
 
 Per run (``FarmBatch``), and when the scenario has faults also its fault-free twin farm (same wind and noise
 streams, no faults, same supervisor), in one batch. The scorecard has the schema of the turbine kind:
 
-* ``faults``: one entry per scheduled fault window (``scoring.score_faults``), target ``wt<k>:<type>``; a
-  detection counts on the window's turbine; *isolated* means the flagged fault type was the right one;
-* ``false_alarms_per_1000s``: detections outside every window of their turbine, per 1000 turbine-seconds;
-* ``metrics.detection``: Table 5 per fault type: detection rate and delay with the right type, false
-  positives of that type per 1000 s (farm-seconds, the paper's basis, and turbine-seconds), on these runs;
+* ``faults``: one entry per scheduled fault window (``scoring.score_detection``, ``docs/scorecards.md``), target
+  ``wt<k>:<type>``: a flag is a (turbine, fault type) pair, so a detection needs the right type on the right
+  turbine, and any other flag raised in the farm during the window is a wrong isolation;
+* ``false_alarms_per_1000s``: flags raised outside every window, per 1000 turbine-seconds;
+* ``metrics.detection``: Table 5 per fault type: detection rate and delay with the right type and turbine,
+  false positives of that type (raised where it is not the fault) per 1000 s (farm-seconds, the paper's basis,
+  and turbine-seconds), on these runs;
 * ``metrics.over_production`` / ``metrics.missing_power``: ∫ pos(P_farm − P_ref,farm) dt and
   ∫ pos(P_ref,farm − P_farm) dt after the warm-up, P_farm the farm's true output (10 Hz block means), per run;
-* ``metrics.damage``: drive-train damage numbers (DEL of the shaft torque, rainflow, m = 4, over the fault-free
-  twin's; ``plant_sim.farm.damage``) per fault window and per farm, and the rotor imbalance of pitch faults.
+* ``metrics.damage``: drive-train damage (rainflow of the shaft torque, m = 4, against the fault-free twin's;
+  ``farm_damage``) of the faulty turbine and of the farm's nine, per fault window and over the run, each run's
+  figure kept for paired comparisons; the rotor imbalance of pitch faults.
 
-``--compare`` adds the companion runs Tables 5–7 need (the paper's detector; the fault-free farm with the
-dispatch and with the PI; no accommodation) and writes ``farm_tables.md`` (``farm_tables``) and the plots.
 """
 
 from __future__ import annotations
@@ -25,25 +27,21 @@ from typing import Any
 import numpy as np
 
 from plant_sim.farm import FarmBatch
-from plant_sim.farm.damage import (
-    WOHLER_M,
-    ReversalRecorder,
-    damage_sums,
-    del_from_sums,
-    imbalance_phasor,
-)
+from plant_sim.farm.damage import ReversalRecorder, damage_sums, imbalance_phasor
 from service.farm.interfaces import N_TYPES
-from service.farm.supervisor import DEFAULT_CONTROLLER, DEFAULT_DETECTOR, FarmSupervisor
-from service.plugins import FARM_CONTROLLERS, FARM_DETECTORS
-from windwarden.evaluation.kinds import EvalOptions, Evaluation
+from service.farm.supervisor import FarmSupervisor
+from windwarden.evaluation import farm_damage
+from windwarden.evaluation.kinds import EvalOptions
+from windwarden.evaluation.paired import runs_digest
 from windwarden.evaluation.parallel import run_chunks
-from windwarden.evaluation.scoring import FaultWindow, score_faults
+from windwarden.evaluation.scoring import FaultWindow, score_detection, twin_false_alarms
+from windwarden.evaluation.scoring_policy import FARM as SCORING
 from wwcore.events import Event, EventType
 from wwcore.scenario import Scenario
 from wwcore.scenario.farm import FARM_DT_S, FARM_FAULT_TYPES, N_TURBINES, farm_fault_name
 
-WARMUP_S = 60.0  # s: the paper's wind-direction estimate (500 samples), filters and dispatch settle; not scored
-GRACE_S = 10.0  # s after a fault ends during which its detections still count and its end must be recognised
+WARMUP_S = SCORING.warmup_s  # s, not scored (scoring_policy says why)
+GRACE_S = SCORING.grace_s  # s after a fault ends during which its flags may still be up (scoring_policy)
 DAMAGE_BIN_S = 10.0  # s, time resolution of the damage sums (Fig. 4)
 MAX_CHUNK = 50  # runs per process at most: 100 runs are two chunks of 50 (900 turbine rows and their twins)
 PROGRESS_EVERY = 1000  # ticks between progress reports
@@ -97,6 +95,7 @@ def simulate_chunk(
         duration_s=scenario.duration_s,
         runs=run_ids,
         fault_free_twins=twins,
+        mismatch=scenario.mismatch,
     )
     sup = FarmSupervisor(
         scenario.plant,
@@ -239,11 +238,10 @@ def run_variant(
         simulate_chunk,
         runs,
         scenario.duration_s * (2 if twins else 1),
+        options,
         args=(scenario, seed, detector, controller, accommodation, dict(scenario.supervisor.params), twins),
-        chunk=min(MAX_CHUNK, max(1, -(-runs // 2))),  # two chunks or more: both cores work; depends on runs only
-        workers=options.workers,
+        max_chunk=MAX_CHUNK,
         label=label or scenario.name,
-        show_progress=options.progress,
     )
     order = np.argsort(np.concatenate([p.runs for p in parts]))
 
@@ -276,118 +274,68 @@ def run_variant(
     )
 
 
+def score_farm(events: list[Event], windows: list[FaultWindow], runs: int, duration_s: float):
+    """The detection figures of farm runs (``scoring.score_detection``, every turbine in the time base)."""
+    return score_detection(events, windows, runs=runs, duration_s=duration_s, policy=SCORING, turbines=TURBINES)
+
+
 def detection_by_type(events: list[Event], windows: list[FaultWindow], runs: int, duration_s: float) -> dict:
-    """Table 5 per fault type: detected %, mean/max delay with the right type, false positives of that type."""
-    out = {}
-    farm_seconds = runs * (duration_s - WARMUP_S)
-    for name in FARM_FAULT_TYPES:
-        typed = [e for e in events if e.target == name]
-        wins = [w for w in windows if w.target == name]
-        entries, rate, raw = score_faults(typed, wins, runs, duration_s, GRACE_S, WARMUP_S, turbines=TURBINES)
-        delays = [e["delay_s_mean"] for e in entries if e["delay_s_mean"] is not None]
-        detected = [e["detected_pct"] for e in entries]
-        out[name] = {
-            "windows": len(wins),
-            "detected_pct": float(np.mean(detected)) if detected else None,
-            "missed_pct": float(100.0 - np.mean(detected)) if detected else None,
-            "delay_s_mean": float(np.mean(delays)) if delays else None,
-            "delay_s_max": max((e["delay_s_max"] for e in entries if e["delay_s_max"] is not None), default=None),
-            "false_positives": raw["count"],
-            "false_positives_per_1000s": 1000.0 * raw["count"] / farm_seconds if farm_seconds > 0 else 0.0,
-            "false_positives_per_1000_turbine_s": rate,
-        }
-    return out
+    """Table 5 per fault type: detected % and mean/max delay with the right type and turbine, isolated % (first
+    flag), false positives of that type (``DetectionScore.by_target``) per 1000 farm-s and turbine-s."""
+    score = score_farm(events, windows, runs, duration_s)
+    farm_seconds = runs * max(duration_s - WARMUP_S, 0.0)
+    return {name: score.by_target(name, farm_seconds) for name in FARM_FAULT_TYPES}
 
 
-def damage_metrics(v: Variant, windows: list[FaultWindow]) -> dict[str, Any]:
-    """Damage numbers (DEL / twin DEL) per fault window and for the farm; imbalance of pitch faults."""
-    if v.twin_damage is None:
-        return {}
-    t_edges = np.arange(v.damage.shape[2] + 1) * DAMAGE_BIN_S
-    scored = t_edges[:-1] >= WARMUP_S  # the warm-up is left out, as everywhere
-    duration = scored.sum() * DAMAGE_BIN_S
-    if duration <= 0.0:
-        return {"note": f"the run is not longer than the {WARMUP_S:g} s warm-up"}
-    per_window, by_type = [], {name: [] for name in FARM_FAULT_TYPES}
-    for i, w in enumerate(windows):
-        t = w.turbine - 1
-        run_ratio = del_from_sums(v.damage[:, t, scored].sum(axis=1), duration) / del_from_sums(
-            v.twin_damage[:, t, scored].sum(axis=1), duration
-        )
-        inside = (t_edges[:-1] >= w.start_s) & (t_edges[:-1] < w.end_s)
-        span = max(inside.sum() * DAMAGE_BIN_S, DAMAGE_BIN_S)
-        win_ratio = del_from_sums(v.damage[:, t, inside].sum(axis=1), span) / del_from_sums(
-            v.twin_damage[:, t, inside].sum(axis=1), span
-        )
-        entry = {
-            "fault": w.name,
-            "target": scorecard_target(w),
-            "damage_number_run": float(np.mean(run_ratio)),
-            "damage_number_window": float(np.mean(win_ratio)),
-            "miner_ratio_run": float(np.mean(run_ratio**WOHLER_M)),  # Σ n S^m over the twin's: fatigue damage
-            "miner_ratio_window": float(np.mean(win_ratio**WOHLER_M)),
-        }
-        if w.target == "pitch_misalignment":
-            imb = np.abs(v.imbalance[:, t, i])
-            imb_ff = np.abs(v.twin_imbalance[:, t, i])
-            entry["imbalance_nm"] = float(np.mean(imb))
-            entry["imbalance_fault_free_nm"] = float(np.mean(imb_ff))
-            entry["imbalance_ratio"] = float(np.mean(imb) / max(np.mean(imb_ff), 1e-12))
-        per_window.append(entry)
-        if w.target in by_type:
-            by_type[w.target].append(entry)
-    farm = del_from_sums(v.damage[:, :, scored].sum(axis=(1, 2)), duration) / del_from_sums(
-        v.twin_damage[:, :, scored].sum(axis=(1, 2)), duration
+def damage_metrics(v: Variant, windows: list[FaultWindow]) -> tuple[dict[str, Any], dict[str, list[float]]]:
+    """Table 7's damage figures of a variant, the faulty turbine's and the farm's (``farm_damage``): the means
+    and each run's values."""
+    return farm_damage.damage_metrics(
+        v.damage,
+        v.twin_damage,
+        DAMAGE_BIN_S,
+        WARMUP_S,
+        windows,
+        [scorecard_target(w) for w in windows],
+        v.imbalance,
+        v.twin_imbalance,
     )
-    summary = {}
-    for name, entries in by_type.items():
-        if entries:
-            summary[name] = {
-                "damage_number_run": float(np.mean([e["damage_number_run"] for e in entries])),
-                "damage_number_window": float(np.mean([e["damage_number_window"] for e in entries])),
-                "miner_ratio_run": float(np.mean([e["miner_ratio_run"] for e in entries])),
-                "miner_ratio_window": float(np.mean([e["miner_ratio_window"] for e in entries])),
-            }
-            if name == "pitch_misalignment":
-                summary[name]["imbalance_nm"] = float(np.mean([e["imbalance_nm"] for e in entries]))
-                summary[name]["imbalance_ratio"] = float(np.mean([e["imbalance_ratio"] for e in entries]))
-    return {
-        "definition": "DEL of the low-speed shaft torque (rainflow, Wöhler m = 4, N_eq 1 Hz) of the faulty turbine "
-        "over the run ('run') or over the fault window ('window'), divided by the same turbine's DEL in the fault-"
-        "free twin run; imbalance: |mean rotating-frame phasor Σ τ_r,i e^(j2π(i−1)/3)| over the window, N m",
-        "by_type": summary,
-        "farm_damage_number": float(np.mean(farm)),
-        "per_fault": per_window,
-    }
+
+
+MWH_PER_J = 1.0 / 3.6e9
 
 
 def power_metrics(v: Variant) -> dict[str, Any]:
-    """∫ pos(P_farm − P_ref,farm) dt and ∫ pos(P_ref,farm − P_farm) dt after the warm-up, MWh per run, and each
-    run's (``mwh_by_run``, in run order: two variants on the same seed compare run by run, as paired differences)."""
-    mwh = 1.0 / 3.6e9
+    """∫ pos(P_farm − P_ref,farm) dt and ∫ pos(P_ref,farm − P_farm) dt after the warm-up, MWh per run."""
     demand = float(np.sum(v.demand_j))
 
     def energy(joules: np.ndarray) -> dict[str, Any]:
         return {
-            "mwh_per_run": float(np.mean(joules) * mwh),
+            "mwh_per_run": float(np.mean(joules) * MWH_PER_J),
             "fraction_of_demand": float(np.sum(joules) / demand) if demand > 0 else None,
-            "mwh_by_run": [float(x) for x in joules * mwh],
         }
 
     return {"over_production": energy(v.over_j), "missing_power": energy(v.missing_j)}
 
 
+def power_per_run(v: Variant) -> dict[str, list[float]]:
+    """Each run's over-production and missing power, MWh, in run order (the scorecard's ``per_run``)."""
+    return {
+        "over_production_mwh": (v.over_j * MWH_PER_J).tolist(),
+        "missing_power_mwh": (v.missing_j * MWH_PER_J).tolist(),
+    }
+
+
 def scorecard_of(v: Variant) -> dict[str, Any]:
     scenario = v.scenario
     windows = farm_windows(scenario)
-    entries, fa_rate, fa_raw = score_faults(
-        v.events, windows, v.runs, scenario.duration_s, GRACE_S, WARMUP_S, turbines=TURBINES
-    )
-    for entry, w in zip(entries, windows, strict=True):
+    detection = score_farm(v.events, windows, v.runs, scenario.duration_s)
+    farm_seconds = v.runs * max(scenario.duration_s - WARMUP_S, 0.0)
+    for entry, w in zip(detection.faults, windows, strict=True):
         entry["target"] = scorecard_target(w)
     metrics: dict[str, Any] = power_metrics(v)
-    metrics["damage"] = damage_metrics(v, windows)
-    metrics["detection"] = detection_by_type(v.events, windows, v.runs, scenario.duration_s)
+    metrics["damage"], damage_by_run = damage_metrics(v, windows)
+    metrics["detection"] = {name: detection.by_target(name, farm_seconds) for name in FARM_FAULT_TYPES}
     card = {
         "scenario": scenario.name,
         "runs": v.runs,
@@ -397,49 +345,14 @@ def scorecard_of(v: Variant) -> dict[str, Any]:
         "detector": v.detector,
         "controller": v.controller,
         "accommodation": v.accommodation,
-        "false_alarms_per_1000s": fa_rate,
-        "false_alarms": fa_raw,
-        "faults": entries,
+        "options": dict(scenario.supervisor.params),
+        "runs_digest": runs_digest(scenario),
+        **detection.card_fields(),
         "metrics": metrics,
+        "per_run": power_per_run(v) | damage_by_run,  # run order; ``windwarden compare`` pairs two scorecards
     }
     if v.twin_events:
-        count = sum(1 for e in v.twin_events if e.type is EventType.DETECTION and e.t >= WARMUP_S)
         observed = v.runs * (scenario.duration_s - WARMUP_S) * N_TURBINES
-        card["false_alarms_twin"] = {"count": count, "observed_s": observed, "per_1000s": 1000.0 * count / observed}
+        whole_run = [(0.0, scenario.duration_s)]
+        card["false_alarms_twin"] = twin_false_alarms(v.twin_events, observed, SCORING, whole_run)
     return card
-
-
-def evaluate(scenario: Scenario, runs: int, seed: int, options: EvalOptions) -> Evaluation:
-    detector = options.detector or scenario.supervisor.detector or DEFAULT_DETECTOR
-    controller = options.controller or scenario.supervisor.controller or DEFAULT_CONTROLLER
-    FARM_DETECTORS.factory(detector)  # unknown names are refused before anything runs
-    FARM_CONTROLLERS.factory(controller)
-    params = dict(scenario.supervisor.params)  # and so are options they refuse (AlgorithmOptionError)
-    FarmSupervisor(scenario.plant, N_TURBINES, detector=detector, controller=controller, options=params)
-    twins = bool(scenario.faults) and options.twins  # --no-twins: detection only, no damage numbers
-    main = run_variant(
-        scenario,
-        runs,
-        seed,
-        options,
-        detector=detector,
-        controller=controller,
-        accommodation=options.accommodation,
-        twins=twins,
-    )
-    card = scorecard_of(main)
-    extra: dict[str, str] = {}
-    companions: dict[str, Variant] = {}
-    if options.compare:
-        from windwarden.evaluation.farm_tables import comparison_runs, tables_markdown
-
-        companions = comparison_runs(scenario, runs, seed, options, main)
-        extra["farm_tables.md"] = tables_markdown(scenario, main, companions)
-        card["comparison"] = {name: scorecard_of(v)["metrics"] for name, v in companions.items()}
-
-    def plot(out_dir):
-        from windwarden.evaluation.farm_plots import write_plots
-
-        return write_plots(out_dir, scenario, main, companions)
-
-    return Evaluation(card, plot=plot, extra_files=extra)

@@ -4,7 +4,8 @@
   (Fig. 3) — from the ``--compare`` runs; without them, the evaluated run's farm power vs demand;
 * ``turbine_power_vs_reference.png``: each turbine's power and its reference (run 0);
 * ``fig4_damage.png``: drive-train damage number over time, without and with accommodation, mean over runs, for
-  the turbines hit by drive-train faults (Fig. 4), the fault-free twin being 1 by construction;
+  the turbines hit by drive-train faults (Fig. 4), the fault-free twin being 1 by construction; below it the Miner
+  ratio of the farm's nine drive trains and of the turbines without a drive-train fault;
 * ``detector_statistics.png``: per turbine and fault type, the test statistic over its threshold (run 0);
 * ``faults_injected_vs_detected.png``: fault windows and the detector's flags per turbine (run 0).
 """
@@ -12,7 +13,6 @@
 from __future__ import annotations
 
 from pathlib import Path
-from typing import TYPE_CHECKING
 
 import matplotlib
 
@@ -21,11 +21,9 @@ import matplotlib.pyplot as plt
 import numpy as np
 
 from plant_sim.farm.damage import WOHLER_M
+from windwarden.evaluation.farm import DAMAGE_BIN_S, WARMUP_S, Variant
 from wwcore.scenario import Scenario
-from wwcore.scenario.farm import FARM_FAULT_TYPES, N_TURBINES
-
-if TYPE_CHECKING:
-    from windwarden.evaluation.farm import Variant
+from wwcore.scenario.farm import FARM_FAULT_TYPES, N_TURBINES, farm_fault_name
 
 COLORS = {"debris": "tab:orange", "pitch_misalignment": "tab:purple", "drivetrain": "tab:red"}
 
@@ -113,8 +111,6 @@ def _statistics(path: Path, scenario: Scenario, v: Variant) -> Path:
 
 
 def _type(fault) -> str:
-    from wwcore.scenario.farm import farm_fault_name
-
     return farm_fault_name(fault)
 
 
@@ -146,30 +142,38 @@ def _timeline(path: Path, scenario: Scenario, v: Variant) -> Path:
 
 
 def _damage(path: Path, scenario: Scenario, with_acc: Variant, without: Variant) -> Path:
-    from windwarden.evaluation.farm import DAMAGE_BIN_S
 
     turbines = sorted({w.turbine for w in scenario.faults if _type(w) == "drivetrain"})
-    fig, ax = plt.subplots(figsize=(10, 4.5))
-    if turbines:
-        idx = [t - 1 for t in turbines]
-        from windwarden.evaluation.farm import WARMUP_S
+    fig, (ax, ax_farm) = plt.subplots(2, 1, figsize=(10, 7.5), sharex=True)
+    t_end = (np.arange(with_acc.damage.shape[2]) + 1) * DAMAGE_BIN_S
+    scored = t_end > WARMUP_S
+    t_end = t_end[scored]
+    healthy = [t for t in range(N_TURBINES) if t + 1 not in turbines]
 
-        t_end = (np.arange(with_acc.damage.shape[2]) + 1) * DAMAGE_BIN_S
-        scored = t_end > WARMUP_S
-        t_end = t_end[scored]
-        for label, v, style in (("no accommodation", without, "tab:red"), ("with accommodation", with_acc, "k")):
-            cum = np.cumsum(v.damage[:, idx][:, :, scored].sum(axis=1), axis=1)
-            cum_ff = np.cumsum(v.twin_damage[:, idx][:, :, scored].sum(axis=1), axis=1)
-            with np.errstate(invalid="ignore", divide="ignore"):
-                number = (cum.mean(axis=0) / cum_ff.mean(axis=0)) ** (1.0 / WOHLER_M)
-            ax.plot(t_end, number, color=style, label=label)
-        ax.axhline(1.0, color="tab:blue", ls="--", label="fault free")
+    def number(v: Variant, rows: list[int], power: float) -> np.ndarray:
+        """(mean Σ n S⁴ up to t / the twin's)^power over the runs, summed over ``rows``."""
+        cum = np.cumsum(v.damage[:, rows][:, :, scored].sum(axis=1), axis=1)
+        cum_ff = np.cumsum(v.twin_damage[:, rows][:, :, scored].sum(axis=1), axis=1)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            return (cum.mean(axis=0) / cum_ff.mean(axis=0)) ** power
+
+    for label, v, style in (("no accommodation", without, "tab:red"), ("with accommodation", with_acc, "k")):
+        if turbines:
+            ax.plot(t_end, number(v, [t - 1 for t in turbines], 1.0 / WOHLER_M), color=style, label=label)
+        ax_farm.plot(t_end, number(v, list(range(N_TURBINES)), 1.0), color=style, label=f"farm, {label}")
+        ax_farm.plot(t_end, number(v, healthy, 1.0), color=style, ls=":", label=f"the other {len(healthy)}, {label}")
+    for a in (ax, ax_farm):
+        a.axhline(1.0, color="tab:blue", ls="--", label="fault free")
         for w in scenario.faults:
             if _type(w) == "drivetrain":
-                ax.axvspan(w.start_s, w.end_s or scenario.duration_s, color="tab:red", alpha=0.08)
-    ax.set_xlabel("time [s]")
+                a.axvspan(w.start_s, w.end_s or scenario.duration_s, color="tab:red", alpha=0.08)
+        a.legend(loc="upper left", fontsize=8)
+        a.grid(alpha=0.3)
     ax.set_ylabel("damage number (DEL up to t / fault-free)")
     ax.set_title(f"{scenario.name}: drive-train damage, turbines {turbines} (cf. seed 001 Fig. 4)")
-    ax.legend(loc="upper left", fontsize=8)
-    ax.grid(alpha=0.3)
+    ax_farm.set_xlabel("time [s]")
+    ax_farm.set_ylabel("Miner ratio (Σ n S⁴ up to t / fault-free)")
+    ax_farm.set_title(
+        f"the farm's nine drive trains, and the turbines without a drive-train fault ({len(healthy)}), mean over runs"
+    )
     return _save(fig, path)

@@ -16,16 +16,24 @@ together, per 1000 s of farm operation (the paper's basis) and per fault type.
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 
+from service.farm.dispatch import ACCOMMODATION_RULES
+from windwarden.evaluation.farm import (
+    WARMUP_S,
+    Variant,
+    detection_by_type,
+    farm_windows,
+    power_metrics,
+    run_variant,
+    scorecard_of,
+)
+from windwarden.evaluation.kinds import EvalOptions
+from windwarden.evaluation.paired import paired_row
 from wwcore.scenario import Scenario
 from wwcore.scenario.farm import FARM_FAULT_TYPES
-
-if TYPE_CHECKING:
-    from windwarden.evaluation.farm import Variant
-    from windwarden.evaluation.kinds import EvalOptions
 
 # seed 001, Table 5: (detection time s or None, missed %, false positives per 1000 s) per case and fault
 PAPER_TABLE5 = {
@@ -47,8 +55,6 @@ def fault_free(scenario: Scenario) -> Scenario:
 
 
 def accommodation_rule(scenario: Scenario) -> str:
-    from service.farm.dispatch import ACCOMMODATION_RULES
-
     return str(scenario.supervisor.params.get("accommodation_rule", ACCOMMODATION_RULES[0]))
 
 
@@ -60,7 +66,6 @@ def published(scenario: Scenario) -> Scenario:
 
 def comparison_runs(scenario: Scenario, runs: int, seed: int, options: EvalOptions, main: Variant) -> dict:
     """The companion configurations of Tables 5–7, on the same runs and seed as ``main``."""
-    from windwarden.evaluation.farm import run_variant
 
     det, ctrl = main.detector, main.controller
     ff = fault_free(scenario)
@@ -100,7 +105,6 @@ def _fmt(x: float | None, digits: int = 3) -> str:
 
 def table5_rows(scenario: Scenario, faulty: Variant | None, fault_free_run: Variant) -> dict[str, dict[str, Any]]:
     """Per fault type: delay, missed %, false positives per 1000 farm-s (fault-free runs + outside windows)."""
-    from windwarden.evaluation.farm import WARMUP_S, detection_by_type, farm_windows
 
     ff = detection_by_type(fault_free_run.events, [], fault_free_run.runs, fault_free_run.scenario.duration_s)
     rows: dict[str, dict[str, Any]] = {}
@@ -124,7 +128,6 @@ def table5_rows(scenario: Scenario, faulty: Variant | None, fault_free_run: Vari
 
 
 def tables_markdown(scenario: Scenario, main: Variant, comp: dict) -> str:
-    from windwarden.evaluation.farm import power_metrics, scorecard_of
 
     case = scenario.plant.wind_case
     lines = [
@@ -168,62 +171,121 @@ def tables_markdown(scenario: Scenario, main: Variant, comp: dict) -> str:
         f"| dispatch | 1 | 1 | 1 | 1 | {_fmt(over_d)} | {_fmt(miss_d)} |",
     ]
     if scenario.faults and "no_accommodation" in comp:
-        with_acc = scorecard_of(main)["metrics"]["damage"].get("by_type", {})
-        without = scorecard_of(comp["no_accommodation"])["metrics"]["damage"].get("by_type", {})
-        (p2n, p3n), (p2a, p3a) = PAPER_TABLE7[case]
-        acc_power = power_metrics(main)
-        no_power = power_metrics(comp["no_accommodation"])
-
-        def dn(d: dict, name: str, key: str) -> float | None:
-            return d.get(name, {}).get(key)
-
-        lines += [
-            "",
-            "## Table 7: damage numbers with and without accommodation",
-            "",
-            "Damage 3: DEL of the faulty turbine's shaft torque (rainflow, m = 4) over the whole run / its fault-free",
-            "twin's (run), and over the fault window only (window). Damage 2: rotor imbalance (1P phasor of the blade",
-            "torques) over the fault window / the twin's; the twin's is ≈ 0, so the ratio is huge (paper: inf); in N m",
-            "as well.",
-            "",
-            "| | paper: damage 2 | paper: damage 3 | ours: damage 2 (ratio; N m) | ours: damage 3 run | "
-            "ours: damage 3 window | ours: missing MWh/run |",
-            "|---|---|---|---|---|---|---|",
-        ]
-        rule = accommodation_rule(scenario)
-        rows = [("no accommodation", without, p2n, p3n, no_power)]
-        if "paper_accommodation" in comp:
-            published = scorecard_of(comp["paper_accommodation"])["metrics"]["damage"].get("by_type", {})
-            rows.append(
-                ("eqs. (23)–(26) as published", published, p2a, p3a, power_metrics(comp["paper_accommodation"]))
-            )
-        label = {
-            "paper": "eqs. (23)–(26) as published",
-            "hold-torque": "(23)–(24), pitch trim (D-28), drive train held by speed, its 3P cancelled (D-26b, D-30)",
-            "cancel": "(23)–(24), pitch trim (D-28), drive train's 3P cancelled, its ripple by the farm (D-31, D-29)",
-        }[rule]
-        rows.append((label, with_acc, p2a, p3a, acc_power))
-        for label, d, paper2, paper3, pw in rows:
-            lines.append(
-                f"| {label} | {_fmt(paper2)} | {_fmt(paper3, 5)} "
-                f"| {_fmt(dn(d, 'pitch_misalignment', 'imbalance_ratio'))}; "
-                f"{_fmt(dn(d, 'pitch_misalignment', 'imbalance_nm'))} "
-                f"| {_fmt(dn(d, 'drivetrain', 'damage_number_run'), 5)} "
-                f"| {_fmt(dn(d, 'drivetrain', 'damage_number_window'), 4)} "
-                f"| {_fmt(pw['missing_power']['mwh_per_run'])} |"
-            )
-        lines.append("")
-        for label, d, *_ in rows[1:]:
-            for span in ("run", "window"):
-                n3 = dn(without, "drivetrain", f"damage_number_{span}")
-                a3 = dn(d, "drivetrain", f"damage_number_{span}")
-                nm = dn(without, "drivetrain", f"miner_ratio_{span}")
-                am = dn(d, "drivetrain", f"miner_ratio_{span}")
-                if None not in (n3, a3, nm, am) and n3 > 1.0 and nm > 1.0:
-                    lines.append(
-                        f"Excess drive-train damage removed by {label}, over the {span}: "
-                        f"{100.0 * (n3 - a3) / (n3 - 1.0):.0f} % of the damage number's (DEL ratio) excess, "
-                        f"{100.0 * (nm - am) / (nm - 1.0):.0f} % of the fatigue damage's (Miner, Σ n S⁴) excess.  "
-                    )
+        lines += table7_lines(scenario, main, comp)
     lines.append("")
     return "\n".join(lines)
+
+
+ACCOMMODATION_LABEL = {
+    "paper": "eqs. (23)–(26) as published",
+    "hold-torque": "(23)–(24), pitch trim (D-28), drive train held by speed, its 3P cancelled (D-26b, D-30)",
+    "cancel": "(23)–(24), pitch trim (D-28), drive train's 3P cancelled, its ripple by the farm (D-31, D-29)",
+}
+PAIRED = (  # per-run metrics Table 7 gives as paired differences, accommodated − not
+    ("missing power, MWh", "missing_power_mwh"),
+    ("farm drive-train damage over the run (Miner, 9 turbines)", "damage.run.farm_miner_ratio"),
+)
+
+
+def table7_lines(scenario: Scenario, main: Variant, comp: dict) -> list[str]:
+    """Table 7: the faulty turbine's damage beside the farm's (all nine turbines), per fault window and over the
+    run, without accommodation, with eq. (26) as published and with the main rule; paired differences per run."""
+
+    case = scenario.plant.wind_case
+    (p2n, p3n), (p2a, p3a) = PAPER_TABLE7[case]
+    variants = [("no accommodation", comp["no_accommodation"], p2n, p3n)]
+    if "paper_accommodation" in comp:
+        variants.append((ACCOMMODATION_LABEL["paper"], comp["paper_accommodation"], p2a, p3a))
+    variants.append((ACCOMMODATION_LABEL[accommodation_rule(scenario)], main, p2a, p3a))
+    cards = [scorecard_of(v) for _, v, *_ in variants]
+    lines = [
+        "",
+        "## Table 7: damage with and without accommodation, the faulty turbine's and the farm's",
+        "",
+        "Damage 3: DEL of the faulty turbine's shaft torque (rainflow, m = 4) over the whole run / its fault-free",
+        "twin's (run), and over the fault window only (window), mean of the drive-train windows. Damage 2: rotor",
+        "imbalance (1P phasor of the blade torques) over the fault window / the twin's; the twin's is ≈ 0, so the",
+        "ratio is huge (paper: inf); in N m as well. Farm: the nine turbines' rainflow damage sums Σ_t Σ n S⁴ over",
+        "the twin farm's (Miner's damage of the farm's drive trains over the twin's), per run then the mean, and",
+        "pooled (the runs' sums before the ratio).",
+        "",
+        "| | paper: damage 2 | paper: damage 3 | ours: damage 2 (ratio; N m) | ours: damage 3 run "
+        "| ours: damage 3 window | ours: farm Miner, run (mean of runs; pooled) | ours: missing MWh/run |",
+        "|---|---|---|---|---|---|---|---|",
+    ]
+
+    def dn(card: dict, name: str, key: str) -> float | None:
+        return card["metrics"]["damage"].get("by_type", {}).get(name, {}).get(key)
+
+    for (label, _, paper2, paper3), card in zip(variants, cards, strict=True):
+        lines.append(
+            f"| {label} | {_fmt(paper2)} | {_fmt(paper3, 5)} "
+            f"| {_fmt(dn(card, 'pitch_misalignment', 'imbalance_ratio'))}; "
+            f"{_fmt(dn(card, 'pitch_misalignment', 'imbalance_nm'))} "
+            f"| {_fmt(dn(card, 'drivetrain', 'damage_number_run'), 5)} "
+            f"| {_fmt(dn(card, 'drivetrain', 'damage_number_window'), 4)} "
+            f"| {_fmt(card['metrics']['damage'].get('farm_miner_ratio'), 4)}; "
+            f"{_fmt(card['metrics']['damage'].get('farm_miner_ratio_pooled'), 4)} "
+            f"| {_fmt(card['metrics']['missing_power']['mwh_per_run'])} |"
+        )
+    lines.append("")
+    without = cards[0]
+    for (label, *_), card in zip(variants[1:], cards[1:], strict=True):
+        for span in ("run", "window"):
+            n3, a3 = dn(without, "drivetrain", f"damage_number_{span}"), dn(card, "drivetrain", f"damage_number_{span}")
+            nm, am = dn(without, "drivetrain", f"miner_ratio_{span}"), dn(card, "drivetrain", f"miner_ratio_{span}")
+            if None not in (n3, a3, nm, am) and n3 > 1.0 and nm > 1.0:
+                lines.append(
+                    f"Excess drive-train damage of the faulty turbine removed by {label}, over the {span}: "
+                    f"{100.0 * (n3 - a3) / (n3 - 1.0):.0f} % of the damage number's (DEL ratio) excess, "
+                    f"{100.0 * (nm - am) / (nm - 1.0):.0f} % of the fatigue damage's (Miner, Σ n S⁴) excess.  "
+                )
+    lines += [
+        "",
+        "### Table 7, per fault window: the faulty turbine, the other eight and the farm",
+        "",
+        "Miner ratios over the window (Σ n S⁴ / the twin's); the farm's excess (farm − 1) is the faulty turbine's",
+        "share plus the other eight's, both in units of the twin farm's damage over the window: damage moved onto",
+        "the healthy turbines shows as a larger 'others' share.",
+        "",
+        "| fault window | variant | faulty: damage number | faulty: Miner | other eight: Miner | farm: Miner "
+        "| farm excess: faulty + others |",
+        "|---|---|---|---|---|---|---|",
+    ]
+    for i, entry in enumerate(cards[0]["metrics"]["damage"].get("per_fault", [])):
+        for (label, *_), card in zip(variants, cards, strict=True):
+            e = card["metrics"]["damage"]["per_fault"][i]
+            lines.append(
+                f"| {entry['fault']} | {label} | {_fmt(e['damage_number_window'], 4)} "
+                f"| {_fmt(e['miner_ratio_window'], 4)} | {_fmt(e['others_miner_ratio_window'], 4)} "
+                f"| {_fmt(e['farm_miner_ratio_window'], 4)} "
+                f"| {e['faulty_excess_window']:+.3f} {e['others_excess_window']:+.3f} |"
+            )
+    lines += [
+        "",
+        "### Table 7, over the run: each turbine's damage number and the farm's Miner ratio",
+        "",
+        "| variant | " + " | ".join(f"wt{t}" for t in range(1, 10)) + " | farm: Miner | farm: damage number |",
+        "|---" * 12 + "|",
+    ]
+    for (label, *_), card in zip(variants, cards, strict=True):
+        d = card["metrics"]["damage"]
+        numbers = " | ".join(_fmt(d["turbines_run"][f"wt{t}"]["damage_number"], 4) for t in range(1, 10))
+        lines.append(f"| {label} | {numbers} | {_fmt(d['farm_miner_ratio'], 4)} | {_fmt(d['farm_damage_number'], 4)} |")
+    lines += [
+        "",
+        f"### Table 7, paired per run: accommodated ({ACCOMMODATION_LABEL[accommodation_rule(scenario)]}) − none",
+        "",
+        "Mean of the runs' differences ± its standard error (the same runs and seed; `windwarden compare`).",
+        "",
+        "| metric | none | accommodated | difference ± SE | runs lower |",
+        "|---|---|---|---|---|",
+    ]
+    for label, key in PAIRED:
+        if key in cards[0]["per_run"] and key in cards[-1]["per_run"]:
+            r = paired_row(key, cards[0]["per_run"][key], cards[-1]["per_run"][key])
+            lines.append(
+                f"| {label} | {_fmt(r.mean_a, 4)} | {_fmt(r.mean_b, 4)} | {r.diff:+.3g} ± {_fmt(r.se, 2)} "
+                f"| {r.lower} of {r.n} |"
+            )
+    return lines

@@ -1,44 +1,47 @@
 """Batch evaluation of the hydrostatic turbine (seed 003): reconstruction, detection and compensation figures.
 
-Per Monte Carlo run (per-run random streams from ``SeedSequence(seed, spawn_key=(0, run))``) four twins share
+Per Monte Carlo run (per-run random streams from ``SeedSequence(seed, spawn_key=(0, run))``) three twins share
 wind and measurement noise:
 
 * ``compensated``: the scenario's faults, the observer's correction applied (eq. 36);
 * ``uncompensated``: the same faults, no correction (the observer still reconstructs and detects);
-* ``fault_free``: no faults, no correction, the reference the deviations are measured against;
-* ``calibration``: no faults, correction as selected, on *other* streams (``spawn_key=(1, run)``): the
-  fault-free statistics the detection thresholds come from (``service.hydro.detector``).
+* ``fault_free``: no faults, no correction, the reference the deviations are measured against.
 
-Detection does not feed back into the loop, so the evaluator runs the supervisor's own detector class over the
-recorded reconstructions once the calibrated thresholds are known; the events are those the supervisor would
-emit with those thresholds. Detection figures come from ``scoring.score_faults``.
+All three run one ``HydroSupervisor``, the one the live system runs, with the scenario's options: its
+thresholds are the design values of ``service.hydro.detector`` (fixed before any run, from the sensors'
+accuracy and the design false-alarm rate, no data). The detection figures score the supervisor's own
+DETECTION / RECOVERY events of the main twin (compensated, or uncompensated with ``--no-compensation``); the
+fault-free twin's events give a second false-alarm count. Scoring goes through ``_score`` alone
+(``scoring.score_detection`` with the hydrostatic ``ScoringPolicy``).
 """
 
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import replace
+from dataclasses import asdict, replace
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from plant_sim.hydro import HydroTurbineBatch
-from service.hydro.detector import DetectionSettings, OffsetDetector, threshold_from_quiet
+from service.hydro.detector import DetectionSettings
 from service.hydro.supervisor import HydroSupervisor
 from windwarden.evaluation.kinds import EvalOptions, Evaluation
 from windwarden.evaluation.parallel import run_chunks
-from windwarden.evaluation.scoring import score_faults, windows_from_faults
+from windwarden.evaluation.scoring import DetectionScore, score_detection, windows_from_faults
+from windwarden.evaluation.scoring_policy import HYDRO as SCORING
 from wwcore.events import Event
 from wwcore.hydro_params import FAULT_TARGETS, NOMINAL
 from wwcore.scenario import Scenario
 
-VARIANTS = ("compensated", "uncompensated", "fault_free", "calibration")
+VARIANTS = ("compensated", "uncompensated", "fault_free")
 TRACES = ("f_filt", "f_hat", "f_true", "omega_r", "omega_g", "P_g", "x_p", "x_M", "u_p", "u_M", "dp", "dp_hat")
 SETTLE_BAND = 0.05  # settled when |f̂_filt − f| ≤ 5 % of |f|
 ERROR_SKIP_S = 1.0  # reconstruction error measured from 1 s after a fault starts
 OVERSPEED_MARGIN = 0.05  # rotor overspeed: ω_r above its fault-free twin by 5 % of the rated rotor speed
 CHUNK = 10  # runs per process: 20 runs use both cores
+WARMUP_S = SCORING.warmup_s  # s, left out of the fault-free statistics as of every detection figure
 
 
 def _seeds(seed: int, stream: int, run_ids: list[int]) -> list[np.random.SeedSequence]:
@@ -49,30 +52,33 @@ def simulate(
     scenario: Scenario,
     run_ids: list[int],
     seed: int,
-    observer: str,
-    compensation: bool,
+    observer: str | None = None,
+    detector: str | None = None,
     hook: Callable[[float], None] | None = None,
-) -> dict[str, dict[str, np.ndarray]]:
-    """The four twins of the runs ``run_ids`` in one batch of 4 × len(run_ids) turbines (numpy's per-call
-    overhead is shared); traces (ticks, runs, …) per variant."""
+) -> dict[str, Any]:
+    """The three twins of the runs ``run_ids`` in one batch of 3 × len(run_ids) turbines (numpy's per-call
+    overhead is shared): traces (ticks, runs, …) per variant, and the supervisor's events per variant
+    (``run`` = the Monte Carlo run). ``observer``, ``detector``: registered names (None: the scenario's)."""
     n = len(run_ids)
-    seeds = _seeds(seed, 0, run_ids) * 3 + _seeds(seed, 1, run_ids)
-    fault_mask = np.repeat([True, True, False, False], n)
-    comp = np.repeat([True, False, False, compensation], n)
+    seeds = _seeds(seed, 0, run_ids) * len(VARIANTS)
+    fault_mask = np.repeat([True, True, False], n)
+    comp = np.repeat([True, False, False], n)
     plant = HydroTurbineBatch(
-        scenario.plant, scenario.wind, list(scenario.faults), seeds, run_ids * 4, NOMINAL, fault_mask=fault_mask
+        scenario.plant, scenario.wind, list(scenario.faults), seeds, run_ids * 3, NOMINAL, fault_mask=fault_mask
     )
     sup = HydroSupervisor(
-        n=4 * n,
-        run_ids=run_ids * 4,
+        n=3 * n,
+        run_ids=list(range(3 * n)),  # the batch row; mapped back to (variant, run) below
         params=plant.nominal,
-        observer=observer,
-        observer_params=scenario.supervisor.params,
+        observer=observer or scenario.supervisor.estimator,
+        detector=detector or scenario.supervisor.detector,
+        options=scenario.supervisor.params,
         compensation=comp,
     )
     ticks = round(scenario.duration_s / plant.dt)
     shapes = {"f_filt": 2, "f_hat": 2, "f_true": 2}
-    rec = {name: np.zeros((ticks, 4 * n, shapes.get(name, 1)), dtype=np.float32) for name in TRACES}
+    rec = {name: np.zeros((ticks, 3 * n, shapes.get(name, 1)), dtype=np.float32) for name in TRACES}
+    events: list[Event] = []
     refs = None
     report_every = 100
     for k in range(ticks):
@@ -95,38 +101,50 @@ def simulate(
         rec["dp_hat"][k, :, 0] = refs.x_hat[:, 2]
         plant.advance()
         plant.drain_events()  # fault windows come from the scenario
-        sup.drain_events()  # default-threshold events; re-derived after calibration
+        events.extend(sup.drain_events())
         if hook is not None and (k + 1) % report_every == 0:
             hook(report_every * plant.dt)
     flat = {key: v[..., 0] if v.shape[-1] == 1 else v for key, v in rec.items()}
-    return {variant: {key: v[:, i * n : (i + 1) * n] for key, v in flat.items()} for i, variant in enumerate(VARIANTS)}
+    out: dict[str, Any] = {
+        variant: {key: v[:, i * n : (i + 1) * n] for key, v in flat.items()} for i, variant in enumerate(VARIANTS)
+    }
+    out["events"] = {
+        variant: [replace(e, run=run_ids[e.run % n]) for e in events if e.run // n == i]
+        for i, variant in enumerate(VARIANTS)
+    }
+    return out
 
 
 def _worker(
-    run_ids: list[int], hook: Callable[[float], None], scenario: Scenario, seed: int, observer: str, comp: bool
+    run_ids: list[int],
+    hook: Callable[[float], None],
+    scenario: Scenario,
+    seed: int,
+    names: dict[str, str | None],
 ) -> dict[str, Any]:
-    # the hook counts run-seconds of one run; the batch advances all four twins at once
-    out: dict[str, Any] = simulate(scenario, run_ids, seed, observer, comp, lambda s: hook(len(VARIANTS) * s))
+    # the hook counts run-seconds of one run; the batch advances all three twins at once
+    out: dict[str, Any] = simulate(scenario, run_ids, seed, **names, hook=lambda s: hook(len(VARIANTS) * s))
     out["run_ids"] = run_ids
     return out
 
 
 def _merge(parts: list[dict[str, Any]]) -> dict[str, Any]:
-    """Chunks back in run order: traces (ticks, runs, …)."""
+    """Chunks back in run order: traces (ticks, runs, …), events in time order per variant."""
     order = np.argsort(np.concatenate([p["run_ids"] for p in parts]))
     merged: dict[str, Any] = {}
     for variant in VARIANTS:
         merged[variant] = {name: np.concatenate([p[variant][name] for p in parts], axis=1)[:, order] for name in TRACES}
+    merged["events"] = {
+        variant: sorted((e for p in parts for e in p["events"][variant]), key=lambda e: (e.run, e.t))
+        for variant in VARIANTS
+    }
     return merged
 
 
-def detect(f_filt: np.ndarray, dt: float, settings: DetectionSettings) -> list[Event]:
-    """The supervisor's detector over recorded reconstructions f_filt (ticks, runs, 2)."""
-    runs = f_filt.shape[1]
-    det = OffsetDetector(runs, list(range(runs)), settings)
-    for k in range(f_filt.shape[0]):
-        det.step(k * dt, f_filt[k])
-    return det.drain()
+def _score(scenario: Scenario, events: list[Event], runs: int, faulty: bool) -> DetectionScore:
+    """The scoring policy's figures for one twin's events (the fault-free twin: no fault windows)."""
+    windows = windows_from_faults(scenario.faults, scenario.duration_s) if faulty else []
+    return score_detection(events, windows, runs=runs, duration_s=scenario.duration_s, policy=SCORING)
 
 
 def reconstruction_metrics(traces: dict[str, np.ndarray], scenario: Scenario, dt: float) -> list[dict[str, Any]]:
@@ -188,50 +206,77 @@ def deviation_metrics(m: dict[str, Any]) -> dict[str, Any]:
     return out
 
 
+def detection_metrics(supervisor: HydroSupervisor, m: dict[str, Any]) -> dict[str, Any]:
+    """The detector's design (thresholds, predicted fault-free σ of f̂_filt) beside what the fault-free twin shows:
+    its largest |f̂_filt| after the warm-up, and that as a share of θ (the margin the design left)."""
+    out: dict[str, Any] = {"detector": supervisor.detector_name}
+    warm = round(WARMUP_S / NOMINAL.dt)
+    free = m["fault_free"]["f_filt"][warm:].astype(float)
+    quiet = np.abs(free).max(axis=(0, 1))
+    out["fault_free_max_abs_f_filt"] = dict(zip(FAULT_TARGETS, map(float, quiet), strict=True))
+    out["fault_free_std_f_filt"] = dict(zip(FAULT_TARGETS, map(float, free.std(axis=(0, 1))), strict=True))
+    theta = supervisor.thresholds
+    if theta is not None:
+        out["thresholds"] = dict(zip(FAULT_TARGETS, map(float, theta), strict=True))
+        out["fault_free_max_over_threshold"] = dict(zip(FAULT_TARGETS, map(float, quiet / theta), strict=True))
+    sigma = getattr(supervisor.detector, "sigma", None)
+    if sigma is not None:
+        out["predicted_sigma_f_filt"] = dict(zip(FAULT_TARGETS, map(float, sigma), strict=True))
+    settings = getattr(supervisor.detector, "s", None)
+    if isinstance(settings, DetectionSettings):
+        out["design"] = asdict(settings)
+        out["rule"] = (
+            f"|f̂_filt| > θ for {settings.on_samples} samples; release below {settings.off_ratio:g} θ for "
+            f"{settings.off_samples} samples; θ = max(σ̂ Q⁻¹(R dt/4000 s), min_offset) with σ̂ predicted from "
+            f"the sensors' ±{settings.sensor_noise_pct:g} % and R = {settings.false_alarms_per_1000s:g}/1000 s "
+            "(service.hydro.detector)"
+        )
+    return out
+
+
 def evaluate(scenario: Scenario, runs: int, seed: int, options: EvalOptions) -> Evaluation:
     """Scorecard and plots of a hydrostatic scenario over ``runs`` Monte Carlo runs."""
-    observer = options.estimator or scenario.supervisor.estimator or "ts-smo"
+    names = {
+        "observer": options.estimator or scenario.supervisor.estimator,
+        "detector": options.detector or scenario.supervisor.detector,
+    }
+    # the supervisor of the runs, built once first: bad names and options are refused before anything runs
+    probe = HydroSupervisor(
+        n=1, observer=names["observer"], detector=names["detector"], options=scenario.supervisor.params
+    )
     main = "compensated" if options.compensation else "uncompensated"
     parts = run_chunks(
         _worker,
         runs,
         scenario.duration_s * len(VARIANTS),
-        args=(scenario, seed, observer, options.compensation),
-        chunk=CHUNK,
-        workers=options.workers,
+        options,
+        args=(scenario, seed, names),
+        max_chunk=CHUNK,
         label=f"{scenario.name} ({len(VARIANTS)} twins)",
-        show_progress=options.progress,
     )
     m = _merge(parts)
     dt = NOMINAL.dt
-    base = DetectionSettings()
-    warm = round(base.warmup_s / dt)
-    quiet = np.abs(m["calibration"]["f_filt"][warm:]).max(axis=(0, 1))
-    settings = replace(base, threshold=threshold_from_quiet(quiet))
-    events = detect(m[main]["f_filt"], dt, settings)
-    windows = windows_from_faults(scenario.faults, scenario.duration_s)
-    entries, fa_rate, fa_raw = score_faults(events, windows, runs, scenario.duration_s, warmup_s=base.warmup_s)
-    ff_events = detect(m["fault_free"]["f_filt"], dt, settings)
-    _, ff_rate, _ = score_faults(ff_events, [], runs, scenario.duration_s, warmup_s=base.warmup_s)
+    detection = _score(scenario, m["events"][main], runs, faulty=True)
+    fault_free = _score(scenario, m["events"]["fault_free"], runs, faulty=False)
     metrics: dict[str, Any] = {"reconstruction": reconstruction_metrics(m[main], scenario, dt)}
     metrics.update(deviation_metrics(m))
-    metrics["detection"] = {
-        "thresholds": dict(zip(FAULT_TARGETS, settings.threshold, strict=True)),
-        "calibration_max_abs_f_filt": dict(zip(FAULT_TARGETS, map(float, quiet), strict=True)),
-        "false_alarms": fa_raw,
-        "fault_free_twin_false_alarms_per_1000s": ff_rate,
-        "rule": f"|f̂_filt| > θ for {base.on_samples} samples; release below {base.off_ratio:g} θ for "
-        f"{base.off_samples} samples; θ = max(1.5 · max|f̂_filt| over the calibration twin, 0.01)",
-    }
+    metrics["detection"] = detection_metrics(probe, m)
+    metrics["detection"].update(
+        {
+            "false_alarms": detection.false_alarms,
+            "fault_free_twin_false_alarms": fault_free.false_alarms,
+            "fault_free_twin_false_alarms_per_1000s": fault_free.false_alarms_per_1000s,
+        }
+    )
     scorecard = {
         "scenario": scenario.name,
         "runs": runs,
         "seed": seed,
         "duration_s": scenario.duration_s,
-        "observer": observer,
+        "observer": probe.observer_name,
+        "detector": probe.detector_name,
         "compensation": options.compensation,
-        "false_alarms_per_1000s": fa_rate,
-        "faults": entries,
+        **detection.card_fields(),
         "metrics": metrics,
     }
 

@@ -17,7 +17,7 @@ from wwcore.scenario import Scenario
 
 EVALUATORS: dict[str, str] = {
     "turbine": "windwarden.evaluation.turbine",
-    "farm": "windwarden.evaluation.farm",
+    "farm": "windwarden.evaluation.farm_eval",
     "hydro": "windwarden.evaluation.hydro",
 }
 
@@ -33,7 +33,9 @@ class EvalOptions:
     compensation: bool = True  # hydro: virtual actuator of eq. (36)
     compare: bool = False  # write the paper-comparison tables where the kind has them
     twins: bool = True  # turbine: run a fault-free twin of every run for the "fault-free RMSE" references
-    workers: int | None = None  # processes; None uses every core
+    workers: int | None = None  # local processes; None: one per available core (``usage.available_cores``)
+    scheduler: str | None = None  # address of a Dask scheduler that runs the chunks instead (``docs/cluster.md``)
+    plugins: tuple[str, ...] = ()  # the ``--plugin`` modules and files, loaded on a cluster's workers too
     progress: bool = True
 
 
@@ -44,6 +46,29 @@ class Evaluation:
     scorecard: dict[str, Any]
     plot: Callable[[Path], list[Path]] = field(default=lambda out: [])
     extra_files: dict[str, str] = field(default_factory=dict)  # file name → text (markdown tables, …)
+
+
+SWITCHES: dict[str, tuple[str, frozenset[str]]] = {
+    "accommodation": ("--no-accommodation", frozenset({"farm"})),
+    "compensation": ("--no-compensation", frozenset({"hydro"})),
+    "compare": ("--compare", frozenset({"farm"})),
+    "twins": ("--no-twins", frozenset({"turbine", "farm"})),
+}
+"""``EvalOptions`` field → (the ``eval`` flag that changes it, the plant kinds whose evaluator uses it)."""
+
+
+def unused_switches(kind: str, options: EvalOptions) -> list[tuple[str, str]]:
+    """The flags given that a ``kind`` evaluation would ignore or that contradict each other, as (flag, message)
+    pairs; empty when none."""
+    defaults = EvalOptions()
+    unused = [
+        (flag, f"a {kind} scenario does not use it (it applies to {', '.join(sorted(kinds))} scenarios)")
+        for name, (flag, kinds) in SWITCHES.items()
+        if kind not in kinds and getattr(options, name) != getattr(defaults, name)
+    ]
+    if options.scheduler is not None and options.workers is not None:
+        unused.append(("--workers", "counts local processes; a cluster's workers are set where they start"))
+    return unused
 
 
 def evaluator_for(scenario: Scenario) -> Callable[[Scenario, int, int, EvalOptions], Evaluation]:

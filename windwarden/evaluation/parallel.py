@@ -1,43 +1,101 @@
-"""Monte Carlo runs split into fixed-size chunks, simulated on all cores, with one progress bar.
+"""Monte Carlo runs split into chunks, simulated on local processes or on a Dask cluster, with one progress bar.
 
-Chunks depend only on the number of runs (never on the number of cores), and every run draws its random
-numbers from its own stream, so the same scenario, runs and seed give the same numbers on any machine.
+Chunks depend only on the number of runs and the plant kind's largest chunk (``chunk_runs``), never on the
+machine, ``--workers`` or the cluster. Every run draws its random numbers from its own streams, but its last bits
+depend on where it sits in its batch: the step code's matrix products go through BLAS, whose kernels handle rows in
+pairs and the odd last row of a batch on its own (``docs/decisions.md``, "Evaluation chunks"). A chunk plan that
+followed the cores would therefore give other numbers on another machine; this one gives the same scenario, runs
+and seed the same numbers with any number of workers, locally or on a cluster, as the evaluators gather the
+chunks' results in chunk order (``tests/test_parallel.py``, ``tests/test_cluster.py``).
 
-``Branch`` forks a running chunk so that a copy continues from its state (the turbine evaluation's fault-free
-twins, which start at each fault window).
+Local chunks run in forked processes, at most one per available core (``usage.available_cores``) unless
+``--workers`` says otherwise; with ``--scheduler`` they go to a Dask cluster (``windwarden.evaluation.cluster``).
+``Branch`` (``windwarden.evaluation.branch``) is exported here too, for the evaluators.
 """
 
 from __future__ import annotations
 
 import contextlib
 import multiprocessing as mp
-import os
-import pickle
 import queue as queue_module
-import signal
-import traceback
 from collections.abc import Callable, Sequence
 from concurrent.futures import ProcessPoolExecutor
-from multiprocessing.connection import Pipe
-from typing import Any, Generic, TypeVar
+from typing import Any, TypeVar
 
 from tqdm import tqdm
+
+from windwarden.evaluation.branch import Branch
+from windwarden.evaluation.cluster import run_on_cluster
+from windwarden.evaluation.kinds import EvalOptions
+from windwarden.evaluation.tasks import Task
+from windwarden.evaluation.usage import available_cores
+
+__all__ = ["Branch", "ProgressHook", "Task", "chunk_runs", "concat_runs", "run_chunks"]
 
 R = TypeVar("R")
 ProgressHook = Callable[[float], None]
 """Called by a worker with the simulated seconds it advanced (per run batch) since the last call."""
 
 DEFAULT_CHUNK = 25
+PARALLEL_CHUNKS = 2
+"""Runs ≥ 2 are split into a multiple of this many chunks, so a two-core machine (the reference machine, CI)
+has both cores busy; a larger machine runs the same chunks (module docstring)."""
 
 
-def chunk_runs(runs: int, chunk: int = DEFAULT_CHUNK) -> list[list[int]]:
-    """Run indices split into chunks of at most ``chunk`` runs, spread evenly.
+def chunk_runs(runs: int, max_chunk: int = DEFAULT_CHUNK) -> list[list[int]]:
+    """Run indices split into the fewest chunks of at most ``max_chunk`` runs whose number is a multiple of
+    ``PARALLEL_CHUNKS`` (at most one chunk per run), spread evenly: run r goes to chunk r mod n_chunks.
 
-    The split depends on the number of runs only, and every row draws from its own streams, so the numbers do not
-    depend on it (``tests/test_parallel.py``).
+    The plan depends on ``runs`` and ``max_chunk`` only, never on the machine (module docstring).
     """
-    n_chunks = max(1, -(-runs // chunk))
-    return [list(range(runs))[i::n_chunks] for i in range(n_chunks)]
+    n_chunks = max(1, min(runs, PARALLEL_CHUNKS * -(-runs // (PARALLEL_CHUNKS * max_chunk))))
+    return [list(range(i, runs, n_chunks)) for i in range(n_chunks)]
+
+
+def run_chunks(
+    worker: Callable[..., R],
+    runs: int,
+    total_seconds: float,
+    options: EvalOptions,
+    args: tuple = (),
+    max_chunk: int = DEFAULT_CHUNK,
+    label: str = "simulating",
+) -> list[R]:
+    """Call ``worker(run_ids, progress_hook, *args)`` for every chunk; results in chunk order.
+
+    ``total_seconds`` is the simulated time of one run; the bar counts run-seconds over all runs.
+    ``options.scheduler`` sends the chunks to that Dask scheduler; otherwise they run on at most
+    ``options.workers`` local processes (default: one per available core).
+    """
+    tasks = [Task(ids, args, total_seconds * len(ids)) for ids in chunk_runs(runs, max_chunk)]
+    bar = tqdm(
+        total=sum(t.run_seconds for t in tasks), unit="run-s", desc=label, disable=not options.progress, smoothing=0.1
+    )
+    try:
+        if options.scheduler is not None:
+            return run_on_cluster(options.scheduler, worker, tasks, bar, options.plugins)
+        return _run_local(worker, tasks, min(len(tasks), options.workers or available_cores()), bar)
+    finally:
+        bar.close()
+
+
+def _run_local(worker: Callable[..., R], tasks: list[Task], workers: int, bar: tqdm) -> list[R]:
+    if workers == 1:
+        results = []
+        for task in tasks:
+            size = len(task.run_ids)
+            results.append(worker(task.run_ids, lambda seconds, size=size: bar.update(seconds * size), *task.args))
+        return results
+    ctx = mp.get_context("fork")  # the workers inherit the parent's plug-ins and imports
+    with ctx.Manager() as manager, ProcessPoolExecutor(workers, mp_context=ctx) as pool:
+        queue = manager.Queue()
+        futures = [pool.submit(_call, worker, task.run_ids, queue, task.args) for task in tasks]
+        while not all(f.done() for f in futures):
+            with contextlib.suppress(queue_module.Empty):
+                bar.update(queue.get(timeout=0.2))
+        while not queue.empty():
+            bar.update(queue.get())
+        return [f.result() for f in futures]
 
 
 def _call(worker: Callable[..., R], run_ids: list[int], queue: Any, args: tuple) -> R:
@@ -47,95 +105,5 @@ def _call(worker: Callable[..., R], run_ids: list[int], queue: Any, args: tuple)
     return worker(run_ids, hook, *args)
 
 
-def run_chunks(
-    worker: Callable[..., R],
-    runs: int,
-    total_seconds: float,
-    args: tuple = (),
-    chunk: int = DEFAULT_CHUNK,
-    workers: int | None = None,
-    label: str = "simulating",
-    show_progress: bool = True,
-    variants: Sequence[tuple] | None = None,
-    variant_seconds: Sequence[float] | None = None,
-) -> list[R]:
-    """Call ``worker(run_ids, progress_hook, *args)`` for every chunk; results in chunk order.
-
-    ``total_seconds`` is the simulated time of one run; the bar counts run-seconds over all runs. With
-    ``variants`` (argument tuples) every chunk runs once per variant: results variant by variant, chunks in order.
-    ``variant_seconds`` is each variant's simulated time per run where it is not ``total_seconds``.
-    """
-    chunks = chunk_runs(runs, chunk)
-    tasks = [(run_ids, a) for a in (variants or [args]) for run_ids in chunks]
-    workers = min(len(tasks), workers or os.cpu_count() or 1)
-    total = runs * (sum(variant_seconds) if variant_seconds else total_seconds * len(variants or [args]))
-    bar = tqdm(total=total, unit="run-s", desc=label, disable=not show_progress, smoothing=0.1)
-    try:
-        if workers == 1:
-            results = []
-            for run_ids, a in tasks:
-                size = len(run_ids)
-                results.append(worker(run_ids, lambda seconds, size=size: bar.update(seconds * size), *a))
-            return results
-        ctx = mp.get_context("fork")
-        with ctx.Manager() as manager, ProcessPoolExecutor(workers, mp_context=ctx) as pool:
-            queue = manager.Queue()
-            futures = [pool.submit(_call, worker, run_ids, queue, a) for run_ids, a in tasks]
-            while not all(f.done() for f in futures):
-                with contextlib.suppress(queue_module.Empty):
-                    bar.update(queue.get(timeout=0.2))
-            while not queue.empty():
-                bar.update(queue.get())
-            return [f.result() for f in futures]
-    finally:
-        bar.close()
-
-
 def concat_runs(parts: Sequence[Sequence[int]]) -> list[int]:
     return [run for part in parts for run in part]
-
-
-class Branch(Generic[R]):
-    """``body()`` run in a forked copy of this process, which starts from this moment's state; ``result()``
-    returns its value (it must pickle) or raises its failure with the child's traceback.
-
-    Plain ``os.fork`` rather than ``multiprocessing.Process``: chunks already run in a process pool, whose daemonic
-    workers may not start ``multiprocessing`` children, and a fork needs no copy or pickle of the state it
-    continues from. The child leaves with ``os._exit``, so it runs none of the parent's exit handlers.
-    """
-
-    def __init__(self, body: Callable[[], R]):
-        receiver, sender = Pipe(duplex=False)
-        self.pid = os.fork()
-        if self.pid == 0:
-            receiver.close()
-            code = 0
-            try:
-                outcome: tuple[str, Any] = ("ok", body())
-            except BaseException:  # every failure goes back to the parent, which raises it
-                outcome, code = ("error", traceback.format_exc()), 1
-            try:
-                sender.send_bytes(pickle.dumps(outcome, protocol=pickle.HIGHEST_PROTOCOL))
-            finally:
-                os._exit(code)
-        sender.close()
-        self._receiver = receiver
-
-    def result(self) -> R:
-        try:
-            status, value = pickle.loads(self._receiver.recv_bytes())
-        except EOFError:
-            status, value = "error", f"the branch process {self.pid} ended without a result"
-        finally:
-            self._receiver.close()
-            os.waitpid(self.pid, 0)
-        if status != "ok":
-            raise RuntimeError(f"branch process failed:\n{value}")
-        return value
-
-    def abandon(self) -> None:
-        """Stop the child and reap it (after a failure in the parent)."""
-        with contextlib.suppress(ProcessLookupError):
-            os.kill(self.pid, signal.SIGKILL)
-        self._receiver.close()
-        os.waitpid(self.pid, 0)

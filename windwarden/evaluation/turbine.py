@@ -26,14 +26,15 @@ from service.plugins import TURBINE_DETECTORS, TURBINE_ESTIMATORS
 from service.turbine.supervisor import DEFAULT_DETECTOR, DEFAULT_ESTIMATOR, TurbineSupervisor
 from windwarden.evaluation.kinds import EvalOptions, Evaluation
 from windwarden.evaluation.parallel import Branch, run_chunks
-from windwarden.evaluation.scoring import score_faults, windows_from_faults
+from windwarden.evaluation.scoring import FaultWindow, score_detection, twin_false_alarms, windows_from_faults
+from windwarden.evaluation.scoring_policy import TURBINE as SCORING
 from wwcore.channels import SENSOR_INDEX
-from wwcore.events import Event, EventType
+from wwcore.events import Event
 from wwcore.scenario import Scenario
 
 TWIN_TURBINE = 0  # turbine number of the fault-free twin rows in events (no real turbine has it)
-WARMUP_S = 10.0  # observer convergence and the supervisor's 5 s decision warm-up, left out of every figure
-GRACE_S = 2.0  # after a fault ends, detections still belong to it for this long
+WARMUP_S = SCORING.warmup_s  # left out of every figure (scoring_policy says why)
+GRACE_S = SCORING.grace_s  # after a fault ends, its flags may still be up for this long (scoring_policy)
 TRACE_EVERY = 10  # ticks between stored trace samples of run 0 (10 Hz)
 PROGRESS_EVERY = 1000  # ticks between progress reports
 _ANEMOMETER = SENSOR_INDEX["v_hub_m"]
@@ -50,9 +51,9 @@ class ChunkResult:
 
 
 TURBINE_CHUNK = 50
-"""Runs per process. The turbine's step is mostly per-tick interpreter work: splitting runs between processes does
-not shorten anyone's ticks (50 runs of ftwse-2012 with in-batch twins: 8 min 9 s in one process, 8 min 16 s in two
-of 25, before the step was trimmed), and the development machine's two vCPUs give ~1.4 times one's throughput."""
+"""Runs per chunk at most (``parallel.chunk_runs``: 20 runs are two chunks of 10, 100 runs two of 50). The step is
+mostly per-tick interpreter work, so a batch of 50 runs costs about 1.7 times one run's tick (``windwarden bench
+turbine``); larger chunks would save little and hold more memory."""
 
 
 def _window_of_tick(scenario: Scenario, n_steps: int, dt: float) -> tuple[np.ndarray, list[str]]:
@@ -85,7 +86,9 @@ def simulate_chunk(
     twins: bool = True,
 ) -> ChunkResult:
     """The runs ``run_ids``, and with ``twins`` the fault-free twin of each fault window (module docstring)."""
-    plant = TurbineBatch(scenario.plant, scenario.wind, scenario.faults, seed=seed, runs=run_ids)
+    plant = TurbineBatch(
+        scenario.plant, scenario.wind, scenario.faults, seed=seed, runs=run_ids, mismatch=scenario.mismatch
+    )
     supervisor = TurbineSupervisor(
         plant.n,
         detector=detector,
@@ -268,17 +271,16 @@ def evaluate(scenario: Scenario, runs: int, seed: int, options: EvalOptions) -> 
         simulate_chunk,
         runs,
         scenario.duration_s,
+        options,
         args=(scenario, seed, detector, estimator, dict(scenario.supervisor.params), twins),
-        chunk=TURBINE_CHUNK,
-        workers=options.workers,
-        show_progress=options.progress,
+        max_chunk=TURBINE_CHUNK,
         label=scenario.name,
     )
     all_events = sorted((e for r in results for e in r.events), key=lambda e: (e.run, e.t))
     events = [e for e in all_events if e.turbine != TWIN_TURBINE]
     twin_events = [e for e in all_events if e.turbine == TWIN_TURBINE]
     windows = windows_from_faults(scenario.faults, scenario.duration_s)
-    faults, fa_rate, fa_raw = score_faults(events, windows, runs, scenario.duration_s, GRACE_S, WARMUP_S)
+    detection = score_detection(events, windows, runs=runs, duration_s=scenario.duration_s, policy=SCORING)
     labels = ["fault_free"] + [w.name for w in windows]
     counts = sum(r.counts for r in results)
     wind_rmse = {}
@@ -299,10 +301,8 @@ def evaluate(scenario: Scenario, runs: int, seed: int, options: EvalOptions) -> 
         "duration_s": scenario.duration_s,
         "detector": detector,
         "estimator": estimator,
-        "false_alarms_per_1000s": fa_rate,
-        "false_alarms": fa_raw,
-        **(_twin_false_alarms(twin_events, runs, results[0].twin_seconds) if twins else {}),
-        "faults": faults,
+        **detection.card_fields(),
+        **(_twin_false_alarms(twin_events, runs, results[0].twin_seconds, windows) if twins else {}),
         "metrics": {"wind_rmse": wind_rmse},
     }
     trace = next((r.trace for r in results if r.trace), {})
@@ -315,9 +315,8 @@ def evaluate(scenario: Scenario, runs: int, seed: int, options: EvalOptions) -> 
     return Evaluation(scorecard, plot=plot)
 
 
-def _twin_false_alarms(events: list[Event], runs: int, duration_s: float) -> dict:
-    """Detections in the fault-free twins, which run for ``duration_s`` per run in all: a false-alarm count on the
-    fault windows' own wind."""
-    count = sum(1 for e in events if e.type is EventType.DETECTION and e.t >= WARMUP_S)
-    observed = runs * duration_s
-    return {"false_alarms_twin": {"count": count, "observed_s": observed, "per_1000s": 1000.0 * count / observed}}
+def _twin_false_alarms(events: list[Event], runs: int, duration_s: float, windows: list[FaultWindow]) -> dict:
+    """Flags raised in the fault-free twins, which run over the fault windows, ``duration_s`` per run in all: a
+    false-alarm count on the fault windows' own wind."""
+    spans = [(w.start_s, w.end_s) for w in windows]
+    return {"false_alarms_twin": twin_false_alarms(events, runs * duration_s, SCORING, spans)}

@@ -2,6 +2,13 @@
 
 It is the batch loop of ``wwcore.stepping`` (measure, control, step, advance) driven through a kind's adapter,
 fed to the same score accumulator the plant node uses, and scored by the same ``adapter.scorecard``.
+
+``drop`` loses sensor frames as a congested real-time link does: the supervisor never sees frame k where
+``drop[k]``, handles the gap as the supervisor node does (``guard.bridge_gap``) and the plant controls tick k with the
+newest refs while they are within ``max_ref_age`` ticks, else falls back, as the plant node does. ``gaps`` picks how a
+gap is handled, for the comparison ``tools/bench_drops.py`` makes: ``"bridge"`` (what the supervisor node does),
+``"consecutive"`` (the frames after a gap fed as if none was missing), ``"step"`` (the whole supervisor, detectors
+included, stepped on the interpolated frames). Without ``drop`` this is the lockstep reference.
 """
 
 from __future__ import annotations
@@ -9,8 +16,11 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any
 
+import numpy as np
+
 from windwarden.live.adapters import adapter_for
 from windwarden.live.adapters.base import RunInfo
+from windwarden.live.guard import bridge_gap
 from wwcore.events import Event
 from wwcore.scenario import Scenario
 
@@ -21,7 +31,9 @@ class BatchResult:
     scorecard: dict[str, Any]
 
 
-def run_batch(scenario: Scenario, seed: int) -> BatchResult:
+def run_batch(
+    scenario: Scenario, seed: int, drop: np.ndarray | None = None, max_ref_age: int = 10, gaps: str = "bridge"
+) -> BatchResult:
     adapter = adapter_for(scenario.plant.kind)
     plant = adapter.make_plant(scenario, seed)
     turbines = adapter.turbines(plant)
@@ -30,13 +42,29 @@ def run_batch(scenario: Scenario, seed: int) -> BatchResult:
     score = adapter.score(scenario, n_steps, plant.dt)
     events: list[Event] = []
     refs = None
-    for k in range(n_steps):
-        frame = plant.measure()
-        plant.control(refs)
-        score.on_tick(k, frame, plant)
-        refs = supervisor.step(frame)
-        score.on_refs(k, adapter.refs_records(refs, supervisor, turbines))
-        plant.advance()
-        events += plant.drain_events() + supervisor.drain_events()
+    if drop is None:
+        for k in range(n_steps):
+            frame = plant.measure()
+            plant.control(refs)
+            score.on_tick(k, frame, plant)
+            refs = supervisor.step(frame)
+            score.on_refs(k, adapter.refs_records(refs, supervisor, turbines))
+            plant.advance()
+            events += plant.drain_events() + supervisor.drain_events()
+    else:
+        bridge = {"bridge": getattr(supervisor, "bridge", None), "consecutive": None, "step": supervisor.step}[gaps]
+        before, refs_tick = None, -1
+        for k in range(n_steps):
+            frame = plant.measure()
+            plant.control(refs if k - refs_tick <= max_ref_age else None)
+            score.on_tick(k, frame, plant)
+            if not drop[k]:
+                records = adapter.frame_records(frame, turbines)
+                if before is not None:
+                    bridge_gap(bridge, adapter, before, records)
+                refs, refs_tick, before = supervisor.step(frame), k, records
+                score.on_refs(k, adapter.refs_records(refs, supervisor, turbines))
+            plant.advance()
+            events += plant.drain_events() + supervisor.drain_events()
     metrics = score.result(list(scenario.faults))
     return BatchResult(events, adapter.scorecard(scenario, seed, list(scenario.faults), events, metrics))

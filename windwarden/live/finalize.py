@@ -1,7 +1,12 @@
 """End of a live run: the scorecard from ``events.jsonl`` (same scoring code as batch) and the recording closed.
 
 ``finalize_scorecard`` may run more than once (the plant at its end, ``up`` once every child has stopped, so a
-late event is still counted); each run rewrites ``scorecard.json`` from the files alone.
+late event is still counted; ``windwarden finalize RUN_DIR`` by hand); each run rewrites ``scorecard.json`` from
+the files alone. A run that stopped early is scored over the ticks it ran (false-alarm rates, fault windows and
+counters cover no tick that never ran). A plant that was killed or crashed leaves no final ``live.json``: the card
+is then computed from ``events.jsonl``, the fault listing and the plant's last checkpoint of ``live.json`` (how far
+it ran, its timing) and marked ``partial``: detection figures are complete for the stretch that ran, the continuous
+metrics the plant accumulated in memory (wind RMSE, reconstruction, farm power) are lost with it.
 """
 
 from __future__ import annotations
@@ -15,38 +20,91 @@ from pathlib import Path
 from typing import Any
 
 from windwarden.live.adapters import adapter_for
-from windwarden.live.runfolder import EVENTS, LIVE, RECORDING, RUN, SCENARIO, SCORECARD, read_events, write_json
-from wwcore.scenario import FaultSpec, load_scenario
+from windwarden.live.runfolder import (
+    EVENTS,
+    FAULTS,
+    LIVE,
+    RECORDING,
+    RUN,
+    SCENARIO,
+    SCORECARD,
+    read_events,
+    write_json,
+)
+from wwcore.scenario import FaultSpec, Scenario, load_scenario
+
+
+def _read_json(path: Path) -> Any:
+    try:
+        return json.loads(path.read_text())
+    except (OSError, ValueError):
+        return None
+
+
+def effective_faults(listing: list[dict[str, Any]]) -> list[FaultSpec]:
+    """The faults as they acted, from a ``faults.json`` listing (cancelled ones left out, early clears applied)."""
+    out = []
+    for entry in listing:
+        if entry.get("state") == "cancelled":
+            continue
+        spec = FaultSpec.model_validate(entry["fault"])
+        out.append(spec.model_copy(update={"end_s": entry.get("end_s")}))
+    return out
+
+
+def cut_to(scenario: Scenario, faults: list[FaultSpec], seconds: float) -> tuple[Scenario, list[FaultSpec]]:
+    """The scenario and its faults as far as a run went: what started later never acted."""
+    acted = [f for f in faults if f.start_s < seconds]
+    return scenario.model_copy(update={"duration_s": seconds, "faults": acted}), acted
 
 
 def finalize_scorecard(run_dir: Path) -> dict[str, Any] | None:
-    """Compute and write ``scorecard.json``; None when the plant left no ``live.json`` (it never ran)."""
-    live_path = run_dir / LIVE
-    if not live_path.exists():
+    """Compute and write ``scorecard.json``; None when the plant never started a run there (no ``run.json``)."""
+    run = _read_json(run_dir / RUN)
+    if run is None or not (run_dir / SCENARIO).exists():
         return None
-    live = json.loads(live_path.read_text())
-    run = json.loads((run_dir / RUN).read_text())
+    live = _read_json(run_dir / LIVE) or {}
+    final = bool(live.get("final", "metrics" in live))
     scenario = load_scenario(run_dir / SCENARIO)
     adapter = adapter_for(scenario.plant.kind)
-    faults = [FaultSpec.model_validate(f) for f in live["effective_faults"]]
     events = read_events(run_dir / EVENTS)
-    card = adapter.scorecard(scenario, int(run["seed"]), faults, events, live["metrics"])
-    timing = live["timing"]
+    if "effective_faults" in live:
+        faults = [FaultSpec.model_validate(f) for f in live["effective_faults"]]
+    else:
+        faults = effective_faults(_read_json(run_dir / FAULTS) or [])
+    timing = live.get("timing") or {}
+    dt = float(timing.get("dt") or run.get("dt") or 0.0)
+    completed = final and bool(live.get("completed"))
+    if live.get("ticks_run") is not None and dt > 0:
+        ran_s = live["ticks_run"] * dt
+    else:  # killed before its first checkpoint: as far as its events go
+        ran_s = max((e.t for e in events), default=0.0)
+    scored, faults = (scenario, faults) if completed else cut_to(scenario, faults, min(ran_s, scenario.duration_s))
+    metrics = live.get("metrics", {}) if final else {}
+    card = adapter.scorecard(scored, int(run["seed"]), faults, events, metrics)
     card["live"] = {
         "run_id": run["run_id"],
-        "mode": timing["mode"],
-        "speed": timing["speed"],
-        "completed": live["completed"],
-        "ticks": live["ticks_run"],
-        "overruns": timing["overruns"],
-        "overrun_pct": timing["overrun_pct"],
-        "resyncs": timing["resyncs"],
-        "real_time_factor": timing["real_time_factor"],
-        "latency": timing["latency"],
-        "dropped": timing["dropped"],
-        "ticks_without_refs": live["metrics"].get("ticks_without_refs"),
+        "mode": run.get("mode"),
+        "speed": run.get("speed"),
+        "completed": completed,
+        "partial": not final,
+        "scored_s": scored.duration_s,
+        "ticks": live.get("ticks_run"),
+        "overruns": timing.get("overruns"),
+        "overrun_pct": timing.get("overrun_pct"),
+        "resyncs": timing.get("resyncs"),
+        "real_time_factor": timing.get("real_time_factor"),
+        "latency": timing.get("latency") or {},
+        "dropped": timing.get("dropped", {}),
+        "refs_refused": timing.get("refs_refused", {}),
+        "ticks_without_refs": metrics.get("ticks_without_refs"),
         "events": len(events),
     }
+    if not final:
+        card["live"]["note"] = (
+            "partial: the plant stopped without finishing its run (killed or crashed); detection figures cover the "
+            f"{scored.duration_s:g} s it ran, the continuous metrics it kept in memory are lost"
+        )
     write_json(run_dir / SCORECARD, card)
     return card
 

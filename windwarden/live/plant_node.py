@@ -4,9 +4,10 @@ Tick k (the step contract of ``wwcore.stepping``, the same calls as batch mode):
 
 1. apply the fault commands that arrived (inject/clear over the ``plant/faults`` queryable);
 2. take the refs that arrived, before ``sensors_k`` leaves (so tick k is controlled with refs from tick ≤ k − 1,
-   as in batch mode); the newest is used if computed from tick ≥ k − ``max_ref_age``, else the turbine
-   controller falls back to its own sensors and its last good reference;
-3. ``frame = plant.measure()``; publish ``sensors_k``; ``plant.control(refs)``;
+   as in batch mode), each checked by ``guard.RefsGuard`` (finite, in range, for a tick in the window, not a
+   repeat; refused ones counted and logged); the newest taken is used if computed from tick ≥ k − ``max_ref_age``,
+   else the turbine controller falls back to its own sensors and its last good reference;
+3. ``frame = plant.measure()``; publish ``sensors_k`` (with the run identity); ``plant.control(refs)``;
 4. ``plant.advance()``; append and publish the plant's events;
 5. lockstep: wait for ``refs_k`` (unless the supervisor is gone or has gone mute: then fall back, log, go on);
    realtime: sleep until the deadline t₀ + (k+1)·dt/speed; a tick whose work ends after it is an overrun.
@@ -19,6 +20,7 @@ from __future__ import annotations
 import gc
 import logging
 import queue
+import secrets
 import threading
 import time
 from collections.abc import Callable
@@ -32,8 +34,9 @@ from windwarden.live.adapters import adapter_for
 from windwarden.live.adapters.base import RunInfo
 from windwarden.live.config import PlantSettings
 from windwarden.live.faults import FaultBook, InjectionRefusedError
+from windwarden.live.guard import RefsFreshness, RefsGuard, RefusalLog, Verdict
 from windwarden.live.mailbox import TickMailbox
-from windwarden.live.runfolder import EVENTS, FAULTS, LIVE, RUN, SCENARIO, EventLog, write_json
+from windwarden.live.runfolder import EVENTS, FAULTS, LIVE, EventLog, write_json, write_run_start
 from windwarden.live.timing import LatencyStats, Pacer
 from windwarden.live.transport import JsonQueryable, LivenessWatch, QueryError, declare_publisher
 from wwcore.events import Event, EventType
@@ -54,6 +57,7 @@ log = logging.getLogger(__name__)
 
 COMMAND_TIMEOUT_S = 5.0  # a fault command not applied by the main loop within this is answered with an error
 FINAL_REFS_WAIT_S = 1.0  # realtime: how long the plant waits for the refs of its last tick
+CHECKPOINT_EVERY_S = 1.0  # s of wall time between two checkpoints of live.json
 
 
 class PlantNode:
@@ -80,12 +84,16 @@ class PlantNode:
         self.turbines = self.adapter.turbines(self.plant)
         self.dt = float(self.plant.dt)
         self.n_steps = round(scenario.duration_s / self.dt)
-        self.info = RunInfo.of(scenario, self.turbines, self.dt, run_id, settings.mode, settings.speed)
+        self.run_key = secrets.randbits(52)  # the run identity on every frame: a new one for every run
+        self.info = RunInfo.of(
+            scenario, self.turbines, self.dt, run_id, settings.mode, settings.speed, run_key=self.run_key
+        )
         self.book = FaultBook(
             scenario.plant.kind, scenario.plant.n_turbines, scenario.duration_s, list(scenario.faults)
         )
         self.score = self.adapter.score(scenario, self.n_steps, self.dt)
         self.drops = DropCounter()
+        self.guard = RefsGuard(self.adapter.refs, settings.max_ref_age, self.drops)
         self.latency = LatencyStats()
         self.pacer = Pacer(self.dt, settings.speed)
         self._stop = threading.Event()
@@ -93,11 +101,7 @@ class PlantNode:
         self._sent_at: dict[int, float] = {}
         self.k = 0
         self.state = "starting"
-        self.refs_fresh: bool | None = None  # None until the first refs arrive
-        self.stale_ticks = 0  # ticks run on the fallback after refs had been fresh
-        self.stale_episodes = 0
-        self._stale_run = 0
-        self._stale_logged = False
+        self.freshness = RefsFreshness(settings.max_ref_age, settings.stale_event_ticks, self._stream_event)
         self.latest_refs: Any | None = None
         self.latest_refs_tick = -1
         self.refs_received = 0
@@ -105,19 +109,21 @@ class PlantNode:
         self.wall_start = time.time()
         self._loop_start = time.perf_counter()  # reset when tick 0 starts
         self._last_status = 0.0
+        self._last_checkpoint = 0.0
         self._open_transport()
 
     # -- set-up -------------------------------------------------------------------------------------------------
     def _open_transport(self) -> None:
         s, keys = self.session, self.keys
         self.events = EventLog(self.run_dir / EVENTS, self._publish_event)
+        self.refusals = RefusalLog(self.drops, "refs", Process.PLANT.value, self.events.write)
         self._events_pub = declare_publisher(s, keys.plant_events, EVENT_QOS)
         self._status_pub = declare_publisher(s, keys.plant_status, DISPLAY_QOS)
         sensors_qos = COMMAND_QOS if self.settings.mode == "lockstep" else SENSORS_QOS
         unique = list(dict.fromkeys(self.turbines))
         self._sensor_pubs = {t: declare_publisher(s, keys.sensors(t), sensors_qos) for t in unique}
         self._truth_pubs = {t: declare_publisher(s, keys.truth(t), DISPLAY_QOS) for t in unique}
-        self.mailbox = TickMailbox(self.adapter.refs, self.turbines, self.drops, "refs")
+        self.mailbox = TickMailbox(self.adapter.refs, self.turbines, self.drops, "refs", self.guard.window)
         self._refs_sub = s.declare_subscriber(
             keys.refs("*"), lambda sample: self.mailbox.put(sample.payload.to_bytes())
         )
@@ -263,10 +269,12 @@ class PlantNode:
             "resyncs": self.pacer.resyncs,
             "latency": self.latency.summary(exact=exact),
             "latency_recent": self.latency.summary(recent=1000),
-            "refs_fresh": self.refs_fresh,
-            "refs_stale_ticks": self.stale_ticks,
-            "refs_stale_episodes": self.stale_episodes,
+            "refs_fresh": self.freshness.fresh,
+            "refs_stale_ticks": self.freshness.stale_ticks,
+            "refs_stale_episodes": self.freshness.stale_episodes,
             "refs_received": self.refs_received,
+            "refs_refused": self.refusals.counts(),
+            "run_key": self.run_key,
             "supervisor_alive": self.watch.is_alive(Process.SUPERVISOR),
             "dropped": self.drops.as_dict(),
             "wall_s": wall,
@@ -274,6 +282,9 @@ class PlantNode:
 
     def _publish_status(self, force: bool = False) -> None:
         now = time.monotonic()
+        if self.state == "running" and now - self._last_checkpoint >= CHECKPOINT_EVERY_S:
+            self._last_checkpoint = now
+            write_json(self.run_dir / LIVE, self._live_record(final=False))
         if force or now - self._last_status >= self.settings.status_every_s:
             self._last_status = now
             status = self.status()
@@ -297,41 +308,29 @@ class PlantNode:
             )
 
     def _take_refs(self) -> None:
-        """Fold arrived refs into the latest refs, the latency figures and the score."""
+        """Fold arrived refs into the latest refs, the latency figures and the score, as ``guard`` allows."""
+        k = self.plant.k
         for arrival in self.mailbox.drain():
+            verdict = self.guard.judge(arrival.tick, arrival.records, k)
+            if verdict == Verdict.REFUSED:
+                continue
             self.refs_received += 1
             self.mute = False
             sent = self._sent_at.pop(arrival.tick, None)
             if sent is not None:
                 self.latency.add(arrival.at - sent)
             self.score.on_refs(arrival.tick, arrival.records)
-            if arrival.tick > self.latest_refs_tick:
+            if verdict == Verdict.TAKE and arrival.tick > self.latest_refs_tick:
                 self.latest_refs_tick = arrival.tick
                 self.latest_refs = arrival.records
         if len(self._sent_at) > 4000:
             cutoff = self.plant.k - 2000
             self._sent_at = {k: v for k, v in self._sent_at.items() if k >= cutoff}
+        self.refusals.poll(self.plant.t)
 
     def _refs_for(self, k: int) -> Any | None:
-        """The refs tick k uses, or None (stale: the controller falls back). Staleness is counted every tick; an
-        outage is logged as an event once it has lasted ``stale_event_ticks`` (short hiccups are only counted)."""
-        fresh = self.latest_refs is not None and self.latest_refs_tick >= k - self.settings.max_ref_age
-        if fresh:
-            self._stale_run = 0
-            if self.refs_fresh is False and self._stale_logged:
-                self._stream_event(True)
-            self._stale_logged = False
-        elif self.refs_fresh is not None:  # stale after having been fresh once
-            self.stale_ticks += 1
-            self._stale_run += 1
-            if self._stale_run == 1:
-                self.stale_episodes += 1
-            if self._stale_run == self.settings.stale_event_ticks:
-                self._stale_logged = True
-                self._stream_event(False)
-        if fresh and self.refs_fresh is None:
-            self._stream_event(True)
-        self.refs_fresh = fresh if (fresh or self.refs_fresh is not None) else None
+        """The refs tick k uses, or None (stale: the controller falls back)."""
+        fresh = self.freshness.update(k, self.latest_refs_tick if self.latest_refs is not None else None)
         return self.adapter.refs_from_records(self.latest_refs) if fresh else None
 
     def _stream_event(self, fresh: bool) -> None:
@@ -343,7 +342,7 @@ class PlantNode:
         if self.mute or not self._supervisor_ready():
             return
         got = self.mailbox.wait_for(
-            lambda: self.mailbox.latest_tick >= k or self._stop.is_set() or not self.watch.is_alive(Process.SUPERVISOR),
+            lambda: self.mailbox.arrived(k) or self._stop.is_set() or not self.watch.is_alive(Process.SUPERVISOR),
             self.settings.lockstep_timeout_s,
         )
         if not got:
@@ -356,22 +355,39 @@ class PlantNode:
 
     def _write_run_folder(self) -> None:
         s = self.settings
-        self.run_dir.mkdir(parents=True, exist_ok=True)
-        (self.run_dir / SCENARIO).write_text(dump_scenario(self.scenario))
         run = {
             "run_id": self.run_id,
+            "run_key": self.run_key,
             "scenario": self.scenario.name,
             "kind": self.scenario.plant.kind,
             "seed": s.seed,
             "mode": s.mode,
             "speed": s.speed,
+            "dt": self.dt,
             "farm": s.farm,
             "started": self.wall_start,
             "connect": s.connect_endpoints,
             "rerun_url": s.rerun_url,
         }
-        write_json(self.run_dir / RUN, run)
-        write_json(self.run_dir / FAULTS, self.book.listing(0.0))
+        write_run_start(self.run_dir, dump_scenario(self.scenario), run, self.book.listing(0.0))
+
+    def _live_record(self, final: bool) -> dict[str, Any]:
+        """``live.json``: the run's figures. Rewritten every ``CHECKPOINT_EVERY_S`` while the run goes (``final``
+        False: no metrics, the accumulators stay in memory), so a plant that is killed still leaves how far it
+        ran; ``finalize.finalize_scorecard`` then scores the events of that stretch and marks the card partial."""
+        live = {
+            "run_id": self.run_id,
+            "final": final,
+            "completed": final and self.plant.k >= self.n_steps,
+            "ticks_run": self.plant.k,
+            "n_steps": self.n_steps,
+            "timing": self.status(exact=final),
+            "faults": self.book.listing(self.plant.t),
+            "effective_faults": [f.model_dump(mode="json", exclude_none=True) for f in self.book.effective()],
+        }
+        if final:
+            live["metrics"] = self.score.result(self.book.effective())
+        return live
 
     def run(self) -> int:
         self._write_run_folder()
@@ -391,12 +407,13 @@ class PlantNode:
         for k in range(self.n_steps):
             if self._stop.is_set():
                 break
-            self.k = k
+            self.k = self.guard.k = k
             self._apply_commands()
             self._take_refs()  # before sensors_k go out: tick k is controlled with refs from tick ≤ k − 1 only
             refs = self._refs_for(k)
             frame = plant.measure()
             records = adapter.frame_records(frame, self.turbines)
+            records["run"] = self.run_key
             self._sent_at[k] = time.perf_counter()
             for i, turbine in enumerate(self.turbines):
                 self._sensor_pubs[turbine].put(adapter.sensors.encode(records[i]))
@@ -426,21 +443,11 @@ class PlantNode:
     def _finish(self) -> None:
         last = self.plant.k - 1
         if self.settings.mode == "realtime" and self._supervisor_ready():
-            self.mailbox.wait_for(lambda: self.mailbox.latest_tick >= last, FINAL_REFS_WAIT_S)
+            self.mailbox.wait_for(lambda: self.mailbox.arrived(last), FINAL_REFS_WAIT_S)
         self._take_refs()
-        completed = self.plant.k >= self.n_steps
         self.state = "ended"
-        metrics = self.score.result(self.book.effective())
-        live = {
-            "run_id": self.run_id,
-            "completed": completed,
-            "ticks_run": self.plant.k,
-            "n_steps": self.n_steps,
-            "metrics": metrics,
-            "timing": self.status(exact=True),
-            "faults": self.book.listing(self.plant.t),
-            "effective_faults": [f.model_dump(mode="json", exclude_none=True) for f in self.book.effective()],
-        }
+        live = self._live_record(final=True)
+        completed = live["completed"]
         write_json(self.run_dir / LIVE, live)
         write_json(self.run_dir / FAULTS, self.book.listing(self.plant.t))
         self.events.write(

@@ -6,7 +6,8 @@ Layout::
     run.json          run id, kind, mode, speed, seed, endpoints, start time
     events.jsonl      one JSON event per line, appended by every process (O_APPEND, one write per line)
     faults.json       the faults as they happened (scheduled, injected over REST, cleared early)
-    live.json         the plant's timing figures: overruns, loop latency, dropped messages
+    live.json         the plant's figures: ticks run, overruns, loop latency, refused and dropped messages, the
+                      continuous metrics; a checkpoint without metrics ("final": false) while the run goes
     scorecard.json    computed from events.jsonl at the end of the run (same scoring code as batch)
     recording.rrd     the Rerun recording of plant and supervisor
     logs/             stdout/stderr of each child process (``windwarden up``)
@@ -112,6 +113,14 @@ def read_events(path: Path) -> list[Event]:
         except (json.JSONDecodeError, KeyError, ValueError):
             continue
     return out
+
+
+def write_run_start(run_dir: Path, scenario_toml: str, run: dict[str, Any], faults: list[dict[str, Any]]) -> None:
+    """The files a plant writes before tick 0: the scenario as run, ``run.json`` and the fault listing."""
+    run_dir.mkdir(parents=True, exist_ok=True)
+    (run_dir / SCENARIO).write_text(scenario_toml)
+    write_json(run_dir / RUN, run)
+    write_json(run_dir / FAULTS, faults)
 
 
 def write_json(path: Path, data: Any) -> None:

@@ -7,9 +7,11 @@ never faults or truth), builds the supervisor with the constructor batch mode us
 plant holds ``refs_k`` every event up to tick k is in the log.
 
 Degradation (DESIGN.md): when no sensors arrive for ``stale_after_s`` or the plant's liveliness token goes, the
-stream is marked stale (an event) and nothing more is published from it; when sensors come back after a gap of
-more than ``max_gap_ticks`` (or from a new run) the observers start afresh instead of publishing estimates built
-on the old state.
+stream is marked stale (an event) and nothing more is published from it. Which frames are stepped is decided by
+``guard.FrameSequencer``: the observers start afresh only for a new run identity the plant confirms, or after a gap
+of more than ``max_gap_ticks`` that the plant's own tick confirms; old, repeated, foreign and unconfirmed frames are
+dropped, counted and logged (rate-limited); a shorter gap is bridged (``supervisor.bridge`` on interpolated frames,
+``wwcore.stepping``) or, for a supervisor without ``bridge``, held.
 """
 
 from __future__ import annotations
@@ -28,6 +30,7 @@ import zenoh
 from windwarden.live.adapters import adapter_for, load_adapters
 from windwarden.live.adapters.base import KindAdapter, RunInfo
 from windwarden.live.config import SupervisorSettings
+from windwarden.live.guard import FrameSequencer, RefusalLog, bridge_gap
 from windwarden.live.mailbox import TickMailbox
 from windwarden.live.runfolder import EVENTS, EventLog
 from windwarden.live.timing import LatencyStats
@@ -36,6 +39,7 @@ from wwcore.events import Event, EventType
 from wwcore.wire import COMMAND_QOS, EVENT_QOS, DropCounter, Process, WireError, decode_json, encode_json
 
 log = logging.getLogger(__name__)
+PLANT_APPEARED = None  # put in the sensor queue by the liveliness callback: the main loop handles it in turn
 
 
 class SupervisorNode:
@@ -64,6 +68,10 @@ class SupervisorNode:
         self.frames = 0
         self.resets = 0
         self.gaps = 0
+        self.bridged = 0  # ticks bridged across gaps
+        self.last_records: np.ndarray | None = None
+        self.sequencer = FrameSequencer(settings.max_gap_ticks, self.drops, self._confirm_run, self._confirm_tick)
+        self.refusals = RefusalLog(self.drops, "sensors", Process.SUPERVISOR.value, self._write)
         self._last_status = 0.0
         s = session
         self._events_pub = declare_publisher(s, self.keys.supervisor_events, EVENT_QOS)
@@ -117,6 +125,8 @@ class SupervisorNode:
         )
         if not alive:
             self._mark(False)
+        else:  # a plant appeared: the main loop asks it which run it is (``_follow_plant``)
+            self._inbox.put(PLANT_APPEARED)
 
     def _on_event_sample(self, sample: zenoh.Sample) -> None:
         try:
@@ -181,6 +191,9 @@ class SupervisorNode:
             if turbine not in self._refs_pubs:
                 self._refs_pubs[turbine] = declare_publisher(self.session, self.keys.refs(turbine), COMMAND_QOS)
         self.last_tick = None
+        self.last_records = None
+        self.sequencer.start(info.run_key)
+        self._bridge = getattr(self.supervisor, "bridge", None)
         gc.collect()
         gc.freeze()  # what was built so far is never collected: shorter GC pauses while stepping
         if self._sensors_sub is None:
@@ -211,7 +224,9 @@ class SupervisorNode:
             "plant_alive": self.watch.is_alive(Process.PLANT),
             "frames": self.frames,
             "gaps": self.gaps,
+            "bridged_ticks": self.bridged,
             "observer_restarts": self.resets,
+            "refused": self.refusals.counts(),
             "step": self.step_time.summary(recent=1000),
             "dropped": self.drops.as_dict(),
             "turbines": turbines,
@@ -238,28 +253,61 @@ class SupervisorNode:
                 self._mark(False)
                 self._publish_status()
                 continue
+            if payload is PLANT_APPEARED:
+                self._follow_plant()
+                continue
             self.mailbox.put(payload)
             for arrival in self.mailbox.drain():
                 self._on_frame(arrival.records)
             self._publish_status()
         return 0
 
+    def _follow_plant(self) -> None:
+        """A plant has appeared: if it runs a new run (its run identity is not the current one), build for it now,
+        so a plant that waits for a ready supervisor before its first tick (lockstep) need not wait."""
+        try:
+            info = RunInfo.from_json(query_json(self.session, self.keys.run, "plant.run", timeout=2.0))
+        except (QueryFailedError, KeyError, TypeError, ValueError):
+            return  # its frames will tell (``FrameSequencer``)
+        if self.info is not None and info.run_key != self.info.run_key:
+            self._start_run(info)
+            self.resets += 1
+
+    def _confirm_run(self, run: int) -> RunInfo | None:
+        """The plant's run description if the plant says ``run`` is its run identity, else None."""
+        try:
+            info = RunInfo.from_json(query_json(self.session, self.keys.run, "plant.run", timeout=1.0))
+        except (QueryFailedError, KeyError, TypeError, ValueError):
+            return None
+        return info if info.run_key == run else None
+
+    def _confirm_tick(self, tick: int) -> bool:
+        """The plant has measured tick ``tick`` of the current run (its status says so)."""
+        try:
+            status = query_json(self.session, self.keys.plant_status, "plant.status", timeout=1.0)
+        except QueryFailedError:
+            return False
+        return (
+            status.get("run_key") == self.info.run_key
+            and isinstance(status.get("tick"), int)
+            and tick <= status["tick"]
+        )
+
     def _on_frame(self, records: np.ndarray) -> None:
         adapter = self.adapter
         tick = int(records["tick"][0])
-        restart = False
-        if self.last_tick is not None and not (0 < tick - self.last_tick <= self.settings.max_gap_ticks):
-            restart = True
-            if tick <= self.last_tick:  # the plant started over: maybe a new run
-                info = self._fetch_info()
-                if info is None:
-                    return
-                self._start_run(info)
-            else:
-                self._start_run(self.info)
+        decision, missing = self.sequencer.decide(records)
+        self.refusals.poll(self.last_t)
+        if decision == FrameSequencer.DROP:
+            return
+        restart = decision in (FrameSequencer.NEW_RUN, FrameSequencer.RESTART)
+        if restart:
+            self._start_run(self.sequencer.confirmed if decision == FrameSequencer.NEW_RUN else self.info)
             self.resets += 1
-        elif self.last_tick is not None and tick - self.last_tick > 1:
+            adapter = self.adapter
+        elif missing:
             self.gaps += 1
+            self._bridge_gap(records)
         backlog = self._inbox.qsize()
         if backlog > self.settings.max_backlog_ticks:  # far behind: skip to the newest, start afresh on the next
             self.drops.add("sensors", "backlog")
@@ -275,6 +323,8 @@ class SupervisorNode:
             self.last_refs = out
         self.step_time.add(time.perf_counter() - started)
         self.last_tick, self.last_t = tick, float(records["t"][0])
+        self.last_records = records
+        self.sequencer.stepped(tick)
         self.frames += 1
         self._write(events)  # before the refs: holding refs_k means the log has every event up to tick k
         for i, turbine in enumerate(self.turbines):
@@ -283,6 +333,12 @@ class SupervisorNode:
             if tick % self.settings.display_every == 0:
                 self.display.supervisor_rows(records, out, self.status_rows())
             self.display.pump()
+
+    def _bridge_gap(self, records: np.ndarray) -> None:
+        """Advance the supervisor through the ticks missing before ``records`` (held if it cannot bridge)."""
+        if self.last_records is not None:
+            with self._lock:
+                self.bridged += bridge_gap(self._bridge, self.adapter, self.last_records, records)
 
     def status_rows(self) -> list[dict[str, Any]]:
         return self.adapter.status(self.supervisor, self.last_refs, self.turbines)

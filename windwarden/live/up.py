@@ -5,9 +5,12 @@ role for each run, in ``runs/<id>/secrets/`` with mode 0600; or connects to an e
 recorder (and a viewer on request), then the API, the supervisor and the plant as child processes of
 ``windwarden`` with their settings in ``WINDWARDEN_*`` variables (a role's password by file path, never its value),
 each in its own session with its output in ``runs/<id>/logs/``. It prints the events as they happen, restarts the
-supervisor or the API if one dies (``--restart``), and shuts everything down in order at the scenario's end or on
-Ctrl-C: plant, supervisor, API, the recorder, then the router; finally it recomputes the scorecard from
-``events.jsonl`` and closes the recording.
+supervisor or the API if one dies (``--restart``), and shuts everything down in order at the scenario's end, on
+Ctrl-C or SIGTERM: plant, supervisor, API, the recorder, then the router; finally it recomputes the scorecard from
+``events.jsonl`` (partial if the plant was killed) and closes the recording. If ``up`` itself is killed, nothing is
+orphaned: the services get SIGTERM from the kernel (``cli.exit_with_parent``) and the watchdog (``watchdog``,
+started first, in its own session) stops every child, Rerun's and the router included, and closes the run as
+``up`` would have.
 
 Exit code: 0 when the scenario ran to its end and no child failed; 1 when a child failed (even if restarted);
 130 on Ctrl-C.
@@ -47,8 +50,10 @@ from windwarden.live.router import (
     start_router_process,
     wait_listening,
 )
-from windwarden.live.runfolder import EVENTS, RECORDING, SCENARIO, write_json
+from windwarden.live.runfolder import EVENTS, RECORDING, SCENARIO, SCORECARD, write_json
+from windwarden.live.status_line import StatusDisplay
 from windwarden.live.transport import open_session
+from windwarden.live.watchdog import WatchdogLink
 from wwcore.events import Event, EventType
 from wwcore.scenario import Scenario, dump_scenario
 from wwcore.wire import KeyTree, WireError, decode_json
@@ -169,6 +174,16 @@ class Up:
         self.secrets: Path | None = None  # the folder of role credentials (None: no access control)
         self.router: subprocess.Popen | None = None
         self.info: dict[str, Any] = {}
+        self.watchdog: WatchdogLink | None = None
+        self.pids: dict[str, int] = {}  # every child as started last: in up.json, for the watchdog and for tests
+        self.status = StatusDisplay(console)  # the one-line run status (``status_line``)
+
+    def _started(self, name: str, pid: int) -> None:
+        self.pids[name] = pid
+        if self.watchdog is not None:
+            self.watchdog.child(name, pid)
+        if self.info:
+            write_json(self.run_dir / "up.json", self.info | {"pids": self.pids})
 
     # -- set-up ---------------------------------------------------------------------------------------------------
     def _endpoint(self) -> str:
@@ -236,23 +251,31 @@ class Up:
         self.logs.mkdir(parents=True, exist_ok=True)
         (self.run_dir / SCENARIO).write_text(dump_scenario(self.scenario))
         self.secrets = self._credentials()
+        self.watchdog = WatchdogLink(self.run_dir, self.logs / "watchdog.log")
         endpoint = self._endpoint()
         try:
             self.router = None if self.o.connect else self._start_router(endpoint)
+            if self.router is not None:
+                self._started("router", self.router.pid)
         except (RuntimeError, OSError, ValueError) as error:
             console.print(f"[red]{error}[/red]")
+            self.watchdog.done()
             return 1
         try:
-            return self._run(endpoint, self.router)
+            code = self._run(endpoint, self.router)
         finally:
             self._stop_router()
+        self.watchdog.done()
+        return code
 
     def _run(self, endpoint: str, router: Any) -> int:
         o = self.o
         rec = recorder_command(self.run_dir / RECORDING, o.viewer)
         self.rerun.append(start_rerun(rec.recorder, self.logs / "recorder.log"))
+        self._started("recorder", self.rerun[-1].pid)
         if rec.viewer is not None:
             self.rerun.append(start_rerun(rec.viewer, self.logs / "viewer.log"))
+            self._started("viewer", self.rerun[-1].pid)
         for proc in self.rerun:
             lower_priority(proc.pid, 10)
         env = self._env(endpoint, rec.url)
@@ -283,24 +306,32 @@ class Up:
             "events": str(self.run_dir / EVENTS),
             "recording": str(self.run_dir / RECORDING),
             "started": time.time(),
+            "up_pid": os.getpid(),
+            "watchdog_pid": None if self.watchdog is None else self.watchdog.proc.pid,
         }
-        write_json(self.run_dir / "up.json", self.info)
+        write_json(self.run_dir / "up.json", self.info | {"pids": self.pids})
         previous = {
             sig: signal.signal(sig, lambda *_: self.interrupted.set()) for sig in (signal.SIGINT, signal.SIGTERM)
         }
         session = open_session(self._watch_settings(endpoint))
         sub = session.declare_subscriber(KeyTree(o.farm).events_all, self._on_event)
+        status_sub = session.declare_subscriber(KeyTree(o.farm).plant_status, self._on_plant_status)
         try:
             for child in self.children:
                 child.start()
+                self._started(child.name, child.proc.pid)
                 if child.name == "api" and not _wait_http(f"{api_url}/health", 30.0, child.proc.poll):
                     console.print(f"[red]the API did not come up; see {child.log}[/red]")
                     child.failed = True
                     break
             else:
                 self._banner()
+                if not o.quiet:
+                    self.status.start()
                 self._watch()
         finally:
+            self.status.stop()
+            status_sub.undeclare()
             sub.undeclare()
             session.close()
             self._shutdown()
@@ -342,6 +373,12 @@ class Up:
         console.print(f"  recording  {i['recording']}")
         console.print(f"  events     {i['events']}      logs {self.logs}/")
 
+    def _on_plant_status(self, sample: Any) -> None:
+        try:
+            self.status.on_status(decode_json("plant.status", sample.payload.to_bytes()))
+        except WireError:
+            return
+
     def _on_event(self, sample: Any) -> None:
         if self.o.quiet:
             return
@@ -349,6 +386,7 @@ class Up:
             event = Event.from_json(decode_json("events", sample.payload.to_bytes()))
         except (WireError, KeyError, ValueError):
             return
+        self.status.on_event(event)
         if event.type in (
             EventType.FAULT_INJECTED,
             EventType.FAULT_CLEARED,
@@ -380,6 +418,8 @@ class Up:
                 child.restarts += 1
                 console.print(f"restarting {child.name} ({child.restarts}/{MAX_RESTARTS})")
                 child.start()
+                self._started(child.name, child.proc.pid)
+            self.status.tick()
             self.interrupted.wait(0.2)
 
     # -- shutdown -------------------------------------------------------------------------------------------------
@@ -401,34 +441,15 @@ class Up:
         completed = bool(card and card["live"]["completed"])
         refused = read_audit(self.run_dir / ROUTER_AUDIT) if self.router is not None else None
         if not self.o.quiet:
-            if card is not None:
-                from windwarden.evaluation.report import render
-
-                console.print(render({k: v for k, v in card.items() if k != "live"}))
-                live = card["live"]
-                lat = live["latency"]
-                console.print(
-                    f"live: {live['ticks']} ticks, overruns {live['overruns']} ({live['overrun_pct']:.2f} %), "
-                    f"latency p50 {lat['p50_ms'] or float('nan'):.2f} ms p99 {lat['p99_ms'] or float('nan'):.2f}"
-                    f" ms, real-time factor {live['real_time_factor'] or float('nan'):.2f}"
-                )
-            console.print(
-                f"run folder {self.run_dir}: scorecard.json, events.jsonl, recording.rrd "
-                f"({'verified' if verified else 'NOT verified'})"
-            )
-            if refused is not None:
-                console.print(
-                    f"router: {refused['denied_total']} messages denied, {refused['logins_refused_total']} logins "
-                    f"refused ({self.run_dir / ROUTER_AUDIT})"
-                )
-            if failed:
-                console.print(f"[red]failed: {', '.join(failed)} (logs in {self.logs})[/red]")
+            self._print_report(card, verified, failed, refused)
         write_json(
             self.run_dir / "up.json",
             self.info
             | {
+                "pids": self.pids,
                 "ended": time.time(),
                 "completed": completed,
+                "partial": bool(card and card["live"]["partial"]),
                 "failed": failed,
                 "recording_verified": verified,
                 "restarts": {c.name: c.restarts for c in self.children},
@@ -438,3 +459,37 @@ class Up:
         if self.interrupted.is_set():
             return 130
         return 0 if completed and not failed else 1
+
+    def _print_report(
+        self, card: dict[str, Any] | None, verified: bool, failed: list[str], refused: dict[str, Any] | None
+    ) -> None:
+        if card is not None:
+            from windwarden.evaluation.report import render
+
+            console.print(render({k: v for k, v in card.items() if k != "live"}))
+            live = card["live"]
+            lat = live["latency"]
+            nan = float("nan")
+            console.print(
+                f"live: {live['ticks'] if live['ticks'] is not None else '?'} ticks, overruns "
+                f"{live['overruns'] if live['overruns'] is not None else '?'} ({live['overrun_pct'] or nan:.2f} %), "
+                f"latency p50 {lat.get('p50_ms') or nan:.2f} ms p99 {lat.get('p99_ms') or nan:.2f} ms, "
+                f"real-time factor {live['real_time_factor'] or nan:.2f}"
+            )
+            if live.get("refs_refused"):
+                console.print(f"[yellow]refs refused by the plant: {live['refs_refused']}[/yellow]")
+            if live["partial"]:
+                console.print(f"[red]{live['note']}[/red]")
+        files = [name for name in (SCORECARD, EVENTS) if (self.run_dir / name).exists()]
+        if (self.run_dir / RECORDING).exists():
+            files.append(f"{RECORDING} ({'verified' if verified else 'NOT verified'})")
+        console.print(
+            f"run folder {self.run_dir}: {', '.join(files) if files else 'no run files (the plant never ran)'}"
+        )
+        if refused is not None:
+            console.print(
+                f"router: {refused['denied_total']} messages denied, {refused['logins_refused_total']} logins "
+                f"refused ({self.run_dir / ROUTER_AUDIT})"
+            )
+        if failed:
+            console.print(f"[red]failed: {', '.join(failed)} (logs in {self.logs})[/red]")

@@ -9,6 +9,7 @@ from wwcore.scenario.loader import (
     problems_from_validation_error,
     shipped_scenarios,
 )
+from wwcore.scenario.mismatch import Mismatch
 from wwcore.scenario.model import Scenario, SupervisorSpec
 from wwcore.scenario.wind import WindSpec
 
@@ -16,6 +17,7 @@ __all__ = [
     "SENSOR_FAULT_KINDS",
     "FaultKind",
     "FaultSpec",
+    "Mismatch",
     "Scenario",
     "ScenarioError",
     "SupervisorSpec",

@@ -33,6 +33,7 @@ class RunInfo:
     supervisor: dict[str, Any]  # scenario.supervisor (detector, estimator, params)
     recording_id: str = ""
     extra: dict[str, Any] = field(default_factory=dict)
+    run_key: int = 0  # the run identity every sensor frame of the run carries (drawn by the plant)
 
     @classmethod
     def of(
@@ -43,6 +44,7 @@ class RunInfo:
         run_id: str = "batch",
         mode: str = "batch",
         speed: float = 1.0,
+        run_key: int = 0,
     ) -> RunInfo:
         return cls(
             run_id=run_id,
@@ -56,6 +58,7 @@ class RunInfo:
             plant=scenario.plant.model_dump(mode="json"),
             supervisor=scenario.supervisor.model_dump(mode="json"),
             recording_id=run_id,
+            run_key=run_key,
         )
 
     def to_json(self) -> dict[str, Any]:

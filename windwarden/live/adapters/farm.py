@@ -17,7 +17,6 @@ from typing import TYPE_CHECKING, Any, ClassVar
 
 import numpy as np
 
-from windwarden.evaluation.scoring import score_faults
 from windwarden.live.adapters.base import RunInfo, finite_or_none, records_from_batch
 from wwcore.events import Event
 from wwcore.farm_frames import CANCEL_3P_MODE, DISPATCH_MODES, HOLD_TORQUE_MODE, FarmFrame, FarmRefs
@@ -50,7 +49,13 @@ class FarmAdapter:
         from plant_sim.farm import FarmBatch
 
         return FarmBatch(
-            scenario.plant, scenario.wind, scenario.faults, seed=seed, duration_s=scenario.duration_s, runs=[0]
+            scenario.plant,
+            scenario.wind,
+            scenario.faults,
+            seed=seed,
+            duration_s=scenario.duration_s,
+            runs=[0],
+            mismatch=scenario.mismatch,
         )
 
     def make_supervisor(self, info: RunInfo) -> FarmSupervisor:
@@ -207,15 +212,14 @@ class FarmAdapter:
         self, scenario: Scenario, seed: int, faults: list[FaultSpec], events: list[Event], metrics: dict[str, Any]
     ) -> dict[str, Any]:
         from service.farm.supervisor import DEFAULT_CONTROLLER, DEFAULT_DETECTOR
-        from windwarden.evaluation.farm import GRACE_S, TURBINES, WARMUP_S, detection_by_type, farm_windows
+        from windwarden.evaluation.farm import WARMUP_S, farm_windows, score_farm, scorecard_target
 
         live = scenario.model_copy(update={"faults": faults})
         windows = farm_windows(live)
-        entries, fa_rate, fa_raw = score_faults(
-            events, windows, 1, scenario.duration_s, GRACE_S, WARMUP_S, turbines=TURBINES
-        )
-        for entry, w in zip(entries, windows, strict=True):
-            entry["target"] = f"wt{w.turbine}:{w.target}"
+        detection = score_farm(events, windows, 1, scenario.duration_s)
+        for entry, w in zip(detection.faults, windows, strict=True):
+            entry["target"] = scorecard_target(w)
+        farm_seconds = max(scenario.duration_s - WARMUP_S, 0.0)
         sup = scenario.supervisor
         return {
             "scenario": scenario.name,
@@ -226,14 +230,12 @@ class FarmAdapter:
             "detector": sup.detector or DEFAULT_DETECTOR,
             "controller": sup.controller or DEFAULT_CONTROLLER,
             "accommodation": True,
-            "false_alarms_per_1000s": fa_rate,
-            "false_alarms": fa_raw,
-            "faults": entries,
+            **detection.card_fields(),
             "metrics": {
                 "over_production": metrics.get("over_production", {}),
                 "missing_power": metrics.get("missing_power", {}),
                 "damage": {"note": "damage numbers need the fault-free twin farm: windwarden eval (batch) only"},
-                "detection": detection_by_type(events, windows, 1, scenario.duration_s),
+                "detection": {name: detection.by_target(name, farm_seconds) for name in FARM_FAULT_TYPES},
             },
         }
 
@@ -250,8 +252,10 @@ class FarmScore:
         self.power_sum = 0.0
         self.over = self.missing = self.demand = 0.0
         self.have = np.zeros(n_steps, dtype=bool)  # ticks whose references reached the plant
+        self.ticks = 0  # ticks that ran
 
     def on_tick(self, k: int, frame: FarmFrame, plant: FarmBatch) -> None:
+        self.ticks = max(self.ticks, k + 1)
         self.power_sum += float(plant.power_output().sum())
         if frame.sample:
             j = (k + 1) // self.per_sample
@@ -274,7 +278,7 @@ class FarmScore:
         return {
             "over_production": {"mwh_per_run": self.over * mwh, "fraction_of_demand": frac(self.over)},
             "missing_power": {"mwh_per_run": self.missing * mwh, "fraction_of_demand": frac(self.missing)},
-            "ticks_without_refs": int((~self.have).sum()),
+            "ticks_without_refs": int((~self.have[: self.ticks]).sum()),
         }
 
 

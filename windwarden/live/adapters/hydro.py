@@ -5,10 +5,10 @@ streams ``SeedSequence(seed, spawn_key=(0, 0))``, the nominal parameters with th
 correction applied). A one-row batch gives bit for bit the numbers of that twin, so the live reconstruction
 figures equal ``windwarden eval``'s.
 
-Scorecard of a live run: detection figures from the event log (``scoring.score_faults``, the supervisor's own
-detector with its default thresholds: the batch evaluator calibrates them on a fault-free twin, which a live run
-does not have) and the reconstruction figures of ``evaluation.hydro.reconstruction_metrics`` from the corrections
-the plant received. The deviation-from-fault-free figures need that twin too and are batch-only.
+Scorecard of a live run: detection figures from the event log (``scoring.score_detection`` on the supervisor's own
+events, as ``windwarden eval`` scores them: both run the same supervisor with the same design thresholds) and the
+reconstruction figures of ``evaluation.hydro.reconstruction_metrics`` from the corrections the plant received.
+The deviation-from-fault-free figures need the fault-free twin and are batch-only.
 """
 
 from __future__ import annotations
@@ -18,7 +18,8 @@ from typing import TYPE_CHECKING, Any, ClassVar
 
 import numpy as np
 
-from windwarden.evaluation.scoring import score_faults, windows_from_faults
+from windwarden.evaluation.scoring import score_detection, windows_from_faults
+from windwarden.evaluation.scoring_policy import HYDRO as SCORING
 from windwarden.live.adapters.base import RunInfo, finite_or_none, records_from_batch
 from wwcore.events import Event
 from wwcore.hydro_frames import HydroFrame, HydroRefs
@@ -31,7 +32,8 @@ if TYPE_CHECKING:  # the plant process never imports the supervisor's code, nor 
     from plant_sim.hydro import HydroTurbineBatch
     from service.hydro.supervisor import HydroSupervisor
 
-DEFAULT_OBSERVER = "ts-smo"
+DEFAULT_OBSERVER = "ts-smo"  # service.plugins.HYDRO_OBSERVERS.default (the plant process does not import it)
+DEFAULT_DETECTOR = "threshold"  # service.plugins.HYDRO_DETECTORS.default
 
 
 class HydroAdapter:
@@ -62,8 +64,9 @@ class HydroAdapter:
             n=len(info.turbines),
             run_ids=[0] * len(info.turbines),
             params=replace(NOMINAL, stroke_max=spec.stroke_max),  # what the plant publishes as its nominal model
-            observer=info.supervisor.get("estimator") or DEFAULT_OBSERVER,
-            observer_params=info.supervisor.get("params") or {},
+            observer=info.supervisor.get("estimator"),
+            detector=info.supervisor.get("detector"),
+            options=info.supervisor.get("params") or {},
             compensation=True,
         )
 
@@ -125,15 +128,17 @@ class HydroAdapter:
 
     # -- status -----------------------------------------------------------------------------------------------------
     def status(self, supervisor: HydroSupervisor, refs: np.ndarray | None, turbines: list[int]) -> list[dict[str, Any]]:
-        det = supervisor.detector
+        theta = supervisor.thresholds
         out = []
         for row, turbine in enumerate(turbines):
             entry: dict[str, Any] = {
                 "turbine": turbine,
-                "flagged": [FAULT_TARGETS[j] for j in np.flatnonzero(det.flagged[row])],
+                "flagged": [FAULT_TARGETS[j] for j in np.flatnonzero(supervisor.flags[row])],
                 "observer": supervisor.observer_name,
-                "thresholds": dict(zip(FAULT_TARGETS, map(float, det.theta), strict=True)),
+                "detector": supervisor.detector_name,
             }
+            if theta is not None:
+                entry["thresholds"] = dict(zip(FAULT_TARGETS, map(float, theta), strict=True))
             if refs is not None:
                 r = refs[row]
                 corr = np.asarray(r["correction"], dtype=float)
@@ -143,10 +148,11 @@ class HydroAdapter:
                     "x_hat": dict(zip(X_NAMES, map(finite_or_none, r["x_hat"]), strict=True)),
                     "correction_applied": bool(r["apply"]),
                 }
-                entry["margins"] = {
-                    f"|f_hat_filt[{name}]|/threshold": finite_or_none(abs(c) / th)
-                    for name, c, th in zip(FAULT_TARGETS, corr, det.theta, strict=True)
-                }
+                if theta is not None:
+                    entry["margins"] = {
+                        f"|f_hat_filt[{name}]|/threshold": finite_or_none(abs(c) / th)
+                        for name, c, th in zip(FAULT_TARGETS, corr, theta, strict=True)
+                    }
                 entry["tick"] = int(r["tick"])
             out.append(entry)
         return out
@@ -158,27 +164,20 @@ class HydroAdapter:
     def scorecard(
         self, scenario: Scenario, seed: int, faults: list[FaultSpec], events: list[Event], metrics: dict[str, Any]
     ) -> dict[str, Any]:
-        from service.hydro.detector import DetectionSettings
-
-        settings = DetectionSettings()
         windows = windows_from_faults(faults, scenario.duration_s)
-        entries, fa_rate, fa_raw = score_faults(events, windows, 1, scenario.duration_s, warmup_s=settings.warmup_s)
+        detection = score_detection(events, windows, runs=1, duration_s=scenario.duration_s, policy=SCORING)
         return {
             "scenario": scenario.name,
             "runs": 1,
             "seed": seed,
             "duration_s": scenario.duration_s,
             "observer": scenario.supervisor.estimator or DEFAULT_OBSERVER,
+            "detector": scenario.supervisor.detector or DEFAULT_DETECTOR,
             "compensation": True,
-            "false_alarms_per_1000s": fa_rate,
-            "faults": entries,
+            **detection.card_fields(),
             "metrics": {
                 "reconstruction": metrics.get("reconstruction", []),
-                "detection": {
-                    "thresholds": dict(zip(FAULT_TARGETS, settings.threshold, strict=True)),
-                    "false_alarms": fa_raw,
-                    "calibrated": False,
-                },
+                "detection": {"false_alarms": detection.false_alarms},
             },
         }
 
@@ -193,8 +192,10 @@ class HydroScore:
         self.f_true = np.zeros((n_steps, 1, 2), dtype=np.float32)
         self.f_filt = np.full((n_steps, 1, 2), np.nan, dtype=np.float32)
         self.n_steps = n_steps
+        self.ticks = 0  # ticks that ran: the figures cover no tick beyond them
 
     def on_tick(self, k: int, frame: HydroFrame, plant: HydroTurbineBatch) -> None:
+        self.ticks = max(self.ticks, min(k + 1, self.n_steps))
         if k < self.n_steps:
             self.f_true[k] = (plant.fault_offsets(plant.t) * plant.fault_mask[:, None])[:1]
 
@@ -203,16 +204,20 @@ class HydroScore:
             self.f_filt[k] = refs["correction"][:1]
 
     def result(self, faults: list[FaultSpec]) -> dict[str, Any]:
-        f_filt = self.f_filt.copy()
+        ticks = self.ticks
+        f_filt = self.f_filt[:ticks].copy()
         last = np.zeros((1, 2), dtype=np.float32)
         for k in np.flatnonzero(np.isnan(f_filt[:, 0, 0])):  # carry the last received correction forward
             f_filt[k] = f_filt[k - 1] if k > 0 else last
-        ran = self.n_steps * self.dt
-        scenario = self.scenario.model_copy(update={"faults": [f for f in faults if f.start_s < ran]})
+        ran = ticks * self.dt
+        update = {"faults": [f for f in faults if f.start_s < ran]}
+        if ticks < self.n_steps:
+            update["duration_s"] = ran
+        scenario = self.scenario.model_copy(update=update)
         from windwarden.evaluation.hydro import reconstruction_metrics
 
-        traces = {"f_filt": f_filt, "f_true": self.f_true}
-        missing = int(np.isnan(self.f_filt[:, 0, 0]).sum())
+        traces = {"f_filt": f_filt, "f_true": self.f_true[:ticks]}
+        missing = int(np.isnan(self.f_filt[:ticks, 0, 0]).sum())
         return {"reconstruction": reconstruction_metrics(traces, scenario, self.dt), "ticks_without_refs": missing}
 
 

@@ -14,7 +14,8 @@ from typing import TYPE_CHECKING, Any, ClassVar
 
 import numpy as np
 
-from windwarden.evaluation.scoring import score_faults, windows_from_faults
+from windwarden.evaluation.scoring import score_detection, windows_from_faults
+from windwarden.evaluation.scoring_policy import TURBINE as SCORING
 from windwarden.live.adapters.base import RunInfo, finite_or_none, records_from_batch
 from wwcore.channels import DIAGNOSIS_TARGETS, SENSOR_INDEX
 from wwcore.events import Event
@@ -46,7 +47,9 @@ class TurbineAdapter:
     def make_plant(self, scenario: Scenario, seed: int) -> TurbineBatch:
         from plant_sim.turbine import TurbineBatch
 
-        return TurbineBatch(scenario.plant, scenario.wind, scenario.faults, seed=seed, runs=[0])
+        return TurbineBatch(
+            scenario.plant, scenario.wind, scenario.faults, seed=seed, runs=[0], mismatch=scenario.mismatch
+        )
 
     def make_supervisor(self, info: RunInfo) -> TurbineSupervisor:
         from service.turbine.supervisor import DEFAULT_DETECTOR, DEFAULT_ESTIMATOR, TurbineSupervisor
@@ -180,11 +183,10 @@ class TurbineAdapter:
         self, scenario: Scenario, seed: int, faults: list[FaultSpec], events: list[Event], metrics: dict[str, Any]
     ) -> dict[str, Any]:
         from service.turbine.supervisor import DEFAULT_DETECTOR, DEFAULT_ESTIMATOR
-        from windwarden.evaluation.turbine import GRACE_S, WARMUP_S
 
         sup = scenario.supervisor
         windows = windows_from_faults(faults, scenario.duration_s)
-        entries, fa_rate, fa_raw = score_faults(events, windows, 1, scenario.duration_s, GRACE_S, WARMUP_S)
+        detection = score_detection(events, windows, runs=1, duration_s=scenario.duration_s, policy=SCORING)
         return {
             "scenario": scenario.name,
             "runs": 1,
@@ -192,9 +194,7 @@ class TurbineAdapter:
             "duration_s": scenario.duration_s,
             "detector": sup.detector or DEFAULT_DETECTOR,
             "estimator": sup.estimator or DEFAULT_ESTIMATOR,
-            "false_alarms_per_1000s": fa_rate,
-            "false_alarms": fa_raw,
-            "faults": entries,
+            **detection.card_fields(),
             "metrics": {"wind_rmse": metrics.get("wind_rmse", {})},
         }
 
@@ -209,6 +209,7 @@ class TurbineScore:
         self.n_steps = n_steps
         self.dt = dt
         self.rows = 0
+        self.ticks = 0  # ticks that ran: the counters below count no tick beyond them
         self.err = {key: np.full(n_steps, np.nan) for key in self.KEYS}
         self.have = np.zeros(n_steps, dtype=bool)
         self.nfte_set = np.zeros(n_steps, dtype=bool)
@@ -216,6 +217,7 @@ class TurbineScore:
 
     def on_tick(self, k: int, frame: TurbineFrame, plant: TurbineBatch) -> None:
         self.rows = plant.n
+        self.ticks = max(self.ticks, k + 1)
         self._pending[k] = (plant.true_rotor_wind().copy(), frame.sensors[:, _ANEMOMETER].copy())
         if len(self._pending) > 4000:  # refs that never came (supervisor down)
             self._pending = {j: v for j, v in self._pending.items() if j >= k - 2000}
@@ -250,7 +252,7 @@ class TurbineScore:
             for i, label in enumerate(labels)
             if counts[i] > 0
         }
-        return {"wind_rmse": wind_rmse, "ticks_without_refs": int((~self.have).sum())}
+        return {"wind_rmse": wind_rmse, "ticks_without_refs": int((~self.have[: self.ticks]).sum())}
 
 
 ADAPTER = TurbineAdapter()

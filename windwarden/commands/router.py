@@ -16,6 +16,9 @@ import threading
 from pathlib import Path
 from typing import Any
 
+from windwarden.commands.common import BadInputError
+from windwarden.live.process import exit_with_parent, on_signals, setup_logging
+
 log = logging.getLogger("windwarden.live")
 
 
@@ -64,7 +67,6 @@ def _add_router(sub: argparse._SubParsersAction) -> None:
 
 def router_access(args: argparse.Namespace) -> Any:
     """The ``RouterAccess`` the flags ask for (None with ``--no-acl``)."""
-    from windwarden.cli import BadInputError
     from windwarden.live.router import RouterAccess, TlsFiles
 
     if args.no_acl:
@@ -87,9 +89,7 @@ def router_access(args: argparse.Namespace) -> Any:
 def cmd_router(args: argparse.Namespace) -> int:
     import zenoh
 
-    from windwarden.cli import BadInputError
     from windwarden.live.audit import RouterAudit
-    from windwarden.live.cli import exit_with_parent, on_signals, setup_logging
     from windwarden.live.router import DEFAULT_PORT, router_config, router_file_config
 
     setup_logging("router")
@@ -154,7 +154,6 @@ def _add_credentials(sub: argparse._SubParsersAction) -> None:
 
 
 def cmd_credentials(args: argparse.Namespace) -> int:
-    from windwarden.cli import BadInputError
     from windwarden.live.access import ROLES, USERS_FILE, new_passwords, write_credentials
 
     if (args.folder / USERS_FILE).exists() and not args.force:

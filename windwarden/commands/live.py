@@ -9,87 +9,25 @@ the command line wins.
 from __future__ import annotations
 
 import argparse
-import contextlib
 import logging
 import os
-import signal
-import sys
-import threading
-import time
-from collections.abc import Callable, Iterator
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-from windwarden.live.cli_router import ROUTER_SUBCOMMANDS
+from windwarden.commands.common import BadInputError, check_supervisor
+from windwarden.commands.router import ROUTER_SUBCOMMANDS
+from windwarden.live.process import (
+    ServiceError,
+    apply_nice,
+    exit_with_parent,
+    on_signals,
+    setup_logging,
+    zenoh_session,
+)
 from wwcore.scenario import Scenario, load_scenario
 
 log = logging.getLogger("windwarden.live")
-
-
-def setup_logging(name: str) -> None:
-    level = os.environ.get("WINDWARDEN_LOG_LEVEL", "INFO").upper()
-    logging.basicConfig(
-        level=level, stream=sys.stderr, format=f"%(asctime)s {name} %(levelname)s %(name)s: %(message)s"
-    )
-
-
-def on_signals(stop: Callable[[], None]) -> None:
-    """SIGINT and SIGTERM ask ``stop`` (called on a fresh thread: a handler must not take locks)."""
-
-    def handler(signum: int, frame: Any) -> None:
-        threading.Thread(target=stop, name="stop", daemon=True).start()
-
-    signal.signal(signal.SIGINT, handler)
-    signal.signal(signal.SIGTERM, handler)
-
-
-@contextlib.contextmanager
-def zenoh_session(settings: Any) -> Iterator[Any]:
-    """The process's Zenoh session; an unreachable router is a clean error (exit 1), not a traceback."""
-    import zenoh
-
-    from windwarden.live.transport import open_session
-
-    try:
-        session = open_session(settings)
-    except zenoh.ZError as error:
-        raise ServiceError(
-            f"cannot join Zenoh at {settings.connect or settings.listen or '(scouting)'}: {error}"
-        ) from None
-    with session:
-        yield session
-
-
-class ServiceError(Exception):
-    """A service could not start (exit code 1)."""
-
-
-def apply_nice(settings: Any) -> None:
-    """Run at the configured niceness; say so, and carry on, when the system does not allow it."""
-    if settings.nice is None:
-        return
-    try:
-        os.setpriority(os.PRIO_PROCESS, 0, settings.nice)
-        log.info("running at niceness %d", settings.nice)
-    except OSError as error:
-        log.warning(
-            "cannot set niceness %d (%s): running at %d", settings.nice, error, os.getpriority(os.PRIO_PROCESS, 0)
-        )
-
-
-def exit_with_parent(stop: Callable[[], None]) -> None:
-    """When started by ``windwarden up`` (``WINDWARDEN_PARENT_PID``), call ``stop`` if that process goes away."""
-    parent = os.environ.get("WINDWARDEN_PARENT_PID")
-    if not parent or not parent.isdigit():
-        return
-
-    def watch() -> None:
-        while os.getppid() == int(parent):
-            time.sleep(0.5)
-        log.warning("windwarden up (pid %s) is gone: stopping", parent)
-        stop()
-
-    threading.Thread(target=watch, name="parent-watch", daemon=True).start()
 
 
 def truncated(scenario: Scenario, duration_s: float | None) -> Scenario:
@@ -159,7 +97,6 @@ def service_errors(command: Callable[[argparse.Namespace], int]) -> Callable[[ar
 
 @service_errors
 def cmd_plant(args: argparse.Namespace) -> int:
-    from windwarden.cli import BadInputError
     from windwarden.live.config import PlantSettings, new_run_id, settings_from_flags
     from windwarden.live.finalize import finalize_scorecard
     from windwarden.live.plant_node import PlantNode
@@ -176,6 +113,7 @@ def cmd_plant(args: argparse.Namespace) -> int:
         raise BadInputError(str(error)) from None
     scenario = truncated(load_scenario(settings.scenario), settings.duration_s)
     check_kind(scenario.plant.kind)
+    check_supervisor(scenario)  # the supervisor would refuse these options: say so before the run starts
     apply_nice(settings)
     run_id = settings.run_id or new_run_id(scenario.name)
     run_dir = settings.folder(run_id)
@@ -201,7 +139,6 @@ def cmd_plant(args: argparse.Namespace) -> int:
 
 
 def check_kind(kind: str) -> None:
-    from windwarden.cli import BadInputError
     from windwarden.live.adapters import ADAPTERS
 
     if kind not in ADAPTERS:
@@ -226,7 +163,7 @@ def _add_supervise(sub: argparse._SubParsersAction) -> None:
 
 @service_errors
 def cmd_supervise(args: argparse.Namespace) -> int:
-    from windwarden.cli import BadInputError
+    from service.plugins import AlgorithmOptionError, UnknownAlgorithmError
     from windwarden.live.config import SupervisorSettings, settings_from_flags
     from windwarden.live.supervisor_node import SupervisorNode
 
@@ -257,6 +194,8 @@ def cmd_supervise(args: argparse.Namespace) -> int:
         exit_with_parent(node.stop)
         try:
             return node.run()
+        except (AlgorithmOptionError, UnknownAlgorithmError) as error:  # the plant's run names options we refuse
+            raise BadInputError(f"the run's supervisor: {error}") from None
         finally:
             status = node.status()
             log.info(
@@ -285,7 +224,6 @@ def cmd_api(args: argparse.Namespace) -> int:
 
     from api.main import create_app
     from api.settings import ApiSettings
-    from windwarden.cli import BadInputError
     from windwarden.live.config import settings_from_flags
 
     setup_logging("api")
@@ -361,12 +299,12 @@ def _up_flags(p: argparse.ArgumentParser, viewer: str) -> None:
 
 
 def cmd_up(args: argparse.Namespace) -> int:
-    from windwarden.cli import BadInputError
     from windwarden.live.up import Up, UpOptions
 
     setup_logging("up")
     scenario = truncated(load_scenario(args.scenario), args.duration)
     check_kind(scenario.plant.kind)
+    check_supervisor(scenario)
     if not args.speed > 0:
         raise BadInputError(f"--speed must be > 0, got {args.speed}")
     options = UpOptions(
@@ -400,6 +338,39 @@ def _add_demo(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(func=cmd_up)
 
 
+def _add_finalize(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser(
+        "finalize",
+        help="rescore an ended run from its folder (partial if the plant was killed) and close its recording",
+    )
+    p.add_argument("run_dir", type=Path, help="the run folder (runs/<run-id>)")
+    p.set_defaults(func=cmd_finalize)
+
+
+def cmd_finalize(args: argparse.Namespace) -> int:
+    """``scorecard.json`` from the run's files (``finalize.finalize_scorecard``); the recording compacted and given
+    its footer if it has none yet (run it on a run that has ended: the recorder must not be writing)."""
+    from rich.console import Console
+
+    from windwarden.live.finalize import finalize_recording, finalize_scorecard, verify_recording
+    from windwarden.live.runfolder import RECORDING
+
+    console = Console(highlight=False)
+    if not args.run_dir.is_dir():
+        raise BadInputError(f"no run folder at {args.run_dir}")
+    card = finalize_scorecard(args.run_dir)
+    if card is None:
+        raise BadInputError(f"{args.run_dir} holds no run (no run.json and scenario.toml from a plant)")
+    live = card["live"]
+    state = "completed" if live["completed"] else ("partial" if live["partial"] else "stopped early")
+    console.print(f"scorecard.json: {state}, {live['scored_s']:g} s scored, {live['events']} events")
+    recording = args.run_dir / RECORDING
+    if recording.exists():
+        verified = verify_recording(recording) or finalize_recording(args.run_dir)
+        console.print(f"{RECORDING}: {'verified' if verified else 'does NOT verify'}")
+    return 0
+
+
 def _add_open(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("open", help="open a run's recording in the Rerun viewer")
     p.add_argument("path", type=Path, help="a run folder or an .rrd file")
@@ -407,7 +378,6 @@ def _add_open(sub: argparse._SubParsersAction) -> None:
 
 
 def cmd_open(args: argparse.Namespace) -> int:
-    from windwarden.cli import BadInputError
     from windwarden.live.finalize import rerun_binary
     from windwarden.live.runfolder import RECORDING
 
@@ -465,5 +435,6 @@ LIVE_SUBCOMMANDS: list[Callable[[argparse._SubParsersAction], None]] = [
     _add_probe,
     _add_demo,
     _add_open,
+    _add_finalize,
     *ROUTER_SUBCOMMANDS,
 ]

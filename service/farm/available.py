@@ -1,0 +1,67 @@
+r"""Each turbine's available power, eqs. (20)–(22) of seed 001.
+
+**Wind** (eq. (20)): in steady state the aerodynamic torque balances the drive train,
+τ̂_r = (N_g/η_dt)(τ̄_g + B_g ω̄_g) + B_r ω̂_r, and v solves ½ρπR³ C_q(ω̂_r R/v, β̄) v² = τ̂_r
+(``wwcore.aero.wind_from_torque``; ω̂_r = ω̄_g/N_g, β̄ the mean of the six pitch encoders). That is "the wind from
+the pitch angle" through the C_q surface rather than the paper's lookup pair h⁻¹, g⁻¹, and with the measured torque
+instead of P_ref: equal in steady derated operation, and the measured torque also holds when the turbine cannot
+reach its reference.
+
+**Available power** (eqs. (21)–(22)):
+
+.. math::
+
+    \hat P_a = \frac{τ_w}{s + α_w} P_a(w_{est}) \quad (21),\qquad
+    P_{avail} = \mathrm{pos}(\hat P_a - P_{ref}) + P_m \quad (22)
+
+with P_a(v) the steady available power (``power_curve``), α_w = τ_w = w_est/D [PROPOSED: the paper gives no
+values; one rotor transit time], P_ref the reference sent last and P_m the measured power.
+
+The estimator also keeps w̄, w_est low-passed over ``HOLD_AVERAGING_S``: the wind the drive-train hold chooses its
+speed floor and torque cap from (``service.farm.hold``), steadier than w_est.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from service.farm.interfaces import BETA, OMEGA_G, P_G, TAU_G, FarmSample
+from service.farm.power_curve import available_power
+from wwcore import aero
+from wwcore.scenario.farm import FARM_DT_S, N_TURBINES, ROTOR_DIAMETER_M
+from wwcore.turbine_params import TurbineParams
+
+HOLD_AVERAGING_S = 10.0  # s, low-pass of the wind the hold's speed floor and torque cap are chosen from [PROPOSED]
+
+
+class AvailablePower:
+    """Eqs. (20)–(22) for ``n`` turbine rows; the state of eq. (21) and of w̄ between samples."""
+
+    def __init__(self, params: TurbineParams):
+        self.p = params
+        self.wind: np.ndarray | None = None  # (n,) m/s, w_est of eq. (20)
+        self.p_a_hat: np.ndarray | None = None  # (n,) W, eq. (21) state
+        self.slow_wind: np.ndarray | None = None  # (n,) m/s, w̄: w_est low-passed over HOLD_AVERAGING_S
+
+    def step(self, sample: FarmSample, p_ref: np.ndarray) -> np.ndarray:
+        """P_avail,t (n,) in W from a sample and the references ``p_ref`` (n,) W sent last."""
+        p, y = self.p, sample.scada
+        omega_g = y[:, OMEGA_G].mean(axis=1)
+        omega_r = omega_g / p.N_g
+        pitch = y[:, BETA].mean(axis=(1, 2))
+        tau_r = p.N_g * (y[:, TAU_G] + p.B_g * omega_g) / p.eta_dt + p.B_r * omega_r
+        if self.wind is None:
+            guess = np.repeat(sample.mast, N_TURBINES)
+            self.wind = aero.wind_from_torque(tau_r, omega_r, pitch, guess, p, iterations=8)
+        else:
+            self.wind = aero.wind_from_torque(tau_r, omega_r, pitch, self.wind, p, iterations=3)  # eq. (20)
+        if self.slow_wind is None:
+            self.slow_wind = self.wind.copy()
+        else:
+            self.slow_wind += (self.wind - self.slow_wind) * (FARM_DT_S / HOLD_AVERAGING_S)
+        p_a = available_power(p, self.wind)
+        if self.p_a_hat is None:
+            self.p_a_hat = p_a.copy()
+        a = np.exp(-np.maximum(self.wind, 1.0) / ROTOR_DIAMETER_M * FARM_DT_S)
+        self.p_a_hat = a * self.p_a_hat + (1.0 - a) * p_a  # eq. (21), τ_w/(s + α_w) with τ_w = α_w
+        return np.maximum(self.p_a_hat - p_ref, 0.0) + y[:, P_G]  # eq. (22)

@@ -1,0 +1,82 @@
+"""Which generator-speed sensor is faulty, when the observers' residuals cannot tell.
+
+A small fault on one generator-speed sensor (an offset of a few σ, a slow drift in its first seconds) makes the
+two generator-speed sensors disagree, and every observer that uses the faulty one inconsistent with the other,
+but the observers that use one of them and the rotor-speed sensors (3-g1, 3-g2) are both consistent: the
+rotor-speed sensors are 50 times noisier once referred to the generator side, and a UIO takes a step of a
+generator-speed reading for an aerodynamic torque impulse. Guessing is costly: the estimate would then rest on
+the faulty sensor alone.
+
+A third opinion settles it over time: ω₃, the inverse-variance weighted mean of N_g ω_r,m1, N_g ω_r,m2 and the
+power-speed channel P_g,m/(η_gc τ_g,m) (``interfaces.power_speed``), with variance σ₃². With s² = σ₃² + σ_g²,
+the log-likelihood ratio of "ω_g,m1 is faulty" against "ω_g,m2 is faulty" at one tick is
+
+    ℓ = [(y_g1 − ω₃)² − (y_g2 − ω₃)²] / (2 s²) = δ (m − ω₃) / s²,   δ = y_g1 − y_g2,  m = (y_g1 + y_g2)/2,
+
+summed from the moment the isolation started; the sign of the sum names the faulty sensor once its magnitude
+reaches h = ln(1/α_iso), the isolation's own level (Wald: a wrong choice has probability ≈ e^(−h)). For an
+offset b it grows by b²/(2 s²) per tick: a 5σ offset (0.25 rad/s) is settled in about 1 s at a third of rated
+torque (σ₃ ≈ 0.8 rad/s), a drift faster as it grows. A rotor-speed sensor that is flagged or suspected is left
+out of ω₃; below ``POWER_SPEED_MIN_TORQUE`` the power-speed channel is N_g × the rotor-speed mean and adds
+nothing, so it is left out too.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from service.turbine.bank import POWER_SPEED, BankDesign
+
+
+def _variance_of(R: np.ndarray, i: int) -> float:
+    return float(R[i, i])
+
+
+class GeneratorArbiter:
+    """The running log-likelihood ratio ``total`` (n,): > 0 favours ω_g,m1 faulty, < 0 ω_g,m2."""
+
+    def __init__(self, bank: BankDesign, n: int, alpha: float):
+        gear_ratio = bank.gear_ratio
+        self.h = math.log(1.0 / alpha)
+        all_sensors = bank.observers[bank.index(frozenset())]
+        variance = dict(zip(all_sensors.sensors, np.diag(all_sensors.R), strict=True))
+        self.rotor_variance = float(variance["omega_r_m1"]) * gear_ratio**2  # referred to the generator side
+        self.generator_variance = float(variance["omega_g_m1"])
+        # σ² of the power-speed channel of each 5-pe design, in ``interfaces.power_speed_band`` order
+        self.power_variance = np.array(
+            [_variance_of(bank.observers[j].R, bank.observers[j].sensors.index(POWER_SPEED)) for j in bank.power_speed]
+        )
+        self.gear_ratio = gear_ratio
+        self.total = np.zeros(n)
+
+    def reset(self, rows: np.ndarray) -> None:
+        self.total[rows] = 0.0
+
+    def step(
+        self,
+        y: np.ndarray,
+        power_speed: np.ndarray | None,
+        band: np.ndarray | None,
+        rotor_trusted: np.ndarray,
+        power_trusted: np.ndarray,
+    ) -> None:
+        """Add this tick's ℓ. y (n, 4) speed readings; power_speed (n,) the power-speed channel (None: not used);
+        band (n,) its 5-pe design (σ); rotor_trusted (n, 2) and power_trusted (n,) which opinions to use."""
+        weight_r = rotor_trusted / self.rotor_variance
+        numerator = (weight_r * y[:, :2]).sum(axis=1) * self.gear_ratio
+        weight = weight_r.sum(axis=1)
+        if power_speed is not None and len(self.power_variance):
+            weight_p = power_trusted / self.power_variance[band]
+            numerator = numerator + weight_p * power_speed
+            weight = weight + weight_p
+        usable = weight > 0.0
+        third = numerator / np.where(usable, weight, 1.0)
+        s2 = 1.0 / np.where(usable, weight, 1.0) + self.generator_variance
+        delta = y[:, 2] - y[:, 3]
+        middle = 0.5 * (y[:, 2] + y[:, 3])
+        self.total += np.where(usable, delta * (middle - third) / s2, 0.0)
+
+    def decided(self) -> np.ndarray:
+        return np.abs(self.total) >= self.h

@@ -1,0 +1,223 @@
+"""The speed-sensor FDI's decisions: the clearing CUSUM, the generator-speed arbitration, the rigid drive train the
+estimate comes from, the options' ranges, and the estimate through a fault's end (docs/turbine.md)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from plant_sim.turbine import TurbineBatch
+from service.plugins import AlgorithmOptionError, choose, load_plugins
+from service.turbine.arbitration import GeneratorArbiter
+from service.turbine.bank import ObserverBank, design_bank, estimate_observers
+from service.turbine.clearing import FlagClearing, exclusion_variance
+from service.turbine.design_model import design_model
+from service.turbine.fdi import FDISettings, SpeedSensorFDI
+from service.turbine.interfaces import DESIGN_Q, DESIGN_Q_UNKNOWN, TurbineContext
+from service.turbine.supervisor import TurbineSupervisor
+from service.turbine.wind_recovery import WindRecovery
+from wwcore.channels import SPEED_SENSORS
+from wwcore.options import OptionSchema
+from wwcore.scenario.faults import FaultSpec
+from wwcore.scenario.turbine import TurbinePlant
+from wwcore.scenario.wind import WindSpec
+from wwcore.turbine_params import BENCHMARK as P
+
+DESIGN = TurbineContext(P, 1).bank_design
+R1, G1 = SPEED_SENSORS.index("omega_r_m1"), SPEED_SENSORS.index("omega_g_m1")
+
+
+def _clearing(n: int = 1, rate: float = 0.01, floor: float = 1.0) -> FlagClearing:
+    return FlagClearing(DESIGN, n, P.dt, rate, floor, 0.5, estimate_observers(DESIGN))
+
+
+def _run_cusum(clearing: FlagClearing, e: np.ndarray, sensor: int) -> np.ndarray:
+    """Feed the exclusion residual e (ticks, n) in σ_e for one flagged sensor; ticks at which it was ready."""
+    n = e.shape[1]
+    mask = np.full(n, 1 << sensor)
+    predictor = clearing.predictor_of_mask[mask[0]]
+    sigma = 1.0 / clearing.scale[predictor, sensor]
+    x_hat = np.zeros((n, DESIGN.F_blk.shape[0]))
+    clearing.start(np.broadcast_to((np.arange(4) == sensor), (n, 4)).copy())
+    ready_at = np.full(n, -1)
+    for k, row in enumerate(e):
+        y = np.zeros((n, 4))
+        y[:, sensor] = row * sigma
+        ready = clearing.step(y, x_hat, mask, np.zeros((n, 4), dtype=bool))[:, sensor]
+        ready_at[(ready_at < 0) & ready] = k
+    return ready_at
+
+
+def test_clearing_threshold_is_the_false_clear_budget():
+    assert _clearing(rate=0.01).h == pytest.approx(math.log(1000.0 / (0.01 * P.dt)))  # ln 1e7 = 16.1
+
+
+def test_a_persisting_fault_is_not_cleared_and_its_end_is_recognised_in_two_h_over_m_squared():
+    rng = np.random.default_rng(5)
+    rows, ticks, m = 40, 3000, 2.0
+    e = m + rng.standard_normal((ticks, rows))  # 30 s of a 2σ_e fault on 40 turbines: 1.2e5 ticks
+    clearing = _clearing(rows)
+    assert (_run_cusum(clearing, e, R1) < 0).all(), "a flag dropped while its fault persisted"
+    # the fault ends: the statistic grows by m²/2 per tick, h is reached after about 2h/m² = 8 ticks
+    after = rng.standard_normal((60, rows))
+    ready = np.full(rows, -1)
+    y = np.zeros((rows, 4))
+    mask = np.full(rows, 1 << R1)
+    predictor = clearing.predictor_of_mask[mask[0]]
+    for k, row in enumerate(after):
+        y[:, R1] = row / clearing.scale[predictor, R1]
+        hit = clearing.step(y, np.zeros((rows, DESIGN.F_blk.shape[0])), mask, np.zeros((rows, 4), dtype=bool))
+        ready[(ready < 0) & hit[:, R1]] = k + 1
+    expected = 2.0 * clearing.h / m**2
+    assert (ready > 0).all() and 0.5 * expected <= np.median(ready) <= 2.0 * expected
+
+
+def test_a_frozen_sensor_is_never_cleared_and_a_zero_size_flag_clears_at_the_floor_rate():
+    clearing = _clearing(1, floor=2.0)
+    mask, x_hat = np.array([1 << G1]), np.zeros((1, DESIGN.F_blk.shape[0]))
+    clearing.start(np.array([[False, False, True, False]]))
+    for _ in range(200):
+        assert not clearing.step(np.zeros((1, 4)), x_hat, mask, np.array([[False, False, True, False]]))[0, G1]
+    clearing.start(np.array([[False, False, True, False]]))
+    ticks = next(
+        k for k in range(1, 100) if clearing.step(np.zeros((1, 4)), x_hat, mask, np.zeros((1, 4), bool))[0, G1]
+    )
+    assert ticks == math.ceil(clearing.h / (2.0**2 / 2.0))  # e = 0 exactly: ℓ = m²/2 per tick
+
+
+def test_exclusion_residual_variance_matches_a_simulation_of_the_design_model():
+    """σ_e² of ω_r,m1 against observer 2-r1 (a UIO): closed form against 20 000 ticks of the design model."""
+    model = design_model(P)
+    j = DESIGN.index(frozenset({"omega_r_m1"}))
+    o = DESIGN.observers[j]
+    rng = np.random.default_rng(7)
+    sigma = np.sqrt(np.diag(DESIGN.observers[DESIGN.index(frozenset())].R))
+    n = 20_000
+    x = np.array([1.2, 1.2 * P.N_g, 1e-3, 2e4])
+    bank = ObserverBank(DESIGN, 1)
+    e = []
+    u = 2e4
+    for k in range(n):
+        y = model.C(SPEED_SENSORS) @ x + sigma * rng.standard_normal(4)
+        y5 = np.r_[y, y[2]][None, :]  # the power-speed column is not used by 2-r1
+        if k == 0:
+            bank.initialise(x[None, :], y5)
+        bank.step(y5, np.array([u]))
+        e.append(y[R1] - bank.x_hat[0, DESIGN.offsets[j]])
+        x = model.A_d @ x + model.B_d[:, 0] * u + model.E_d[:, 0] * (2.0e6 + 1e5 * np.sin(k * 0.01))
+    e = np.array(e[200:])
+    variance = exclusion_variance(o, 0, sigma[R1] ** 2)
+    block_means = e[: len(e) // 50 * 50].reshape(-1, 50).mean(axis=1)
+    long_run = 50.0 * block_means.var()
+    assert max(e.var(), long_run) == pytest.approx(variance, rel=0.15)
+
+
+def test_arbitration_names_the_sensor_that_moved_and_is_silent_without_a_fault():
+    rng = np.random.default_rng(11)
+    n, omega = 200, 100.0
+    arbiter = GeneratorArbiter(DESIGN, n, 1e-3)
+    faulty_g1 = np.arange(n) < n // 2  # half the rows: ω_g,m1 reads 0.3 rad/s (6σ) high, the others ω_g,m2
+    band = np.full(n, 1)  # 35 % torque: σ of the power-speed channel ≈ 0.8 rad/s
+    for _ in range(300):
+        y = omega + rng.standard_normal((n, 4)) * [0.0251 * P.N_g, 0.0251 * P.N_g, 0.05, 0.05]
+        y[:, :2] /= P.N_g
+        y[faulty_g1, 2] += 0.3
+        y[~faulty_g1, 3] += 0.3
+        pe = omega + rng.standard_normal(n) * np.sqrt(arbiter.power_variance[1])
+        arbiter.step(y, pe, band, np.ones((n, 2), bool), np.ones(n, bool))
+    assert arbiter.decided().mean() > 0.95
+    assert ((arbiter.total > 0) == faulty_g1)[arbiter.decided()].all()
+    quiet = GeneratorArbiter(DESIGN, n, 1e-3)
+    for _ in range(300):
+        y = omega + rng.standard_normal((n, 4)) * [0.0251 * P.N_g, 0.0251 * P.N_g, 0.05, 0.05]
+        y[:, :2] /= P.N_g
+        quiet.step(y, omega + rng.standard_normal(n), band, np.ones((n, 2), bool), np.ones(n, bool))
+    assert quiet.decided().mean() < 0.01
+
+
+def test_rigid_drive_train_recovers_a_steady_aerodynamic_torque_exactly():
+    """Observer 4 (no UIO exists): in steady state the two shaft equations summed give τ_r from ω_g and τ_g."""
+    model = design_model(P)
+    tau_r, u = 2.0e6, 2.0e4
+    # the steady state of x[n+1] = A x + B u + E d
+    x = np.linalg.solve(np.eye(4) - model.A_d, model.B_d[:, 0] * u + model.E_d[:, 0] * tau_r)
+    y = np.r_[model.C(SPEED_SENSORS) @ x, x[1]][None, :]
+    bank = ObserverBank(DESIGN, 1)
+    bank.initialise(x[None, :], y)
+    recovery = WindRecovery(P, DESIGN, 1, wind_cutoff_hz=0.3, speed_cutoff_hz=2.0)
+    bank.step(y, np.array([u]))
+    recovery.start(bank.x_hat, np.zeros(1), np.array([tau_r]))
+    for _ in range(2000):
+        bank.step(y, np.array([u]))
+        recovery.step(bank.x_hat, np.zeros(1), np.zeros((1, 3)), np.zeros((1, 3)), None, None)
+    j = DESIGN.index(frozenset({"omega_r_m1", "omega_r_m2"}))
+    assert DESIGN.observers[j].kind == "rigid"
+    m = len(DESIGN.names)
+    for col in (j, *DESIGN.single_generator):
+        assert recovery._filtered[0, col] == pytest.approx(tau_r, rel=1e-6)
+        assert recovery._filtered[0, 2 * m + col] == pytest.approx(x[1], rel=1e-9)
+
+
+@pytest.mark.parametrize(
+    ("options", "key"),
+    [
+        ({"isolation_alpha": 0.5}, "isolation_alpha"),
+        ({"clear_floor": 0.0}, "clear_floor"),
+        ({"false_clears_per_1000s": -1.0}, "false_clears_per_1000s"),
+        ({"window": 2.5}, "window"),
+        ({"arbitration_s": 61.0}, "arbitration_s"),
+    ],
+)
+def test_an_option_out_of_its_range_is_refused_naming_it(options, key):
+    load_plugins()
+    with pytest.raises(AlgorithmOptionError, match=key):
+        choose("turbine", options)
+
+
+@pytest.mark.parametrize(
+    ("options", "key"),
+    [({"isolation_delay": 4}, "isolation_delay"), ({"clear_window": 5, "window": 4}, "clear_window")],
+)
+def test_options_that_contradict_the_window_are_refused_naming_them(options, key):
+    with pytest.raises(AlgorithmOptionError, match=key):
+        FDISettings(**options)
+
+
+def test_every_option_declares_its_range():
+    schema = OptionSchema({"": FDISettings})
+    for name in FDISettings.__dataclass_fields__:
+        info = schema.options[name]
+        assert info.bounds is not None, name
+        _values, problems = schema.validate({name: getattr(FDISettings(), name)})
+        assert not problems, (name, problems)
+
+
+def test_the_estimate_after_a_generator_fault_ends_starts_from_the_healthy_sensor():
+    """ω_g,m1 reads 0 for 3 s; when its flag drops the estimate moves back to both sensors without carrying the
+    fault (the speed sent to the controller stays within a few noise σ of the truth)."""
+    fault = FaultSpec(target="omega_g_m1", kind="fixed", value=0.0, start_s=7.0, end_s=10.0)
+    plant = TurbineBatch(TurbinePlant(), WindSpec(mean=[(0.0, 8.0)]), [fault], seed=3, runs=[0, 1])
+    supervisor = TurbineSupervisor(plant.n)
+    refs, worst, flagged = None, 0.0, False
+    for k in range(round(12.0 / plant.dt)):
+        frame = plant.measure()
+        plant.control(refs)
+        refs = supervisor.step(frame)
+        flagged |= bool(supervisor.detector.fdi.flagged.any())
+        if k * plant.dt >= 10.2:
+            worst = max(worst, float(np.abs(supervisor.estimates.omega_g - plant.truth()["omega_g"]).max()))
+        plant.advance()
+    assert flagged and not supervisor.detector.fdi.flagged.any()
+    assert worst < 0.3  # rad/s; the fault was 95 rad/s
+
+
+def test_fdi_accepts_a_bank_without_the_estimate_observers():
+    """A bank of seed 000's observers only (no 4-g1/4-g2, no 5-pe) isolates and clears with the observer of the
+    flagged set as the predictor."""
+    sigma = {"omega_r_m1": 0.0251, "omega_r_m2": 0.0251, "omega_g_m1": 0.05, "omega_g_m2": 0.05}
+    bank = design_bank(design_model(P), sigma, DESIGN_Q, DESIGN_Q_UNKNOWN)
+    fdi = SpeedSensorFDI(bank, 2, P.dt)
+    assert (fdi.clearing.predictor_of_mask == fdi.observer_of_mask).all()
+    assert len(fdi.arbiter.power_variance) == 0

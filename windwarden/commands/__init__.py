@@ -1,0 +1,1 @@
+"""The subcommands of ``windwarden`` (the top layer: it may import every package below it)."""
