@@ -19,19 +19,10 @@ import argparse
 
 import numpy as np
 
-from windwarden.live.batch import run_batch
+from windwarden.live.batch import random_drops, run_batch
 from wwcore.scenario import load_scenario
 
 TICK_S = 0.01  # s, every plant kind's sample time (wwcore.turbine_params, wwcore.hydro_params)
-
-
-def random_drops(n: int, fraction: float, longest: int, seed: int) -> np.ndarray:
-    rng = np.random.default_rng(seed)
-    drop = np.zeros(n, dtype=bool)
-    for start in np.flatnonzero(rng.random(n) < fraction / ((longest + 1) / 2)):
-        drop[start : start + rng.integers(1, longest + 1)] = True
-    drop[:2] = False
-    return drop
 
 
 def summary(card: dict) -> str:

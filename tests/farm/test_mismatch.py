@@ -108,7 +108,7 @@ def test_no_mismatch_value_reaches_the_batch_farm_supervisor(monkeypatch):
         seen.append(copy.deepcopy((args, kwargs)))
         raise _SeenError
 
-    monkeypatch.setattr(farm_eval, "FarmSupervisor", spy)
+    monkeypatch.setattr(farm_runs, "FarmSupervisor", spy)
     nominal = load_scenario("farm-case1")
     data = nominal.model_dump(mode="json", exclude_none=True)
     mismatched = parse_scenario({**data, "mismatch": {"cp_scale": 0.913, "spread": {"air_density_kgm3": 0.05}}})

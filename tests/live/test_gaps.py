@@ -12,11 +12,10 @@ run too.
 
 from __future__ import annotations
 
-import numpy as np
 import pytest
 
 from tests.live.helpers import HYDRO_SHORT, scenario
-from windwarden.live.batch import run_batch
+from windwarden.live.batch import random_drops, run_batch
 
 AROUND_RATED = """
 name = "gaps-turbine"
@@ -34,16 +33,6 @@ value = 100.0
 start_s = 12.0
 end_s = 40.0
 """
-
-
-def random_drops(n: int, fraction: float, longest: int, seed: int) -> np.ndarray:
-    """A drop mask: bursts of 1 … ``longest`` ticks starting at random, ``fraction`` of the ticks on average."""
-    rng = np.random.default_rng(seed)
-    drop = np.zeros(n, dtype=bool)
-    for start in np.flatnonzero(rng.random(n) < fraction / ((longest + 1) / 2)):
-        drop[start : start + rng.integers(1, longest + 1)] = True
-    drop[:2] = False
-    return drop
 
 
 def figures(card):

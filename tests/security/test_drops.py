@@ -3,7 +3,7 @@
 About 5 % of the frames are lost, in bursts of 1–10 ticks, between the Zenoh subscriber and the supervisor's queue
 (where a congested best-effort link loses them). The supervisor bridges every gap, restarts nothing and raises no
 false alarm; the stuck sensor is still detected and isolated: the figures lockstep gives for this scenario
-(``tests/live/test_gaps.py``, where the same drops fed as consecutive frames do raise false alarms).
+(``tests/live/test_gaps.py``, where the same drops fed as consecutive frames corrupt observer 1's estimate).
 """
 
 from __future__ import annotations

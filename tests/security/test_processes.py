@@ -18,6 +18,7 @@ import sys
 from pathlib import Path
 
 from tests.live.helpers import wait_for
+from windwarden.evaluation.scoring_policy import TURBINE
 from windwarden.live.finalize import verify_recording
 from windwarden.live.router import free_port
 from windwarden.live.runfolder import EVENTS, LIVE, RECORDING, SCORECARD, read_events
@@ -95,8 +96,8 @@ def groups_alive(groups: set[int]) -> list[int]:
 def test_kill_9_of_the_plant_leaves_a_partial_scorecard(tmp_path):
     up, run_dir = start_up(tmp_path)
     try:
-        # past the turbine's 10 s warm-up, so the partial card scores the fault window
-        assert wait_for(lambda: running(run_dir, after_s=13.0), 120), "the run did not get going"
+        # past the turbine's scoring warm-up, so the partial card scores the fault window
+        assert wait_for(lambda: running(run_dir, after_s=TURBINE.warmup_s + 3.0), 120), "the run did not get going"
         before = (run_dir / EVENTS).read_bytes()
         os.kill(pids(run_dir)["plant"], signal.SIGKILL)
         output, _ = up.communicate(timeout=120)

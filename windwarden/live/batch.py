@@ -31,6 +31,17 @@ class BatchResult:
     scorecard: dict[str, Any]
 
 
+def random_drops(n: int, fraction: float, longest: int, seed: int) -> np.ndarray:
+    """A ``drop`` mask of ``n`` ticks: bursts of 1 … ``longest`` ticks starting at random, ``fraction`` of the ticks
+    on average (a burst starts with probability fraction / mean burst length); the first two ticks are kept."""
+    rng = np.random.default_rng(seed)
+    drop = np.zeros(n, dtype=bool)
+    for start in np.flatnonzero(rng.random(n) < fraction / ((longest + 1) / 2)):
+        drop[start : start + rng.integers(1, longest + 1)] = True
+    drop[:2] = False
+    return drop
+
+
 def run_batch(
     scenario: Scenario, seed: int, drop: np.ndarray | None = None, max_ref_age: int = 10, gaps: str = "bridge"
 ) -> BatchResult:
