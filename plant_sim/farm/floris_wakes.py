@@ -49,7 +49,7 @@ import numpy as np
 from floris import FlorisModel
 from pydantic import BaseModel, ConfigDict, Field, field_validator
 
-from plant_sim.farm.operating_curve import steady_operating_curve
+from plant_sim.farm.operating_curve import rated_curve
 from plant_sim.farm.wake_tables import FORMAT_VERSION, WakeTables
 from wwcore.layout import FarmLayout
 from wwcore.turbine_params import TurbineParams
@@ -75,7 +75,6 @@ ADDED_TI_REACH_D = 15.0  # D, FLORIS's sequential solver: wake-added turbulence 
 ADDED_TI_WIDTH_D = 2.0  # D, … and this far across
 CANDIDATE_REACH = (2.5, 0.35)  # (D, –): pairs with |Δy| > 2.5 D + 0.35 Δx are never evaluated (4σ at TI 0.2)
 CHUNK_POINTS = 2_000_000  # rotor points per call of FLORIS's model functions
-CURVE_WINDS = np.concatenate([[0.0, 2.9], np.arange(3.0, 25.001, 0.25), [25.01, 50.0]])  # m/s, turbine tables
 
 
 class WakeSettings(BaseModel):
@@ -116,10 +115,7 @@ class WakeSettings(BaseModel):
 
 def benchmark_turbine(params: TurbineParams) -> dict:
     """FLORIS turbine definition of the farm turbine: its steady power and C_T curves (``operating_curve``)."""
-    keep = (CURVE_WINDS >= 3.0) & (CURVE_WINDS <= 25.0)
-    power = np.zeros_like(CURVE_WINDS)
-    ct = np.full_like(CURVE_WINDS, 1e-4)
-    power[keep], ct[keep] = steady_operating_curve(params, CURVE_WINDS[keep])
+    winds, power, ct = rated_curve(params)
     return {
         "turbine_type": "windwarden_benchmark_4p8mw",
         "hub_height": params.hub_height,
@@ -131,9 +127,9 @@ def benchmark_turbine(params: TurbineParams) -> dict:
             "ref_tilt": 0.0,
             "cosine_loss_exponent_yaw": 1.88,
             "cosine_loss_exponent_tilt": 1.88,
-            "wind_speed": CURVE_WINDS.tolist(),
+            "wind_speed": winds.tolist(),
             "power": (power / 1e3).tolist(),  # kW
-            "thrust_coefficient": np.maximum(ct, 1e-4).tolist(),
+            "thrust_coefficient": ct.tolist(),
         },
     }
 

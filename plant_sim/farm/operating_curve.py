@@ -15,6 +15,8 @@ sees (``plant_sim.farm.floris_wakes``) and the steady states of the wake tables.
 
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 from scipy.optimize import brentq
 
@@ -24,6 +26,9 @@ from wwcore import thrust
 from wwcore.turbine_params import TurbineParams
 
 PITCH_SEARCH_MAX_DEG = 45.0  # deg, upper end of the pitch search of a derated point
+CURVE_WINDS = np.concatenate([[0.0, 2.9], np.arange(3.0, 25.001, 0.25), [25.01, 50.0]])  # m/s, tabulated curve
+CUT_IN_MPS, CUT_OUT_MPS = 3.0, 25.0  # m/s, the tabulated curve's operating range (no power, C_T ~ 0 outside)
+IDLE_THRUST = 1e-4  # –, C_T outside the operating range (FLORIS needs a positive value)
 
 
 def derated_point(p: TurbineParams, wind: float, power_reference: float) -> OperatingPoint:
@@ -43,7 +48,7 @@ def derated_point(p: TurbineParams, wind: float, power_reference: float) -> Oper
     if residual(lo) < 0.0:
         return rated  # the rotor cannot hold the set speed with this torque: it makes what the wind gives
     pitch = brentq(residual, lo, hi) if residual(hi) < 0.0 else hi
-    return _point(p, wind, omega_r, tau_g, pitch, 1)
+    return _point(p, None, wind, omega_r, tau_g, pitch, 1)
 
 
 def operating_thrust(p: TurbineParams, op: OperatingPoint) -> float:
@@ -60,3 +65,16 @@ def steady_operating_curve(
     p_ref = p.rated_power if power_reference is None else float(power_reference)
     points = [derated_point(p, float(v), p_ref) for v in np.asarray(winds, dtype=float)]
     return np.array([op.power for op in points]), np.array([operating_thrust(p, op) for op in points])
+
+
+@functools.lru_cache(maxsize=4)
+def rated_curve(p: TurbineParams) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(wind m/s, electrical power W, C_T) at rated reference on ``CURVE_WINDS``: the curve FLORIS's turbine is
+    defined by (``floris_wakes.benchmark_turbine``) and the farm's steady states follow; linear in between."""
+    keep = (CURVE_WINDS >= CUT_IN_MPS) & (CURVE_WINDS <= CUT_OUT_MPS)
+    power = np.zeros_like(CURVE_WINDS)
+    ct = np.full_like(CURVE_WINDS, IDLE_THRUST)
+    power[keep], ct[keep] = steady_operating_curve(p, CURVE_WINDS[keep])
+    for a in (power, ct):
+        a.flags.writeable = False
+    return CURVE_WINDS, power, np.maximum(ct, IDLE_THRUST)
