@@ -18,6 +18,10 @@ interpolates between samples and never sees FLORIS):
   pair uses C_T,i of that many samples before (``FarmLayout.along_wind_matrix``; at least one sample).
 * **Combination.** ``WakeTables.waked`` with each pair's delayed C_T and each turbine's free stream, as FLORIS's
   sequential solver combines (sum of squares of the rotor-averaged deficits, wake-added turbulence).
+* **Wake-added turbulence** (``wake_added_turbulence``, default on): each turbine's own turbulence (Kaimal, the
+  scenario's TI_0 of the free stream) is scaled by TI_t / TI_0, TI_t the turbulence intensity FLORIS gives it
+  (ambient and the largest wake-added part, Crespo–Hernández), as IEC 61400-1's effective turbulence raises σ in a
+  wake; the spectrum keeps the ambient shape (a wake's own eddies are smaller, about a rotor diameter).
 
 The steady state (t = 0, and the delta-control demand's available power) puts each turbine on the benchmark's
 steady operating curve (``operating_curve.rated_curve``, the curve the FLORIS turbine is defined by) and sweeps the
@@ -125,7 +129,10 @@ class TableWakes:
         self._directions = np.full(self.farms, self.direction_deg)
         self.turbine_wind = v0
         self.free_wind = free0
-        self.turbulence = np.full((self.farms, n), self.tables.ambient_ti if self.tables is not None else math.nan)
+        self.turbulence_ratio: np.ndarray | None = None  # (farms, N) TI_t / TI_0; None: ambient everywhere
+        self._added_turbulence = plant.wake_added_turbulence and self.tables is not None
+        if self._added_turbulence:
+            self._set_turbulence(self.tables.waked(self._directions, ct0, free0)[1])
 
     def advance(
         self, j: int, p_aero: np.ndarray, area_power: float | np.ndarray, tsr: np.ndarray, pitch_deg: np.ndarray
@@ -147,8 +154,14 @@ class TableWakes:
         lag = np.clip(lag, 1, self._history - 1)  # the newest C_T is sample j's
         slot = (nxt - lag) % self._history  # (farms, N, N): when the wake now at j left i
         pair_thrust = self._ct[self._farm, self._source, slot]
-        self.turbine_wind, self.turbulence = self.tables.waked(self._directions, pair_thrust, free)
+        self.turbine_wind, turbulence = self.tables.waked(self._directions, pair_thrust, free)
         self.free_wind = free
+        if self._added_turbulence:
+            self._set_turbulence(turbulence)
+
+    def _set_turbulence(self, turbulence: np.ndarray) -> None:
+        """Each turbine's turbulence intensity over the ambient, the factor on its own turbulence."""
+        self.turbulence_ratio = turbulence * (1.0 / self.tables.ambient_ti)
 
     def available_power(self, params: TurbineParams, free: np.ndarray, held: np.ndarray) -> np.ndarray:
         """Steady available power (W) for free streams ``free[:, held]`` (runs, samples, N) on the rated curve.

@@ -37,7 +37,8 @@ the travel delay.
 
 **Turbulence of each turbine.** On top of its row's mean wind each turbine has its own Kaimal turbulence with
 rotational sampling, shear and tower shadow: ``plant_sim.wind.WindField`` with the turbine's own random stream,
-TI = ``wind.turbulence_intensity`` of the free-stream mean. The row mean replaces the scenario mean in w = v + u_0
+TI = ``wind.turbulence_intensity`` of the free-stream mean (FLORIS wakes with ``wake_added_turbulence`` scale it
+by each turbine's TI_t / TI_0, ``plant_sim.farm.wakes``). The row mean replaces the scenario mean in w = v + u_0
 + u_3 cos 3ψ and in the hub reading v + u_p; between farm samples it is interpolated linearly.
 """
 
@@ -311,6 +312,7 @@ class FarmWindField(WindField):
         self._offset_now = self.turbine_wind.reshape(-1) - float(mean_wind(spec, 0.0))
         self._offset_step = np.zeros(self.n)
         self.rotor_wind = self.turbine_wind.reshape(-1)  # (n,) m/s, rotor-averaged wind of the last tick
+        self.turbulence_gain = self._gain()  # (n,) TI_t / TI_0 of each turbine, None: the ambient's for all
         # Row-shared turbulence (``row_coherence`` c): each turbine's turbulence is √(1−c) its own + √c its row's,
         # the row's drawn from ``row_rngs`` (one per farm and row, farm-major), same spectrum and level.
         self.coherence = plant.row_coherence
@@ -359,7 +361,13 @@ class FarmWindField(WindField):
         self._offset_now = start
         self._offset_step = (target - start) / self.ticks_per_sample
         self.turbine_wind, self.free_wind = mean_next, self.wakes.free_wind
+        self.turbulence_gain = self._gain()
         self.sample_index = j + 1
+
+    def _gain(self) -> np.ndarray | None:
+        """Each turbine's turbulence over the ambient (wake-added turbulence), from wakes that compute it."""
+        ratio = getattr(self.wakes, "turbulence_ratio", None)
+        return None if ratio is None else ratio.reshape(-1)
 
     # -- per tick -------------------------------------------------------------------------------------------------
     def sample(self, k: int, azimuth: np.ndarray) -> WindSample:
@@ -374,9 +382,13 @@ class FarmWindField(WindField):
         x = np.mod(azimuth, 2.0 * math.pi)[:, None] * self._per_rad + self._offsets
         i = x.astype(np.intp)
         f = self._table[i] + self._slope[i] * (x - i)  # F(ψ_i)
-        w = (self._base[j] + offset) + self._u3[j] * np.cos(3.0 * azimuth)  # w = v_row + u_0 + u_3 cos 3ψ
+        base, hub, u3 = self._base[j], self._hub[j], self._u3[j]
+        if self.turbulence_gain is not None:  # each turbine's turbulence σ × TI_t / TI_0 (the wake-added part)
+            g, vm = self.turbulence_gain, self._mean[j]
+            base, hub, u3 = vm + g * (base - vm), vm + g * (hub - vm), g * u3
+        w = (base + offset) + u3 * np.cos(3.0 * azimuth)  # w = v_row + u_0 + u_3 cos 3ψ
         blades = w[:, None] * f
         rotor = blades @ _THIRDS  # mean of the three blades
         self.rotor_wind = rotor
         mean = self._mean[j] + offset
-        return WindSample(blades=blades, hub=self._hub[j] + offset, rotor=rotor, mean=mean)
+        return WindSample(blades=blades, hub=hub + offset, rotor=rotor, mean=mean)

@@ -138,6 +138,11 @@ class FarmPlant(BaseModel):
     wake_expansion: float = Field(
         default=0.05, ge=0.0, le=0.2, description="–, Jensen wake decay k of the row model [PROPOSED]"
     )
+    wake_added_turbulence: bool = Field(
+        default=True,
+        description="FLORIS wakes: each turbine's own turbulence scaled to the turbulence intensity FLORIS gives it "
+        "(ambient plus wake-added); false: the ambient's for every turbine",
+    )
     layout: LayoutSpec | None = Field(
         default=None,
         description="turbine positions: a grid, coordinates or a shipped layout file (wwcore.layout); None: the "
@@ -166,6 +171,11 @@ class FarmPlant(BaseModel):
             raise ValueError(
                 "layout: the row model (wake_model 'rows') is the paper's, for its 3 × 3 grid; "
                 "a layout needs wake_model 'gauss' or 'jensen'"
+            )
+        if self.wake_model == "rows" and "wake_added_turbulence" in self.model_fields_set:
+            raise ValueError(
+                "wake_added_turbulence: the row model (wake_model 'rows') has no wake-added turbulence; "
+                "choose wake_model 'gauss' or 'jensen'"
             )
         if self.wake_model == "rows" and self.wind_direction_deg is not None:
             raise ValueError(
