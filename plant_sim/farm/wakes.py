@@ -60,7 +60,8 @@ def plant_wake_tables(
     """
     if plant.wake_model not in ("gauss", "jensen"):
         raise ValueError(f"wake_model {plant.wake_model!r} has no FLORIS tables; use 'gauss' or 'jensen'")
-    # FLORIS takes seconds to import; only farms with FLORIS wakes need it (not a cycle: floris_wakes → here is none)
+    # Imported here, not at the top: FLORIS takes seconds to import and only farms with FLORIS wakes need it (every
+    # farm scenario imports this module). There is no import cycle to dodge: floris_wakes does not import this module.
     floris_wakes = importlib.import_module("plant_sim.farm.floris_wakes")
     theta = plant.direction_deg
     settings = floris_wakes.WakeSettings(
