@@ -217,6 +217,16 @@ def _farm_scenario(**plant) -> dict:
         ({"wake_model": "gauss", "layout": {"kind": "file", "name": "hornsrev1"}}, "plant", "wind_direction_deg"),
         ({"wind_direction_deg": 300.0}, "plant", "two wind cases"),
         ({"wake_added_turbulence": False}, "plant", "no wake-added turbulence"),
+        (
+            {
+                "wake_model": "gauss",
+                "layout": {"kind": "file", "name": "hornsrev1"},
+                "wind_direction_deg": 270.0,
+                "spacing_m": 700.0,
+            },
+            "plant",
+            "the layout gives the positions",
+        ),
         ({"wake_model": "gauss", "layout": {"kind": "file", "name": "nowhere"}}, "plant.layout", "no layout file"),
         (
             {
@@ -245,6 +255,20 @@ def test_bad_wake_or_layout_settings_are_refused_with_a_clear_message(plant, fie
     fields = [f for f, _ in err.value.problems]
     assert any(f.startswith(field) for f in fields), fields
     assert words in str(err.value)
+
+
+def test_a_dumped_plant_section_reads_back_the_same():
+    """The live adapter and the scorecard dump the plant section and read it again: every form must survive."""
+    forms = [
+        {},
+        {"wake_model": "gauss", "wake_added_turbulence": False},
+        {"wake_model": "jensen", "layout": {"kind": "file", "name": "hornsrev1"}, "wind_direction_deg": 222.0},
+        {"wake_model": "gauss", "layout": {"kind": "grid", "rows": 2, "columns": 5}, "wind_direction_deg": 10.0},
+    ]
+    for form in forms:
+        plant = FarmPlant(**form)
+        assert FarmPlant.model_validate(plant.model_dump()) == plant
+        assert FarmPlant.model_validate_json(plant.model_dump_json()) == plant
 
 
 def test_the_papers_farm_given_as_a_layout_is_the_papers_farm():

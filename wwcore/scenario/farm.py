@@ -172,7 +172,8 @@ class FarmPlant(BaseModel):
                 "layout: the row model (wake_model 'rows') is the paper's, for its 3 × 3 grid; "
                 "a layout needs wake_model 'gauss' or 'jensen'"
             )
-        if self.wake_model == "rows" and "wake_added_turbulence" in self.model_fields_set:
+        # Checks on values, not on which keys were given: a dumped and re-read plant (live adapter) must pass.
+        if self.wake_model == "rows" and not self.wake_added_turbulence:
             raise ValueError(
                 "wake_added_turbulence: the row model (wake_model 'rows') has no wake-added turbulence; "
                 "choose wake_model 'gauss' or 'jensen'"
@@ -184,7 +185,7 @@ class FarmPlant(BaseModel):
             )
         if self.layout is not None and self.wind_direction_deg is None:
             raise ValueError("wind_direction_deg: a farm with a layout needs the wind direction (deg from north)")
-        if self.layout is not None and "spacing_m" in self.model_fields_set:
+        if self.layout is not None and self.spacing_m != type(self).model_fields["spacing_m"].default:
             raise ValueError("spacing_m: the layout gives the positions; spacing_m is the paper's 3 × 3 spacing")
         n = self.n_turbines  # resolves the layout (overlapping turbines, empty layouts are refused there)
         if self.demand.points is not None:
