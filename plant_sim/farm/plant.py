@@ -1,9 +1,10 @@
-"""The nine-turbine farm following the step contract of ``wwcore.stepping``, batched over Monte Carlo runs.
+"""The farm following the step contract of ``wwcore.stepping``, batched over Monte Carlo runs.
 
 Rows are turbines of farms, farm-major (``wwcore.farm_frames``): the turbines are one ``TurbineBatch`` with
-``turbines = 1 … 9`` (each with its own controller, sensor noise and turbulence streams, ``row_streams``), driven by
-a ``FarmWindField`` (met mast, delays, wakes). With ``fault_free_twins`` every run has a second farm with the same
-wind and noise streams and no faults, for scoring what the faults cost (damage numbers).
+``turbines = 1 … N`` (N = 9 on the paper's 3 × 3; any layout's with FLORIS wakes, ``plant_sim.farm.wakes``), each
+with its own controller, sensor noise and turbulence streams (``row_streams``), driven by a ``FarmWindField`` (met
+mast, delays, wakes: the row model or FLORIS's tables, built here at start). With ``fault_free_twins`` every run has
+a second farm with the same wind and noise streams and no faults, for scoring what the faults cost (damage numbers).
 
 Tick k (100 Hz) of the farm:
 
@@ -19,20 +20,14 @@ Tick k (100 Hz) of the farm:
 from __future__ import annotations
 
 from collections.abc import Sequence
+from pathlib import Path
 
 import numpy as np
 from scipy import signal
 
 from plant_sim.farm.controller import FarmTurbineController
-from plant_sim.farm.wind import (
-    CURVE_WINDS,
-    HISTORY_S,
-    MIN_MEAN_WIND,
-    FarmWindField,
-    MastSeries,
-    static_power_curve,
-    static_row_winds,
-)
+from plant_sim.farm.wakes import TableWakes, plant_wake_tables
+from plant_sim.farm.wind import HISTORY_S, MIN_MEAN_WIND, FarmWakes, FarmWindField, MastSeries, RowWakes
 from plant_sim.turbine import TurbineBatch
 from plant_sim.turbine.dynamics import OMEGA_G, OMEGA_R, PITCH, TAU_G, THETA
 from plant_sim.turbine.plant import row_streams
@@ -40,7 +35,7 @@ from plant_sim.turbine.trim import PlantAero, trim
 from wwcore.channels import N_SENSORS
 from wwcore.events import Event
 from wwcore.farm_frames import FarmFrame, FarmRefs
-from wwcore.scenario.farm import FARM_DT_S, N_TURBINES, FarmPlant
+from wwcore.scenario.farm import FARM_DT_S, FarmPlant
 from wwcore.scenario.faults import FaultSpec
 from wwcore.scenario.mismatch import Mismatch
 from wwcore.scenario.turbine import TurbinePlant
@@ -48,11 +43,13 @@ from wwcore.scenario.wind import WindSpec
 from wwcore.turbine_params import BENCHMARK, TurbineParams
 
 MAST_TURBINE = 0  # turbine number of the met mast's random streams (row_streams(seed, run, 0))
-ROW_STREAM_BASE = 100  # row i's shared turbulence draws from row_streams(seed, run, 100 + i) (row_coherence > 0)
+ROW_STREAM_BASE = 100  # row i's shared turbulence: row_streams(seed, run, max(100, N + 1) + i) (row_coherence > 0)
 TRIM_WINDS = np.arange(2.0, 35.01, 0.25)  # m/s, grid of the initial operating points
 
 
-def demand_series(plant: FarmPlant, params: TurbineParams, mast: MastSeries, duration_s: float) -> np.ndarray:
+def demand_series(
+    plant: FarmPlant, params: TurbineParams, mast: MastSeries, duration_s: float, wakes: FarmWakes
+) -> np.ndarray:
     """P_ref,farm (W) of each run at every farm sample j (t = j·FARM_DT_S), shape (runs, samples)."""
     n = int(np.ceil(duration_s / FARM_DT_S)) + 2
     t = np.arange(n) * FARM_DT_S
@@ -61,21 +58,18 @@ def demand_series(plant: FarmPlant, params: TurbineParams, mast: MastSeries, dur
         times, mw = zip(*spec.points, strict=True)
         return np.broadcast_to(np.interp(t, times, mw) * 1e6, (mast.v.shape[0], n)).copy()
     # Delta control: fraction × the farm's available power, from the free stream each row sees (the mast wind
-    # delayed by d_j/v̄, eq. (3)) averaged over ``averaging_s`` (first order) and the static wake model; set every
+    # delayed by d_j/v̄, eq. (3)) averaged over ``averaging_s`` (first order) and ``wakes``' static model; set every
     # ``update_s`` and held. Computed from the true wind: the demand is an exogenous signal, "below the available
     # power" by construction up to the turbines' own turbulence.
     runs = np.arange(mast.v.shape[0])[:, None, None]
-    d = plant.mast_distance_m + np.array(plant.row_distances_m())  # (rows,)
+    d = wakes.mast_distances  # (rows,) or (turbines,): where the free stream is delayed to
     vbar = np.maximum(mast.vbar[:, mast.offset : mast.offset + n], MIN_MEAN_WIND)  # (runs, n)
     delays = np.minimum(d[None, None, :] / vbar[:, :, None], HISTORY_S)  # (runs, n, rows)
     rows_free = mast.at(np.broadcast_to(runs, delays.shape), t[None, :, None] - delays)
     a = np.exp(-FARM_DT_S / spec.averaging_s)
     avg, _ = signal.lfilter([1.0 - a], [1.0, -a], rows_free, axis=1, zi=rows_free[:, :1, :] * a)
     held = np.minimum(np.rint(np.floor(t / spec.update_s) * spec.update_s / FARM_DT_S).astype(int), n - 1)
-    v_rows = static_row_winds(plant, params, avg[:, held, :])  # (runs, n, rows)
-    per_row = np.interp(v_rows, CURVE_WINDS, static_power_curve(params))
-    sizes = np.array([len(r) for r in plant.rows()], dtype=float)
-    return spec.fraction * (per_row @ sizes)
+    return spec.fraction * wakes.available_power(params, avg, held)
 
 
 class FarmBatch:
@@ -99,6 +93,7 @@ class FarmBatch:
         params: TurbineParams = BENCHMARK,
         fault_free_twins: bool = False,
         mismatch: Mismatch | None = None,
+        wake_cache_dir: Path | str | None = None,
     ):
         self.spec = plant
         self.p = params
@@ -114,19 +109,24 @@ class FarmBatch:
         self.mast = MastSeries(plant, wind, [w for w, _ in mast_streams], duration_s)
         self._mast_noise = [noise for _, noise in mast_streams]
         self._mast_noise_chunk = np.empty((len(self.runs), 0))
-        self.demand = demand_series(plant, params, self.mast, duration_s)  # (runs, samples) W
+        self.n_turbines = n_turbines = plant.n_turbines
+        self.wakes: FarmWakes
+        if plant.wake_model == "rows":
+            self.wakes = RowWakes(plant, params, self.mast, self.run_of_farm)
+        else:
+            tables = plant_wake_tables(plant, wind, params, wake_cache_dir) if plant.wakes else None
+            self.wakes = TableWakes(plant, params, tables, self.mast, self.run_of_farm)
+        self.demand = demand_series(plant, params, self.mast, duration_s, self.wakes)  # (runs, samples) W
         wind_rngs = [
-            row_streams(seed, int(r), t)[0] for _ in range(copies) for r in self.runs for t in range(1, N_TURBINES + 1)
+            row_streams(seed, int(r), t)[0] for _ in range(copies) for r in self.runs for t in range(1, n_turbines + 1)
         ]
         n_rows = len(plant.rows())
+        row_base = max(ROW_STREAM_BASE, n_turbines + 1)  # row streams are numbered after the turbines'
         row_rngs = [
-            row_streams(seed, int(r), ROW_STREAM_BASE + i)[0]
-            for _ in range(copies)
-            for r in self.runs
-            for i in range(n_rows)
+            row_streams(seed, int(r), row_base + i)[0] for _ in range(copies) for r in self.runs for i in range(n_rows)
         ]
         self.field = FarmWindField(
-            plant, wind, params, wind_rngs, self.mast, self.run_of_farm, self.dt, row_rngs=row_rngs
+            plant, wind, params, wind_rngs, self.mast, self.run_of_farm, self.dt, row_rngs=row_rngs, wakes=self.wakes
         )
         turbine_spec = TurbinePlant(noise_convention=plant.noise_convention, power_reference_w=params.rated_power)
         self.turbines = TurbineBatch(
@@ -135,7 +135,7 @@ class FarmBatch:
             faults,
             seed=seed,
             runs=self.runs,
-            turbines=range(1, N_TURBINES + 1),
+            turbines=range(1, n_turbines + 1),
             params=params,
             wind_field=self.field,
             fault_free_twins=fault_free_twins,
@@ -146,7 +146,7 @@ class FarmBatch:
         self.n = self.turbines.n
         self.controller = FarmTurbineController(params, self.n, params.rated_power, plant.cancel_3p_in_hold)
         self.turbines.controller = self.controller
-        self._trim(self.field.row_wind[:, self.field.row_of_turbine].reshape(-1))
+        self._trim(self.field.turbine_wind.reshape(-1))
         self._scada_sum = np.zeros((self.n, N_SENSORS))
         self._power_ref_sum = np.zeros(self.n)
         self.scada = np.zeros((self.n, N_SENSORS))
@@ -192,7 +192,7 @@ class FarmBatch:
         self.controller.initialise(zone, pitch, x[:, TAU_G].copy())
 
     def row_of(self, farm: int, turbine: int) -> int:
-        return farm * N_TURBINES + turbine - 1
+        return farm * self.n_turbines + turbine - 1
 
     @property
     def run_of_row(self) -> np.ndarray:
@@ -221,7 +221,7 @@ class FarmBatch:
         k, s = self.k, self.ticks_per_sample
         tb = self.turbines
         if k % s == 0:
-            self.field.update(k // s, tb.tau_aero * tb.x[:, OMEGA_R])
+            self.field.update(k // s, tb.tau_aero * tb.x[:, OMEGA_R], tb.x[:, OMEGA_R], tb.x[:, PITCH].mean(axis=1))
             self._scada_sum[:] = 0.0
             self._power_ref_sum[:] = 0.0
         frame = tb.measure()
@@ -263,8 +263,8 @@ class FarmBatch:
         """Ground truth for scoring and display only; the supervisor never reads it."""
         out = self.turbines.truth()
         out["shaft_torque"] = self.turbines.shaft_torque()
-        out["row_wind"] = self.field.row_wind[:, self.field.row_of_turbine].reshape(-1)
-        out["free_wind"] = self.field.free_wind[:, self.field.row_of_turbine].reshape(-1)
+        out["row_wind"] = self.field.turbine_wind.reshape(-1)  # the turbine's mean wind (its row's, row model)
+        out["free_wind"] = self.field.free_wind.reshape(-1)
         out["power_ref"] = self.controller.power_ref.copy()
         return out
 

@@ -1,4 +1,8 @@
-r"""Wind of the nine-turbine farm (PARAMETERS.md b): met mast, propagation delays, wakes, per-turbine turbulence.
+r"""Wind of the farm (PARAMETERS.md b): met mast, propagation delays, the row model's wakes, per-turbine turbulence.
+
+The wakes described here are the row model (``wake_model = "rows"``, the paper's). FLORIS's Gauss and Jensen wakes
+(``plant_sim.farm.wakes.TableWakes``) replace ``RowWakes`` behind the same ``FarmWakes`` interface; the mast, the
+turbulence and the per-tick interpolation below are the same for both.
 
 **Free stream at the mast.** Per Monte Carlo run, the wind at the mast is the scenario's mean profile plus a slow
 turbulence common to the whole farm (large eddies, frozen as they travel; Taylor's hypothesis):
@@ -33,7 +37,8 @@ the travel delay.
 
 **Turbulence of each turbine.** On top of its row's mean wind each turbine has its own Kaimal turbulence with
 rotational sampling, shear and tower shadow: ``plant_sim.wind.WindField`` with the turbine's own random stream,
-TI = ``wind.turbulence_intensity`` of the free-stream mean. The row mean replaces the scenario mean in w = v + u_0
+TI = ``wind.turbulence_intensity`` of the free-stream mean (FLORIS wakes with ``wake_added_turbulence`` scale it
+by each turbine's TI_t / TI_0, ``plant_sim.farm.wakes``). The row mean replaces the scenario mean in w = v + u_0
 + u_3 cos 3ψ and in the hub reading v + u_p; between farm samples it is interpolated linearly.
 """
 
@@ -42,13 +47,14 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from functools import lru_cache
+from typing import Protocol
 
 import numpy as np
 from scipy import signal
 
 from plant_sim.turbine.trim import power_curve
 from plant_sim.wind import WindField, WindSample, mean_wind
-from wwcore.scenario.farm import FARM_DT_S, N_TURBINES, FarmPlant
+from wwcore.scenario.farm import FARM_DT_S, FarmPlant
 from wwcore.scenario.wind import WindSpec
 from wwcore.turbine_params import TurbineParams
 
@@ -153,35 +159,40 @@ class MastSeries:
         return self.v[runs, i] * (1.0 - frac) + self.v[runs, i + 1] * frac
 
 
-# ---- the field the turbines sample ----------------------------------------------------------------------------
-class FarmWindField(WindField):
-    """Per-tick wind of n turbine rows (farms × 9): each turbine's own turbulence on its row's delayed, waked mean.
+# ---- the wakes: the row model here, FLORIS's tables in plant_sim.farm.wakes ------------------------------------
+class FarmWakes(Protocol):
+    """What the field needs from a wake model, for a batch of farms of N turbines."""
 
-    ``farm_of_row``/``turbine_of_row`` say which farm (index into ``run_of_farm``) and turbine each row is.
-    ``update(j, aero_power)`` is called by the plant on every farm sample j (t = j·FARM_DT_S) with each row's
-    aerodynamic power τ_r ω_r (W); it advances the wakes and sets the row means for the next FARM_DT_S.
+    mast_distances: np.ndarray  # m, from the mast along the wind, of each point whose free stream is delayed
+    initial_power: np.ndarray  # (farms, N) W, each turbine's steady aerodynamic power at t = 0
+
+    @property
+    def turbine_wind(self) -> np.ndarray: ...  # (farms, N) m/s, each turbine's mean wind at the last farm sample
+
+    @property
+    def free_wind(self) -> np.ndarray: ...  # (farms, N) m/s, the free stream it sees there
+
+    def advance(
+        self, j: int, p_aero: np.ndarray, area_power: float | np.ndarray, tsr: np.ndarray, pitch_deg: np.ndarray
+    ) -> None: ...
+
+    def available_power(self, params: TurbineParams, free: np.ndarray, held: np.ndarray) -> np.ndarray: ...
+
+
+# ---- the row model's wakes -------------------------------------------------------------------------------------
+class RowWakes:
+    """The row model (module docstring) for a batch of farms: each row's delayed free stream and Jensen wakes.
+
+    ``advance(j, p_aero, area_power)`` records each turbine's C_T at farm sample j and moves the row means to
+    sample j + 1; ``turbine_wind`` / ``free_wind`` are each turbine's (farms, N) at the last sample.
     """
 
-    def __init__(
-        self,
-        plant: FarmPlant,
-        spec: WindSpec,
-        params: TurbineParams,
-        rngs: Sequence[np.random.Generator],
-        mast: MastSeries,
-        run_of_farm: np.ndarray,
-        dt: float,
-        row_rngs: Sequence[np.random.Generator] | None = None,
-    ) -> None:
-        super().__init__(spec, params, rngs, dt)
+    def __init__(self, plant: FarmPlant, params: TurbineParams, mast: MastSeries, run_of_farm: np.ndarray) -> None:
         self.plant = plant
-        self.params = params
         self.mast = mast
         self.run_of_farm = np.asarray(run_of_farm)
         self.farms = len(self.run_of_farm)
-        if self.n != self.farms * N_TURBINES:
-            raise ValueError(f"{self.n} rows are not {self.farms} farms of {N_TURBINES} turbines")
-        self.ticks_per_sample = round(FARM_DT_S / dt)
+        self.n_turbines = plant.n_turbines
         rows = plant.rows()
         self.row_of_turbine = np.array(plant.row_of())
         self.n_rows = len(rows)
@@ -196,25 +207,112 @@ class FarmWindField(WindField):
         self._pair_gain = (params.radius / (params.radius + plant.wake_expansion * self._x)) ** 2
         self._pair_to_row = np.zeros((len(pairs), self.n_rows))  # Σ over the upstream rows of each row
         self._pair_to_row[np.arange(len(pairs)), self._down] = 1.0
-        self._row_matrix = np.zeros((N_TURBINES, self.n_rows))  # turbine → row mean
-        for t in range(N_TURBINES):
+        self._row_matrix = np.zeros((self.n_turbines, self.n_rows))  # turbine → row mean
+        for t in range(self.n_turbines):
             self._row_matrix[t, self.row_of_turbine[t]] = 1.0 / self.row_sizes[self.row_of_turbine[t]]
-        self._area_power = 0.5 * params.rho * math.pi * params.radius**2
+        area_power = 0.5 * params.rho * math.pi * params.radius**2
         # C_T history per (farm, row), one entry per farm sample, ring buffer long enough for the longest delay
         self._history = round(HISTORY_S / FARM_DT_S)
         free0 = mast.v[self.run_of_farm, mast.offset]
         v_rows0 = static_row_winds(plant, params, free0)  # (farms, rows)
         p_mech0 = np.interp(v_rows0, CURVE_WINDS, static_power_curve(params)) / (params.eta_gc * params.eta_dt)
-        ct0 = thrust_from_power_coefficient(p_mech0 / (self._area_power * v_rows0**3))
+        ct0 = thrust_from_power_coefficient(p_mech0 / (area_power * v_rows0**3))
         self._ct = np.repeat(ct0[:, :, None], self._history, axis=2)  # (farms, rows, history)
-        self._p_aero = (p_mech0[:, self.row_of_turbine]).reshape(-1)  # (n,) low-passed τ_r ω_r
+        self.initial_power = p_mech0[:, self.row_of_turbine]  # (farms, N) W, steady τ_r ω_r
+        self.row_wind = v_rows0  # (farms, rows) m/s, mean wind of each row at the last farm sample
+        self.row_free = free0[:, None].repeat(self.n_rows, axis=1)
+
+    @property
+    def turbine_wind(self) -> np.ndarray:
+        """(farms, N) m/s: each turbine's mean wind (its row's) at the last farm sample."""
+        return self.row_wind[:, self.row_of_turbine]
+
+    @property
+    def free_wind(self) -> np.ndarray:
+        """(farms, N) m/s: the free stream each turbine's row sees (delayed mast wind) at the last farm sample."""
+        return self.row_free[:, self.row_of_turbine]
+
+    def row_means(self, j: int, ct_rows: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(free stream, waked mean) of every row at farm sample j (t = j·FARM_DT_S), each (farms, rows), m/s."""
+        t = j * FARM_DT_S
+        runs = self.run_of_farm
+        vbar = np.maximum(self.mast.vbar[runs, self.mast.offset + j], MIN_MEAN_WIND)  # (farms,)
+        delays = np.minimum(self.mast_distances[None, :] / vbar[:, None], HISTORY_S)  # d_j / v̄, eq. (3)
+        free = self.mast.at(np.broadcast_to(runs[:, None], delays.shape), t - delays)
+        if len(self._up) == 0:
+            return free, free
+        lag = np.minimum(np.rint(self._x[None, :] / vbar[:, None] / FARM_DT_S).astype(np.intp), self._history - 1)
+        slot = (j - lag) % self._history  # (farms, pairs)
+        farms = np.arange(self.farms)[:, None]
+        ct = ct_rows[farms, self._up[None, :], slot]
+        deficit = (1.0 - np.sqrt(1.0 - np.clip(ct, 0.0, 1.0))) * self._pair_gain  # δ_ij, Jensen
+        total = (deficit * deficit) @ self._pair_to_row  # Σ_i δ_ij² per row j
+        return free, free * (1.0 - np.sqrt(total))
+
+    def advance(
+        self, j: int, p_aero: np.ndarray, area_power: float | np.ndarray, tsr: np.ndarray, pitch_deg: np.ndarray
+    ) -> None:
+        """Record each row's mean C_T (momentum theory on each turbine's C_p) at sample j; move to sample j + 1.
+
+        ``tsr`` and ``pitch_deg`` (each turbine's operating point) are not used by the row model."""
+        v_turbine = self.row_wind[:, self.row_of_turbine].reshape(-1)
+        ct = thrust_from_power_coefficient(p_aero / (area_power * np.maximum(v_turbine, 1.0) ** 3))
+        ct_rows = ct.reshape(self.farms, self.n_turbines) @ self._row_matrix  # (farms, rows) row means
+        self._ct[:, :, j % self._history] = ct_rows
+        self.row_free, self.row_wind = self.row_means(j + 1, self._ct)
+
+    def available_power(self, params: TurbineParams, free: np.ndarray, held: np.ndarray) -> np.ndarray:
+        """Steady available power (W), static wakes, for free streams ``free[:, held]`` (runs, samples, rows)."""
+        v_rows = static_row_winds(self.plant, params, free[:, held, :])
+        per_row = np.interp(v_rows, CURVE_WINDS, static_power_curve(params))
+        return per_row @ self.row_sizes
+
+
+# ---- the field the turbines sample ----------------------------------------------------------------------------
+class FarmWindField(WindField):
+    """Per-tick wind of n turbine rows (farms × N): each turbine's own turbulence on its delayed, waked mean.
+
+    ``farm_of_row``/``turbine_of_row`` say which farm (index into ``run_of_farm``) and turbine each row is. The
+    mean winds come from ``wakes`` (``RowWakes``, the default, or ``plant_sim.farm.wakes.TableWakes``).
+    ``update(j, aero_power)`` is called by the plant on every farm sample j (t = j·FARM_DT_S) with each row's
+    aerodynamic power τ_r ω_r (W); it advances the wakes and sets the turbines' means for the next FARM_DT_S.
+    """
+
+    def __init__(
+        self,
+        plant: FarmPlant,
+        spec: WindSpec,
+        params: TurbineParams,
+        rngs: Sequence[np.random.Generator],
+        mast: MastSeries,
+        run_of_farm: np.ndarray,
+        dt: float,
+        row_rngs: Sequence[np.random.Generator] | None = None,
+        wakes: FarmWakes | None = None,
+    ) -> None:
+        super().__init__(spec, params, rngs, dt)
+        self.plant = plant
+        self.params = params
+        self.mast = mast
+        self.run_of_farm = np.asarray(run_of_farm)
+        self.farms = len(self.run_of_farm)
+        n_turbines = plant.n_turbines
+        if self.n != self.farms * n_turbines:
+            raise ValueError(f"{self.n} rows are not {self.farms} farms of {n_turbines} turbines")
+        self.wakes = wakes if wakes is not None else RowWakes(plant, params, mast, run_of_farm)
+        self.ticks_per_sample = round(FARM_DT_S / dt)
+        self.row_of_turbine = np.array(plant.row_of())
+        self.n_rows = int(self.row_of_turbine.max()) + 1
+        self._area_power = 0.5 * params.rho * math.pi * params.radius**2
+        self._p_aero = self.wakes.initial_power.reshape(-1)  # (n,) low-passed τ_r ω_r
         self._a_ct = math.exp(-FARM_DT_S / CT_FILTER_S)
         self.sample_index = 0
-        self.row_wind = v_rows0  # (farms, rows) m/s, mean wind of each row at the last farm sample
-        mean0 = v_rows0[:, self.row_of_turbine].reshape(-1)
-        self._offset_now = mean0 - float(mean_wind(spec, 0.0))
+        self.turbine_wind = self.wakes.turbine_wind  # (farms, N) m/s, mean wind of each turbine at the last sample
+        self.free_wind = self.wakes.free_wind  # (farms, N) m/s, the free stream each turbine sees
+        self._offset_now = self.turbine_wind.reshape(-1) - float(mean_wind(spec, 0.0))
         self._offset_step = np.zeros(self.n)
-        self.free_wind = free0[:, None].repeat(self.n_rows, axis=1)
+        self.rotor_wind = self.turbine_wind.reshape(-1)  # (n,) m/s, rotor-averaged wind of the last tick
+        self.turbulence_gain = self._gain()  # (n,) TI_t / TI_0 of each turbine, None: the ambient's for all
         # Row-shared turbulence (``row_coherence`` c): each turbine's turbulence is √(1−c) its own + √c its row's,
         # the row's drawn from ``row_rngs`` (one per farm and row, farm-major), same spectrum and level.
         self.coherence = plant.row_coherence
@@ -223,8 +321,13 @@ class FarmWindField(WindField):
             if row_rngs is None or len(row_rngs) != self.farms * self.n_rows:
                 raise ValueError("row_coherence > 0 needs one random stream per farm and row")
             self._row_field = WindField(spec, params, row_rngs, dt)
-            farm_of = np.repeat(np.arange(self.farms), N_TURBINES)
+            farm_of = np.repeat(np.arange(self.farms), n_turbines)
             self._row_stream = farm_of * self.n_rows + np.tile(self.row_of_turbine, self.farms)
+
+    @property
+    def row_wind(self) -> np.ndarray:
+        """The row model's (farms, rows) row means; with FLORIS wakes each turbine's own (farms, N)."""
+        return getattr(self.wakes, "row_wind", self.turbine_wind)
 
     def _refill(self) -> None:
         super()._refill()
@@ -244,37 +347,27 @@ class FarmWindField(WindField):
         self._area_power = 0.5 * np.asarray(rho, dtype=float) * math.pi * self.params.radius**2
 
     # -- the farm sample --------------------------------------------------------------------------------------
-    def row_means(self, j: int, ct_rows: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """(free stream, waked mean) of every row at farm sample j (t = j·FARM_DT_S), each (farms, rows), m/s."""
-        t = j * FARM_DT_S
-        runs = self.run_of_farm
-        vbar = np.maximum(self.mast.vbar[runs, self.mast.offset + j], MIN_MEAN_WIND)  # (farms,)
-        delays = np.minimum(self.mast_distances[None, :] / vbar[:, None], HISTORY_S)  # d_j / v̄, eq. (3)
-        free = self.mast.at(np.broadcast_to(runs[:, None], delays.shape), t - delays)
-        if len(self._up) == 0:
-            return free, free
-        lag = np.minimum(np.rint(self._x[None, :] / vbar[:, None] / FARM_DT_S).astype(np.intp), self._history - 1)
-        slot = (j - lag) % self._history  # (farms, pairs)
-        farms = np.arange(self.farms)[:, None]
-        ct = ct_rows[farms, self._up[None, :], slot]
-        deficit = (1.0 - np.sqrt(1.0 - np.clip(ct, 0.0, 1.0))) * self._pair_gain  # δ_ij, Jensen
-        total = (deficit * deficit) @ self._pair_to_row  # Σ_i δ_ij² per row j
-        return free, free * (1.0 - np.sqrt(total))
+    def update(self, j: int, aero_power: np.ndarray, omega_r: np.ndarray, pitch_deg: np.ndarray) -> None:
+        """Farm sample j: pass each turbine's operating point to the wakes, then set its mean for ticks j·S … (j+1)·S.
 
-    def update(self, j: int, aero_power: np.ndarray) -> None:
-        """Farm sample j: record each row's C_T, then set the row means for ticks j·S … (j+1)·S (S ticks/sample)."""
+        ``aero_power`` τ_r ω_r (W), ``omega_r`` (rad/s) and ``pitch_deg`` (collective, deg) of each turbine; its
+        tip-speed ratio is read against the rotor-averaged wind it saw on the last tick."""
         self._p_aero = self._a_ct * self._p_aero + (1.0 - self._a_ct) * aero_power
-        v_turbine = self.row_wind[:, self.row_of_turbine].reshape(-1)
-        ct = thrust_from_power_coefficient(self._p_aero / (self._area_power * np.maximum(v_turbine, 1.0) ** 3))
-        ct_rows = ct.reshape(self.farms, N_TURBINES) @ self._row_matrix  # (farms, rows) row means
-        self._ct[:, :, j % self._history] = ct_rows
-        free_next, mean_next = self.row_means(j + 1, self._ct)
-        target = mean_next[:, self.row_of_turbine].reshape(-1) - float(mean_wind(self.spec, (j + 1) * FARM_DT_S))
+        tsr = omega_r * self.params.radius / np.maximum(self.rotor_wind, 1.0)
+        self.wakes.advance(j, self._p_aero, self._area_power, tsr, pitch_deg)
+        mean_next = self.wakes.turbine_wind
+        target = mean_next.reshape(-1) - float(mean_wind(self.spec, (j + 1) * FARM_DT_S))
         start = self._offset_now + self._offset_step * self.ticks_per_sample
         self._offset_now = start
         self._offset_step = (target - start) / self.ticks_per_sample
-        self.row_wind, self.free_wind = mean_next, free_next
+        self.turbine_wind, self.free_wind = mean_next, self.wakes.free_wind
+        self.turbulence_gain = self._gain()
         self.sample_index = j + 1
+
+    def _gain(self) -> np.ndarray | None:
+        """Each turbine's turbulence over the ambient (wake-added turbulence), from wakes that compute it."""
+        ratio = getattr(self.wakes, "turbulence_ratio", None)
+        return None if ratio is None else ratio.reshape(-1)
 
     # -- per tick -------------------------------------------------------------------------------------------------
     def sample(self, k: int, azimuth: np.ndarray) -> WindSample:
@@ -289,8 +382,13 @@ class FarmWindField(WindField):
         x = np.mod(azimuth, 2.0 * math.pi)[:, None] * self._per_rad + self._offsets
         i = x.astype(np.intp)
         f = self._table[i] + self._slope[i] * (x - i)  # F(ψ_i)
-        w = (self._base[j] + offset) + self._u3[j] * np.cos(3.0 * azimuth)  # w = v_row + u_0 + u_3 cos 3ψ
+        base, hub, u3 = self._base[j], self._hub[j], self._u3[j]
+        if self.turbulence_gain is not None:  # each turbine's turbulence σ × TI_t / TI_0 (the wake-added part)
+            g, vm = self.turbulence_gain, self._mean[j]
+            base, hub, u3 = vm + g * (base - vm), vm + g * (hub - vm), g * u3
+        w = (base + offset) + u3 * np.cos(3.0 * azimuth)  # w = v_row + u_0 + u_3 cos 3ψ
         blades = w[:, None] * f
         rotor = blades @ _THIRDS  # mean of the three blades
+        self.rotor_wind = rotor
         mean = self._mean[j] + offset
-        return WindSample(blades=blades, hub=self._hub[j] + offset, rotor=rotor, mean=mean)
+        return WindSample(blades=blades, hub=hub + offset, rotor=rotor, mean=mean)

@@ -65,12 +65,12 @@ def test_plant_rows_see_the_mast_wind_delayed():
     rngs = [row_streams(1, 0, t)[0] for t in range(1, 10)]
     field = FarmWindField(spec, wind(10.0), BENCHMARK, rngs, mast, np.array([0]), BENCHMARK.dt)
     j = 3000
-    free, _ = field.row_means(j, field._ct)
+    free, _ = field.wakes.row_means(j, field.wakes._ct)
     vbar = mast.vbar[0, mast.offset + j]
-    for row, d in enumerate(field.mast_distances):
+    for row, d in enumerate(field.wakes.mast_distances):
         expect = np.interp(j * FARM_DT_S - d / vbar, mast.t, mast.v[0])
         assert free[0, row] == pytest.approx(expect, rel=1e-9)
-    assert field.mast_distances[2] - field.mast_distances[0] == pytest.approx(2 * 805.0)
+    assert field.wakes.mast_distances[2] - field.wakes.mast_distances[0] == pytest.approx(2 * 805.0)
 
 
 def test_mast_series_has_the_coherent_turbulence_level():
@@ -112,11 +112,14 @@ def test_a_derated_turbine_casts_a_weaker_wake_one_travel_time_later():
     steady = field._p_aero.copy()
     derated = steady.copy()
     derated[3] *= 0.8  # turbine 4, in the second row {2, 4} of wind case 2
+    omega, pitch = np.full(9, 1.0), np.zeros(9)
     row = spec.row_of()[3]
-    lag_s = (field.distances - field.distances[row]) / 10.0  # travel time behind turbine 4's row at v̄ = 10 m/s
+    lag_s = (
+        field.wakes.distances - field.wakes.distances[row]
+    ) / 10.0  # travel time behind turbine 4's row at v̄ = 10 m/s
     winds = []
     for j in range(round((lag_s[-1] + 30.0) / FARM_DT_S)):
-        field.update(j, steady if j < 10 else derated)
+        field.update(j, steady if j < 10 else derated, omega, pitch)  # the row model reads the power only
         winds.append(field.row_wind[0].copy())
     winds = np.array(winds)
     assert np.array_equal(winds[:, : row + 1], np.repeat(winds[:1, : row + 1], len(winds), axis=0))

@@ -7,10 +7,16 @@ The farm is nine benchmark turbines on a 3 × 3 grid numbered row by row (1 2 3 
 * case 2, along the diagonal: the rows are {1}, {2, 4}, {3, 5, 7}, {6, 8}, {9} (turbines 1 and 9 stand alone).
 
 A row is a set of turbines at the same distance along the wind. The met mast stands ``mast_distance_m`` upwind
-of the front row, on the wind axis, in both cases. The scenario's top-level ``[wind]`` section describes the
-free stream at the mast (mean profile) and each turbine's own turbulence (``turbulence_intensity``); the farm
-adds a slow turbulence common to all turbines (``coherent_ti``, ``coherent_time_s``) that travels from the mast
-to each row (``docs/farm.md``).
+of the front row, on the wind axis, in both cases.
+
+``wake_model`` picks the wakes: ``rows`` (the paper's row model, the default) or FLORIS's ``gauss`` / ``jensen``
+(``plant_sim.farm.wakes``). With a FLORIS model the farm may also have any ``layout`` (``wwcore.layout``: a grid,
+coordinates or a shipped file, 1 to 250 turbines) and any constant ``wind_direction_deg``; the plant runs it, but
+the supervisor handles only the paper's farm, which ``Scenario.problems`` enforces (``is_paper_farm``).
+
+The scenario's top-level ``[wind]`` section describes the free stream at the mast (mean profile) and each
+turbine's own turbulence (``turbulence_intensity``); the farm adds a slow turbulence common to all turbines
+(``coherent_ti``, ``coherent_time_s``) that travels from the mast to each row (``docs/farm.md``).
 
 Farm faults name their turbine with ``turbine`` (1–9); target and kind say what they do:
 
@@ -37,15 +43,20 @@ import itertools
 import math
 from typing import Literal
 
+import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
+from wwcore.layout import SEED001_DIRECTIONS_DEG, FarmLayout, LayoutSpec
 from wwcore.scenario.faults import FaultKind, FaultSpec
 from wwcore.scenario.turbine import NoiseConvention, check_turbine_fault
 
-N_TURBINES = 9
+N_TURBINES = 9  # turbines of the paper's farm, the only farm the supervisor (service.farm) handles
 GRID = 3  # turbines per side of the square grid
 ROTOR_DIAMETER_M = 115.0  # m, 2R of the benchmark turbine (PARAMETERS.md a.1)
 FARM_DT_S = 0.1  # s, sample time of the farm controller, farm FDI and met mast [PAPER] Section 2 (10 Hz)
+TURBINE_RATED_MW = 4.8  # MW, rated power of one farm turbine (PARAMETERS.md a.1)
+ROW_TOLERANCE_D = 0.5  # D, turbines of a layout within this distance along the wind form one row
+WakeModel = Literal["rows", "gauss", "jensen"]
 
 FARM_FAULT_NAMES: dict[FaultKind, str] = {
     FaultKind.DEBRIS: "debris",
@@ -86,15 +97,15 @@ class FarmDemand(BaseModel):
             if any(b <= a for a, b in itertools.pairwise(times)) or times[0] < 0.0:
                 raise ValueError("points: times must be ≥ 0 and increase strictly")
             for _, mw in self.points:
-                if not 0.0 <= mw <= N_TURBINES * 4.8:
-                    raise ValueError(f"points: demand {mw} MW is outside 0 … {N_TURBINES * 4.8:g} MW")
+                if not mw >= 0.0:
+                    raise ValueError(f"points: demand {mw} MW is below 0 MW")
         elif self.points is not None:
             raise ValueError("points: only a 'profile' demand takes points")
         return self
 
 
 class FarmPlant(BaseModel):
-    """Nine benchmark turbines (PARAMETERS.md a) on the 3 × 3 grid of PARAMETERS.md b."""
+    """Benchmark turbines (PARAMETERS.md a): the 3 × 3 grid of PARAMETERS.md b, or a ``layout`` (FLORIS wakes)."""
 
     model_config = ConfigDict(extra="forbid")
 
@@ -118,8 +129,32 @@ class FarmPlant(BaseModel):
         description="–, share of each turbine's turbulence variance common to its row: 0 independent turbines (7 D "
         "apart, the physical choice), 1 identical rows (what the paper's row comparisons presume) [PROPOSED]",
     )
-    wakes: bool = Field(default=True, description="Jensen wake deficits on downstream rows")
-    wake_expansion: float = Field(default=0.05, ge=0.0, le=0.2, description="–, Jensen wake decay k [PROPOSED]")
+    wakes: bool = Field(default=True, description="wake deficits on downstream turbines (false: free stream)")
+    wake_model: WakeModel = Field(
+        default="rows",
+        description="'rows': the paper's row model (Jensen between rows, 3 × 3 only); 'gauss' / 'jensen': FLORIS's "
+        "Gauss / Jensen wakes between every pair of turbines, tabulated at start (docs/farm.md, Wakes and layouts)",
+    )
+    wake_expansion: float = Field(
+        default=0.05, ge=0.0, le=0.2, description="–, Jensen wake decay k of the row model [PROPOSED]"
+    )
+    wake_added_turbulence: bool = Field(
+        default=True,
+        description="FLORIS wakes: each turbine's own turbulence scaled to the turbulence intensity FLORIS gives it "
+        "(ambient plus wake-added); false: the ambient's for every turbine",
+    )
+    layout: LayoutSpec | None = Field(
+        default=None,
+        description="turbine positions: a grid, coordinates or a shipped layout file (wwcore.layout); None: the "
+        "paper's 3 × 3 at spacing_m. Needs a FLORIS wake model and wind_direction_deg",
+    )
+    wind_direction_deg: float | None = Field(
+        default=None,
+        ge=0.0,
+        lt=360.0,
+        description="deg clockwise from north, where the wind comes from; None: the wind case's on the 3 × 3 "
+        "(1: 270, 2: 315)",
+    )
     noise_convention: NoiseConvention = Field(
         default="sigma", description="read the benchmark's sensor noise numbers as σ (papers) or as variances"
     )
@@ -130,31 +165,96 @@ class FarmPlant(BaseModel):
     )
     demand: FarmDemand = Field(default_factory=FarmDemand)
 
+    @model_validator(mode="after")
+    def _geometry(self) -> FarmPlant:
+        if self.wake_model == "rows" and self.layout is not None:
+            raise ValueError(
+                "layout: the row model (wake_model 'rows') is the paper's, for its 3 × 3 grid; "
+                "a layout needs wake_model 'gauss' or 'jensen'"
+            )
+        # Checks on values, not on which keys were given: a dumped and re-read plant (live adapter) must pass.
+        if self.wake_model == "rows" and not self.wake_added_turbulence:
+            raise ValueError(
+                "wake_added_turbulence: the row model (wake_model 'rows') has no wake-added turbulence; "
+                "choose wake_model 'gauss' or 'jensen'"
+            )
+        if self.wake_model == "rows" and self.wind_direction_deg is not None:
+            raise ValueError(
+                "wind_direction_deg: the row model (wake_model 'rows') knows the paper's two wind cases only; "
+                "set wind_case, or choose wake_model 'gauss' or 'jensen'"
+            )
+        if self.layout is not None and self.wind_direction_deg is None:
+            raise ValueError("wind_direction_deg: a farm with a layout needs the wind direction (deg from north)")
+        if self.layout is not None and self.spacing_m != type(self).model_fields["spacing_m"].default:
+            raise ValueError("spacing_m: the layout gives the positions; spacing_m is the paper's 3 × 3 spacing")
+        n = self.n_turbines  # resolves the layout (overlapping turbines, empty layouts are refused there)
+        if self.demand.points is not None:
+            top = n * TURBINE_RATED_MW
+            for _, mw in self.demand.points:
+                if mw > top * (1.0 + 1e-12):
+                    raise ValueError(f"demand.points: demand {mw} MW is above the farm's {top:g} MW ({n} turbines)")
+        return self
+
     @property
     def n_turbines(self) -> int:
-        return N_TURBINES
+        return self.resolved_layout().n_turbines
 
     # -- geometry ---------------------------------------------------------------------------------------------
+    @property
+    def direction_deg(self) -> float:
+        """Where the wind comes from, deg clockwise from north (wind case 1: 270, case 2: 315 on the 3 × 3)."""
+        return SEED001_DIRECTIONS_DEG[self.wind_case] if self.wind_direction_deg is None else self.wind_direction_deg
+
+    def resolved_layout(self) -> FarmLayout:
+        """The turbine positions in metres (east, north) for the benchmark rotor."""
+        if self.layout is None:
+            xy = np.array([self.position(t) for t in range(1, N_TURBINES + 1)])
+            return FarmLayout(xy[:, 0], -xy[:, 1], ROTOR_DIAMETER_M, source="3x3 grid")
+        return self.layout.resolve(ROTOR_DIAMETER_M)
+
+    def is_paper_farm(self) -> bool:
+        """Whether this is seed 001's farm (3 × 3 at spacing_m, wind along a wind case) that the supervisor knows."""
+        if self.layout is None and self.wind_direction_deg is None:
+            return True
+        mine = self.resolved_layout()
+        paper = FarmPlant(spacing_m=self.spacing_m).resolved_layout()
+        same_place = (
+            mine.n_turbines == N_TURBINES
+            and np.allclose(mine.x, paper.x, atol=1e-3)
+            and np.allclose(mine.y, paper.y, atol=1e-3)
+        )
+        return same_place and math.isclose(self.direction_deg, SEED001_DIRECTIONS_DEG[self.wind_case], abs_tol=1e-9)
+
     def position(self, turbine: int) -> tuple[float, float]:
-        """(x, y) in m of a turbine (1-based): x along the grid columns, y along the grid rows."""
+        """(x, y) in m of a turbine (1-based) on the paper's 3 × 3: x along the grid columns, y along the grid rows."""
         col, row = (turbine - 1) % GRID, (turbine - 1) // GRID
         return col * self.spacing_m, row * self.spacing_m
 
     def along_wind_m(self, turbine: int) -> float:
         """Distance in m of a turbine from the front row, along the wind (case 1: x; case 2: (x + y)/√2)."""
+        if self.layout is not None or self.wind_direction_deg is not None:
+            return float(self.downwind_m()[turbine - 1])
         x, y = self.position(turbine)
         return x if self.wind_case == 1 else (x + y) / math.sqrt(2.0)
 
+    def downwind_m(self) -> np.ndarray:
+        """Distance in m of every turbine from the most upwind one, along the wind (``FarmLayout.wind_frame``)."""
+        return self.resolved_layout().wind_frame(self.direction_deg).downwind
+
     def rows(self) -> list[tuple[int, ...]]:
-        """The rows of the wind case, front to back: turbines at the same distance along the wind."""
+        """Turbine numbers grouped by distance along the wind, front to back (the paper's rows on its 3 × 3; for a
+        layout or another direction, within ``ROW_TOLERANCE_D`` rotor diameters)."""
+        if self.layout is not None or self.wind_direction_deg is not None:
+            groups = self.resolved_layout().groups_along_wind(self.direction_deg, ROW_TOLERANCE_D * ROTOR_DIAMETER_M)
+            return [tuple(i + 1 for i in g) for g in groups]
         by_distance: dict[float, list[int]] = {}
         for t in range(1, N_TURBINES + 1):
             by_distance.setdefault(round(self.along_wind_m(t), 6), []).append(t)
         return [tuple(by_distance[d]) for d in sorted(by_distance)]
 
     def row_of(self) -> list[int]:
-        """Row index (0 = front) of turbines 1 … 9."""
-        out = [0] * N_TURBINES
+        """Row index (0 = front) of turbines 1 … N."""
+        out = [0] * self.n_turbines
         for i, members in enumerate(self.rows()):
             for t in members:
                 out[t - 1] = i
@@ -162,6 +262,9 @@ class FarmPlant(BaseModel):
 
     def row_distances_m(self) -> list[float]:
         """Distance in m of each row from the front row, along the wind."""
+        if self.layout is not None or self.wind_direction_deg is not None:
+            s = self.downwind_m()
+            return [float(s[members[0] - 1]) for members in self.rows()]
         return [self.along_wind_m(members[0]) for members in self.rows()]
 
 

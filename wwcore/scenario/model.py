@@ -7,7 +7,7 @@ from typing import Annotated, Any
 
 from pydantic import BaseModel, ConfigDict, Field
 
-from wwcore.scenario.farm import FarmPlant, check_farm_fault
+from wwcore.scenario.farm import N_TURBINES, FarmPlant, check_farm_fault
 from wwcore.scenario.faults import FaultSpec
 from wwcore.scenario.hydro import HydroPlant, check_hydro_fault
 from wwcore.scenario.mismatch import Mismatch
@@ -76,6 +76,16 @@ class Scenario(BaseModel):
                         f"a {self.plant.kind} supervisor has no {role}; its roles: {', '.join(roles)}",
                     )
                 )
+        if isinstance(self.plant, FarmPlant) and not self.plant.is_paper_farm():
+            found.append(
+                (
+                    "plant.layout",
+                    f"the farm supervisor (detection, dispatch) handles the paper's {N_TURBINES} turbines on its "
+                    f"3 × 3 grid in wind case 1 or 2; this farm has {self.plant.n_turbines} turbines with wind from "
+                    f"{self.plant.direction_deg:g} deg. Other farms run in the plant alone (plant_sim.farm.FarmBatch) "
+                    "until the supervisor handles any layout (issue 24 §3)",
+                )
+            )
         check = FAULT_CHECKS[self.plant.kind]
         for i, fault in enumerate(self.faults):
             for field, message in check(fault, self.plant.n_turbines):

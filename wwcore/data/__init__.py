@@ -1,0 +1,1 @@
+"""Reference data the project ships (layout files)."""
