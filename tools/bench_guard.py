@@ -25,8 +25,7 @@ import time
 
 import numpy as np
 
-from windwarden.live.adapters import adapter_for
-from windwarden.live.adapters.base import RunInfo
+from windwarden.kinds import RunInfo, kind_for
 from windwarden.live.guard import FrameSequencer, RefsGuard
 from wwcore.scenario import load_scenario
 from wwcore.wire import DropCounter
@@ -36,7 +35,7 @@ SCENARIOS = {"turbine": "demo", "hydro": "hydro-fig9", "farm": "farm-case1"}
 
 def bench(kind: str, ticks: int) -> dict[str, float]:
     scenario = load_scenario(SCENARIOS[kind])
-    adapter = adapter_for(kind)
+    adapter = kind_for(kind)
     plant = adapter.make_plant(scenario, 0)
     turbines = adapter.turbines(plant)
     supervisor = adapter.make_supervisor(RunInfo.of(scenario, turbines, plant.dt))
@@ -80,7 +79,7 @@ def scan(name: str, duration: float, seed: int = 7) -> dict[str, int]:
     if duration < scenario.duration_s:
         faults = [f for f in scenario.faults if f.start_s < duration]
         scenario = scenario.model_copy(update={"duration_s": duration, "faults": faults})
-    adapter = adapter_for(scenario.plant.kind)
+    adapter = kind_for(scenario.plant.kind)
     plant = adapter.make_plant(scenario, seed)
     turbines = adapter.turbines(plant)
     supervisor = adapter.make_supervisor(RunInfo.of(scenario, turbines, plant.dt))

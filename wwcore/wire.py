@@ -426,7 +426,7 @@ if len({s.code for s in SCHEMAS.values()}) != len(SCHEMAS):  # pragma: no cover 
 JSON_SCHEMAS: dict[str, int] = {
     "events": 1,  # body: wwcore.events.Event.to_json()
     "plant.status": 1,  # body: run status (simulation time, speed, overruns, latency, liveliness)
-    "plant.run": 1,  # body: RunInfo, what the supervisor may know (no faults, no wind, no truth)
+    "plant.run": 2,  # body: RunInfo, what the supervisor may know (its SiteInfo: no faults, no wind, no truth)
     "plant.faults": 1,  # query body: {"op": "inject"|"clear"|"list", ...}; reply body: {"ok": …}
     "supervisor.status": 1,  # body: {"t", "tick", "turbines": [per-turbine status]}
 }

@@ -16,7 +16,8 @@ from service.farm.interfaces import FarmContext, FarmDiagnosis, FarmSample
 from service.plugins import FARM_CONTROLLERS, FARM_DETECTORS, choose
 from wwcore.events import Event, EventType
 from wwcore.farm_frames import CANCEL_3P_MODE, DISPATCH_MODES, HOLD_TORQUE_MODE, FarmFrame, FarmRefs
-from wwcore.scenario.farm import FARM_FAULT_TYPES, N_TURBINES, FarmPlant
+from wwcore.scenario.farm import FARM_FAULT_TYPES, N_TURBINES
+from wwcore.site import SiteInfo
 from wwcore.turbine_params import BENCHMARK, TurbineParams
 
 DEFAULT_DETECTOR = FARM_DETECTORS.default
@@ -28,7 +29,7 @@ class FarmSupervisor:
 
     def __init__(
         self,
-        plant: FarmPlant,
+        site: SiteInfo,
         n: int,
         *,
         detector: str | None = None,
@@ -38,7 +39,7 @@ class FarmSupervisor:
         params: TurbineParams = BENCHMARK,
     ):
         self.choice = choose("farm", options, detector=detector, controller=controller)  # refuses bad options
-        self.context = FarmContext(plant, n, params)
+        self.context = FarmContext(site, n, params)
         names, chosen = self.choice.names, self.choice.options
         self.detector = FARM_DETECTORS.create(names["detector"], context=self.context, options=chosen["detector"])
         self.controller = FARM_CONTROLLERS.create(

@@ -5,8 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from windwarden.live.adapters import adapter_for
-from windwarden.live.adapters.base import RunInfo
+from windwarden.kinds import RunInfo, kind_for
 from wwcore.farm_frames import CANCEL_3P_MODE, DISPATCH_MODES, HOLD_TORQUE_MODE, FarmRefs
 from wwcore.scenario import parse_scenario
 
@@ -19,7 +18,7 @@ SCENARIO = {
 
 
 def test_frames_and_refs_round_trip_and_the_supervisor_answers_every_tick():
-    adapter = adapter_for("farm")
+    adapter = kind_for("farm")
     scenario = parse_scenario(SCENARIO)
     plant = adapter.make_plant(scenario, seed=3)
     turbines = adapter.turbines(plant)
@@ -49,7 +48,7 @@ def test_frames_and_refs_round_trip_and_the_supervisor_answers_every_tick():
 
 
 def test_the_hold_torque_request_and_its_torque_cap_survive_the_wire():
-    adapter = adapter_for("farm")
+    adapter = kind_for("farm")
     scenario = parse_scenario(SCENARIO)
     plant = adapter.make_plant(scenario, seed=3)
     turbines = adapter.turbines(plant)
@@ -68,7 +67,7 @@ def test_the_hold_torque_request_and_its_torque_cap_survive_the_wire():
 def test_the_accommodation_requests_survive_the_wire_and_every_mode_has_a_status_name():
     """Mode 5 (3P cancelled without the hold), the per-blade pitch trim and the power phasor of the ripple
     compensation come back as sent; the status names every dispatch mode (``DISPATCH_MODES``)."""
-    adapter = adapter_for("farm")
+    adapter = kind_for("farm")
     scenario = parse_scenario(SCENARIO)
     plant = adapter.make_plant(scenario, seed=3)
     turbines = adapter.turbines(plant)
@@ -106,7 +105,7 @@ def test_farm_blueprint_has_the_overview_tab():
 def test_the_live_plant_is_run_0_of_the_batch():
     from plant_sim.farm import FarmBatch
 
-    adapter = adapter_for("farm")
+    adapter = kind_for("farm")
     scenario = parse_scenario(SCENARIO)
     live = adapter.make_plant(scenario, seed=3)
     batch = FarmBatch(scenario.plant, scenario.wind, [], seed=3, duration_s=3.0, runs=[0, 1], fault_free_twins=True)

@@ -15,7 +15,8 @@ import json
 import pytest
 
 from tests.live.helpers import FARM_SHORT, HYDRO_SHORT, TURBINE_SHORT, LiveNodes, router, scenario
-from windwarden.evaluation.kinds import EvalOptions, evaluator_for
+from windwarden.evaluation.kinds import EvalOptions
+from windwarden.kinds import kind_for
 from windwarden.live.batch import run_batch
 from windwarden.live.finalize import finalize_scorecard
 from windwarden.live.runfolder import EVENTS, read_events
@@ -62,13 +63,15 @@ def test_lockstep_equals_batch(tmp_path, text, seed):
 
 def test_hydro_lockstep_reconstruction_equals_windwarden_eval(tmp_path):
     scn, _, card = _lockstep(tmp_path, HYDRO_SHORT, 1)
-    evaluation = evaluator_for(scn)(scn, 1, 1, EvalOptions(workers=1, progress=False))
+    evaluation = kind_for(scn.plant.kind).evaluate(scn, 1, 1, EvalOptions(workers=1, progress=False))
     assert card["metrics"]["reconstruction"] == evaluation.scorecard["metrics"]["reconstruction"]
 
 
 def test_turbine_lockstep_matches_windwarden_eval(tmp_path):
     scn, _, card = _lockstep(tmp_path, TURBINE_SHORT, 3)
-    evaluation = evaluator_for(scn)(scn, 1, 3, EvalOptions(workers=1, progress=False, twins=False)).scorecard
+    evaluation = (
+        kind_for(scn.plant.kind).evaluate(scn, 1, 3, EvalOptions(workers=1, progress=False, twins=False)).scorecard
+    )
     assert card["faults"] == evaluation["faults"]
     assert card["false_alarms"] == evaluation["false_alarms"]
     assert card["false_alarms_per_1000s"] == evaluation["false_alarms_per_1000s"]

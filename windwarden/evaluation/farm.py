@@ -98,7 +98,7 @@ def simulate_chunk(
         mismatch=scenario.mismatch,
     )
     sup = FarmSupervisor(
-        scenario.plant,
+        scenario.plant.site(plant.dt),
         plant.n,
         detector=detector,
         controller=controller,

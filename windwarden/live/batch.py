@@ -1,7 +1,8 @@
-"""The live adapters' step loop in one process, with no transport: the reference a lockstep run must match.
+"""The live system's step loop in one process, with no transport: the reference a lockstep run must match.
 
-It is the batch loop of ``wwcore.stepping`` (measure, control, step, advance) driven through a kind's adapter,
-fed to the same score accumulator the plant node uses, and scored by the same ``adapter.scorecard``.
+It is the batch loop of ``wwcore.stepping`` (measure, control, step, advance) driven through the kind's object
+(``windwarden.kinds``), fed to the same score accumulator the plant node uses, and scored by the same
+``kind.scorecard``.
 
 ``drop`` loses sensor frames as a congested real-time link does: the supervisor never sees frame k where
 ``drop[k]``, handles the gap as the supervisor node does (``guard.bridge_gap``) and the plant controls tick k with the
@@ -18,8 +19,7 @@ from typing import Any
 
 import numpy as np
 
-from windwarden.live.adapters import adapter_for
-from windwarden.live.adapters.base import RunInfo
+from windwarden.kinds import RunInfo, kind_for
 from windwarden.live.guard import bridge_gap
 from wwcore.events import Event
 from wwcore.scenario import Scenario
@@ -45,7 +45,7 @@ def random_drops(n: int, fraction: float, longest: int, seed: int) -> np.ndarray
 def run_batch(
     scenario: Scenario, seed: int, drop: np.ndarray | None = None, max_ref_age: int = 10, gaps: str = "bridge"
 ) -> BatchResult:
-    adapter = adapter_for(scenario.plant.kind)
+    adapter = kind_for(scenario.plant.kind)
     plant = adapter.make_plant(scenario, seed)
     turbines = adapter.turbines(plant)
     supervisor = adapter.make_supervisor(RunInfo.of(scenario, turbines, plant.dt))

@@ -19,7 +19,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from windwarden.live.adapters import adapter_for
+from windwarden.kinds import kind_for
 from windwarden.live.runfolder import (
     EVENTS,
     FAULTS,
@@ -66,7 +66,7 @@ def finalize_scorecard(run_dir: Path) -> dict[str, Any] | None:
     live = _read_json(run_dir / LIVE) or {}
     final = bool(live.get("final", "metrics" in live))
     scenario = load_scenario(run_dir / SCENARIO)
-    adapter = adapter_for(scenario.plant.kind)
+    adapter = kind_for(scenario.plant.kind)
     events = read_events(run_dir / EVENTS)
     if "effective_faults" in live:
         faults = [FaultSpec.model_validate(f) for f in live["effective_faults"]]

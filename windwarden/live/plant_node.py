@@ -30,8 +30,7 @@ from typing import Any
 
 import zenoh
 
-from windwarden.live.adapters import adapter_for
-from windwarden.live.adapters.base import RunInfo
+from windwarden.kinds import RunInfo, kind_for
 from windwarden.live.config import PlantSettings
 from windwarden.live.faults import FaultBook, InjectionRefusedError
 from windwarden.live.guard import RefsFreshness, RefsGuard, RefusalLog, Verdict
@@ -79,7 +78,7 @@ class PlantNode:
         self.run_dir = run_dir
         self.display = display
         self.keys = settings.keys
-        self.adapter = adapter_for(scenario.plant.kind)
+        self.adapter = kind_for(scenario.plant.kind)
         self.plant = self.adapter.make_plant(scenario, settings.seed)
         self.turbines = self.adapter.turbines(self.plant)
         self.dt = float(self.plant.dt)

@@ -27,8 +27,7 @@ from typing import Any
 import numpy as np
 import zenoh
 
-from windwarden.live.adapters import adapter_for, load_adapters
-from windwarden.live.adapters.base import KindAdapter, RunInfo
+from windwarden.kinds import PlantKind, RunInfo, kind_for
 from windwarden.live.config import SupervisorSettings
 from windwarden.live.guard import FrameSequencer, RefusalLog, bridge_gap
 from windwarden.live.mailbox import TickMailbox
@@ -58,7 +57,7 @@ class SupervisorNode:
         self._inbox: queue.SimpleQueue[bytes] = queue.SimpleQueue()
         self._run_ended = threading.Event()
         self.info: RunInfo | None = None
-        self.adapter: KindAdapter | None = None
+        self.adapter: PlantKind | None = None
         self.supervisor: Any | None = None
         self.events: EventLog | None = None
         self.last_tick: int | None = None
@@ -83,7 +82,6 @@ class SupervisorNode:
             s, self.keys.supervisor_status, "supervisor.status", lambda body: self.status(), self.drops
         )
         self.watch = LivenessWatch(s, self.keys.alive_all, self._on_liveliness)
-        load_adapters()  # before the token: alive means able to build any kind's supervisor at once
         self._token = s.liveliness().declare_token(self.keys.alive(Process.SUPERVISOR))
 
     def stop(self) -> None:
@@ -171,7 +169,7 @@ class SupervisorNode:
         """(Re)build the supervisor, its event log and its display for the run ``info``."""
         new_run = self.info is None or info.run_id != self.info.run_id
         self.info = info
-        self.adapter = adapter_for(info.kind)
+        self.adapter = kind_for(info.kind)
         with self._lock:
             self.supervisor = self.adapter.make_supervisor(info)
             self.last_refs = None

@@ -1,4 +1,4 @@
-"""Live adapter of the hydrostatic turbine (seed 003).
+"""The hydrostatic turbine (seed 003) as a plant kind.
 
 Plant and supervisor are built as ``windwarden.evaluation.hydro`` builds its *compensated* twin of run 0 (random
 streams ``SeedSequence(seed, spawn_key=(0, 0))``, the nominal parameters with the scenario's stroke limit, the
@@ -18,9 +18,10 @@ from typing import TYPE_CHECKING, Any, ClassVar
 
 import numpy as np
 
+from windwarden.evaluation.kinds import EvalOptions, Evaluation
 from windwarden.evaluation.scoring import score_detection, windows_from_faults
 from windwarden.evaluation.scoring_policy import HYDRO as SCORING
-from windwarden.live.adapters.base import RunInfo, finite_or_none, records_from_batch
+from windwarden.kinds.base import RunInfo, finite_or_none, records_from_batch
 from wwcore.events import Event
 from wwcore.hydro_frames import HydroFrame, HydroRefs
 from wwcore.hydro_params import FAULT_TARGETS, NOMINAL, X_NAMES
@@ -36,8 +37,10 @@ DEFAULT_OBSERVER = "ts-smo"  # service.plugins.HYDRO_OBSERVERS.default (the plan
 DEFAULT_DETECTOR = "threshold"  # service.plugins.HYDRO_DETECTORS.default
 
 
-class HydroAdapter:
+class HydroKind:
     kind = "hydro"
+    section = HydroPlant
+    panels = ("hydro",)
     example_fault: ClassVar[dict[str, Any]] = {
         "target": "u_p",
         "kind": "offset",
@@ -50,6 +53,11 @@ class HydroAdapter:
     refs = HYDRO_REFS
     truth = HYDRO_TRUTH
 
+    def evaluate(self, scenario: Scenario, runs: int, seed: int, options: EvalOptions) -> Evaluation:
+        from windwarden.evaluation.hydro import evaluate
+
+        return evaluate(scenario, runs, seed, options)
+
     def make_plant(self, scenario: Scenario, seed: int) -> HydroTurbineBatch:
         from plant_sim.hydro import HydroTurbineBatch
 
@@ -59,14 +67,13 @@ class HydroAdapter:
     def make_supervisor(self, info: RunInfo) -> HydroSupervisor:
         from service.hydro.supervisor import HydroSupervisor
 
-        spec = HydroPlant.model_validate(info.plant)
         return HydroSupervisor(
             n=len(info.turbines),
             run_ids=[0] * len(info.turbines),
-            params=replace(NOMINAL, stroke_max=spec.stroke_max),  # what the plant publishes as its nominal model
-            observer=info.supervisor.get("estimator"),
-            detector=info.supervisor.get("detector"),
-            options=info.supervisor.get("params") or {},
+            params=replace(NOMINAL, stroke_max=info.site.stroke_max),  # the nominal model the plant publishes
+            observer=info.supervisor.estimator,
+            detector=info.supervisor.detector,
+            options=info.supervisor.params,
             compensation=True,
         )
 
@@ -221,4 +228,4 @@ class HydroScore:
         return {"reconstruction": reconstruction_metrics(traces, scenario, self.dt), "ticks_without_refs": missing}
 
 
-ADAPTER = HydroAdapter()
+HYDRO = HydroKind()

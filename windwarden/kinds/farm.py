@@ -1,4 +1,4 @@
-"""Live adapter of the nine-turbine wind farm (seed 001).
+"""The nine-turbine wind farm (seed 001) as a plant kind.
 
 Plant and supervisor are built as ``windwarden.evaluation.farm.simulate_chunk`` builds run 0 of
 ``windwarden eval SCENARIO --seed S`` (``FarmBatch(..., seed=S, runs=[0])``; the supervisor with the scenario's
@@ -17,7 +17,8 @@ from typing import TYPE_CHECKING, Any, ClassVar
 
 import numpy as np
 
-from windwarden.live.adapters.base import RunInfo, finite_or_none, records_from_batch
+from windwarden.evaluation.kinds import EvalOptions, Evaluation
+from windwarden.kinds.base import RunInfo, finite_or_none, records_from_batch
 from wwcore.events import Event
 from wwcore.farm_frames import CANCEL_3P_MODE, DISPATCH_MODES, HOLD_TORQUE_MODE, FarmFrame, FarmRefs
 from wwcore.scenario import FaultSpec, Scenario
@@ -30,8 +31,10 @@ if TYPE_CHECKING:  # the plant process never imports the supervisor's code, nor 
     from service.farm.supervisor import FarmSupervisor
 
 
-class FarmAdapter:
+class FarmKind:
     kind = "farm"
+    section = FarmPlant
+    panels = ("farm",)
     example_fault: ClassVar[dict[str, Any]] = {
         "target": "drivetrain",
         "kind": "drivetrain_wear",
@@ -44,6 +47,11 @@ class FarmAdapter:
     sensors = FARM_SENSORS
     refs = FARM_REFS
     truth = FARM_TRUTH
+
+    def evaluate(self, scenario: Scenario, runs: int, seed: int, options: EvalOptions) -> Evaluation:
+        from windwarden.evaluation.farm_eval import evaluate
+
+        return evaluate(scenario, runs, seed, options)
 
     def make_plant(self, scenario: Scenario, seed: int) -> FarmBatch:
         from plant_sim.farm import FarmBatch
@@ -63,11 +71,11 @@ class FarmAdapter:
 
         sup = info.supervisor
         return FarmSupervisor(
-            FarmPlant.model_validate(info.plant),
+            info.site,
             len(info.turbines),
-            detector=sup.get("detector"),
-            controller=sup.get("controller"),
-            options=dict(sup.get("params") or {}),
+            detector=sup.detector,
+            controller=sup.controller,
+            options=dict(sup.params),
         )
 
     def turbines(self, plant: FarmBatch) -> list[int]:
@@ -282,4 +290,4 @@ class FarmScore:
         }
 
 
-ADAPTER = FarmAdapter()
+FARM = FarmKind()

@@ -1,4 +1,4 @@
-"""Live adapter of the 4.8 MW benchmark turbine (seed 000 supervisor).
+"""The 4.8 MW benchmark turbine (seed 000 supervisor) as a plant kind.
 
 Plant and supervisor are built exactly as ``windwarden.evaluation.turbine.simulate_chunk`` builds run 0 of
 ``windwarden eval SCENARIO --seed S`` (``TurbineBatch(..., seed=S, runs=[0])``, the supervisor with the scenario's
@@ -14,12 +14,14 @@ from typing import TYPE_CHECKING, Any, ClassVar
 
 import numpy as np
 
+from windwarden.evaluation.kinds import EvalOptions, Evaluation
 from windwarden.evaluation.scoring import score_detection, windows_from_faults
 from windwarden.evaluation.scoring_policy import TURBINE as SCORING
-from windwarden.live.adapters.base import RunInfo, finite_or_none, records_from_batch
+from windwarden.kinds.base import RunInfo, finite_or_none, records_from_batch
 from wwcore.channels import DIAGNOSIS_TARGETS, SENSOR_INDEX
 from wwcore.events import Event
 from wwcore.scenario import FaultSpec, Scenario
+from wwcore.scenario.turbine import TurbinePlant
 from wwcore.turbine_frames import TurbineFrame, TurbineRefs
 from wwcore.wire import TURBINE_REFS, TURBINE_SENSORS, TURBINE_TRUTH
 
@@ -30,8 +32,10 @@ if TYPE_CHECKING:  # the plant process never imports the supervisor's code, nor 
 _ANEMOMETER = SENSOR_INDEX["v_hub_m"]
 
 
-class TurbineAdapter:
+class TurbineKind:
     kind = "turbine"
+    section = TurbinePlant
+    panels = ("turbine",)
     example_fault: ClassVar[dict[str, Any]] = {
         "target": "omega_g_m2",
         "kind": "fixed",
@@ -43,6 +47,11 @@ class TurbineAdapter:
     sensors = TURBINE_SENSORS
     refs = TURBINE_REFS
     truth = TURBINE_TRUTH
+
+    def evaluate(self, scenario: Scenario, runs: int, seed: int, options: EvalOptions) -> Evaluation:
+        from windwarden.evaluation.turbine import evaluate
+
+        return evaluate(scenario, runs, seed, options)
 
     def make_plant(self, scenario: Scenario, seed: int) -> TurbineBatch:
         from plant_sim.turbine import TurbineBatch
@@ -58,10 +67,10 @@ class TurbineAdapter:
         n = len(info.turbines)
         return TurbineSupervisor(
             n,
-            detector=sup.get("detector") or DEFAULT_DETECTOR,
-            estimator=sup.get("estimator") or DEFAULT_ESTIMATOR,
-            options=dict(sup.get("params") or {}),
-            noise_convention=info.plant.get("noise_convention", "sigma"),
+            detector=sup.detector or DEFAULT_DETECTOR,
+            estimator=sup.estimator or DEFAULT_ESTIMATOR,
+            options=dict(sup.params),
+            noise_convention=info.site.noise_convention,
             run_of_row=[0] * n,
             turbine_of_row=list(info.turbines),
         )
@@ -255,4 +264,4 @@ class TurbineScore:
         return {"wind_rmse": wind_rmse, "ticks_without_refs": int((~self.have[: self.ticks]).sum())}
 
 
-ADAPTER = TurbineAdapter()
+TURBINE = TurbineKind()
