@@ -7,7 +7,7 @@ figures equal ``windwarden eval``'s.
 
 Scorecard of a live run: detection figures from the event log (``scoring.score_detection`` on the supervisor's own
 events, as ``windwarden eval`` scores them: both run the same supervisor with the same design thresholds) and the
-reconstruction figures of ``evaluation.hydro.reconstruction_metrics`` from the corrections the plant received.
+reconstruction figures of ``evaluation.hydro_scoring.reconstruction_metrics`` from the corrections the plant received.
 The deviation-from-fault-free figures need the fault-free twin and are batch-only.
 """
 
@@ -18,9 +18,8 @@ from typing import TYPE_CHECKING, Any, ClassVar
 
 import numpy as np
 
+from windwarden.evaluation import hydro_scoring
 from windwarden.evaluation.kinds import EvalOptions, Evaluation
-from windwarden.evaluation.scoring import score_detection, windows_from_faults
-from windwarden.evaluation.scoring_policy import HYDRO as SCORING
 from windwarden.kinds.base import RunInfo, finite_or_none, records_from_batch
 from wwcore.events import Event
 from wwcore.hydro_frames import HydroFrame, HydroRefs
@@ -171,22 +170,20 @@ class HydroKind:
     def scorecard(
         self, scenario: Scenario, seed: int, faults: list[FaultSpec], events: list[Event], metrics: dict[str, Any]
     ) -> dict[str, Any]:
-        windows = windows_from_faults(faults, scenario.duration_s)
-        detection = score_detection(events, windows, runs=1, duration_s=scenario.duration_s, policy=SCORING)
-        return {
-            "scenario": scenario.name,
-            "runs": 1,
-            "seed": seed,
-            "duration_s": scenario.duration_s,
-            "observer": scenario.supervisor.estimator or DEFAULT_OBSERVER,
-            "detector": scenario.supervisor.detector or DEFAULT_DETECTOR,
-            "compensation": True,
-            **detection.card_fields(),
-            "metrics": {
+        score = hydro_scoring.detection(scenario.model_copy(update={"faults": faults}), events, runs=1)
+        return hydro_scoring.scorecard(
+            scenario,
+            runs=1,
+            seed=seed,
+            observer=scenario.supervisor.estimator or DEFAULT_OBSERVER,
+            detector=scenario.supervisor.detector or DEFAULT_DETECTOR,
+            compensation=True,
+            score=score,
+            metrics={
                 "reconstruction": metrics.get("reconstruction", []),
-                "detection": {"false_alarms": detection.false_alarms},
+                "detection": {"false_alarms": score.false_alarms},
             },
-        }
+        )
 
 
 class HydroScore:
@@ -221,11 +218,10 @@ class HydroScore:
         if ticks < self.n_steps:
             update["duration_s"] = ran
         scenario = self.scenario.model_copy(update=update)
-        from windwarden.evaluation.hydro import reconstruction_metrics
-
         traces = {"f_filt": f_filt, "f_true": self.f_true[:ticks]}
         missing = int(np.isnan(self.f_filt[:ticks, 0, 0]).sum())
-        return {"reconstruction": reconstruction_metrics(traces, scenario, self.dt), "ticks_without_refs": missing}
+        reconstruction = hydro_scoring.reconstruction_metrics(traces, scenario, self.dt)
+        return {"reconstruction": reconstruction, "ticks_without_refs": missing}
 
 
 HYDRO = HydroKind()

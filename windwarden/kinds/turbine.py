@@ -14,9 +14,9 @@ from typing import TYPE_CHECKING, Any, ClassVar
 
 import numpy as np
 
+from windwarden.evaluation import turbine_scoring
 from windwarden.evaluation.kinds import EvalOptions, Evaluation
-from windwarden.evaluation.scoring import score_detection, windows_from_faults
-from windwarden.evaluation.scoring_policy import TURBINE as SCORING
+from windwarden.evaluation.turbine_scoring import WIND_KEYS, window_of_tick
 from windwarden.kinds.base import RunInfo, finite_or_none, records_from_batch
 from wwcore.channels import DIAGNOSIS_TARGETS, SENSOR_INDEX
 from wwcore.events import Event
@@ -194,24 +194,19 @@ class TurbineKind:
         from service.turbine.supervisor import DEFAULT_DETECTOR, DEFAULT_ESTIMATOR
 
         sup = scenario.supervisor
-        windows = windows_from_faults(faults, scenario.duration_s)
-        detection = score_detection(events, windows, runs=1, duration_s=scenario.duration_s, policy=SCORING)
-        return {
-            "scenario": scenario.name,
-            "runs": 1,
-            "seed": seed,
-            "duration_s": scenario.duration_s,
-            "detector": sup.detector or DEFAULT_DETECTOR,
-            "estimator": sup.estimator or DEFAULT_ESTIMATOR,
-            **detection.card_fields(),
-            "metrics": {"wind_rmse": metrics.get("wind_rmse", {})},
-        }
+        return turbine_scoring.scorecard(
+            scenario,
+            runs=1,
+            seed=seed,
+            detector=sup.detector or DEFAULT_DETECTOR,
+            estimator=sup.estimator or DEFAULT_ESTIMATOR,
+            score=turbine_scoring.detection(events, faults, scenario.duration_s, runs=1),
+            wind=metrics.get("wind_rmse", {}),
+        )
 
 
 class TurbineScore:
     """Per-tick squared wind errors; summed per window (in tick order, as the batch loop sums) at the end."""
-
-    KEYS = ("fte", "nfte", "anemometer")
 
     def __init__(self, scenario: Scenario, n_steps: int, dt: float):
         self.scenario = scenario
@@ -219,7 +214,7 @@ class TurbineScore:
         self.dt = dt
         self.rows = 0
         self.ticks = 0  # ticks that ran: the counters below count no tick beyond them
-        self.err = {key: np.full(n_steps, np.nan) for key in self.KEYS}
+        self.err = {key: np.full(n_steps, np.nan) for key in WIND_KEYS}
         self.have = np.zeros(n_steps, dtype=bool)
         self.nfte_set = np.zeros(n_steps, dtype=bool)
         self._pending: dict[int, tuple[np.ndarray, np.ndarray]] = {}
@@ -243,11 +238,9 @@ class TurbineScore:
         self.have[k] = True
 
     def result(self, faults: list[FaultSpec]) -> dict[str, Any]:
-        from windwarden.evaluation.turbine import _window_of_tick
-
         scenario = self.scenario.model_copy(update={"faults": faults})
-        which, labels = _window_of_tick(scenario, self.n_steps, self.dt)
-        sq = {key: np.zeros(len(labels)) for key in self.KEYS}
+        which, labels = window_of_tick(scenario, self.n_steps, self.dt)
+        sq = {key: np.zeros(len(labels)) for key in WIND_KEYS}
         counts = np.zeros(len(labels))
         for k in np.flatnonzero(self.have & (which >= 0)):
             w = which[k]
@@ -256,11 +249,7 @@ class TurbineScore:
                 sq["nfte"][w] += self.err["nfte"][k]
             sq["anemometer"][w] += self.err["anemometer"][k]
             counts[w] += self.rows
-        wind_rmse = {
-            label: {key: float(np.sqrt(sq[key][i] / counts[i])) for key in self.KEYS}
-            for i, label in enumerate(labels)
-            if counts[i] > 0
-        }
+        wind_rmse = turbine_scoring.wind_rmse(labels, sq, counts)
         return {"wind_rmse": wind_rmse, "ticks_without_refs": int((~self.have[: self.ticks]).sum())}
 
 
