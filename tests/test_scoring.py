@@ -478,7 +478,7 @@ def test_the_live_run_folder_and_eval_give_the_same_scorecard_for_the_same_event
     text = f'{text}\n[supervisor]\ndetector = "{detector}"\n'
     scenario = parse_scenario(tomllib.loads(text))
     seed = 5
-    run = run_batch(scenario, seed)  # run 0 of eval, through the live adapters' loop: the events a live run logs
+    run = run_batch(scenario, seed)  # run 0 of eval, through the live reference loop: the events a live run logs
     live = _live_scorecard(tmp_path / "run", text, seed, run.events, scenario.faults)
     batch = (
         kind_for(scenario.plant.kind)

@@ -1,7 +1,7 @@
 """Lockstep over Zenoh equals batch mode, for one scenario and seed: same event log, same scorecard.
 
 The lockstep run crosses a real Zenoh router on loopback (plant and supervisor in their own sessions). The batch
-reference is the adapters' one-process loop (``windwarden.live.batch``): the step contract with the constructors
+reference is the kind objects' one-process loop (``windwarden.live.batch``): the step contract with the constructors
 ``windwarden eval`` uses. For the hydrostatic kind the reconstruction figures also equal ``windwarden eval``'s
 compensated twin exactly. For the turbine kind ``windwarden eval --no-twins`` (a live run has no fault-free
 twin either; the twins add their own figures and change none of the runs') gives the same detection figures and
