@@ -3,8 +3,8 @@
 The plant publishes its nominal parameters, the turbine numbers of its rows, its sensors' noise, its sample time and
 (a farm) its layout. It never publishes what only the simulator knows: the fault schedule, the wind, a model
 mismatch, the farm's wind case (a detector estimates it, or is told it through its own ``wind_case`` option). Each
-scenario section builds its site (``TurbinePlant.site``, ``FarmPlant.site``, ``HydroPlant.site``); batch evaluation
-and the live system hand the supervisor that object and nothing else. Over the network it travels inside the
+scenario section builds its site (``TurbinePlant.site``, ``FarmPlant.site``, ``HydroPlant.site``); a live supervisor
+is built from it and the supervisor's algorithms alone (``windwarden.kinds``). Over the network it travels inside the
 ``plant.run`` message, validated on arrival: an unknown field (a ``mismatch`` or a fault sneaked in) is refused.
 """
 
