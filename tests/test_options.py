@@ -197,7 +197,7 @@ def test_the_live_supervisor_refuses_a_runs_bad_options(kind):
     plant = {"turbine": {"kind": "turbine"}, "farm": {"kind": "farm"}, "hydro": {"kind": "hydro"}}[kind]
     scenario = parse_scenario({"name": "s", "duration_s": 10.0, "plant": plant})
     info = RunInfo.of(scenario, [1], 0.01)
-    info = dataclasses.replace(info, supervisor={**info.supervisor, "params": {"no_such_option": 1}})
+    info = info.model_copy(update={"supervisor": info.supervisor.model_copy(update={"params": {"no_such_option": 1}})})
     with pytest.raises(AlgorithmOptionError, match=r"supervisor\.params\.no_such_option"):
         kind_for(kind).make_supervisor(info)
 
