@@ -6,9 +6,9 @@ detector and controller and accommodation on). The plant ticks at 100 Hz and pub
 tick; every tenth tick carries the 10 Hz farm sample (SCADA means, met mast, demand) the supervisor computes on.
 The supervisor answers every tick (its references change on farm samples only).
 
-Scorecard of a live run: the batch schema, with detection figures from the event log and the farm's
-over-production and missing power from the truth the plant node feeds ``FarmScore``. Damage numbers need the
-fault-free twin farm and are batch-only.
+Scorecard of a live run: the batch schema (``evaluation.farm_scoring``), with detection figures from the event log
+and the farm's over-production and missing power summed by ``farm_scoring.PowerBalance`` from the truth the plant
+node feeds ``FarmScore``, as the batch sums them. Damage numbers need the fault-free twin farm and are batch-only.
 """
 
 from __future__ import annotations
