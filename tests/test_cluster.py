@@ -14,8 +14,9 @@ from distributed import LocalCluster
 from tests.live.helpers import TURBINE_SHORT
 from windwarden.cli import main
 from windwarden.evaluation import cluster, parallel
-from windwarden.evaluation.kinds import EvalOptions, evaluator_for
+from windwarden.evaluation.kinds import EvalOptions
 from windwarden.evaluation.usage import ResourceMonitor
+from windwarden.kinds import kind_for
 from windwarden.live.router import free_port
 from wwcore.scenario import parse_scenario
 
@@ -35,7 +36,7 @@ def two_workers():
 
 def test_the_cluster_scorecard_is_the_local_one_bit_for_bit(two_workers):
     scenario = parse_scenario(tomllib.loads(TURBINE_SHORT))
-    evaluate = evaluator_for(scenario)
+    evaluate = kind_for(scenario.plant.kind).evaluate
     local = evaluate(scenario, 3, SEED, EvalOptions(workers=1, progress=False))
     with ResourceMonitor() as usage:
         remote = evaluate(scenario, 3, SEED, EvalOptions(scheduler=two_workers, progress=False))

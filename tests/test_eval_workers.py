@@ -13,10 +13,11 @@ import pytest
 from tests.live.helpers import TURBINE_SHORT
 from windwarden.evaluation.branch import branch_mode
 from windwarden.evaluation.cluster import ClusterError, check_environments
-from windwarden.evaluation.kinds import EvalOptions, evaluator_for, unused_switches
+from windwarden.evaluation.kinds import EvalOptions, unused_switches
 from windwarden.evaluation.provenance import environment
 from windwarden.evaluation.turbine import simulate_chunk
 from windwarden.evaluation.usage import ResourceMonitor, available_cores
+from windwarden.kinds import kind_for
 from wwcore.scenario import parse_scenario
 
 SEED = 4242  # fresh: no figure is tuned on it
@@ -29,7 +30,7 @@ def scorecard_text(evaluation) -> str:
 
 def test_one_process_or_two_give_the_same_scorecard_bit_for_bit():
     scenario = parse_scenario(tomllib.loads(TURBINE_SHORT))
-    evaluate = evaluator_for(scenario)
+    evaluate = kind_for(scenario.plant.kind).evaluate
     one = evaluate(scenario, 3, SEED, EvalOptions(workers=1, progress=False))  # chunks [0, 2], [1] in turn
     with ResourceMonitor() as usage:
         two = evaluate(scenario, 3, SEED, EvalOptions(workers=2, progress=False))  # the same chunks, side by side

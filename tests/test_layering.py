@@ -2,8 +2,8 @@
 functions included:
 
 * the package graph points one way: ``wwcore`` ← ``plant_sim``, ``service`` (never each other) ← the application
-  (``windwarden.evaluation`` ← ``windwarden.live``) ← the edges (``api``, ``dashboards``) ← the command line
-  (``windwarden.cli``, ``windwarden.commands``);
+  (``windwarden.evaluation`` ← ``windwarden.kinds`` ← the studies ← ``windwarden.live``) ← the edges (``api``,
+  ``dashboards``) ← the command line (``windwarden.cli``, ``windwarden.commands``);
 * the module graph, with the imports inside functions as edges, has no cycle: no import is deferred into a
   function to dodge one;
 * the numerical core imports no transport: every module of wwcore, plant_sim and service, imported in a fresh
@@ -26,18 +26,22 @@ CORE = ("wwcore", "plant_sim", "service")
 EDGES = ("zenoh", "rerun", "fastapi", "uvicorn", "starlette")
 
 # (module prefix, layer): the longest matching prefix decides; a module may import its own layer's modules (within
-# its own package) and every lower layer's.
+# its own group: the prefix, or the group STUDIES names) and every lower layer's.
 LAYERS = (
     ("wwcore", 0),
     ("plant_sim", 1),
     ("service", 1),
     ("windwarden.evaluation", 2),
     ("windwarden.bench", 2),
-    ("windwarden.live", 3),
-    ("api", 4),
-    ("dashboards", 4),
-    ("windwarden", 5),  # the command line: windwarden.cli, windwarden.commands
+    ("windwarden.kinds", 3),  # one object per plant kind: its evaluator (below) and its live conversions
+    ("windwarden.evaluation.detectability", 4),  # studies: many evaluations of generated scenarios, through the kinds
+    ("windwarden.evaluation.random_scenarios", 4),
+    ("windwarden.live", 5),
+    ("api", 6),
+    ("dashboards", 6),
+    ("windwarden", 7),  # the command line: windwarden.cli, windwarden.commands
 )
+STUDIES = frozenset({"windwarden.evaluation.detectability", "windwarden.evaluation.random_scenarios"})
 SIBLINGS = {frozenset({"plant_sim", "service"}), frozenset({"api", "dashboards"})}  # never import each other
 
 
@@ -81,10 +85,11 @@ def imports_of(name: str, path: Path, known: set[str]) -> list[tuple[str, int, b
 
 
 def layer_of(module: str) -> tuple[str, int]:
+    """(group, layer) of a module: the group is its longest matching prefix, or ``"studies"`` for those."""
     prefix, layer = max(
         ((p, n) for p, n in LAYERS if module == p or module.startswith(p + ".")), key=lambda item: len(item[0])
     )
-    return prefix, layer
+    return ("studies" if prefix in STUDIES else prefix), layer
 
 
 @pytest.fixture(scope="module")

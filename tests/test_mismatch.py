@@ -30,7 +30,7 @@ from plant_sim.turbine.plant import _PICK
 from windwarden.cli import main
 from windwarden.evaluation import turbine as turbine_eval
 from windwarden.evaluation.kinds import EvalOptions
-from windwarden.live.adapters.base import RunInfo
+from windwarden.kinds import RunInfo
 from wwcore import aero
 from wwcore.channels import SENSOR_INDEX, SENSORS, noise_std
 from wwcore.scenario import Mismatch, ScenarioError, WindSpec, dump_scenario, load_scenario, parse_scenario

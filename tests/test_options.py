@@ -16,8 +16,7 @@ from service.hydro.builtin import HydroContext
 from service.plugins import ROLES, TURBINE_DETECTORS, AlgorithmOptionError, Registry, UnknownAlgorithmError, choose
 from service.turbine.interfaces import TurbineContext
 from windwarden.cli import main
-from windwarden.live.adapters import adapter_for
-from windwarden.live.adapters.base import RunInfo
+from windwarden.kinds import RunInfo, kind_for
 from wwcore.hydro_params import NOMINAL
 from wwcore.options import Bounds, OptionSchema
 from wwcore.scenario import ScenarioError, load_scenario, parse_scenario, shipped_scenarios
@@ -127,7 +126,7 @@ class Recording(dict):
 
 
 def test_every_key_a_built_in_algorithm_reads_is_declared():
-    contexts = {"turbine": TurbineContext(BENCHMARK, 1, "sigma"), "farm": FarmContext(FarmPlant(), 9)}
+    contexts = {"turbine": TurbineContext(BENCHMARK, 1, "sigma"), "farm": FarmContext(FarmPlant().site(), 9)}
     for kind in ("turbine", "farm"):
         for registry in ROLES[kind].values():
             for name in registry.names():
@@ -198,9 +197,9 @@ def test_the_live_supervisor_refuses_a_runs_bad_options(kind):
     plant = {"turbine": {"kind": "turbine"}, "farm": {"kind": "farm"}, "hydro": {"kind": "hydro"}}[kind]
     scenario = parse_scenario({"name": "s", "duration_s": 10.0, "plant": plant})
     info = RunInfo.of(scenario, [1], 0.01)
-    info = dataclasses.replace(info, supervisor={**info.supervisor, "params": {"no_such_option": 1}})
+    info = info.model_copy(update={"supervisor": info.supervisor.model_copy(update={"params": {"no_such_option": 1}})})
     with pytest.raises(AlgorithmOptionError, match=r"supervisor\.params\.no_such_option"):
-        adapter_for(kind).make_supervisor(info)
+        kind_for(kind).make_supervisor(info)
 
 
 # -- the commands --------------------------------------------------------------------------------------------------

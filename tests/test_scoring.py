@@ -19,10 +19,11 @@ from rich.console import Console
 
 from service.plugins import FARM_DETECTORS, TURBINE_DETECTORS
 from service.turbine.interfaces import Diagnosis
-from windwarden.evaluation.kinds import EvalOptions, evaluator_for
+from windwarden.evaluation.kinds import EvalOptions
 from windwarden.evaluation.report import render
 from windwarden.evaluation.scoring import FaultWindow, score_detection, twin_false_alarms, windows_from_faults
 from windwarden.evaluation.scoring_policy import POLICIES, ScoringPolicy, policy_for, policy_table
+from windwarden.kinds import kind_for
 from windwarden.live.batch import run_batch
 from windwarden.live.finalize import finalize_scorecard
 from windwarden.live.runfolder import EVENTS, LIVE, RUN, SCENARIO, encode_line, write_json
@@ -354,7 +355,7 @@ def gamed_cards():
     for name in names:
         detector = name if name == "benchmark" else f"adversary-{name}"
         options = EvalOptions(detector=detector, workers=1, progress=False, twins=False)
-        cards[name] = evaluator_for(scenario)(scenario, RUNS, 11, options).scorecard
+        cards[name] = kind_for(scenario.plant.kind).evaluate(scenario, RUNS, 11, options).scorecard
     return cards
 
 
@@ -477,9 +478,13 @@ def test_the_live_run_folder_and_eval_give_the_same_scorecard_for_the_same_event
     text = f'{text}\n[supervisor]\ndetector = "{detector}"\n'
     scenario = parse_scenario(tomllib.loads(text))
     seed = 5
-    run = run_batch(scenario, seed)  # run 0 of eval, through the live adapters' loop: the events a live run logs
+    run = run_batch(scenario, seed)  # run 0 of eval, through the live reference loop: the events a live run logs
     live = _live_scorecard(tmp_path / "run", text, seed, run.events, scenario.faults)
-    batch = evaluator_for(scenario)(scenario, 1, seed, EvalOptions(workers=1, progress=False, twins=False)).scorecard
+    batch = (
+        kind_for(scenario.plant.kind)
+        .evaluate(scenario, 1, seed, EvalOptions(workers=1, progress=False, twins=False))
+        .scorecard
+    )
     for key in DETECTION_FIELDS:
         assert live[key] == batch[key], key
     if scenario.plant.kind == "farm":

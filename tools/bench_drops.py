@@ -1,6 +1,6 @@
 """False alarms from lost sensor frames: lockstep, gaps bridged (what the supervisor does), gaps fed as consecutive.
 
-For each scenario and seed, three runs of the live adapters' loop (``windwarden.live.batch.run_batch``, the step
+For each scenario and seed, three runs of the live reference loop (``windwarden.live.batch.run_batch``, the step
 contract without a network: lockstep equals it bit for bit): no frame lost; frames lost at random (bursts of 1 to
 ``--longest`` ticks starting at random, ``--fraction`` of the ticks on average; the drop pattern has its own seed,
 ``1000 + seed``) with each gap bridged (``guard.bridge_gap``); the same drops with the frames after a gap fed as if

@@ -1,7 +1,7 @@
 """What the live checks cost per tick, against the work of the tick, measured in one run (ratios, not timings).
 
-For each plant kind, the batch loop of the live adapters runs for ``--ticks`` ticks; every tick it times, with
-``perf_counter_ns``, interleaved so that the machine's load weighs on all of them alike:
+For each plant kind, the live reference loop (the kind's object, ``windwarden.kinds``) runs for ``--ticks`` ticks;
+every tick it times, with ``perf_counter_ns``, interleaved so that the machine's load weighs on all of them alike:
 
 * the plant's work (``measure``, ``control``, ``advance``) and the supervisor's ``step``;
 * the plant's check of the refs message (``guard.RefsGuard.judge``: the tick window, the repeat check and the
@@ -25,8 +25,7 @@ import time
 
 import numpy as np
 
-from windwarden.live.adapters import adapter_for
-from windwarden.live.adapters.base import RunInfo
+from windwarden.kinds import RunInfo, kind_for
 from windwarden.live.guard import FrameSequencer, RefsGuard
 from wwcore.scenario import load_scenario
 from wwcore.wire import DropCounter
@@ -36,11 +35,11 @@ SCENARIOS = {"turbine": "demo", "hydro": "hydro-fig9", "farm": "farm-case1"}
 
 def bench(kind: str, ticks: int) -> dict[str, float]:
     scenario = load_scenario(SCENARIOS[kind])
-    adapter = adapter_for(kind)
-    plant = adapter.make_plant(scenario, 0)
-    turbines = adapter.turbines(plant)
-    supervisor = adapter.make_supervisor(RunInfo.of(scenario, turbines, plant.dt))
-    guard = RefsGuard(adapter.refs, 10, DropCounter())
+    plant_kind = kind_for(kind)
+    plant = plant_kind.make_plant(scenario, 0)
+    turbines = plant_kind.turbines(plant)
+    supervisor = plant_kind.make_supervisor(RunInfo.of(scenario, turbines, plant.dt))
+    guard = RefsGuard(plant_kind.refs, 10, DropCounter())
     sequencer = FrameSequencer(50, DropCounter(), lambda run: None, lambda tick: False)
     sequencer.start(0)
     clock = time.perf_counter_ns
@@ -49,16 +48,16 @@ def bench(kind: str, ticks: int) -> dict[str, float]:
     for k in range(ticks):
         t0 = clock()
         frame = plant.measure()
-        plant.control(adapter.refs_from_records(refs_records) if refs_records is not None else None)
+        plant.control(plant_kind.refs_from_records(refs_records) if refs_records is not None else None)
         t1 = clock()
-        records = adapter.frame_records(frame, turbines)
+        records = plant_kind.frame_records(frame, turbines)
         t2 = clock()
         decision, _ = sequencer.decide(records)
         t3 = clock()
         sequencer.stepped(k)
-        refs = supervisor.step(adapter.frame_from_records(records))
+        refs = supervisor.step(plant_kind.frame_from_records(records))
         t4 = clock()
-        out = adapter.refs_records(refs, supervisor, turbines)
+        out = plant_kind.refs_records(refs, supervisor, turbines)
         out = np.ascontiguousarray(out)
         t5 = clock()
         verdict = guard.judge(int(out["tick"][0]), out, k + 1)
@@ -80,17 +79,17 @@ def scan(name: str, duration: float, seed: int = 7) -> dict[str, int]:
     if duration < scenario.duration_s:
         faults = [f for f in scenario.faults if f.start_s < duration]
         scenario = scenario.model_copy(update={"duration_s": duration, "faults": faults})
-    adapter = adapter_for(scenario.plant.kind)
-    plant = adapter.make_plant(scenario, seed)
-    turbines = adapter.turbines(plant)
-    supervisor = adapter.make_supervisor(RunInfo.of(scenario, turbines, plant.dt))
+    plant_kind = kind_for(scenario.plant.kind)
+    plant = plant_kind.make_plant(scenario, seed)
+    turbines = plant_kind.turbines(plant)
+    supervisor = plant_kind.make_supervisor(RunInfo.of(scenario, turbines, plant.dt))
     refused: dict[str, int] = {}
     refs = None
     for _ in range(round(scenario.duration_s / plant.dt)):
         frame = plant.measure()
         plant.control(refs)
         refs = supervisor.step(frame)
-        reason = adapter.refs.refusal(adapter.refs_records(refs, supervisor, turbines))
+        reason = plant_kind.refs.refusal(plant_kind.refs_records(refs, supervisor, turbines))
         if reason is not None:
             refused[reason] = refused.get(reason, 0) + 1
         plant.advance()

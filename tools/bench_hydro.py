@@ -20,6 +20,7 @@ from service.hydro.supervisor import HydroSupervisor
 from wwcore.hydro_model import equilibrium
 from wwcore.hydro_params import NOMINAL
 from wwcore.scenario import load_scenario
+from wwcore.stepping import run_ticks
 
 
 def bench_observer(n: int, steps: int) -> float:
@@ -40,13 +41,8 @@ def bench_loop(n: int, seconds: float) -> float:
     seeds = [np.random.SeedSequence(0, spawn_key=(0, i)) for i in range(n)]
     plant = HydroTurbineBatch(scenario.plant, scenario.wind, list(scenario.faults), seeds)
     sup = HydroSupervisor(n=n, params=plant.nominal, options=scenario.supervisor.params)
-    refs = None
     t0 = time.perf_counter()
-    for _ in range(round(seconds / plant.dt)):
-        frame = plant.measure()
-        plant.control(refs)
-        refs = sup.step(frame)
-        plant.advance()
+    run_ticks(plant, sup, range(round(seconds / plant.dt)))
     return seconds / (time.perf_counter() - t0)
 
 

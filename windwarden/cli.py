@@ -54,9 +54,10 @@ def _add_eval(sub: argparse._SubParsersAction) -> None:
 def cmd_eval(args: argparse.Namespace) -> int:
     from service.plugins import AlgorithmOptionError, UnknownAlgorithmError, load_plugins
     from windwarden.evaluation.cluster import ClusterError
-    from windwarden.evaluation.kinds import EvalOptions, evaluator_for, unused_switches
+    from windwarden.evaluation.kinds import EvalOptions, unused_switches
     from windwarden.evaluation.report import render
     from windwarden.evaluation.usage import ResourceMonitor, execution_line, execution_record
+    from windwarden.kinds import kind_for
 
     try:
         load_plugins(tuple(args.plugin))
@@ -89,7 +90,7 @@ def cmd_eval(args: argparse.Namespace) -> int:
         raise BadInputError("\n".join(refused))
     try:
         with ResourceMonitor() as usage:
-            evaluation = evaluator_for(scenario)(scenario, args.runs, args.seed, options)
+            evaluation = kind_for(scenario.plant.kind).evaluate(scenario, args.runs, args.seed, options)
     except (UnknownAlgorithmError, AlgorithmOptionError) as error:
         raise BadInputError(str(error)) from None
     except ClusterError as error:

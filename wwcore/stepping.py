@@ -9,7 +9,7 @@ One tick k of a plant (sample time ``dt``):
 3. ``refs = supervisor.step(frame)`` – the supervisor digests y_k and returns its references for tick k+1;
 4. ``plant.advance()`` – the plant integrates from tick k to k+1.
 
-Batch mode runs these four calls in one loop; lockstep runs 1–2–4 in the plant process and 3 in the
+Batch mode runs these four calls in one loop (``run_ticks``); lockstep runs 1–2–4 in the plant process and 3 in the
 supervisor process, the plant waiting for refs_k before tick k+1; realtime is lockstep that does not wait past
 the tick's deadline. The same objects run in all three, so the same scenario and seed give the same results.
 
@@ -22,6 +22,7 @@ the made-up sample, no event). A supervisor without ``bridge`` holds everything 
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from typing import Any, Protocol
 
 import numpy as np
@@ -50,3 +51,38 @@ class Bridging(Protocol):
     """A supervisor that can advance through a tick whose frame was lost (optional, see the module docstring)."""
 
     def bridge(self, frame: Any) -> None: ...
+
+
+def run_ticks(
+    plant: Plant,
+    supervisor: Supervisor,
+    ticks: range,
+    refs: Any | None = None,
+    *,
+    before: Callable[[int, Any | None], None] | None = None,
+    controlled: Callable[[int, Any], None] | None = None,
+    stepped: Callable[[int, Any, Any | None], None] | None = None,
+    advanced: Callable[[int], None] | None = None,
+) -> Any | None:
+    """The batch loop: for every tick k of ``ticks``, measure → control → step → advance, starting from ``refs``.
+
+    The hooks are what differs between the loops that run it (scoring, traces, twins, progress), each called at its
+    point of tick k: ``before(k, refs)`` before ``measure`` (with the refs tick k will be controlled with);
+    ``controlled(k, frame)`` after ``control``; ``stepped(k, frame, refs)`` after ``step`` and before ``advance``
+    (the plant's truth still at tick k, ``refs`` the new ones); ``advanced(k)`` after ``advance``. Returns the
+    refs of the last tick.
+    """
+    for k in ticks:
+        if before is not None:
+            before(k, refs)
+        frame = plant.measure()
+        plant.control(refs)
+        if controlled is not None:
+            controlled(k, frame)
+        refs = supervisor.step(frame)
+        if stepped is not None:
+            stepped(k, frame, refs)
+        plant.advance()
+        if advanced is not None:
+            advanced(k)
+    return refs

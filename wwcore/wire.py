@@ -50,6 +50,7 @@ from wwcore.channels import N_SENSORS, SENSOR_NAMES, SENSORS
 from wwcore.farm_frames import FARM_REFS_LIMITS
 from wwcore.hydro_frames import HYDRO_REFS_LIMITS
 from wwcore.hydro_params import FAULT_TARGETS, U_NAMES, X_NAMES, Y_NAMES, Y_UNITS
+from wwcore.scenario.farm import FARM_FAULT_TYPES
 from wwcore.turbine_frames import TURBINE_REFS_LIMITS
 from wwcore.wire_check import DropCounter as DropCounter  # exported with the codec: every receiver counts its drops
 from wwcore.wire_check import RangeCheck, with_limits
@@ -314,7 +315,6 @@ METMAST = MessageSchema(
     ),
 )
 
-_FARM_TYPES = ("debris", "pitch_misalignment", "drivetrain")  # wwcore.scenario.farm.FARM_FAULT_TYPES
 
 FARM_SENSORS = MessageSchema(
     "farm.sensors",
@@ -347,11 +347,11 @@ FARM_REFS = MessageSchema(
         WireField("turbine", "<u2", "–", "turbine number, 1-based"),
         WireField("computed_tick", "<i8", "–", "tick of the 10 Hz farm sample the reference was computed from"),
         WireField("power_ref", "<f8", "W", "per-turbine power reference P_ref,t"),
-        WireField("flags", "?", "–", "fault flagged, per fault type", (3,), _FARM_TYPES),
+        WireField("flags", "?", "–", "fault flagged, per fault type", (3,), FARM_FAULT_TYPES),
         WireField(
-            "statistic", "<f8", "–", "test statistic per fault type (CUSUM g or 3P amplitude)", (3,), _FARM_TYPES
+            "statistic", "<f8", "–", "test statistic per fault type (CUSUM g or 3P amplitude)", (3,), FARM_FAULT_TYPES
         ),
-        WireField("threshold", "<f8", "–", "its alarm threshold (NaN: no test)", (3,), _FARM_TYPES),
+        WireField("threshold", "<f8", "–", "its alarm threshold (NaN: no test)", (3,), FARM_FAULT_TYPES),
         WireField(
             "mode",
             "i1",
@@ -426,7 +426,7 @@ if len({s.code for s in SCHEMAS.values()}) != len(SCHEMAS):  # pragma: no cover 
 JSON_SCHEMAS: dict[str, int] = {
     "events": 1,  # body: wwcore.events.Event.to_json()
     "plant.status": 1,  # body: run status (simulation time, speed, overruns, latency, liveliness)
-    "plant.run": 1,  # body: RunInfo, what the supervisor may know (no faults, no wind, no truth)
+    "plant.run": 2,  # body: RunInfo, what the supervisor may know (its SiteInfo: no faults, no wind, no truth)
     "plant.faults": 1,  # query body: {"op": "inject"|"clear"|"list", ...}; reply body: {"ok": …}
     "supervisor.status": 1,  # body: {"t", "tick", "turbines": [per-turbine status]}
 }

@@ -21,9 +21,10 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from wwcore.channels import SENSOR_INDEX, SENSORS, noise_std
+from wwcore.channels import SENSOR_INDEX, SENSORS
 from wwcore.farm_frames import FarmFrame
 from wwcore.scenario.farm import FARM_DT_S, FARM_FAULT_TYPES, N_TURBINES, FarmPlant
+from wwcore.site import SiteInfo
 from wwcore.turbine_params import BENCHMARK, TurbineParams
 
 OMEGA_R = np.array([SENSOR_INDEX["omega_r_m1"], SENSOR_INDEX["omega_r_m2"]])
@@ -103,15 +104,20 @@ class FarmContext:
     case for a detector that has estimated it.
     """
 
-    def __init__(self, plant: FarmPlant, n: int, params: TurbineParams = BENCHMARK):
+    def __init__(self, site: SiteInfo, n: int, params: TurbineParams = BENCHMARK):
+        if site.kind != "farm" or site.spacing_m is None or site.mast_distance_m is None:
+            raise ValueError(f"a farm supervisor needs a farm's site (grid spacing and mast), not a {site.kind}'s")
         self.params = params
         self.n = n
         self.farms = n // N_TURBINES
         self.dt = FARM_DT_S
-        self.noise_convention = plant.noise_convention
-        self.sensor_sigma = np.array([noise_std(c, plant.noise_convention) for c in SENSORS])
-        self._geometry = {case: plant.model_copy(update={"wind_case": case}) for case in (1, 2)}
-        self.mast_distance_m = plant.mast_distance_m
+        self.noise_convention = site.noise_convention
+        self.sensor_sigma = np.array([site.sensor_sigma[c.name] for c in SENSORS])
+        self._geometry = {
+            case: FarmPlant(spacing_m=site.spacing_m, mast_distance_m=site.mast_distance_m, wind_case=case)
+            for case in (1, 2)
+        }
+        self.mast_distance_m = site.mast_distance_m
 
     def rows(self, case: int) -> list[tuple[int, ...]]:
         return self._geometry[case].rows()

@@ -13,10 +13,12 @@ from dataclasses import replace
 import numpy as np
 
 from service.farm.interfaces import FarmContext, FarmDiagnosis, FarmSample
+from service.flag_events import flag_events, row_event
 from service.plugins import FARM_CONTROLLERS, FARM_DETECTORS, choose
 from wwcore.events import Event, EventType
 from wwcore.farm_frames import CANCEL_3P_MODE, DISPATCH_MODES, HOLD_TORQUE_MODE, FarmFrame, FarmRefs
-from wwcore.scenario.farm import FARM_FAULT_TYPES, N_TURBINES, FarmPlant
+from wwcore.scenario.farm import FARM_FAULT_TYPES, N_TURBINES
+from wwcore.site import SiteInfo
 from wwcore.turbine_params import BENCHMARK, TurbineParams
 
 DEFAULT_DETECTOR = FARM_DETECTORS.default
@@ -28,7 +30,7 @@ class FarmSupervisor:
 
     def __init__(
         self,
-        plant: FarmPlant,
+        site: SiteInfo,
         n: int,
         *,
         detector: str | None = None,
@@ -38,7 +40,7 @@ class FarmSupervisor:
         params: TurbineParams = BENCHMARK,
     ):
         self.choice = choose("farm", options, detector=detector, controller=controller)  # refuses bad options
-        self.context = FarmContext(plant, n, params)
+        self.context = FarmContext(site, n, params)
         names, chosen = self.choice.names, self.choice.options
         self.detector = FARM_DETECTORS.create(names["detector"], context=self.context, options=chosen["detector"])
         self.controller = FARM_CONTROLLERS.create(
@@ -102,26 +104,15 @@ class FarmSupervisor:
         return events
 
     def _record(self, t: float, diagnosis: FarmDiagnosis) -> None:
-        changed = diagnosis.faulty != self.flags
-        if changed.any():
-            for row, col in zip(*np.nonzero(changed), strict=True):
-                kind = EventType.DETECTION if diagnosis.faulty[row, col] else EventType.RECOVERY
-                self._events.append(self._event(t, kind, row, FARM_FAULT_TYPES[col]))
+        rows = self.turbine_of_row, self.farm_of_row
+        raised = flag_events(t, self.flags, diagnosis.faulty, FARM_FAULT_TYPES, *rows)
+        if raised:
+            self._events += raised
             self.flags = diagnosis.faulty.copy()
         mode = getattr(self.controller, "mode", None)
         if mode is not None:
             switched = mode != self.mode
             for row in np.flatnonzero(switched):
                 detail = {"from": DISPATCH_MODES[int(self.mode[row])], "to": DISPATCH_MODES[int(mode[row])]}
-                self._events.append(self._event(t, EventType.DISPATCH, row, None, detail))
+                self._events.append(row_event(t, EventType.DISPATCH, row, *rows, None, detail))
             self.mode = mode.copy()
-
-    def _event(self, t: float, kind: EventType, row: int, target: str | None, detail: dict | None = None) -> Event:
-        return Event(
-            t=t,
-            type=kind,
-            turbine=int(self.turbine_of_row[row]),
-            target=target,
-            run=int(self.farm_of_row[row]),
-            detail=detail or {},
-        )

@@ -15,9 +15,10 @@ from typing import Any
 
 import numpy as np
 
+from service.flag_events import flag_events
 from service.hydro.builtin import HydroContext
 from service.plugins import HYDRO_DETECTORS, HYDRO_OBSERVERS, choose
-from wwcore.events import Event, EventType
+from wwcore.events import Event
 from wwcore.hydro_frames import HydroFrame, HydroRefs
 from wwcore.hydro_params import FAULT_TARGETS, NOMINAL, HydroParams
 
@@ -49,6 +50,7 @@ class HydroSupervisor:
         self.choice = choose("hydro", options, estimator=observer, detector=detector)  # refuses bad options
         self.n = n
         self.run_ids = list(range(n)) if run_ids is None else list(run_ids)
+        self._turbine_of_row = [1] * n  # one turbine per run
         self.observer_name = self.choice.names["estimator"]
         self.detector_name = self.choice.names["detector"]
         settings = self.choice.options["estimator"]
@@ -95,14 +97,15 @@ class HydroSupervisor:
         return events
 
     def _record(self, t: float, flags: np.ndarray, f_filt: np.ndarray) -> None:
-        changed = flags != self.flags
-        if not changed.any():
-            return
         theta = self.thresholds
-        for i, j in zip(*np.nonzero(changed), strict=True):
-            kind = EventType.DETECTION if flags[i, j] else EventType.RECOVERY
-            detail: dict[str, Any] = {"f_hat_filt": float(f_filt[i, j])}
+
+        def detail(i: int, j: int) -> dict[str, Any]:
+            out: dict[str, Any] = {"f_hat_filt": float(f_filt[i, j])}
             if theta is not None:
-                detail["threshold"] = float(theta[j])
-            self._events.append(Event(t, kind, 1, FAULT_TARGETS[j], self.run_ids[i], detail))
-        self.flags = flags.copy()
+                out["threshold"] = float(theta[j])
+            return out
+
+        raised = flag_events(t, self.flags, flags, FAULT_TARGETS, self._turbine_of_row, self.run_ids, detail)
+        if raised:
+            self._events += raised
+            self.flags = flags.copy()

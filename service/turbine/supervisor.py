@@ -10,6 +10,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from service.flag_events import flag_events, row_event
 from service.plugins import TURBINE_DETECTORS, TURBINE_ESTIMATORS, choose
 from service.turbine.interfaces import Diagnosis, Estimates, TurbineContext
 from wwcore.channels import DIAGNOSIS_TARGETS
@@ -83,11 +84,10 @@ class TurbineSupervisor:
         return events
 
     def _record(self, t: float, diagnosis: Diagnosis, estimates: Estimates) -> None:
-        changed = diagnosis.faulty != self.flags
-        if changed.any():
-            for row, col in zip(*np.nonzero(changed), strict=True):
-                kind = EventType.DETECTION if diagnosis.faulty[row, col] else EventType.RECOVERY
-                self._events.append(self._event(t, kind, row, DIAGNOSIS_TARGETS[col]))
+        rows = self.turbine_of_row, self.run_of_row
+        raised = flag_events(t, self.flags, diagnosis.faulty, DIAGNOSIS_TARGETS, *rows)
+        if raised:
+            self._events += raised
             self.flags = diagnosis.faulty.copy()
         switched = estimates.selected != self.selected
         if switched.any():
@@ -98,15 +98,5 @@ class TurbineSupervisor:
                     "from": names[old] if old >= 0 and names else old,
                     "to": names[new] if new >= 0 and names else new,
                 }
-                self._events.append(self._event(t, EventType.OBSERVER_SWITCH, row, None, detail))
+                self._events.append(row_event(t, EventType.OBSERVER_SWITCH, row, *rows, None, detail))
             self.selected = estimates.selected.copy()
-
-    def _event(self, t: float, kind: EventType, row: int, target: str | None, detail: dict | None = None) -> Event:
-        return Event(
-            t=t,
-            type=kind,
-            turbine=int(self.turbine_of_row[row]),
-            target=target,
-            run=int(self.run_of_row[row]),
-            detail=detail or {},
-        )

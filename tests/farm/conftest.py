@@ -34,7 +34,7 @@ def simulate(
 ) -> tuple[FarmBatch, FarmSupervisor, list]:
     """Run plant + supervisor for ``seconds``; returns them and all supervisor events."""
     plant = FarmBatch(plant_spec, wind_spec, faults, seed=seed, duration_s=seconds, runs=runs, fault_free_twins=twins)
-    sup = FarmSupervisor(plant_spec, plant.n, detector=detector, controller=controller, options=options)
+    sup = FarmSupervisor(plant_spec.site(), plant.n, detector=detector, controller=controller, options=options)
     refs = None
     events = []
     for _ in range(round(seconds / plant.dt)):

@@ -41,7 +41,7 @@ def _sample(j: int = 1, demand_mw: float = 12.0) -> FarmSample:
 
 
 def _dispatch(avail_mw: float = 2.0, **options) -> Dispatch:
-    d = Dispatch(context=FarmContext(FarmPlant(), 9), options={"trim_kp": 0.0, "trim_ki": 0.0, **options})
+    d = Dispatch(context=FarmContext(FarmPlant().site(), 9), options={"trim_kp": 0.0, "trim_ki": 0.0, **options})
     d.estimate_available = lambda sample: np.full(9, avail_mw * MW)  # eqs. (20)–(22) stubbed
     return d
 
@@ -248,7 +248,7 @@ def _cancelling_farm(speed: float, compensation: bool = True) -> dict[str, np.nd
     spec = farm_spec(1)
     plant = FarmBatch(spec, wind(speed, ti=0.1), [fault], seed=5, duration_s=100.0)
     options = {"accommodation_rule": "cancel", "ripple_compensation": compensation}
-    sup = FarmSupervisor(spec, plant.n, options=options)
+    sup = FarmSupervisor(spec.site(), plant.n, options=options)
     refs, rec = None, []
     for k in range(round(100.0 / plant.dt)):
         frame = plant.measure()

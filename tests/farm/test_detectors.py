@@ -19,13 +19,13 @@ from wwcore.turbine_params import BENCHMARK as P
 
 
 def test_analytic_thresholds_follow_from_the_false_alarm_budget():
-    det = AnalyticDetector(context=FarmContext(FarmPlant(), 9), options={"false_alarms_per_1000s": 0.01})
+    det = AnalyticDetector(context=FarmContext(FarmPlant().site(), 9), options={"false_alarms_per_1000s": 0.01})
     # ARL0 = 10⁴ samples/1000 s × 9 turbines × m tests / budget; h = ln ARL0 (Lorden)
     assert det.h1 == pytest.approx(math.log(1e4 * 9 * 1 / 0.01))
     assert det.h2 == pytest.approx(math.log(1e4 * 9 * 6 / 0.01))
     p3 = 0.01 / (1e4 * 9)
     assert math.exp(-(det.h3**2) / (8.0 * det.s3**2)) == pytest.approx(p3, rel=1e-9)  # Rayleigh tail
-    looser = AnalyticDetector(context=FarmContext(FarmPlant(), 9), options={"false_alarms_per_1000s": 1.0})
+    looser = AnalyticDetector(context=FarmContext(FarmPlant().site(), 9), options={"false_alarms_per_1000s": 1.0})
     assert looser.h1 < det.h1 and looser.h3 < det.h3
 
 
@@ -96,7 +96,7 @@ def _sample(power_w: np.ndarray, j: int) -> FarmSample:
 
 @pytest.mark.parametrize(("gap_w", "case"), [(9e3, 1), (-9e3, 1), (11e3, 2), (2e5, 2)])
 def test_paper_wind_case_from_the_first_500_samples(gap_w, case):
-    det = PaperDetector(context=FarmContext(FarmPlant(), 9))
+    det = PaperDetector(context=FarmContext(FarmPlant().site(), 9))
     power = np.full(9, 2e6)
     power[0] += gap_w  # P_1 − P_4 = gap
     for j in range(CASE_SAMPLES):
@@ -112,7 +112,7 @@ def test_paper_rows_leave_turbines_1_and_9_alone_in_case_2():
 
 
 def test_paper_reports_one_fault_at_a_time():
-    det = PaperDetector(context=FarmContext(FarmPlant(), 18))
+    det = PaperDetector(context=FarmContext(FarmPlant().site(), 18))
     flags = np.zeros((18, 3), dtype=bool)
     flags[4, 2] = True  # farm 0: fault 3 on turbine 5
     assert det._one_at_a_time(flags)[4, 2]

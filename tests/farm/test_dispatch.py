@@ -39,7 +39,7 @@ def _dispatch(
 ) -> Dispatch:
     """Eqs. (18)–(26) on stubbed available powers; the farm-power trim off unless ``trim`` = (K_p, K_i) says."""
     options = {"accommodation_rule": rule, "pitch_rule": pitch_rule, "trim_kp": trim[0], "trim_ki": trim[1]}
-    d = Dispatch(context=FarmContext(FarmPlant(), 9), options=options)
+    d = Dispatch(context=FarmContext(FarmPlant().site(), 9), options=options)
     d.estimate_available = lambda sample: np.asarray(avail_mw, dtype=float) * MW  # eqs. (20)–(22) stubbed
     return d
 
@@ -228,12 +228,12 @@ def test_hold_torque_applies_to_the_drive_train_only():
 
 def test_an_unknown_accommodation_rule_is_refused():
     with pytest.raises(ValueError, match="accommodation_rule"):
-        Dispatch(context=FarmContext(FarmPlant(), 9), options={"accommodation_rule": "magic"})
+        Dispatch(context=FarmContext(FarmPlant().site(), 9), options={"accommodation_rule": "magic"})
 
 
 def test_eqs_20_22_recover_the_wind_and_the_available_power_at_a_steady_point():
     op = trim(P, 14.0, 3.0 * MW)  # derated to 3 MW at 14 m/s: pitched, at Ω_nom
-    d = Dispatch(context=FarmContext(FarmPlant(), 9))
+    d = Dispatch(context=FarmContext(FarmPlant().site(), 9))
     d.p_ref = np.full(9, 3.0 * MW)
     scada = np.zeros((9, N_SENSORS))
     scada[:, OMEGA_G] = op.omega_g
@@ -250,7 +250,7 @@ def test_eqs_20_22_recover_the_wind_and_the_available_power_at_a_steady_point():
 
 
 def test_pi_controller_by_hand():
-    pi = PIFarmController(context=FarmContext(FarmPlant(), 9))
+    pi = PIFarmController(context=FarmContext(FarmPlant().site(), 9))
     refs = pi.step(_sample(12.0, np.full(9, 10.0 / 9.0)), _faulty())
     e = (12.0 - 10.0) / 12.0
     u = 0.3 * e + 0.05 * e * 0.1

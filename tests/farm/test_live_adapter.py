@@ -1,12 +1,11 @@
-"""The farm's live adapter: frames and references survive the wire, the supervisor answers every tick, and the
+"""The farm's live kind: frames and references survive the wire, the supervisor answers every tick, and the
 Rerun blueprint has the farm view."""
 
 from __future__ import annotations
 
 import numpy as np
 
-from windwarden.live.adapters import adapter_for
-from windwarden.live.adapters.base import RunInfo
+from windwarden.kinds import RunInfo, kind_for
 from wwcore.farm_frames import CANCEL_3P_MODE, DISPATCH_MODES, HOLD_TORQUE_MODE, FarmRefs
 from wwcore.scenario import parse_scenario
 
@@ -19,60 +18,60 @@ SCENARIO = {
 
 
 def test_frames_and_refs_round_trip_and_the_supervisor_answers_every_tick():
-    adapter = adapter_for("farm")
+    kind = kind_for("farm")
     scenario = parse_scenario(SCENARIO)
-    plant = adapter.make_plant(scenario, seed=3)
-    turbines = adapter.turbines(plant)
+    plant = kind.make_plant(scenario, seed=3)
+    turbines = kind.turbines(plant)
     assert turbines == list(range(1, 10))
-    sup = adapter.make_supervisor(RunInfo.of(scenario, turbines, plant.dt))
+    sup = kind.make_supervisor(RunInfo.of(scenario, turbines, plant.dt))
     answered = []
     refs = None
     for _ in range(25):
         frame = plant.measure()
-        wire_frame = adapter.sensors.decode(adapter.sensors.encode(adapter.frame_records(frame, turbines)[0]))
+        wire_frame = kind.sensors.decode(kind.sensors.encode(kind.frame_records(frame, turbines)[0]))
         assert wire_frame["turbine"] == 1
-        back = adapter.frame_from_records(adapter.frame_records(frame, turbines))
+        back = kind.frame_from_records(kind.frame_records(frame, turbines))
         assert back.sample == frame.sample and np.array_equal(back.scada, frame.scada)
         assert np.array_equal(back.mast, frame.mast) and np.array_equal(back.turbines.sensors, frame.turbines.sensors)
         plant.control(refs)
         out = sup.step(back)
-        records = adapter.refs_records(out, sup, turbines)
+        records = kind.refs_records(out, sup, turbines)
         answered.append(int(records["tick"][0]) == frame.k)
-        refs = adapter.refs_from_records(records)
+        refs = kind.refs_from_records(records)
         plant.advance()
     assert all(answered)
     assert refs is not None and refs.source_tick == 19  # computed on the farm sample closing at tick 19
-    truth = adapter.truth_records(plant, frame, turbines)
+    truth = kind.truth_records(plant, frame, turbines)
     assert truth["farm_power"][0] == truth["power"].sum()
-    status = adapter.status(sup, records, turbines)
+    status = kind.status(sup, records, turbines)
     assert {"flagged", "dispatch_mode", "margins", "power_ref_w"} <= set(status[0])
 
 
 def test_the_hold_torque_request_and_its_torque_cap_survive_the_wire():
-    adapter = adapter_for("farm")
+    kind = kind_for("farm")
     scenario = parse_scenario(SCENARIO)
-    plant = adapter.make_plant(scenario, seed=3)
-    turbines = adapter.turbines(plant)
-    sup = adapter.make_supervisor(RunInfo.of(scenario, turbines, plant.dt))
+    plant = kind.make_plant(scenario, seed=3)
+    turbines = kind.turbines(plant)
+    sup = kind.make_supervisor(RunInfo.of(scenario, turbines, plant.dt))
     sup.mode = np.array([0, 3, 2, 1, 0, 0, 0, 0, 0], dtype=np.int8)  # as the dispatch leaves it
     hold = sup.mode == HOLD_TORQUE_MODE
     cap = np.where(hold, 21.5e3, np.nan)
     refs = FarmRefs(tick=9, power_ref=np.full(9, 1e6), hold_torque=hold, held_torque=cap)
-    back = adapter.refs_from_records(adapter.refs_records(refs, sup, turbines))
+    back = kind.refs_from_records(kind.refs_records(refs, sup, turbines))
     assert np.array_equal(back.hold_torque, hold) and np.array_equal(back.power_ref, refs.power_ref)
     assert np.array_equal(back.held_torque, cap, equal_nan=True)
-    plain = adapter.refs_from_records(adapter.refs_records(FarmRefs(tick=9, power_ref=np.full(9, 1e6)), sup, turbines))
+    plain = kind.refs_from_records(kind.refs_records(FarmRefs(tick=9, power_ref=np.full(9, 1e6)), sup, turbines))
     assert np.isnan(plain.held_torque).all()  # no cap sent: NaN, which the turbine reads as its own torque
 
 
 def test_the_accommodation_requests_survive_the_wire_and_every_mode_has_a_status_name():
     """Mode 5 (3P cancelled without the hold), the per-blade pitch trim and the power phasor of the ripple
     compensation come back as sent; the status names every dispatch mode (``DISPATCH_MODES``)."""
-    adapter = adapter_for("farm")
+    kind = kind_for("farm")
     scenario = parse_scenario(SCENARIO)
-    plant = adapter.make_plant(scenario, seed=3)
-    turbines = adapter.turbines(plant)
-    sup = adapter.make_supervisor(RunInfo.of(scenario, turbines, plant.dt))
+    plant = kind.make_plant(scenario, seed=3)
+    turbines = kind.turbines(plant)
+    sup = kind.make_supervisor(RunInfo.of(scenario, turbines, plant.dt))
     sup.mode = np.array([0, 1, 2, 3, 4, 5, 0, 0, 0], dtype=np.int8)
     trim = np.zeros((9, 3))
     trim[4] = [0.1, -0.2, 0.1]
@@ -87,11 +86,11 @@ def test_the_accommodation_requests_survive_the_wire_and_every_mode_has_a_status
         ripple_power=phasor,
         ripple_rate=rate,
     )
-    back = adapter.refs_from_records(adapter.refs_records(refs, sup, turbines))
+    back = kind.refs_from_records(kind.refs_records(refs, sup, turbines))
     assert np.array_equal(back.cancel_3p, refs.cancel_3p) and np.array_equal(back.hold_torque, refs.hold_torque)
     assert np.array_equal(back.pitch_trim, trim)
     assert np.array_equal(back.ripple_power, phasor) and np.array_equal(back.ripple_rate, rate)
-    status = adapter.status(sup, None, turbines)
+    status = kind.status(sup, None, turbines)
     assert [s["dispatch_mode"] for s in status[:6]] == list(DISPATCH_MODES)
 
 
@@ -106,8 +105,8 @@ def test_farm_blueprint_has_the_overview_tab():
 def test_the_live_plant_is_run_0_of_the_batch():
     from plant_sim.farm import FarmBatch
 
-    adapter = adapter_for("farm")
+    kind = kind_for("farm")
     scenario = parse_scenario(SCENARIO)
-    live = adapter.make_plant(scenario, seed=3)
+    live = kind.make_plant(scenario, seed=3)
     batch = FarmBatch(scenario.plant, scenario.wind, [], seed=3, duration_s=3.0, runs=[0, 1], fault_free_twins=True)
     assert np.array_equal(live.measure().turbines.sensors, batch.measure().turbines.sensors[:9])

@@ -5,7 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from windwarden.evaluation.hydro import reconstruction_metrics, simulate
+from windwarden.evaluation.hydro import simulate
+from windwarden.evaluation.hydro_scoring import reconstruction_metrics
 from wwcore.scenario import parse_scenario
 
 DATA = {

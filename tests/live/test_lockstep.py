@@ -1,7 +1,7 @@
 """Lockstep over Zenoh equals batch mode, for one scenario and seed: same event log, same scorecard.
 
 The lockstep run crosses a real Zenoh router on loopback (plant and supervisor in their own sessions). The batch
-reference is the adapters' one-process loop (``windwarden.live.batch``): the step contract with the constructors
+reference is the kind objects' one-process loop (``windwarden.live.batch``): the step contract with the constructors
 ``windwarden eval`` uses. For the hydrostatic kind the reconstruction figures also equal ``windwarden eval``'s
 compensated twin exactly. For the turbine kind ``windwarden eval --no-twins`` (a live run has no fault-free
 twin either; the twins add their own figures and change none of the runs') gives the same detection figures and
@@ -15,7 +15,8 @@ import json
 import pytest
 
 from tests.live.helpers import FARM_SHORT, HYDRO_SHORT, TURBINE_SHORT, LiveNodes, router, scenario
-from windwarden.evaluation.kinds import EvalOptions, evaluator_for
+from windwarden.evaluation.kinds import EvalOptions
+from windwarden.kinds import kind_for
 from windwarden.live.batch import run_batch
 from windwarden.live.finalize import finalize_scorecard
 from windwarden.live.runfolder import EVENTS, read_events
@@ -62,13 +63,15 @@ def test_lockstep_equals_batch(tmp_path, text, seed):
 
 def test_hydro_lockstep_reconstruction_equals_windwarden_eval(tmp_path):
     scn, _, card = _lockstep(tmp_path, HYDRO_SHORT, 1)
-    evaluation = evaluator_for(scn)(scn, 1, 1, EvalOptions(workers=1, progress=False))
+    evaluation = kind_for(scn.plant.kind).evaluate(scn, 1, 1, EvalOptions(workers=1, progress=False))
     assert card["metrics"]["reconstruction"] == evaluation.scorecard["metrics"]["reconstruction"]
 
 
 def test_turbine_lockstep_matches_windwarden_eval(tmp_path):
     scn, _, card = _lockstep(tmp_path, TURBINE_SHORT, 3)
-    evaluation = evaluator_for(scn)(scn, 1, 3, EvalOptions(workers=1, progress=False, twins=False)).scorecard
+    evaluation = (
+        kind_for(scn.plant.kind).evaluate(scn, 1, 3, EvalOptions(workers=1, progress=False, twins=False)).scorecard
+    )
     assert card["faults"] == evaluation["faults"]
     assert card["false_alarms"] == evaluation["false_alarms"]
     assert card["false_alarms_per_1000s"] == evaluation["false_alarms_per_1000s"]

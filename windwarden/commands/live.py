@@ -139,10 +139,10 @@ def cmd_plant(args: argparse.Namespace) -> int:
 
 
 def check_kind(kind: str) -> None:
-    from windwarden.live.adapters import ADAPTERS
+    from windwarden.kinds import KINDS
 
-    if kind not in ADAPTERS:
-        raise BadInputError(f"the live system does not run {kind!r} plants yet (it runs: {', '.join(ADAPTERS)})")
+    if kind not in KINDS:
+        raise BadInputError(f"the live system does not run {kind!r} plants yet (it runs: {', '.join(KINDS)})")
 
 
 # -- supervise -----------------------------------------------------------------------------------------------------

@@ -34,8 +34,9 @@ from windwarden.evaluation.fault_types import (
     held_wind,
     place_windows,
 )
-from windwarden.evaluation.kinds import EvalOptions, evaluator_for
+from windwarden.evaluation.kinds import EvalOptions
 from windwarden.evaluation.scoring_policy import policy_for
+from windwarden.kinds import kind_for
 from wwcore.scenario import Scenario, load_scenario, parse_scenario
 from wwcore.scenario.model import FAULT_CHECKS
 
@@ -234,7 +235,7 @@ def sweep(
     false_alarms = {"count": 0, "observed_s": 0.0}
     for index in range(layouts):
         layout, eval_seed = make_layout(fault_type, sizes, base, seed, index)
-        card = evaluator_for(layout.scenario)(layout.scenario, per_layout, eval_seed, options).scorecard
+        card = kind_for(layout.scenario.plant.kind).evaluate(layout.scenario, per_layout, eval_seed, options).scorecard
         entries = {e["name"]: e for e in card["faults"]}
         false_alarms["count"] += card["false_alarms"]["count"]
         false_alarms["observed_s"] += card["false_alarms"]["observed_s"]

@@ -32,35 +32,29 @@ from plant_sim.farm.rainflow_stream import StreamingDamage
 from service.farm.interfaces import N_TYPES
 from service.farm.supervisor import FarmSupervisor
 from windwarden.evaluation import farm_damage
+from windwarden.evaluation.farm_scoring import (
+    MWH_PER_J,
+    WARMUP_S,
+    PowerBalance,
+    detection,
+    energy_metrics,
+    farm_windows,
+    scorecard,
+    scorecard_target,
+)
 from windwarden.evaluation.kinds import EvalOptions
 from windwarden.evaluation.paired import runs_digest
 from windwarden.evaluation.parallel import run_chunks
-from windwarden.evaluation.scoring import FaultWindow, score_detection, twin_false_alarms
+from windwarden.evaluation.scoring import FaultWindow, twin_false_alarms
 from windwarden.evaluation.scoring_policy import FARM as SCORING
 from wwcore.events import Event, EventType
 from wwcore.scenario import Scenario
-from wwcore.scenario.farm import FARM_DT_S, FARM_FAULT_TYPES, N_TURBINES, farm_fault_name
+from wwcore.scenario.farm import FARM_DT_S, N_TURBINES
+from wwcore.stepping import run_ticks
 
-WARMUP_S = SCORING.warmup_s  # s, not scored (scoring_policy says why)
-GRACE_S = SCORING.grace_s  # s after a fault ends during which its flags may still be up (scoring_policy)
 DAMAGE_BIN_S = 10.0  # s, time resolution of the damage sums (Fig. 4)
 MAX_CHUNK = 50  # runs per process at most: 100 runs are two chunks of 50 (900 turbine rows and their twins)
 PROGRESS_EVERY = 1000  # ticks between progress reports
-TURBINES = tuple(range(1, N_TURBINES + 1))
-
-
-# ---- fault windows ------------------------------------------------------------------------------------------
-def farm_windows(scenario: Scenario) -> list[FaultWindow]:
-    """One window per fault, its target the flagged name (debris, pitch_misalignment, drivetrain, or a sensor)."""
-    out = []
-    for f in sorted(scenario.faults, key=lambda f: (f.start_s, f.turbine)):
-        end = scenario.duration_s if f.end_s is None else min(f.end_s, scenario.duration_s)
-        out.append(FaultWindow(f.label, (farm_fault_name(f),), f.turbine, f.start_s, end))
-    return out
-
-
-def scorecard_target(w: FaultWindow) -> str:
-    return f"wt{w.turbine}:{w.target}"
 
 
 # ---- one chunk of runs ------------------------------------------------------------------------------------------
@@ -99,7 +93,7 @@ def simulate_chunk(
         mismatch=scenario.mismatch,
     )
     sup = FarmSupervisor(
-        scenario.plant,
+        scenario.plant.site(plant.dt),
         plant.n,
         detector=detector,
         controller=controller,
@@ -109,7 +103,6 @@ def simulate_chunk(
     dt, farms, n = plant.dt, plant.farms, plant.n
     n_steps = round(scenario.duration_s / dt)
     per_sample = plant.ticks_per_sample
-    warm_sample = round(WARMUP_S / FARM_DT_S)
     windows = farm_windows(scenario)
     bins = np.arange(0, n_steps + 1, round(DAMAGE_BIN_S / dt))
     if bins[-1] != n_steps:
@@ -117,10 +110,7 @@ def simulate_chunk(
     # Damage numbers are ratios to the fault-free twin, so without twins nothing would read the shaft torque's
     # reversals (under cProfile they took ≈ 13 % of a detection-only run).
     damage_counter = StreamingDamage(n, bins) if twins else None
-    power_sum = np.zeros(n)
-    over = np.zeros(farms)
-    missing = np.zeros(farms)
-    demand_e = np.zeros(farms)
+    balance = PowerBalance(n, per_sample)
     imb_sum = np.zeros((n, len(windows)), dtype=complex)
     imb_count = np.zeros(len(windows))
     trace_on = 0 in run_ids
@@ -129,44 +119,37 @@ def simulate_chunk(
     trace_rows = np.concatenate([np.arange(f * N_TURBINES, (f + 1) * N_TURBINES) for f in trace_farms])
     trace: dict[str, list] = {k: [] for k in ("t", "power", "demand", "power_t", "ref_t", "stat", "thr", "flags")}
     events: list[Event] = []
-    refs = None
-    for k in range(n_steps):
-        frame = plant.measure()
-        plant.control(refs)
-        refs = sup.step(frame)
-        power_sum += plant.power_output()
+
+    def record(k: int, frame, refs) -> None:
+        p_farm = balance.tick(k, plant.power_output(), frame.sample, frame.demand)
         if damage_counter is not None:
             damage_counter.step(k, plant.shaft_torque())
-        if frame.sample:
-            j = (k + 1) // per_sample
-            p_farm = (power_sum * (1.0 / per_sample)).reshape(farms, N_TURBINES).sum(axis=1)
-            power_sum[:] = 0.0
-            if j > warm_sample:
-                gap = p_farm - frame.demand
-                over += np.maximum(gap, 0.0) * FARM_DT_S
-                missing += np.maximum(-gap, 0.0) * FARM_DT_S
-                demand_e += frame.demand * FARM_DT_S
-            t = j * FARM_DT_S
-            if twins:  # the imbalance, like the damage, is read against the twin only
-                inside = [i for i, w in enumerate(windows) if w.start_s <= t < w.end_s]
-                if inside:
-                    imb_sum[:, inside] += imbalance_phasor(plant.blade_torque)[:, None]
-                    imb_count[inside] += 1
-            if trace_on:
-                diag = sup.diagnosis
-                rows = trace_rows
-                trace["t"].append(t)
-                trace["power"].append(p_farm[trace_farms])
-                trace["demand"].append(frame.demand[trace_farms])
-                trace["power_t"].append(frame.scada[rows, -1])
-                trace["ref_t"].append(refs.power_ref[rows] if refs is not None else np.full(len(rows), np.nan))
-                trace["stat"].append(diag.statistics[rows] if diag is not None else np.zeros((len(rows), N_TYPES)))
-                trace["thr"].append(diag.thresholds[rows] if diag is not None else np.zeros((len(rows), N_TYPES)))
-                trace["flags"].append(diag.faulty[rows] if diag is not None else np.zeros((len(rows), N_TYPES)))
-        plant.advance()
+        if p_farm is None:
+            return
+        t = (k + 1) // per_sample * FARM_DT_S
+        if twins:  # the imbalance, like the damage, is read against the twin only
+            inside = [i for i, w in enumerate(windows) if w.start_s <= t < w.end_s]
+            if inside:
+                imb_sum[:, inside] += imbalance_phasor(plant.blade_torque)[:, None]
+                imb_count[inside] += 1
+        if trace_on:
+            diag = sup.diagnosis
+            rows = trace_rows
+            trace["t"].append(t)
+            trace["power"].append(p_farm[trace_farms])
+            trace["demand"].append(frame.demand[trace_farms])
+            trace["power_t"].append(frame.scada[rows, -1])
+            trace["ref_t"].append(refs.power_ref[rows] if refs is not None else np.full(len(rows), np.nan))
+            trace["stat"].append(diag.statistics[rows] if diag is not None else np.zeros((len(rows), N_TYPES)))
+            trace["thr"].append(diag.thresholds[rows] if diag is not None else np.zeros((len(rows), N_TYPES)))
+            trace["flags"].append(diag.faulty[rows] if diag is not None else np.zeros((len(rows), N_TYPES)))
+
+    def report(k: int) -> None:
         if (k + 1) % PROGRESS_EVERY == 0:
-            events += plant.drain_events() + sup.drain_events()
+            events.extend(plant.drain_events() + sup.drain_events())
             progress(PROGRESS_EVERY * dt)
+
+    run_ticks(plant, sup, range(n_steps), stepped=record, advanced=report)
     events += plant.drain_events() + sup.drain_events()
     progress((n_steps % PROGRESS_EVERY) * dt)
     if damage_counter is not None:
@@ -179,9 +162,9 @@ def simulate_chunk(
     return ChunkResult(
         runs=list(run_ids),
         events=[_relabel(e, plant.run_of_farm, plant.twin_of_farm, run_ids) for e in events],
-        over_j=over,
-        missing_j=missing,
-        demand_j=demand_e,
+        over_j=balance.over,
+        missing_j=balance.missing,
+        demand_j=balance.demand,
         damage=damage,
         imbalance=imbalance,
         twins=twins,
@@ -275,19 +258,6 @@ def run_variant(
     )
 
 
-def score_farm(events: list[Event], windows: list[FaultWindow], runs: int, duration_s: float):
-    """The detection figures of farm runs (``scoring.score_detection``, every turbine in the time base)."""
-    return score_detection(events, windows, runs=runs, duration_s=duration_s, policy=SCORING, turbines=TURBINES)
-
-
-def detection_by_type(events: list[Event], windows: list[FaultWindow], runs: int, duration_s: float) -> dict:
-    """Table 5 per fault type: detected % and mean/max delay with the right type and turbine, isolated % (first
-    flag), false positives of that type (``DetectionScore.by_target``) per 1000 farm-s and turbine-s."""
-    score = score_farm(events, windows, runs, duration_s)
-    farm_seconds = runs * max(duration_s - WARMUP_S, 0.0)
-    return {name: score.by_target(name, farm_seconds) for name in FARM_FAULT_TYPES}
-
-
 def damage_metrics(v: Variant, windows: list[FaultWindow]) -> tuple[dict[str, Any], dict[str, list[float]]]:
     """Table 7's damage figures of a variant, the faulty turbine's and the farm's (``farm_damage``): the means
     and each run's values."""
@@ -303,22 +273,6 @@ def damage_metrics(v: Variant, windows: list[FaultWindow]) -> tuple[dict[str, An
     )
 
 
-MWH_PER_J = 1.0 / 3.6e9
-
-
-def power_metrics(v: Variant) -> dict[str, Any]:
-    """∫ pos(P_farm − P_ref,farm) dt and ∫ pos(P_ref,farm − P_farm) dt after the warm-up, MWh per run."""
-    demand = float(np.sum(v.demand_j))
-
-    def energy(joules: np.ndarray) -> dict[str, Any]:
-        return {
-            "mwh_per_run": float(np.mean(joules) * MWH_PER_J),
-            "fraction_of_demand": float(np.sum(joules) / demand) if demand > 0 else None,
-        }
-
-    return {"over_production": energy(v.over_j), "missing_power": energy(v.missing_j)}
-
-
 def power_per_run(v: Variant) -> dict[str, list[float]]:
     """Each run's over-production and missing power, MWh, in run order (the scorecard's ``per_run``)."""
     return {
@@ -330,28 +284,22 @@ def power_per_run(v: Variant) -> dict[str, list[float]]:
 def scorecard_of(v: Variant) -> dict[str, Any]:
     scenario = v.scenario
     windows = farm_windows(scenario)
-    detection = score_farm(v.events, windows, v.runs, scenario.duration_s)
-    farm_seconds = v.runs * max(scenario.duration_s - WARMUP_S, 0.0)
-    for entry, w in zip(detection.faults, windows, strict=True):
-        entry["target"] = scorecard_target(w)
-    metrics: dict[str, Any] = power_metrics(v)
+    score, by_type = detection(v.events, windows, v.runs, scenario.duration_s)
+    metrics: dict[str, Any] = energy_metrics(v.over_j, v.missing_j, v.demand_j)
     metrics["damage"], damage_by_run = damage_metrics(v, windows)
-    metrics["detection"] = {name: detection.by_target(name, farm_seconds) for name in FARM_FAULT_TYPES}
-    card = {
-        "scenario": scenario.name,
-        "runs": v.runs,
-        "seed": v.seed,
-        "duration_s": scenario.duration_s,
-        "wind_case": scenario.plant.wind_case,
-        "detector": v.detector,
-        "controller": v.controller,
-        "accommodation": v.accommodation,
-        "options": dict(scenario.supervisor.params),
-        "runs_digest": runs_digest(scenario),
-        **detection.card_fields(),
-        "metrics": metrics,
-        "per_run": power_per_run(v) | damage_by_run,  # run order; ``windwarden compare`` pairs two scorecards
-    }
+    metrics["detection"] = by_type
+    card = scorecard(
+        scenario,
+        runs=v.runs,
+        seed=v.seed,
+        detector=v.detector,
+        controller=v.controller,
+        accommodation=v.accommodation,
+        score=score,
+        metrics=metrics,
+        provenance={"options": dict(scenario.supervisor.params), "runs_digest": runs_digest(scenario)},
+    )
+    card["per_run"] = power_per_run(v) | damage_by_run  # run order; ``windwarden compare`` pairs two scorecards
     if v.twin_events:
         observed = v.runs * (scenario.duration_s - WARMUP_S) * N_TURBINES
         whole_run = [(0.0, scenario.duration_s)]

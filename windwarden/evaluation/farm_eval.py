@@ -1,6 +1,6 @@
-"""The farm's evaluator (``kinds.EVALUATORS``): the runs of ``farm`` and their scorecard; with ``--compare`` also the
-companion runs Tables 5–7 need (the paper's detector; the fault-free farm with the dispatch and with the PI; no
-accommodation) and ``farm_tables.md`` (``farm_tables``); the plots of ``farm_plots``."""
+"""The farm's evaluator (``windwarden.kinds.farm``): the runs of ``farm`` and their scorecard; with ``--compare``
+also the companion runs Tables 5–7 need (the paper's detector; the fault-free farm with the dispatch and with the
+PI; no accommodation) and ``farm_tables.md`` (``farm_tables``); the plots of ``farm_plots``."""
 
 from __future__ import annotations
 
@@ -20,7 +20,7 @@ def evaluate(scenario: Scenario, runs: int, seed: int, options: EvalOptions) -> 
     FARM_DETECTORS.factory(detector)  # unknown names are refused before anything runs
     FARM_CONTROLLERS.factory(controller)
     params = dict(scenario.supervisor.params)  # and so are options they refuse (AlgorithmOptionError)
-    FarmSupervisor(scenario.plant, N_TURBINES, detector=detector, controller=controller, options=params)
+    FarmSupervisor(scenario.plant.site(), N_TURBINES, detector=detector, controller=controller, options=params)
     twins = bool(scenario.faults) and options.twins  # --no-twins: detection only, no damage numbers
     main = run_variant(
         scenario,

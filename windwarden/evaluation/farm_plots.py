@@ -21,7 +21,8 @@ import matplotlib.pyplot as plt
 import numpy as np
 
 from plant_sim.farm.damage import WOHLER_M
-from windwarden.evaluation.farm import DAMAGE_BIN_S, WARMUP_S, Variant
+from windwarden.evaluation.farm import DAMAGE_BIN_S, Variant
+from windwarden.evaluation.farm_scoring import WARMUP_S
 from wwcore.scenario import Scenario
 from wwcore.scenario.farm import FARM_FAULT_TYPES, N_TURBINES, farm_fault_name
 

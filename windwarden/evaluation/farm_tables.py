@@ -21,15 +21,8 @@ from typing import Any
 import numpy as np
 
 from service.farm.dispatch import ACCOMMODATION_RULES
-from windwarden.evaluation.farm import (
-    WARMUP_S,
-    Variant,
-    detection_by_type,
-    farm_windows,
-    power_metrics,
-    run_variant,
-    scorecard_of,
-)
+from windwarden.evaluation.farm import Variant, run_variant, scorecard_of
+from windwarden.evaluation.farm_scoring import WARMUP_S, detection_by_type, energy_metrics, farm_windows
 from windwarden.evaluation.kinds import EvalOptions
 from windwarden.evaluation.paired import paired_row
 from wwcore.scenario import Scenario
@@ -154,8 +147,8 @@ def tables_markdown(scenario: Scenario, main: Variant, comp: dict) -> str:
             f"| {_fmt(a['delay_s'])} s | {_fmt(a['missed_pct'])} % | {_fmt(a['fp_per_1000s'])} "
             f"| {_fmt(b['delay_s'])} s | {_fmt(b['missed_pct'])} % | {_fmt(b['fp_per_1000s'])} |"
         )
-    dispatch = power_metrics(comp.get("fault_free", main) if scenario.faults else main)
-    pi = power_metrics(comp["fault_free_pi"])
+    dispatch = _energy(comp.get("fault_free", main) if scenario.faults else main)
+    pi = _energy(comp["fault_free_pi"])
     over_d, miss_d = dispatch["over_production"]["mwh_per_run"], dispatch["missing_power"]["mwh_per_run"]
     over_p, miss_p = pi["over_production"]["mwh_per_run"], pi["missing_power"]["mwh_per_run"]
     po, pmiss = PAPER_TABLE6[case]
@@ -289,3 +282,7 @@ def table7_lines(scenario: Scenario, main: Variant, comp: dict) -> list[str]:
                 f"| {r.lower} of {r.n} |"
             )
     return lines
+
+
+def _energy(v: Variant) -> dict[str, Any]:
+    return energy_metrics(v.over_j, v.missing_j, v.demand_j)

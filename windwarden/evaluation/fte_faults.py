@@ -37,6 +37,7 @@ from wwcore.events import Event, EventType
 from wwcore.scenario.faults import FaultKind, FaultSpec
 from wwcore.scenario.turbine import TurbinePlant
 from wwcore.scenario.wind import WindSpec
+from wwcore.stepping import run_ticks
 from wwcore.turbine_params import BENCHMARK
 
 SHORT = {"omega_r_m1": "r1", "omega_r_m2": "r2", "omega_g_m1": "g1", "omega_g_m2": "g2"}
@@ -225,21 +226,22 @@ def simulate_wind(
     n_steps = int(end_k.max()) + round((GRACE_S + 1.0) / dt)
     sq = np.zeros(n)
     count = np.zeros(n)
-    refs = None
     events: list[Event] = []
     every = 1000
-    for k in range(n_steps):
-        frame = plant.measure()
-        plant.control(refs)
-        refs = supervisor.step(frame)
+
+    def record(k: int, frame, refs) -> None:
+        nonlocal sq, count
         inside = (k >= start_k) & (k < end_k)
         err = supervisor.estimates.wind - plant.true_rotor_wind()
         sq += np.where(inside, err * err, 0.0)
         count += inside
-        plant.advance()
+
+    def report(k: int) -> None:
         if (k + 1) % every == 0:
-            events += supervisor.drain_events()
+            events.extend(supervisor.drain_events())
             progress(every * dt)
+
+    run_ticks(plant, supervisor, range(n_steps), stepped=record, advanced=report)
     events += supervisor.drain_events()
     progress((n_steps % every) * dt)
     by_row: dict[int, list[Event]] = {}

@@ -11,8 +11,8 @@ All three run one ``HydroSupervisor``, the one the live system runs, with the sc
 thresholds are the design values of ``service.hydro.detector`` (fixed before any run, from the sensors'
 accuracy and the design false-alarm rate, no data). The detection figures score the supervisor's own
 DETECTION / RECOVERY events of the main twin (compensated, or uncompensated with ``--no-compensation``); the
-fault-free twin's events give a second false-alarm count. Scoring goes through ``_score`` alone
-(``scoring.score_detection`` with the hydrostatic ``ScoringPolicy``).
+fault-free twin's events give a second false-alarm count. Scoring goes through ``hydro_scoring`` alone
+(``scoring.score_detection`` with the hydrostatic ``ScoringPolicy``), as the live run folder's does.
 """
 
 from __future__ import annotations
@@ -27,21 +27,18 @@ import numpy as np
 from plant_sim.hydro import HydroTurbineBatch
 from service.hydro.detector import DetectionSettings
 from service.hydro.supervisor import HydroSupervisor
+from windwarden.evaluation.hydro_scoring import WARMUP_S, detection, reconstruction_metrics, scorecard
 from windwarden.evaluation.kinds import EvalOptions, Evaluation
 from windwarden.evaluation.parallel import run_chunks
-from windwarden.evaluation.scoring import DetectionScore, score_detection, windows_from_faults
-from windwarden.evaluation.scoring_policy import HYDRO as SCORING
 from wwcore.events import Event
 from wwcore.hydro_params import FAULT_TARGETS, NOMINAL
 from wwcore.scenario import Scenario
+from wwcore.stepping import run_ticks
 
 VARIANTS = ("compensated", "uncompensated", "fault_free")
 TRACES = ("f_filt", "f_hat", "f_true", "omega_r", "omega_g", "P_g", "x_p", "x_M", "u_p", "u_M", "dp", "dp_hat")
-SETTLE_BAND = 0.05  # settled when |f̂_filt − f| ≤ 5 % of |f|
-ERROR_SKIP_S = 1.0  # reconstruction error measured from 1 s after a fault starts
 OVERSPEED_MARGIN = 0.05  # rotor overspeed: ω_r above its fault-free twin by 5 % of the rated rotor speed
 CHUNK = 10  # runs per process: 20 runs use both cores
-WARMUP_S = SCORING.warmup_s  # s, left out of the fault-free statistics as of every detection figure
 
 
 def _seeds(seed: int, stream: int, run_ids: list[int]) -> list[np.random.SeedSequence]:
@@ -79,12 +76,9 @@ def simulate(
     shapes = {"f_filt": 2, "f_hat": 2, "f_true": 2}
     rec = {name: np.zeros((ticks, 3 * n, shapes.get(name, 1)), dtype=np.float32) for name in TRACES}
     events: list[Event] = []
-    refs = None
     report_every = 100
-    for k in range(ticks):
-        frame = plant.measure()
-        plant.control(refs)
-        refs = sup.step(frame)
+
+    def record(k: int, frame, refs) -> None:
         truth = plant.truth()
         x = truth["x"]
         rec["f_filt"][k] = refs.correction
@@ -99,11 +93,14 @@ def simulate(
         rec["u_M"][k, :, 0] = plant.u_sent[:, 1]
         rec["dp"][k, :, 0] = x[:, 2]
         rec["dp_hat"][k, :, 0] = refs.x_hat[:, 2]
-        plant.advance()
+
+    def report(k: int) -> None:
         plant.drain_events()  # fault windows come from the scenario
         events.extend(sup.drain_events())
         if hook is not None and (k + 1) % report_every == 0:
             hook(report_every * plant.dt)
+
+    run_ticks(plant, sup, range(ticks), stepped=record, advanced=report)
     flat = {key: v[..., 0] if v.shape[-1] == 1 else v for key, v in rec.items()}
     out: dict[str, Any] = {
         variant: {key: v[:, i * n : (i + 1) * n] for key, v in flat.items()} for i, variant in enumerate(VARIANTS)
@@ -139,42 +136,6 @@ def _merge(parts: list[dict[str, Any]]) -> dict[str, Any]:
         for variant in VARIANTS
     }
     return merged
-
-
-def _score(scenario: Scenario, events: list[Event], runs: int, faulty: bool) -> DetectionScore:
-    """The scoring policy's figures for one twin's events (the fault-free twin: no fault windows)."""
-    windows = windows_from_faults(scenario.faults, scenario.duration_s) if faulty else []
-    return score_detection(events, windows, runs=runs, duration_s=scenario.duration_s, policy=SCORING)
-
-
-def reconstruction_metrics(traces: dict[str, np.ndarray], scenario: Scenario, dt: float) -> list[dict[str, Any]]:
-    """Per fault: mean |f̂_filt − f|/|f| over [start + 1 s, end) and the time to stay within 5 % of |f|."""
-    out = []
-    for fault in scenario.faults:
-        j = FAULT_TARGETS.index(fault.target)
-        end = scenario.duration_s if fault.end_s is None else min(fault.end_s, scenario.duration_s)
-        k0, k1 = round(fault.start_s / dt), round(end / dt)
-        ks = round((fault.start_s + ERROR_SKIP_S) / dt)
-        size = abs(float(fault.value or 0.0))
-        err = np.abs(traces["f_filt"][:, :, j] - traces["f_true"][:, :, j]).astype(float)  # (ticks, runs)
-        error_pct = 100.0 * err[ks:k1].mean(axis=0) / size if k1 > ks else np.full(err.shape[1], np.nan)
-        outside = err[k0:k1] > SETTLE_BAND * size
-        # last tick outside the band (+1 tick) after the start: when the error stays within 5 %
-        last = np.where(outside.any(axis=0), outside.shape[0] - np.argmax(outside[::-1], axis=0), 0)
-        settle = last * dt
-        out.append(
-            {
-                "fault": fault.label,
-                "target": fault.target,
-                "size": fault.value,
-                "error_pct": float(np.mean(error_pct)),
-                "error_pct_max": float(np.max(error_pct)),
-                "settle_s": float(np.mean(settle)),
-                "settle_s_max": float(np.max(settle)),
-                "settled_pct": float(100.0 * np.mean(~outside[-1])),
-            }
-        )
-    return out
 
 
 def _rms_dev(a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -256,33 +217,32 @@ def evaluate(scenario: Scenario, runs: int, seed: int, options: EvalOptions) -> 
     )
     m = _merge(parts)
     dt = NOMINAL.dt
-    detection = _score(scenario, m["events"][main], runs, faulty=True)
-    fault_free = _score(scenario, m["events"]["fault_free"], runs, faulty=False)
+    score = detection(scenario, m["events"][main], runs, faulty=True)
+    fault_free = detection(scenario, m["events"]["fault_free"], runs, faulty=False)
     metrics: dict[str, Any] = {"reconstruction": reconstruction_metrics(m[main], scenario, dt)}
     metrics.update(deviation_metrics(m))
     metrics["detection"] = detection_metrics(probe, m)
     metrics["detection"].update(
         {
-            "false_alarms": detection.false_alarms,
+            "false_alarms": score.false_alarms,
             "fault_free_twin_false_alarms": fault_free.false_alarms,
             "fault_free_twin_false_alarms_per_1000s": fault_free.false_alarms_per_1000s,
         }
     )
-    scorecard = {
-        "scenario": scenario.name,
-        "runs": runs,
-        "seed": seed,
-        "duration_s": scenario.duration_s,
-        "observer": probe.observer_name,
-        "detector": probe.detector_name,
-        "compensation": options.compensation,
-        **detection.card_fields(),
-        "metrics": metrics,
-    }
+    card = scorecard(
+        scenario,
+        runs=runs,
+        seed=seed,
+        observer=probe.observer_name,
+        detector=probe.detector_name,
+        compensation=options.compensation,
+        score=score,
+        metrics=metrics,
+    )
 
     def plot(folder: Path) -> list[Path]:
         from windwarden.evaluation.hydro_plots import write_plots
 
         return write_plots(folder, scenario, m, dt)
 
-    return Evaluation(scorecard=scorecard, plot=plot)
+    return Evaluation(scorecard=card, plot=plot)

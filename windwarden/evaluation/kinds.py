@@ -1,25 +1,16 @@
-"""What each plant kind provides to the ``eval`` command, and the lookup from a scenario's kind to it.
+"""The ``eval`` command's choices (``EvalOptions``) and what a plant kind's evaluator returns (``Evaluation``).
 
-A plant kind's evaluator is a module with ``evaluate(scenario, runs, seed, options) -> Evaluation``. It runs
+A plant kind's evaluator (``windwarden.kinds``: ``kind_for(name).evaluate(scenario, runs, seed, options)``) runs
 its plant and supervisor in batch mode (``wwcore.stepping``), usually through ``parallel.run_chunks``, and
 returns the scorecard (JSON-ready, the schema in ``docs/scorecards.md``) and the plots it can draw.
 """
 
 from __future__ import annotations
 
-import importlib
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
-
-from wwcore.scenario import Scenario
-
-EVALUATORS: dict[str, str] = {
-    "turbine": "windwarden.evaluation.turbine",
-    "farm": "windwarden.evaluation.farm_eval",
-    "hydro": "windwarden.evaluation.hydro",
-}
 
 
 @dataclass(frozen=True)
@@ -69,8 +60,3 @@ def unused_switches(kind: str, options: EvalOptions) -> list[tuple[str, str]]:
     if options.scheduler is not None and options.workers is not None:
         unused.append(("--workers", "counts local processes; a cluster's workers are set where they start"))
     return unused
-
-
-def evaluator_for(scenario: Scenario) -> Callable[[Scenario, int, int, EvalOptions], Evaluation]:
-    module = importlib.import_module(EVALUATORS[scenario.plant.kind])
-    return module.evaluate

@@ -36,8 +36,9 @@ from windwarden.evaluation.fault_types import (
     on_tick,
     place_windows,
 )
-from windwarden.evaluation.kinds import EvalOptions, evaluator_for
+from windwarden.evaluation.kinds import EvalOptions
 from windwarden.evaluation.random_summary import summarise
+from windwarden.kinds import kind_for
 from wwcore.scenario import Scenario, load_scenario, parse_scenario
 
 
@@ -230,7 +231,7 @@ def evaluate_set(
         gen_seed = scenario_seed(seed, k)
         scenario = generate(kind, gen_seed, base=base)
         eval_seed = int(np.random.SeedSequence([seed, k, 0xE7A1]).generate_state(1)[0])
-        card = evaluator_for(scenario)(scenario, n, eval_seed, options).scorecard
+        card = kind_for(scenario.plant.kind).evaluate(scenario, n, eval_seed, options).scorecard
         entries.append({"name": scenario.name, "scenario_seed": gen_seed, "eval_seed": eval_seed, "scorecard": card})
         drawn.append(scenario)
     card = {

@@ -26,15 +26,15 @@ from service.plugins import TURBINE_DETECTORS, TURBINE_ESTIMATORS
 from service.turbine.supervisor import DEFAULT_DETECTOR, DEFAULT_ESTIMATOR, TurbineSupervisor
 from windwarden.evaluation.kinds import EvalOptions, Evaluation
 from windwarden.evaluation.parallel import Branch, run_chunks
-from windwarden.evaluation.scoring import FaultWindow, score_detection, twin_false_alarms, windows_from_faults
+from windwarden.evaluation.scoring import FaultWindow, twin_false_alarms, windows_from_faults
 from windwarden.evaluation.scoring_policy import TURBINE as SCORING
+from windwarden.evaluation.turbine_scoring import WARMUP_S, WIND_KEYS, detection, scorecard, wind_rmse, window_of_tick
 from wwcore.channels import SENSOR_INDEX
 from wwcore.events import Event
 from wwcore.scenario import Scenario
+from wwcore.stepping import run_ticks
 
 TWIN_TURBINE = 0  # turbine number of the fault-free twin rows in events (no real turbine has it)
-WARMUP_S = SCORING.warmup_s  # left out of every figure (scoring_policy says why)
-GRACE_S = SCORING.grace_s  # after a fault ends, its flags may still be up for this long (scoring_policy)
 TRACE_EVERY = 10  # ticks between stored trace samples of run 0 (10 Hz)
 PROGRESS_EVERY = 1000  # ticks between progress reports
 _ANEMOMETER = SENSOR_INDEX["v_hub_m"]
@@ -54,19 +54,6 @@ TURBINE_CHUNK = 50
 """Runs per chunk at most (``parallel.chunk_runs``: 20 runs are two chunks of 10, 100 runs two of 50). The step is
 mostly per-tick interpreter work, so a batch of 50 runs costs about 1.7 times one run's tick (``windwarden bench
 turbine``); larger chunks would save little and hold more memory."""
-
-
-def _window_of_tick(scenario: Scenario, n_steps: int, dt: float) -> tuple[np.ndarray, list[str]]:
-    """Metric window of each tick: 0 fault-free, i ≥ 1 inside the i-th fault window, −1 left out (warm-up, and
-    the ``GRACE_S`` after a fault ends, while the supervisor switches back)."""
-    t = np.arange(n_steps) * dt
-    windows = windows_from_faults(scenario.faults, scenario.duration_s)
-    which = np.zeros(n_steps, dtype=int)
-    for i, w in enumerate(windows, start=1):
-        which[(t >= w.end_s) & (t < w.end_s + GRACE_S) & (which == 0)] = -1
-        which[(t >= w.start_s) & (t < w.end_s)] = i
-    which[t < WARMUP_S] = -1
-    return which, ["fault_free"] + [w.name for w in windows]
 
 
 def _twin_spans(scenario: Scenario, n_steps: int, dt: float) -> list[tuple[int, int, int]]:
@@ -99,7 +86,7 @@ def simulate_chunk(
         turbine_of_row=plant.turbine_of_row,
     )
     n_steps = round(scenario.duration_s / plant.dt)
-    which, labels = _window_of_tick(scenario, n_steps, plant.dt)
+    which, labels = window_of_tick(scenario, n_steps, plant.dt)
     errors = _ErrorSums(len(labels), PROGRESS_EVERY, plant.n)
     trace_row = run_ids.index(0) if 0 in run_ids else None
     trace: dict[str, list] = {k: [] for k in ("t", "wind", "fte", "nfte", "anemometer", "selected")}
@@ -109,30 +96,33 @@ def simulate_chunk(
             branch_at.setdefault(first, []).append((i, end))
     branches: list[Branch] = []
     events: list[Event] = []
-    refs = None
+
+    def fork_twins(k: int, refs) -> None:
+        for i, end in branch_at.get(k, ()):
+            branches.append(Branch(partial(_fault_free_twin, plant, supervisor, refs, which, i, end, len(labels))))
+
+    def record(k: int, frame, refs) -> None:
+        truth_wind = plant.true_rotor_wind()
+        est = supervisor.estimates
+        if which[k] >= 0:
+            _record(errors, which[k], frame, truth_wind, est)
+        if trace_row is not None and k % TRACE_EVERY == 0:
+            r = trace_row
+            trace["t"].append(frame.t)
+            trace["wind"].append(truth_wind[r])
+            trace["fte"].append(est.wind[r])
+            trace["nfte"].append(np.nan if est.wind_reference is None else est.wind_reference[r])
+            trace["anemometer"].append(frame.sensors[r, _ANEMOMETER])
+            trace["selected"].append(est.selected[r])
+
+    def report(k: int) -> None:
+        nonlocal events
+        if (k + 1) % PROGRESS_EVERY == 0:
+            events += plant.drain_events() + supervisor.drain_events()
+            progress(PROGRESS_EVERY * plant.dt)
+
     try:
-        for k in range(n_steps):
-            for i, end in branch_at.get(k, ()):
-                branches.append(Branch(partial(_fault_free_twin, plant, supervisor, refs, which, i, end, len(labels))))
-            frame = plant.measure()
-            plant.control(refs)
-            refs = supervisor.step(frame)
-            truth_wind = plant.true_rotor_wind()
-            est = supervisor.estimates
-            if which[k] >= 0:
-                _record(errors, which[k], frame, truth_wind, est)
-            if trace_row is not None and k % TRACE_EVERY == 0:
-                r = trace_row
-                trace["t"].append(frame.t)
-                trace["wind"].append(truth_wind[r])
-                trace["fte"].append(est.wind[r])
-                trace["nfte"].append(np.nan if est.wind_reference is None else est.wind_reference[r])
-                trace["anemometer"].append(frame.sensors[r, _ANEMOMETER])
-                trace["selected"].append(est.selected[r])
-            plant.advance()
-            if (k + 1) % PROGRESS_EVERY == 0:
-                events += plant.drain_events() + supervisor.drain_events()
-                progress(PROGRESS_EVERY * plant.dt)
+        run_ticks(plant, supervisor, range(n_steps), before=fork_twins, stepped=record, advanced=report)
     except BaseException:
         for branch in branches:
             branch.abandon()
@@ -175,13 +165,12 @@ def _fault_free_twin(
     plant.drain_events()
     errors = _ErrorSums(n_windows, PROGRESS_EVERY, plant.n)
     first = plant.k
-    for k in range(first, end):
-        frame = plant.measure()
-        plant.control(refs)
-        refs = supervisor.step(frame)
+
+    def record(k: int, frame, refs) -> None:
         if which[k] == window:
             _record(errors, window, frame, plant.true_rotor_wind(), supervisor.estimates)
-        plant.advance()
+
+    run_ticks(plant, supervisor, range(first, end), refs, stepped=record)
     sq, _ = errors.totals()
     observed = max(end - max(first, round(WARMUP_S / plant.dt)), 0) * plant.dt  # detections count after warm-up
     return sq["fte"], supervisor.drain_events(), observed
@@ -280,31 +269,24 @@ def evaluate(scenario: Scenario, runs: int, seed: int, options: EvalOptions) -> 
     events = [e for e in all_events if e.turbine != TWIN_TURBINE]
     twin_events = [e for e in all_events if e.turbine == TWIN_TURBINE]
     windows = windows_from_faults(scenario.faults, scenario.duration_s)
-    detection = score_detection(events, windows, runs=runs, duration_s=scenario.duration_s, policy=SCORING)
     labels = ["fault_free"] + [w.name for w in windows]
     counts = sum(r.counts for r in results)
-    wind_rmse = {}
-    run_keys = ("fte", "nfte", "anemometer")
     # the twins cover the fault windows only
-    window_keys = (*run_keys, "fte_fault_free") if twins else run_keys
-    for i, label in enumerate(labels):
-        if counts[i] == 0:
-            continue
-        keys = window_keys if i > 0 else run_keys
-        wind_rmse[label] = {
-            key: float(np.sqrt(sum(r.sq_err[key][i] for r in results if key in r.sq_err) / counts[i])) for key in keys
-        }
-    scorecard = {
-        "scenario": scenario.name,
-        "runs": runs,
-        "seed": seed,
-        "duration_s": scenario.duration_s,
-        "detector": detector,
-        "estimator": estimator,
-        **detection.card_fields(),
-        **(_twin_false_alarms(twin_events, runs, results[0].twin_seconds, windows) if twins else {}),
-        "metrics": {"wind_rmse": wind_rmse},
+    window_keys = (*WIND_KEYS, "fte_fault_free") if twins else WIND_KEYS
+    sq = {
+        key: [sum(r.sq_err[key][i] for r in results if key in r.sq_err) for i in range(len(labels))]
+        for key in window_keys
     }
+    card = scorecard(
+        scenario,
+        runs=runs,
+        seed=seed,
+        detector=detector,
+        estimator=estimator,
+        score=detection(events, scenario.faults, scenario.duration_s, runs),
+        wind=wind_rmse(labels, sq, counts, window_keys),
+        twin=_twin_false_alarms(twin_events, runs, results[0].twin_seconds, windows) if twins else None,
+    )
     trace = next((r.trace for r in results if r.trace), {})
 
     def plot(out_dir):
@@ -312,11 +294,11 @@ def evaluate(scenario: Scenario, runs: int, seed: int, options: EvalOptions) -> 
 
         return plot_turbine(scenario, trace, windows, out_dir)
 
-    return Evaluation(scorecard, plot=plot)
+    return Evaluation(card, plot=plot)
 
 
 def _twin_false_alarms(events: list[Event], runs: int, duration_s: float, windows: list[FaultWindow]) -> dict:
     """Flags raised in the fault-free twins, which run over the fault windows, ``duration_s`` per run in all: a
     false-alarm count on the fault windows' own wind."""
     spans = [(w.start_s, w.end_s) for w in windows]
-    return {"false_alarms_twin": twin_false_alarms(events, runs * duration_s, SCORING, spans)}
+    return twin_false_alarms(events, runs * duration_s, SCORING, spans)

@@ -2,5 +2,5 @@
 
 This is the edge where transport meets the pure core. The nodes call the same step contract as batch mode
 (``wwcore.stepping``) on either side of the network; what goes over the wire is declared in ``wwcore.wire``; what
-differs between plant kinds is one adapter per kind (``windwarden.live.adapters``). See ``docs/live.md``.
+differs between plant kinds is one object per kind (``windwarden.kinds``). See ``docs/live.md``.
 """

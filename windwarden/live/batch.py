@@ -1,7 +1,8 @@
-"""The live adapters' step loop in one process, with no transport: the reference a lockstep run must match.
+"""The live system's step loop in one process, with no transport: the reference a lockstep run must match.
 
-It is the batch loop of ``wwcore.stepping`` (measure, control, step, advance) driven through a kind's adapter,
-fed to the same score accumulator the plant node uses, and scored by the same ``adapter.scorecard``.
+It is the batch loop of ``wwcore.stepping`` (measure, control, step, advance) driven through the kind's object
+(``windwarden.kinds``), fed to the same score accumulator the plant node uses, and scored by the same
+``kind.scorecard``.
 
 ``drop`` loses sensor frames as a congested real-time link does: the supervisor never sees frame k where
 ``drop[k]``, handles the gap as the supervisor node does (``guard.bridge_gap``) and the plant controls tick k with the
@@ -18,11 +19,11 @@ from typing import Any
 
 import numpy as np
 
-from windwarden.live.adapters import adapter_for
-from windwarden.live.adapters.base import RunInfo
+from windwarden.kinds import RunInfo, kind_for
 from windwarden.live.guard import bridge_gap
 from wwcore.events import Event
 from wwcore.scenario import Scenario
+from wwcore.stepping import run_ticks
 
 
 @dataclass
@@ -45,23 +46,26 @@ def random_drops(n: int, fraction: float, longest: int, seed: int) -> np.ndarray
 def run_batch(
     scenario: Scenario, seed: int, drop: np.ndarray | None = None, max_ref_age: int = 10, gaps: str = "bridge"
 ) -> BatchResult:
-    adapter = adapter_for(scenario.plant.kind)
-    plant = adapter.make_plant(scenario, seed)
-    turbines = adapter.turbines(plant)
-    supervisor = adapter.make_supervisor(RunInfo.of(scenario, turbines, plant.dt))
+    kind = kind_for(scenario.plant.kind)
+    plant = kind.make_plant(scenario, seed)
+    turbines = kind.turbines(plant)
+    supervisor = kind.make_supervisor(RunInfo.of(scenario, turbines, plant.dt))
     n_steps = round(scenario.duration_s / plant.dt)
-    score = adapter.score(scenario, n_steps, plant.dt)
+    score = kind.score(scenario, n_steps, plant.dt)
     events: list[Event] = []
     refs = None
     if drop is None:
-        for k in range(n_steps):
-            frame = plant.measure()
-            plant.control(refs)
+
+        def controlled(k: int, frame: Any) -> None:
             score.on_tick(k, frame, plant)
-            refs = supervisor.step(frame)
-            score.on_refs(k, adapter.refs_records(refs, supervisor, turbines))
-            plant.advance()
-            events += plant.drain_events() + supervisor.drain_events()
+
+        def stepped(k: int, frame: Any, refs: Any) -> None:
+            score.on_refs(k, kind.refs_records(refs, supervisor, turbines))
+
+        def advanced(k: int) -> None:
+            events.extend(plant.drain_events() + supervisor.drain_events())
+
+        run_ticks(plant, supervisor, range(n_steps), controlled=controlled, stepped=stepped, advanced=advanced)
     else:
         bridge = {"bridge": getattr(supervisor, "bridge", None), "consecutive": None, "step": supervisor.step}[gaps]
         before, refs_tick = None, -1
@@ -70,12 +74,12 @@ def run_batch(
             plant.control(refs if k - refs_tick <= max_ref_age else None)
             score.on_tick(k, frame, plant)
             if not drop[k]:
-                records = adapter.frame_records(frame, turbines)
+                records = kind.frame_records(frame, turbines)
                 if before is not None:
-                    bridge_gap(bridge, adapter, before, records)
+                    bridge_gap(bridge, kind, before, records)
                 refs, refs_tick, before = supervisor.step(frame), k, records
-                score.on_refs(k, adapter.refs_records(refs, supervisor, turbines))
+                score.on_refs(k, kind.refs_records(refs, supervisor, turbines))
             plant.advance()
             events += plant.drain_events() + supervisor.drain_events()
     metrics = score.result(list(scenario.faults))
-    return BatchResult(events, adapter.scorecard(scenario, seed, list(scenario.faults), events, metrics))
+    return BatchResult(events, kind.scorecard(scenario, seed, list(scenario.faults), events, metrics))

@@ -19,7 +19,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from windwarden.live.adapters import adapter_for
+from windwarden.kinds import kind_for
 from windwarden.live.runfolder import (
     EVENTS,
     FAULTS,
@@ -66,7 +66,7 @@ def finalize_scorecard(run_dir: Path) -> dict[str, Any] | None:
     live = _read_json(run_dir / LIVE) or {}
     final = bool(live.get("final", "metrics" in live))
     scenario = load_scenario(run_dir / SCENARIO)
-    adapter = adapter_for(scenario.plant.kind)
+    kind = kind_for(scenario.plant.kind)
     events = read_events(run_dir / EVENTS)
     if "effective_faults" in live:
         faults = [FaultSpec.model_validate(f) for f in live["effective_faults"]]
@@ -81,7 +81,7 @@ def finalize_scorecard(run_dir: Path) -> dict[str, Any] | None:
         ran_s = max((e.t for e in events), default=0.0)
     scored, faults = (scenario, faults) if completed else cut_to(scenario, faults, min(ran_s, scenario.duration_s))
     metrics = live.get("metrics", {}) if final else {}
-    card = adapter.scorecard(scored, int(run["seed"]), faults, events, metrics)
+    card = kind.scorecard(scored, int(run["seed"]), faults, events, metrics)
     card["live"] = {
         "run_id": run["run_id"],
         "mode": run.get("mode"),

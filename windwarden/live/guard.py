@@ -259,14 +259,14 @@ class FrameSequencer:
         return self.DROP, 0
 
 
-def bridge_gap(bridge: Callable[[Any], None] | None, adapter: Any, before: np.ndarray, after: np.ndarray) -> int:
+def bridge_gap(bridge: Callable[[Any], None] | None, kind: Any, before: np.ndarray, after: np.ndarray) -> int:
     """Advance a supervisor through the ticks missing between two frames with its ``bridge`` (None: it holds);
     returns the number of ticks bridged."""
     if bridge is None:
         return 0
     n = 0
     for missing in interpolated_records(before, after):
-        bridge(adapter.frame_from_records(missing))
+        bridge(kind.frame_from_records(missing))
         n += 1
     return n
 

@@ -30,8 +30,7 @@ from typing import Any
 
 import zenoh
 
-from windwarden.live.adapters import adapter_for
-from windwarden.live.adapters.base import RunInfo
+from windwarden.kinds import RunInfo, kind_for
 from windwarden.live.config import PlantSettings
 from windwarden.live.faults import FaultBook, InjectionRefusedError
 from windwarden.live.guard import RefsFreshness, RefsGuard, RefusalLog, Verdict
@@ -79,9 +78,9 @@ class PlantNode:
         self.run_dir = run_dir
         self.display = display
         self.keys = settings.keys
-        self.adapter = adapter_for(scenario.plant.kind)
-        self.plant = self.adapter.make_plant(scenario, settings.seed)
-        self.turbines = self.adapter.turbines(self.plant)
+        self.kind = kind_for(scenario.plant.kind)
+        self.plant = self.kind.make_plant(scenario, settings.seed)
+        self.turbines = self.kind.turbines(self.plant)
         self.dt = float(self.plant.dt)
         self.n_steps = round(scenario.duration_s / self.dt)
         self.run_key = secrets.randbits(52)  # the run identity on every frame: a new one for every run
@@ -91,9 +90,9 @@ class PlantNode:
         self.book = FaultBook(
             scenario.plant.kind, scenario.plant.n_turbines, scenario.duration_s, list(scenario.faults)
         )
-        self.score = self.adapter.score(scenario, self.n_steps, self.dt)
+        self.score = self.kind.score(scenario, self.n_steps, self.dt)
         self.drops = DropCounter()
-        self.guard = RefsGuard(self.adapter.refs, settings.max_ref_age, self.drops)
+        self.guard = RefsGuard(self.kind.refs, settings.max_ref_age, self.drops)
         self.latency = LatencyStats()
         self.pacer = Pacer(self.dt, settings.speed)
         self._stop = threading.Event()
@@ -123,7 +122,7 @@ class PlantNode:
         unique = list(dict.fromkeys(self.turbines))
         self._sensor_pubs = {t: declare_publisher(s, keys.sensors(t), sensors_qos) for t in unique}
         self._truth_pubs = {t: declare_publisher(s, keys.truth(t), DISPLAY_QOS) for t in unique}
-        self.mailbox = TickMailbox(self.adapter.refs, self.turbines, self.drops, "refs", self.guard.window)
+        self.mailbox = TickMailbox(self.kind.refs, self.turbines, self.drops, "refs", self.guard.window)
         self._refs_sub = s.declare_subscriber(
             keys.refs("*"), lambda sample: self.mailbox.put(sample.payload.to_bytes())
         )
@@ -227,7 +226,7 @@ class PlantNode:
         t = self.plant.t
         spec = self.book.prepare(fault, t)
         try:
-            self.adapter.inject(self.plant, spec)
+            self.kind.inject(self.plant, spec)
         except (KeyError, ValueError) as error:
             raise InjectionRefusedError([("fault", str(error))]) from None
         record = self.book.add(spec, "api")
@@ -238,7 +237,7 @@ class PlantNode:
         t = self.plant.t
         record = self.book.check_clear(label, t)
         try:
-            self.adapter.clear(self.plant, label)
+            self.kind.clear(self.plant, label)
         except (KeyError, ValueError) as error:
             raise InjectionRefusedError([("label", f"cannot clear {label!r}: {error}")], 409) from None
         self.book.mark_cleared(record, t)
@@ -331,7 +330,7 @@ class PlantNode:
     def _refs_for(self, k: int) -> Any | None:
         """The refs tick k uses, or None (stale: the controller falls back)."""
         fresh = self.freshness.update(k, self.latest_refs_tick if self.latest_refs is not None else None)
-        return self.adapter.refs_from_records(self.latest_refs) if fresh else None
+        return self.kind.refs_from_records(self.latest_refs) if fresh else None
 
     def _stream_event(self, fresh: bool) -> None:
         detail = {"stream": "refs", "fresh": fresh, "noticed_by": Process.PLANT.value}
@@ -397,7 +396,7 @@ class PlantNode:
         gc.freeze()  # the set-up's objects are never collected: shorter GC pauses in the loop
         realtime = self.settings.mode == "realtime"
         every = self.settings.display_every
-        plant, adapter, score = self.plant, self.adapter, self.score
+        plant, kind, score = self.plant, self.kind, self.score
         self._loop_start = time.perf_counter()
         self.state = "running"
         self.events.write(
@@ -412,17 +411,17 @@ class PlantNode:
             self._take_refs()  # before sensors_k go out: tick k is controlled with refs from tick ≤ k − 1 only
             refs = self._refs_for(k)
             frame = plant.measure()
-            records = adapter.frame_records(frame, self.turbines)
+            records = kind.frame_records(frame, self.turbines)
             records["run"] = self.run_key
             self._sent_at[k] = time.perf_counter()
             for i, turbine in enumerate(self.turbines):
-                self._sensor_pubs[turbine].put(adapter.sensors.encode(records[i]))
+                self._sensor_pubs[turbine].put(kind.sensors.encode(records[i]))
             plant.control(refs)
             score.on_tick(k, frame, plant)
             if k % every == 0:
-                truth = adapter.truth_records(plant, frame, self.turbines)
+                truth = kind.truth_records(plant, frame, self.turbines)
                 for i, turbine in enumerate(self.turbines):
-                    self._truth_pubs[turbine].put(adapter.truth.encode(truth[i]))
+                    self._truth_pubs[turbine].put(kind.truth.encode(truth[i]))
                 if self.display is not None:
                     self.display.plant_rows(records, truth)
             plant.advance()

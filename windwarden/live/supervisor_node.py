@@ -27,8 +27,7 @@ from typing import Any
 import numpy as np
 import zenoh
 
-from windwarden.live.adapters import adapter_for, load_adapters
-from windwarden.live.adapters.base import KindAdapter, RunInfo
+from windwarden.kinds import PlantKind, RunInfo, kind_for
 from windwarden.live.config import SupervisorSettings
 from windwarden.live.guard import FrameSequencer, RefusalLog, bridge_gap
 from windwarden.live.mailbox import TickMailbox
@@ -58,7 +57,7 @@ class SupervisorNode:
         self._inbox: queue.SimpleQueue[bytes] = queue.SimpleQueue()
         self._run_ended = threading.Event()
         self.info: RunInfo | None = None
-        self.adapter: KindAdapter | None = None
+        self.kind: PlantKind | None = None
         self.supervisor: Any | None = None
         self.events: EventLog | None = None
         self.last_tick: int | None = None
@@ -83,7 +82,6 @@ class SupervisorNode:
             s, self.keys.supervisor_status, "supervisor.status", lambda body: self.status(), self.drops
         )
         self.watch = LivenessWatch(s, self.keys.alive_all, self._on_liveliness)
-        load_adapters()  # before the token: alive means able to build any kind's supervisor at once
         self._token = s.liveliness().declare_token(self.keys.alive(Process.SUPERVISOR))
 
     def stop(self) -> None:
@@ -171,12 +169,12 @@ class SupervisorNode:
         """(Re)build the supervisor, its event log and its display for the run ``info``."""
         new_run = self.info is None or info.run_id != self.info.run_id
         self.info = info
-        self.adapter = adapter_for(info.kind)
+        self.kind = kind_for(info.kind)
         with self._lock:
-            self.supervisor = self.adapter.make_supervisor(info)
+            self.supervisor = self.kind.make_supervisor(info)
             self.last_refs = None
         self.turbines = list(info.turbines)
-        self.mailbox = TickMailbox(self.adapter.sensors, self.turbines, self.drops, "sensors")
+        self.mailbox = TickMailbox(self.kind.sensors, self.turbines, self.drops, "sensors")
         if new_run:
             if self.events is not None:
                 self.events.close()
@@ -210,9 +208,7 @@ class SupervisorNode:
     def status(self) -> dict[str, Any]:
         with self._lock:
             turbines = (
-                self.adapter.status(self.supervisor, self.last_refs, self.turbines)
-                if self.supervisor is not None
-                else []
+                self.kind.status(self.supervisor, self.last_refs, self.turbines) if self.supervisor is not None else []
             )
         return {
             "run_id": None if self.info is None else self.info.run_id,
@@ -294,7 +290,7 @@ class SupervisorNode:
         )
 
     def _on_frame(self, records: np.ndarray) -> None:
-        adapter = self.adapter
+        kind = self.kind
         tick = int(records["tick"][0])
         decision, missing = self.sequencer.decide(records)
         self.refusals.poll(self.last_t)
@@ -304,7 +300,7 @@ class SupervisorNode:
         if restart:
             self._start_run(self.sequencer.confirmed if decision == FrameSequencer.NEW_RUN else self.info)
             self.resets += 1
-            adapter = self.adapter
+            kind = self.kind
         elif missing:
             self.gaps += 1
             self._bridge_gap(records)
@@ -314,12 +310,12 @@ class SupervisorNode:
             while not self._inbox.empty():
                 self._inbox.get_nowait()
         self._mark(True, reset=restart)
-        frame = adapter.frame_from_records(records)
+        frame = kind.frame_from_records(records)
         started = time.perf_counter()
         with self._lock:
             refs = self.supervisor.step(frame)
             events = self.supervisor.drain_events()
-            out = adapter.refs_records(refs, self.supervisor, self.turbines)
+            out = kind.refs_records(refs, self.supervisor, self.turbines)
             self.last_refs = out
         self.step_time.add(time.perf_counter() - started)
         self.last_tick, self.last_t = tick, float(records["t"][0])
@@ -328,7 +324,7 @@ class SupervisorNode:
         self.frames += 1
         self._write(events)  # before the refs: holding refs_k means the log has every event up to tick k
         for i, turbine in enumerate(self.turbines):
-            self._refs_pubs[turbine].put(adapter.refs.encode(out[i]))
+            self._refs_pubs[turbine].put(kind.refs.encode(out[i]))
         if self.display is not None:
             if tick % self.settings.display_every == 0:
                 self.display.supervisor_rows(records, out, self.status_rows())
@@ -338,7 +334,7 @@ class SupervisorNode:
         """Advance the supervisor through the ticks missing before ``records`` (held if it cannot bridge)."""
         if self.last_records is not None:
             with self._lock:
-                self.bridged += bridge_gap(self._bridge, self.adapter, self.last_records, records)
+                self.bridged += bridge_gap(self._bridge, self.kind, self.last_records, records)
 
     def status_rows(self) -> list[dict[str, Any]]:
-        return self.adapter.status(self.supervisor, self.last_refs, self.turbines)
+        return self.kind.status(self.supervisor, self.last_refs, self.turbines)

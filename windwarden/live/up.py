@@ -35,8 +35,8 @@ from typing import Any
 
 from rich.console import Console
 
+from windwarden.kinds import kind_for
 from windwarden.live.access import USERS_FILE, new_passwords, password_file, write_credentials
-from windwarden.live.adapters import adapter_for
 from windwarden.live.config import ZenohSettings, new_run_id
 from windwarden.live.finalize import finalize_recording, finalize_scorecard, verify_recording
 from windwarden.live.recorder import recorder_command
@@ -359,7 +359,7 @@ class Up:
         if o.api:
             console.print(f"  API        {i['api']}   docs {i['docs']}")
             console.print(f"  API token  {self.token}")
-            example = json.dumps(adapter_for(self.scenario.plant.kind).example_fault)
+            example = json.dumps(kind_for(self.scenario.plant.kind).example_fault)
             console.print(
                 f"  inject     curl -X POST {i['api']}/faults -H 'Authorization: Bearer {self.token}' "
                 f"-H 'content-type: application/json' -d '{example}'"

@@ -48,7 +48,9 @@ from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 from wwcore.layout import SEED001_DIRECTIONS_DEG, FarmLayout, LayoutSpec
 from wwcore.scenario.faults import FaultKind, FaultSpec
-from wwcore.scenario.turbine import NoiseConvention, check_turbine_fault
+from wwcore.scenario.turbine import NoiseConvention, check_turbine_fault, sensor_sigma
+from wwcore.site import SiteInfo
+from wwcore.turbine_params import BENCHMARK
 
 N_TURBINES = 9  # turbines of the paper's farm, the only farm the supervisor (service.farm) handles
 GRID = 3  # turbines per side of the square grid
@@ -198,6 +200,21 @@ class FarmPlant(BaseModel):
     @property
     def n_turbines(self) -> int:
         return self.resolved_layout().n_turbines
+
+    def site(self, dt: float = BENCHMARK.dt) -> SiteInfo:
+        """What the farm's supervisor may know: the turbines' parameters and sensor noise, the grid and the mast;
+        never the wind case (``rows(case)`` of ``service.farm.interfaces.FarmContext`` gives either)."""
+        return SiteInfo(
+            kind="farm",
+            turbines=tuple(range(1, N_TURBINES + 1)),
+            dt=float(dt),
+            rated_power_w=BENCHMARK.rated_power,
+            noise_convention=self.noise_convention,
+            sensor_sigma=sensor_sigma(self.noise_convention),
+            positions_m=tuple(self.position(t) for t in range(1, N_TURBINES + 1)),
+            spacing_m=self.spacing_m,
+            mast_distance_m=self.mast_distance_m,
+        )
 
     # -- geometry ---------------------------------------------------------------------------------------------
     @property

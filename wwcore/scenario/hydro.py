@@ -10,8 +10,9 @@ from typing import Literal
 
 from pydantic import BaseModel, ConfigDict, Field
 
-from wwcore.hydro_params import FAULT_TARGETS
+from wwcore.hydro_params import FAULT_TARGETS, NOMINAL
 from wwcore.scenario.faults import FaultKind, FaultSpec
+from wwcore.site import SiteInfo
 
 OFFSET_LIMIT = 1.0
 """Largest |offset| on a normalised displacement command: a full stroke."""
@@ -49,6 +50,11 @@ class HydroPlant(BaseModel):
     @property
     def n_turbines(self) -> int:
         return 1
+
+    def site(self, dt: float = NOMINAL.dt) -> SiteInfo:
+        """What the supervisor may know: the nominal model (``hydro_params.NOMINAL``) with this stroke limit. The
+        leakage factor and the aerodynamic uncertainty are the plant's secret (the observer's uncertainty)."""
+        return SiteInfo(kind="hydro", turbines=(1,), dt=float(dt), stroke_max=self.stroke_max)
 
 
 def check_hydro_fault(fault: FaultSpec, n_turbines: int) -> list[tuple[str, str]]:

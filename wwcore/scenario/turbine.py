@@ -6,10 +6,10 @@ from typing import Literal
 
 from pydantic import BaseModel, ConfigDict, Field
 
-from wwcore.channels import SENSOR_INDEX, SENSORS, Component
+from wwcore.channels import SENSOR_INDEX, SENSORS, Component, noise_std
 from wwcore.scenario.faults import SENSOR_FAULT_KINDS, FaultKind, FaultSpec
-
-NoiseConvention = Literal["sigma", "variance"]
+from wwcore.site import NoiseConvention, SiteInfo
+from wwcore.turbine_params import BENCHMARK
 
 
 class TurbinePlant(BaseModel):
@@ -26,6 +26,22 @@ class TurbinePlant(BaseModel):
     @property
     def n_turbines(self) -> int:
         return 1
+
+    def site(self, dt: float = BENCHMARK.dt) -> SiteInfo:
+        """What the supervisor may know of this turbine: its published parameters and sensor noise."""
+        return SiteInfo(
+            kind="turbine",
+            turbines=(1,),
+            dt=float(dt),
+            rated_power_w=BENCHMARK.rated_power,
+            noise_convention=self.noise_convention,
+            sensor_sigma=sensor_sigma(self.noise_convention),
+        )
+
+
+def sensor_sigma(convention: NoiseConvention) -> dict[str, float]:
+    """σ of every sensor channel's noise under ``convention`` (``channels.noise_std``)."""
+    return {c.name: noise_std(c, convention) for c in SENSORS}
 
 
 def check_turbine_fault(fault: FaultSpec, n_turbines: int) -> list[tuple[str, str]]:

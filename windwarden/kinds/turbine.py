@@ -1,4 +1,4 @@
-"""Live adapter of the 4.8 MW benchmark turbine (seed 000 supervisor).
+"""The 4.8 MW benchmark turbine (seed 000 supervisor) as a plant kind.
 
 Plant and supervisor are built exactly as ``windwarden.evaluation.turbine.simulate_chunk`` builds run 0 of
 ``windwarden eval SCENARIO --seed S`` (``TurbineBatch(..., seed=S, runs=[0])``, the supervisor with the scenario's
@@ -14,12 +14,14 @@ from typing import TYPE_CHECKING, Any, ClassVar
 
 import numpy as np
 
-from windwarden.evaluation.scoring import score_detection, windows_from_faults
-from windwarden.evaluation.scoring_policy import TURBINE as SCORING
-from windwarden.live.adapters.base import RunInfo, finite_or_none, records_from_batch
+from windwarden.evaluation import turbine_scoring
+from windwarden.evaluation.kinds import EvalOptions, Evaluation
+from windwarden.evaluation.turbine_scoring import WIND_KEYS, window_of_tick
+from windwarden.kinds.base import RunInfo, finite_or_none, records_from_batch
 from wwcore.channels import DIAGNOSIS_TARGETS, SENSOR_INDEX
 from wwcore.events import Event
 from wwcore.scenario import FaultSpec, Scenario
+from wwcore.scenario.turbine import TurbinePlant
 from wwcore.turbine_frames import TurbineFrame, TurbineRefs
 from wwcore.wire import TURBINE_REFS, TURBINE_SENSORS, TURBINE_TRUTH
 
@@ -30,8 +32,10 @@ if TYPE_CHECKING:  # the plant process never imports the supervisor's code, nor 
 _ANEMOMETER = SENSOR_INDEX["v_hub_m"]
 
 
-class TurbineAdapter:
+class TurbineKind:
     kind = "turbine"
+    section = TurbinePlant
+    panels = ("turbine",)
     example_fault: ClassVar[dict[str, Any]] = {
         "target": "omega_g_m2",
         "kind": "fixed",
@@ -43,6 +47,11 @@ class TurbineAdapter:
     sensors = TURBINE_SENSORS
     refs = TURBINE_REFS
     truth = TURBINE_TRUTH
+
+    def evaluate(self, scenario: Scenario, runs: int, seed: int, options: EvalOptions) -> Evaluation:
+        from windwarden.evaluation.turbine import evaluate
+
+        return evaluate(scenario, runs, seed, options)
 
     def make_plant(self, scenario: Scenario, seed: int) -> TurbineBatch:
         from plant_sim.turbine import TurbineBatch
@@ -58,10 +67,10 @@ class TurbineAdapter:
         n = len(info.turbines)
         return TurbineSupervisor(
             n,
-            detector=sup.get("detector") or DEFAULT_DETECTOR,
-            estimator=sup.get("estimator") or DEFAULT_ESTIMATOR,
-            options=dict(sup.get("params") or {}),
-            noise_convention=info.plant.get("noise_convention", "sigma"),
+            detector=sup.detector or DEFAULT_DETECTOR,
+            estimator=sup.estimator or DEFAULT_ESTIMATOR,
+            options=dict(sup.params),
+            noise_convention=info.site.noise_convention,
             run_of_row=[0] * n,
             turbine_of_row=list(info.turbines),
         )
@@ -185,24 +194,19 @@ class TurbineAdapter:
         from service.turbine.supervisor import DEFAULT_DETECTOR, DEFAULT_ESTIMATOR
 
         sup = scenario.supervisor
-        windows = windows_from_faults(faults, scenario.duration_s)
-        detection = score_detection(events, windows, runs=1, duration_s=scenario.duration_s, policy=SCORING)
-        return {
-            "scenario": scenario.name,
-            "runs": 1,
-            "seed": seed,
-            "duration_s": scenario.duration_s,
-            "detector": sup.detector or DEFAULT_DETECTOR,
-            "estimator": sup.estimator or DEFAULT_ESTIMATOR,
-            **detection.card_fields(),
-            "metrics": {"wind_rmse": metrics.get("wind_rmse", {})},
-        }
+        return turbine_scoring.scorecard(
+            scenario,
+            runs=1,
+            seed=seed,
+            detector=sup.detector or DEFAULT_DETECTOR,
+            estimator=sup.estimator or DEFAULT_ESTIMATOR,
+            score=turbine_scoring.detection(events, faults, scenario.duration_s, runs=1),
+            wind=metrics.get("wind_rmse", {}),
+        )
 
 
 class TurbineScore:
     """Per-tick squared wind errors; summed per window (in tick order, as the batch loop sums) at the end."""
-
-    KEYS = ("fte", "nfte", "anemometer")
 
     def __init__(self, scenario: Scenario, n_steps: int, dt: float):
         self.scenario = scenario
@@ -210,7 +214,7 @@ class TurbineScore:
         self.dt = dt
         self.rows = 0
         self.ticks = 0  # ticks that ran: the counters below count no tick beyond them
-        self.err = {key: np.full(n_steps, np.nan) for key in self.KEYS}
+        self.err = {key: np.full(n_steps, np.nan) for key in WIND_KEYS}
         self.have = np.zeros(n_steps, dtype=bool)
         self.nfte_set = np.zeros(n_steps, dtype=bool)
         self._pending: dict[int, tuple[np.ndarray, np.ndarray]] = {}
@@ -234,11 +238,9 @@ class TurbineScore:
         self.have[k] = True
 
     def result(self, faults: list[FaultSpec]) -> dict[str, Any]:
-        from windwarden.evaluation.turbine import _window_of_tick
-
         scenario = self.scenario.model_copy(update={"faults": faults})
-        which, labels = _window_of_tick(scenario, self.n_steps, self.dt)
-        sq = {key: np.zeros(len(labels)) for key in self.KEYS}
+        which, labels = window_of_tick(scenario, self.n_steps, self.dt)
+        sq = {key: np.zeros(len(labels)) for key in WIND_KEYS}
         counts = np.zeros(len(labels))
         for k in np.flatnonzero(self.have & (which >= 0)):
             w = which[k]
@@ -247,12 +249,8 @@ class TurbineScore:
                 sq["nfte"][w] += self.err["nfte"][k]
             sq["anemometer"][w] += self.err["anemometer"][k]
             counts[w] += self.rows
-        wind_rmse = {
-            label: {key: float(np.sqrt(sq[key][i] / counts[i])) for key in self.KEYS}
-            for i, label in enumerate(labels)
-            if counts[i] > 0
-        }
+        wind_rmse = turbine_scoring.wind_rmse(labels, sq, counts)
         return {"wind_rmse": wind_rmse, "ticks_without_refs": int((~self.have[: self.ticks]).sum())}
 
 
-ADAPTER = TurbineAdapter()
+TURBINE = TurbineKind()

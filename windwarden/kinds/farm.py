@@ -1,4 +1,4 @@
-"""Live adapter of the nine-turbine wind farm (seed 001).
+"""The nine-turbine wind farm (seed 001) as a plant kind.
 
 Plant and supervisor are built as ``windwarden.evaluation.farm.simulate_chunk`` builds run 0 of
 ``windwarden eval SCENARIO --seed S`` (``FarmBatch(..., seed=S, runs=[0])``; the supervisor with the scenario's
@@ -6,9 +6,9 @@ detector and controller and accommodation on). The plant ticks at 100 Hz and pub
 tick; every tenth tick carries the 10 Hz farm sample (SCADA means, met mast, demand) the supervisor computes on.
 The supervisor answers every tick (its references change on farm samples only).
 
-Scorecard of a live run: the batch schema, with detection figures from the event log and the farm's
-over-production and missing power from the truth the plant node feeds ``FarmScore``. Damage numbers need the
-fault-free twin farm and are batch-only.
+Scorecard of a live run: the batch schema (``evaluation.farm_scoring``), with detection figures from the event log
+and the farm's over-production and missing power summed by ``farm_scoring.PowerBalance`` from the truth the plant
+node feeds ``FarmScore``, as the batch sums them. Damage numbers need the fault-free twin farm and are batch-only.
 """
 
 from __future__ import annotations
@@ -17,7 +17,10 @@ from typing import TYPE_CHECKING, Any, ClassVar
 
 import numpy as np
 
-from windwarden.live.adapters.base import RunInfo, finite_or_none, records_from_batch
+from windwarden.evaluation import farm_scoring
+from windwarden.evaluation.farm_scoring import PowerBalance
+from windwarden.evaluation.kinds import EvalOptions, Evaluation
+from windwarden.kinds.base import RunInfo, finite_or_none, records_from_batch
 from wwcore.events import Event
 from wwcore.farm_frames import CANCEL_3P_MODE, DISPATCH_MODES, HOLD_TORQUE_MODE, FarmFrame, FarmRefs
 from wwcore.scenario import FaultSpec, Scenario
@@ -30,8 +33,10 @@ if TYPE_CHECKING:  # the plant process never imports the supervisor's code, nor 
     from service.farm.supervisor import FarmSupervisor
 
 
-class FarmAdapter:
+class FarmKind:
     kind = "farm"
+    section = FarmPlant
+    panels = ("farm",)
     example_fault: ClassVar[dict[str, Any]] = {
         "target": "drivetrain",
         "kind": "drivetrain_wear",
@@ -44,6 +49,11 @@ class FarmAdapter:
     sensors = FARM_SENSORS
     refs = FARM_REFS
     truth = FARM_TRUTH
+
+    def evaluate(self, scenario: Scenario, runs: int, seed: int, options: EvalOptions) -> Evaluation:
+        from windwarden.evaluation.farm_eval import evaluate
+
+        return evaluate(scenario, runs, seed, options)
 
     def make_plant(self, scenario: Scenario, seed: int) -> FarmBatch:
         from plant_sim.farm import FarmBatch
@@ -63,11 +73,11 @@ class FarmAdapter:
 
         sup = info.supervisor
         return FarmSupervisor(
-            FarmPlant.model_validate(info.plant),
+            info.site,
             len(info.turbines),
-            detector=sup.get("detector"),
-            controller=sup.get("controller"),
-            options=dict(sup.get("params") or {}),
+            detector=sup.detector,
+            controller=sup.controller,
+            options=dict(sup.params),
         )
 
     def turbines(self, plant: FarmBatch) -> list[int]:
@@ -212,60 +222,39 @@ class FarmAdapter:
         self, scenario: Scenario, seed: int, faults: list[FaultSpec], events: list[Event], metrics: dict[str, Any]
     ) -> dict[str, Any]:
         from service.farm.supervisor import DEFAULT_CONTROLLER, DEFAULT_DETECTOR
-        from windwarden.evaluation.farm import WARMUP_S, farm_windows, score_farm, scorecard_target
 
         live = scenario.model_copy(update={"faults": faults})
-        windows = farm_windows(live)
-        detection = score_farm(events, windows, 1, scenario.duration_s)
-        for entry, w in zip(detection.faults, windows, strict=True):
-            entry["target"] = scorecard_target(w)
-        farm_seconds = max(scenario.duration_s - WARMUP_S, 0.0)
+        score, by_type = farm_scoring.detection(events, farm_scoring.farm_windows(live), 1, scenario.duration_s)
         sup = scenario.supervisor
-        return {
-            "scenario": scenario.name,
-            "runs": 1,
-            "seed": seed,
-            "duration_s": scenario.duration_s,
-            "wind_case": scenario.plant.wind_case,
-            "detector": sup.detector or DEFAULT_DETECTOR,
-            "controller": sup.controller or DEFAULT_CONTROLLER,
-            "accommodation": True,
-            **detection.card_fields(),
-            "metrics": {
+        return farm_scoring.scorecard(
+            scenario,
+            runs=1,
+            seed=seed,
+            detector=sup.detector or DEFAULT_DETECTOR,
+            controller=sup.controller or DEFAULT_CONTROLLER,
+            accommodation=True,
+            score=score,
+            metrics={
                 "over_production": metrics.get("over_production", {}),
                 "missing_power": metrics.get("missing_power", {}),
                 "damage": {"note": "damage numbers need the fault-free twin farm: windwarden eval (batch) only"},
-                "detection": {name: detection.by_target(name, farm_seconds) for name in FARM_FAULT_TYPES},
+                "detection": by_type,
             },
-        }
+        )
 
 
 class FarmScore:
-    """Farm power (true, 10 Hz block means) against the demand, after the warm-up, as the batch evaluator sums it."""
+    """The farm's power against the demand (``farm_scoring.PowerBalance``, as the batch evaluator sums it)."""
 
     def __init__(self, scenario: Scenario, n_steps: int, dt: float):
-        from windwarden.evaluation.farm import WARMUP_S
-
         self.n_steps = n_steps
-        self.per_sample = round(FARM_DT_S / dt)
-        self.warm_sample = round(WARMUP_S / FARM_DT_S)
-        self.power_sum = 0.0
-        self.over = self.missing = self.demand = 0.0
+        self.balance = PowerBalance(N_TURBINES, round(FARM_DT_S / dt))
         self.have = np.zeros(n_steps, dtype=bool)  # ticks whose references reached the plant
         self.ticks = 0  # ticks that ran
 
     def on_tick(self, k: int, frame: FarmFrame, plant: FarmBatch) -> None:
         self.ticks = max(self.ticks, k + 1)
-        self.power_sum += float(plant.power_output().sum())
-        if frame.sample:
-            j = (k + 1) // self.per_sample
-            p_farm = self.power_sum / self.per_sample
-            self.power_sum = 0.0
-            if j > self.warm_sample:
-                gap = p_farm - float(frame.demand[0])
-                self.over += max(gap, 0.0) * FARM_DT_S
-                self.missing += max(-gap, 0.0) * FARM_DT_S
-                self.demand += float(frame.demand[0]) * FARM_DT_S
+        self.balance.tick(k, plant.power_output(), frame.sample, frame.demand)
 
     def on_refs(self, k: int, refs: np.ndarray) -> None:
         """The references reach the plant through ``control``; here only counted, per tick."""
@@ -273,13 +262,11 @@ class FarmScore:
             self.have[k] = True
 
     def result(self, faults: list[FaultSpec]) -> dict[str, Any]:
-        mwh = 1.0 / 3.6e9
-        frac = (lambda x: x / self.demand) if self.demand > 0 else (lambda x: None)
+        b = self.balance
         return {
-            "over_production": {"mwh_per_run": self.over * mwh, "fraction_of_demand": frac(self.over)},
-            "missing_power": {"mwh_per_run": self.missing * mwh, "fraction_of_demand": frac(self.missing)},
+            **farm_scoring.energy_metrics(b.over, b.missing, b.demand),
             "ticks_without_refs": int((~self.have[: self.ticks]).sum()),
         }
 
 
-ADAPTER = FarmAdapter()
+FARM = FarmKind()

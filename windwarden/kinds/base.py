@@ -1,38 +1,40 @@
-"""The adapter interface and the run description the supervisor receives."""
+"""The shape of a plant kind (``PlantKind``) and the run description the supervisor receives (``RunInfo``)."""
 
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass, field
-from typing import Any, Protocol
+from typing import Any, ClassVar, Protocol
 
 import numpy as np
+from pydantic import BaseModel, ConfigDict, Field
 
+from windwarden.evaluation.kinds import EvalOptions, Evaluation
 from wwcore.events import Event
-from wwcore.scenario import FaultSpec, Scenario
+from wwcore.scenario import FaultSpec, Scenario, SupervisorSpec
+from wwcore.site import SiteInfo
 from wwcore.stepping import Plant, Supervisor
 from wwcore.wire import MessageSchema
 
 
-@dataclass(frozen=True)
-class RunInfo:
-    """What the supervisor may know of a run: the plant's published parameters and the supervisor's algorithms.
+class RunInfo(BaseModel):
+    """What the supervisor may know of a run: the site's published parameters (``SiteInfo``) and the supervisor's
+    algorithms; never the fault schedule, the wind, a model mismatch or any truth: the supervisor learns about faults
+    from the sensors only. Served by the plant on the ``plant/run`` queryable, checked on arrival (``from_json``):
+    an unknown field anywhere is refused."""
 
-    Never the fault schedule, the wind or any truth: the supervisor learns about faults from the sensors only.
-    Served by the plant on the ``plant/run`` queryable.
-    """
+    model_config = ConfigDict(extra="forbid", frozen=True)
 
     run_id: str
     kind: str
     scenario: str
-    turbines: tuple[int, ...]
-    dt: float
-    duration_s: float
+    turbines: tuple[int, ...] = Field(description="turbine number of each row of the plant batch")
+    dt: float = Field(gt=0.0)
+    duration_s: float = Field(gt=0.0)
     mode: str
     speed: float
-    plant: dict[str, Any]  # scenario.plant (kind, noise convention, rated power, …)
-    supervisor: dict[str, Any]  # scenario.supervisor (detector, estimator, params)
+    site: SiteInfo
+    supervisor: SupervisorSpec
     recording_id: str = ""
-    extra: dict[str, Any] = field(default_factory=dict)
+    extra: dict[str, Any] = Field(default_factory=dict)
     run_key: int = 0  # the run identity every sensor frame of the run carries (drawn by the plant)
 
     @classmethod
@@ -55,22 +57,20 @@ class RunInfo:
             duration_s=scenario.duration_s,
             mode=mode,
             speed=speed,
-            plant=scenario.plant.model_dump(mode="json"),
-            supervisor=scenario.supervisor.model_dump(mode="json"),
+            site=scenario.plant.site(float(dt)),
+            supervisor=scenario.supervisor,
             recording_id=run_id,
             run_key=run_key,
         )
 
     def to_json(self) -> dict[str, Any]:
-        out = asdict(self)
-        out["turbines"] = list(self.turbines)
-        return out
+        return self.model_dump(mode="json")
 
     @classmethod
     def from_json(cls, data: dict[str, Any]) -> RunInfo:
-        fields = {k: data[k] for k in cls.__dataclass_fields__ if k in data}
-        fields["turbines"] = tuple(int(t) for t in fields["turbines"])
-        return cls(**fields)
+        """The run description in a ``plant.run`` body; ``pydantic.ValidationError`` (a ``ValueError``) naming the
+        field for anything else, an unknown field included."""
+        return cls.model_validate(data)
 
 
 class ScoreAccumulator(Protocol):
@@ -86,14 +86,21 @@ class ScoreAccumulator(Protocol):
         """The metrics for the faults as they acted."""
 
 
-class KindAdapter(Protocol):
-    """Everything the live system needs to know about one plant kind."""
+class PlantKind(Protocol):
+    """Everything the rest of the program needs of one plant kind: its scenario section (which builds its
+    ``SiteInfo``), plant and supervisor factories, wire schemas and conversions, status, score accumulator and live
+    scorecard, the batch evaluator, and the names of its dashboard panels (``dashboards.panels.PANELS``)."""
 
     kind: str
+    section: ClassVar[type[BaseModel]]  # the scenario's [plant] section of this kind (``wwcore.scenario``)
+    panels: tuple[str, ...]  # its dashboard panels, by name
     example_fault: dict[str, Any]  # a valid injection body, for the docs and the start-up banner
     sensors: MessageSchema
     refs: MessageSchema
     truth: MessageSchema
+
+    def evaluate(self, scenario: Scenario, runs: int, seed: int, options: EvalOptions) -> Evaluation:
+        """``windwarden eval``: Monte Carlo runs in batch mode, their scorecard and plots."""
 
     def make_plant(self, scenario: Scenario, seed: int) -> Plant:
         """Run 0 of ``windwarden eval SCENARIO --seed seed``: the same constructor and random streams."""

@@ -1,4 +1,4 @@
-"""Live adapter of the hydrostatic turbine (seed 003).
+"""The hydrostatic turbine (seed 003) as a plant kind.
 
 Plant and supervisor are built as ``windwarden.evaluation.hydro`` builds its *compensated* twin of run 0 (random
 streams ``SeedSequence(seed, spawn_key=(0, 0))``, the nominal parameters with the scenario's stroke limit, the
@@ -7,7 +7,7 @@ figures equal ``windwarden eval``'s.
 
 Scorecard of a live run: detection figures from the event log (``scoring.score_detection`` on the supervisor's own
 events, as ``windwarden eval`` scores them: both run the same supervisor with the same design thresholds) and the
-reconstruction figures of ``evaluation.hydro.reconstruction_metrics`` from the corrections the plant received.
+reconstruction figures of ``evaluation.hydro_scoring.reconstruction_metrics`` from the corrections the plant received.
 The deviation-from-fault-free figures need the fault-free twin and are batch-only.
 """
 
@@ -18,9 +18,9 @@ from typing import TYPE_CHECKING, Any, ClassVar
 
 import numpy as np
 
-from windwarden.evaluation.scoring import score_detection, windows_from_faults
-from windwarden.evaluation.scoring_policy import HYDRO as SCORING
-from windwarden.live.adapters.base import RunInfo, finite_or_none, records_from_batch
+from windwarden.evaluation import hydro_scoring
+from windwarden.evaluation.kinds import EvalOptions, Evaluation
+from windwarden.kinds.base import RunInfo, finite_or_none, records_from_batch
 from wwcore.events import Event
 from wwcore.hydro_frames import HydroFrame, HydroRefs
 from wwcore.hydro_params import FAULT_TARGETS, NOMINAL, X_NAMES
@@ -36,8 +36,10 @@ DEFAULT_OBSERVER = "ts-smo"  # service.plugins.HYDRO_OBSERVERS.default (the plan
 DEFAULT_DETECTOR = "threshold"  # service.plugins.HYDRO_DETECTORS.default
 
 
-class HydroAdapter:
+class HydroKind:
     kind = "hydro"
+    section = HydroPlant
+    panels = ("hydro",)
     example_fault: ClassVar[dict[str, Any]] = {
         "target": "u_p",
         "kind": "offset",
@@ -50,6 +52,11 @@ class HydroAdapter:
     refs = HYDRO_REFS
     truth = HYDRO_TRUTH
 
+    def evaluate(self, scenario: Scenario, runs: int, seed: int, options: EvalOptions) -> Evaluation:
+        from windwarden.evaluation.hydro import evaluate
+
+        return evaluate(scenario, runs, seed, options)
+
     def make_plant(self, scenario: Scenario, seed: int) -> HydroTurbineBatch:
         from plant_sim.hydro import HydroTurbineBatch
 
@@ -59,14 +66,13 @@ class HydroAdapter:
     def make_supervisor(self, info: RunInfo) -> HydroSupervisor:
         from service.hydro.supervisor import HydroSupervisor
 
-        spec = HydroPlant.model_validate(info.plant)
         return HydroSupervisor(
             n=len(info.turbines),
             run_ids=[0] * len(info.turbines),
-            params=replace(NOMINAL, stroke_max=spec.stroke_max),  # what the plant publishes as its nominal model
-            observer=info.supervisor.get("estimator"),
-            detector=info.supervisor.get("detector"),
-            options=info.supervisor.get("params") or {},
+            params=replace(NOMINAL, stroke_max=info.site.stroke_max),  # the nominal model the plant publishes
+            observer=info.supervisor.estimator,
+            detector=info.supervisor.detector,
+            options=info.supervisor.params,
             compensation=True,
         )
 
@@ -164,22 +170,20 @@ class HydroAdapter:
     def scorecard(
         self, scenario: Scenario, seed: int, faults: list[FaultSpec], events: list[Event], metrics: dict[str, Any]
     ) -> dict[str, Any]:
-        windows = windows_from_faults(faults, scenario.duration_s)
-        detection = score_detection(events, windows, runs=1, duration_s=scenario.duration_s, policy=SCORING)
-        return {
-            "scenario": scenario.name,
-            "runs": 1,
-            "seed": seed,
-            "duration_s": scenario.duration_s,
-            "observer": scenario.supervisor.estimator or DEFAULT_OBSERVER,
-            "detector": scenario.supervisor.detector or DEFAULT_DETECTOR,
-            "compensation": True,
-            **detection.card_fields(),
-            "metrics": {
+        score = hydro_scoring.detection(scenario.model_copy(update={"faults": faults}), events, runs=1)
+        return hydro_scoring.scorecard(
+            scenario,
+            runs=1,
+            seed=seed,
+            observer=scenario.supervisor.estimator or DEFAULT_OBSERVER,
+            detector=scenario.supervisor.detector or DEFAULT_DETECTOR,
+            compensation=True,
+            score=score,
+            metrics={
                 "reconstruction": metrics.get("reconstruction", []),
-                "detection": {"false_alarms": detection.false_alarms},
+                "detection": {"false_alarms": score.false_alarms},
             },
-        }
+        )
 
 
 class HydroScore:
@@ -214,11 +218,10 @@ class HydroScore:
         if ticks < self.n_steps:
             update["duration_s"] = ran
         scenario = self.scenario.model_copy(update=update)
-        from windwarden.evaluation.hydro import reconstruction_metrics
-
         traces = {"f_filt": f_filt, "f_true": self.f_true[:ticks]}
         missing = int(np.isnan(self.f_filt[:ticks, 0, 0]).sum())
-        return {"reconstruction": reconstruction_metrics(traces, scenario, self.dt), "ticks_without_refs": missing}
+        reconstruction = hydro_scoring.reconstruction_metrics(traces, scenario, self.dt)
+        return {"reconstruction": reconstruction, "ticks_without_refs": missing}
 
 
-ADAPTER = HydroAdapter()
+HYDRO = HydroKind()
