@@ -74,6 +74,14 @@ def test_the_digest_ignores_the_supervisor_and_the_name_but_not_the_runs():
     assert runs_digest(scenario.model_copy(update={"duration_s": 100.0})) != runs_digest(scenario)
 
 
+def test_the_runs_digest_ignores_defaults_written_out():
+    bare = load_scenario("farm-case1")
+    explicit = bare.model_copy(update={"plant": bare.plant.model_copy(update={"wake_model": "rows"})})
+    assert runs_digest(explicit) == runs_digest(bare)
+    other = bare.model_copy(update={"plant": bare.plant.model_copy(update={"wind_case": 2})})
+    assert runs_digest(other) != runs_digest(bare)
+
+
 def _write(tmp_path, name: str, content) -> str:
     path = tmp_path / name
     path.write_text(content if isinstance(content, str) else json.dumps(content))

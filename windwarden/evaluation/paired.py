@@ -43,9 +43,12 @@ class NotPairedError(ValueError):
 def runs_digest(scenario: Scenario) -> str:
     """SHA-256 (hex, first 16) of what draws a scenario's runs: everything but its name, description, supervisor.
 
-    An empty ``[mismatch]`` section is the design plant, the same runs as none."""
-    body = scenario.model_dump(mode="json", exclude={"name", "description", "supervisor"})
-    if scenario.mismatch == Mismatch():
+    Values equal to their defaults are left out, so a scenario keeps its digest when the schema gains an option
+    whose default is today's behaviour (and whether a default is written out or not changes nothing). An empty
+    ``[mismatch]`` section is the design plant, the same runs as none."""
+    body = scenario.model_dump(mode="json", exclude={"name", "description", "supervisor"}, exclude_defaults=True)
+    body.setdefault("plant", {})["kind"] = scenario.plant.kind
+    if scenario.mismatch is None or scenario.mismatch == Mismatch():
         body["mismatch"] = None
     return hashlib.sha256(json.dumps(body, sort_keys=True).encode()).hexdigest()[:16]
 
