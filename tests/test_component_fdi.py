@@ -76,7 +76,7 @@ def test_component_faults_are_detected_and_isolated(fault, target, within_s):
             ),
             25.0,
         ),
-        (
+        pytest.param(  # the ramped fault needs a 100 s run: about 1.5 min, so in `make test-slow`
             FaultSpec(
                 target="pitch_actuator_3",
                 kind="pitch_dynamics",
@@ -87,6 +87,7 @@ def test_component_faults_are_detected_and_isolated(fault, target, within_s):
                 ramp_s=30.0,
             ),
             45.0,
+            marks=pytest.mark.slow,
         ),
     ],
 )

@@ -110,7 +110,9 @@ def test_both_generator_sensors_flagged_selects_5pe_unless_switched_off(power_sp
     assert not set(PE) & set(others.tolist())
 
 
-@pytest.mark.parametrize(("start", "end", "bound"), [(8.5, 10.0, 1.10), (6.0, 6.5, 1.20)])
+@pytest.mark.parametrize(
+    ("start", "end", "bound"), [pytest.param(8.5, 10.0, 1.10, marks=pytest.mark.slow), (6.0, 6.5, 1.20)]
+)
 def test_5pe_wind_estimate_is_close_to_observer_1_and_better_than_observer_5(start, end, bound):
     """Fault-free closed loop, every observer's wind inverted from the same data: RMSE against the true wind
     (5-pe: the design the estimator would select at each tick's torque). At 6 m/s the torque is ~15 % of rated

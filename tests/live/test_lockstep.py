@@ -44,7 +44,12 @@ FARM_SHORT_HOLD = FARM_SHORT + '[supervisor.params]\naccommodation_rule = "hold-
 
 @pytest.mark.parametrize(
     "text, seed",
-    [(HYDRO_SHORT, 1), (TURBINE_SHORT, 3), (FARM_SHORT, 5), (FARM_SHORT_HOLD, 5)],
+    [
+        (HYDRO_SHORT, 1),
+        (TURBINE_SHORT, 3),
+        (FARM_SHORT, 5),
+        pytest.param(FARM_SHORT_HOLD, 5, marks=pytest.mark.slow),  # the farm again, with another rule: ~45 s
+    ],
     ids=["hydro", "turbine", "farm", "farm-hold"],
 )
 def test_lockstep_equals_batch(tmp_path, text, seed):
