@@ -100,10 +100,17 @@ def damage_sums(ticks: np.ndarray, values: np.ndarray, bin_edges: np.ndarray, m:
     cycles = np.array([(rng, count, i_end) for rng, _mean, count, _i0, i_end in rainflow.extract_cycles(values)])
     if len(cycles) == 0:
         return out
-    at = ticks[cycles[:, 2].astype(int)]
-    which = np.clip(np.searchsorted(bin_edges, at, side="right") - 1, 0, len(out) - 1)
-    np.add.at(out, which, cycles[:, 1] * cycles[:, 0] ** m)
+    book_cycles(out, bin_edges, ticks[cycles[:, 2].astype(int)], cycles[:, 0], cycles[:, 1], m)
     return out
+
+
+def book_cycles(
+    out: np.ndarray, bin_edges: np.ndarray, at: np.ndarray, rng: np.ndarray, count: np.ndarray, m: float
+) -> None:
+    """Add n S^m of each cycle (range ``rng``, count ``count``) to the bin of ``out`` holding its closing tick ``at``,
+    in the cycles' order."""
+    which = np.clip(np.searchsorted(bin_edges, at, side="right") - 1, 0, len(out) - 1)
+    np.add.at(out, which, count * rng**m)
 
 
 def del_from_sums(sums: np.ndarray, seconds: float, m: float = WOHLER_M) -> np.ndarray:

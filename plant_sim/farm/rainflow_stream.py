@@ -20,7 +20,7 @@ from collections import deque
 
 import numpy as np
 
-from plant_sim.farm.damage import GATE_NM, WOHLER_M, ReversalRecorder
+from plant_sim.farm.damage import GATE_NM, WOHLER_M, ReversalRecorder, book_cycles
 
 
 class RainflowCounter:
@@ -140,6 +140,4 @@ class StreamingDamage:
         rng, count, at = counter.take()
         if len(rng) == 0:
             return
-        out = self.sums[row]
-        which = np.clip(np.searchsorted(self.bin_edges, at, side="right") - 1, 0, len(out) - 1)
-        np.add.at(out, which, count * rng**self.m)
+        book_cycles(self.sums[row], self.bin_edges, at, rng, count, self.m)
