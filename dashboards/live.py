@@ -6,7 +6,8 @@ every viewer merge the two streams into one recording. Rows arrive already down-
 (``display_every``, 10 Hz by default); they are buffered per group of series (one entity holds several scalar
 series) and sent with ``send_columns`` once a second of simulation time, one group per tick, so a one-hour run
 stays light in the viewer and logging never lands on one tick. Events become state timelines (faults injected vs
-detected, selected observer) and a text log.
+detected, selected observer) and a text log. A farm's overview adds a map (``dashboards.farm_map``): the plant
+logs the layout and the wind once, the supervisor the turbines' states when they change.
 """
 
 from __future__ import annotations
@@ -19,6 +20,7 @@ import numpy as np
 import rerun as rr
 
 from dashboards.blueprints import blueprint
+from dashboards.farm_map import MapColours, log_geometry
 from dashboards.panels import PANELS
 from wwcore.events import Event, EventType
 
@@ -67,6 +69,7 @@ class LiveRecording:
         path: str | None = None,
         n_turbines: int = 1,
         turbines: list[int] | None = None,
+        plant_section: Any = None,
     ):
         self.kind = kind
         self.role = role
@@ -76,8 +79,13 @@ class LiveRecording:
         self._groups: dict[str, _Group] = {}
         self._order: list[str] = []
         self._next = 0
+        self.map_colours: MapColours | None = None
         if role == "plant":
             self.rec.send_blueprint(blueprint(kind, self.turbines), make_active=True, make_default=True)
+            if self.panel.site_map is not None and plant_section is not None:
+                log_geometry(self.rec, self.panel.site_map(plant_section))
+        elif self.panel.site_map is not None:
+            self.map_colours = MapColours(max(self.turbines))
 
     # -- series -------------------------------------------------------------------------------------------------
     def _add(self, path: str, t: float, row: dict[str, float]) -> None:
@@ -137,6 +145,8 @@ class LiveRecording:
             self._rows(int(row["turbine"]), float(row["t"]), self.panel.supervisor(row, refs[i], status[i]))
         if self.panel.farm_supervisor is not None and len(refs):
             self._farm_rows(float(sensors[0]["t"]), self.panel.farm_supervisor(sensors, refs))
+        if self.map_colours is not None and len(refs):
+            self.map_colours.update(self.rec, TIMELINE, float(sensors[0]["t"]), refs)
 
     def _farm_rows(self, t: float, rows: dict[str, dict[str, float]]) -> None:
         for suffix, row in rows.items():

@@ -22,6 +22,7 @@ from typing import Any
 import numpy as np
 import rerun.blueprint as rrb
 
+from dashboards.farm_map import FarmGeometry, geometry_of, map_view
 from wwcore.channels import SENSOR_INDEX
 from wwcore.hydro_params import FAULT_TARGETS
 
@@ -49,6 +50,7 @@ class Panel:
     farm_plant: Callable[[np.ndarray, np.ndarray | None], Rows] | None = None  # (all sensor rows, all truth rows)
     farm_supervisor: Callable[[np.ndarray, np.ndarray], Rows] | None = None  # (all sensor rows, all refs rows)
     overview: Callable[[list[int]], list[Any]] | None = None  # turbines → views of the overview tab
+    site_map: Callable[[Any], FarmGeometry] | None = None  # the scenario's plant section → its map (farm_map)
 
 
 def _window() -> list[rrb.VisibleTimeRange]:
@@ -329,6 +331,7 @@ def _farm_supervisor(sensors: np.ndarray, refs: np.ndarray) -> Rows:
 
 def _farm_overview(turbines: list[int]) -> list[Any]:
     views: list[Any] = [
+        map_view(),
         _series_view("/farm/power", "farm power MW (green) vs demand (black) and the sum of the references (orange)"),
         _residual_view(  # 27 series: no legend; hovering a trace names its turbine
             "/turbine",
@@ -375,6 +378,7 @@ FARM = Panel(
     farm_plant=_farm_plant,
     farm_supervisor=_farm_supervisor,
     overview=_farm_overview,
+    site_map=geometry_of,
 )
 
 PANELS: dict[str, Panel] = {"turbine": TURBINE, "hydro": HYDRO, "farm": FARM}

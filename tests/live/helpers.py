@@ -194,6 +194,7 @@ class LiveNodes:
                 self.run_dir.name,
                 self.rerun_url,
                 n_turbines=self.scenario.plant.n_turbines,
+                plant_section=self.scenario.plant,
             )
         self.plant = PlantNode(p, self.plant_settings, self.scenario, self.run_dir.name, self.run_dir, display)
         self._plant_thread = threading.Thread(target=self._run_plant, daemon=True)

@@ -122,7 +122,12 @@ def cmd_plant(args: argparse.Namespace) -> int:
         from dashboards.live import LiveRecording
 
         display = LiveRecording(
-            scenario.plant.kind, "plant", run_id, settings.rerun_url, n_turbines=scenario.plant.n_turbines
+            scenario.plant.kind,
+            "plant",
+            run_id,
+            settings.rerun_url,
+            n_turbines=scenario.plant.n_turbines,
+            plant_section=scenario.plant,
         )
     with zenoh_session(settings) as session:
         node = PlantNode(session, settings, scenario, run_id, run_dir, display)
