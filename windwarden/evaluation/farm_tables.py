@@ -99,10 +99,13 @@ def _fmt(x: float | None, digits: int = 3) -> str:
 def table5_rows(scenario: Scenario, faulty: Variant | None, fault_free_run: Variant) -> dict[str, dict[str, Any]]:
     """Per fault type: delay, missed %, false positives per 1000 farm-s (fault-free runs + outside windows)."""
 
-    ff = detection_by_type(fault_free_run.events, [], fault_free_run.runs, fault_free_run.scenario.duration_s)
+    turbines = scenario.plant.n_turbines
+    ff = detection_by_type(fault_free_run.events, [], fault_free_run.runs, fault_free_run.scenario.duration_s, turbines)
     rows: dict[str, dict[str, Any]] = {}
     faulty_by = (
-        detection_by_type(faulty.events, farm_windows(scenario), faulty.runs, scenario.duration_s) if faulty else {}
+        detection_by_type(faulty.events, farm_windows(scenario), faulty.runs, scenario.duration_s, turbines)
+        if faulty
+        else {}
     )
     ff_seconds = fault_free_run.runs * (fault_free_run.scenario.duration_s - WARMUP_S)
     for name in FARM_FAULT_TYPES:
