@@ -47,6 +47,7 @@ from service.farm.cusum import PaperCusum, llr_increment
 from service.farm.interfaces import BETA, N_TYPES, OMEGA_G, P_G, FarmContext, FarmDiagnosis, FarmSample
 from service.farm.power_curve import available_power, power_from_speed, speed_from_power
 from service.farm.signals import LockIn3P, MastDelays
+from service.plugins import AlgorithmOptionError
 from wwcore.layout import SEED001_DIRECTIONS_DEG
 from wwcore.scenario.farm import FARM_DT_S, ROTOR_DIAMETER_M
 
@@ -97,19 +98,19 @@ class PaperDetector:
         case = options.get("wind_case")
         direction = options.get("wind_direction_deg")
         if case is not None and not context.paper_grid:
-            raise ValueError(
+            raise AlgorithmOptionError(
                 "wind_case: the paper's wind cases 1 and 2 are directions on seed 001's 3 × 3; this farm has "
                 f"{per_farm} turbines elsewhere (give wind_direction_deg, or let the mast's vane give it)"
             )
         if case is not None and direction is not None:
-            raise ValueError("wind_direction_deg: give the wind case or the direction, not both")
+            raise AlgorithmOptionError("wind_direction_deg: give the wind case or the direction, not both")
         if case is not None:
             direction = SEED001_DIRECTIONS_DEG[int(case)]
         source = str(options.get("direction_source", "auto"))
         if source not in DIRECTION_SOURCES:
-            raise ValueError(f"direction_source: {source!r} is not one of {', '.join(DIRECTION_SOURCES)}")
+            raise AlgorithmOptionError(f"direction_source: {source!r} is not one of {', '.join(DIRECTION_SOURCES)}")
         if source == "power" and not context.paper_grid:
-            raise ValueError(
+            raise AlgorithmOptionError(
                 "direction_source: 'power' is the paper's eqs. (1)–(2), written for seed 001's 3 × 3; this farm "
                 f"has {per_farm} turbines elsewhere (use 'vane' or 'auto')"
             )
