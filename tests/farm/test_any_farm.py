@@ -18,6 +18,7 @@ from service.farm.supervisor import FarmSupervisor
 from tests.farm.conftest import detections, simulate, wind
 from windwarden.cli import main
 from windwarden.evaluation.farm_scoring import PowerBalance
+from windwarden.kinds.farm import FARM
 from wwcore.channels import N_SENSORS
 from wwcore.scenario import ScenarioError, parse_scenario
 from wwcore.scenario.farm import FarmDemand, FarmPlant
@@ -257,3 +258,18 @@ def test_the_cli_refuses_the_wind_case_on_a_layout_with_exit_2(tmp_path, capsys)
     said = capsys.readouterr()
     assert "supervisor.params.wind_case" in said.err + said.out
     assert not out.exists()
+
+
+def test_the_wire_carries_a_farm_of_n_turbines_and_its_vane():
+    """``farm.sensors`` records of a three-turbine farm read back as the frame they were made from."""
+    kind = FARM
+    plant = FarmBatch(layout_farm(THREE, 200.0, 9.0), wind(10.0), [], seed=2, duration_s=2.0)
+    turbines = kind.turbines(plant)
+    for _ in range(10):
+        frame = plant.measure()
+        plant.control(None)
+        plant.advance()
+    assert frame.sample and turbines == [1, 2, 3]
+    back = kind.frame_from_records(kind.frame_records(frame, turbines))
+    for name in ("mast", "demand", "mast_direction", "scada", "power_ref_used"):
+        assert np.array_equal(getattr(back, name), getattr(frame, name)), name
