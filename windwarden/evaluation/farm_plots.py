@@ -3,7 +3,7 @@
 * ``fig2_farm_power.png``: farm power vs demand, dispatch and PI on the fault-free farm (Fig. 2), with a zoom
   (Fig. 3) — from the ``--compare`` runs; without them, the evaluated run's farm power vs demand;
 * ``turbine_power_vs_reference.png``: each turbine's power and its reference (run 0; on a farm of more than
-  ``MAX_PANELS`` turbines, the faulty ones and then the first ones up to that many);
+  ``farm_scoring.MAX_SHOWN`` turbines, the faulty ones and then the first ones up to that many);
 * ``fig4_damage.png``: drive-train damage number over time, without and with accommodation, mean over runs, for
   the turbines hit by drive-train faults (Fig. 4), the fault-free twin being 1 by construction; below it the Miner
   ratio of the farm's nine drive trains and of the turbines without a drive-train fault;
@@ -24,11 +24,10 @@ import numpy as np
 
 from plant_sim.farm.damage import WOHLER_M
 from windwarden.evaluation.farm import DAMAGE_BIN_S, Variant
-from windwarden.evaluation.farm_scoring import WARMUP_S
+from windwarden.evaluation.farm_scoring import WARMUP_S, shown_turbines
 from wwcore.scenario import Scenario
 from wwcore.scenario.farm import FARM_FAULT_TYPES, farm_fault_name
 
-MAX_PANELS = 12  # turbines drawn one panel each at most
 MAX_LEGEND = 12  # turbines named in a legend at most
 COLORS = {"debris": "tab:orange", "pitch_misalignment": "tab:purple", "drivetrain": "tab:red"}
 
@@ -78,16 +77,6 @@ def _farm_power(path: Path, scenario: Scenario, main: Variant, comp: dict) -> Pa
     for a in (ax, zoom):
         a.grid(alpha=0.3)
     return _save(fig, path)
-
-
-def shown_turbines(scenario: Scenario) -> list[int]:
-    """0-based turbines with a panel: all of a farm of at most ``MAX_PANELS``; else the faulty ones, then the first."""
-    n = scenario.plant.n_turbines
-    if n <= MAX_PANELS:
-        return list(range(n))
-    faulty = sorted({f.turbine - 1 for f in scenario.faults})[:MAX_PANELS]
-    rest = [t for t in range(n) if t not in faulty][: MAX_PANELS - len(faulty)]
-    return sorted(faulty + rest)
 
 
 def _turbines(path: Path, scenario: Scenario, v: Variant) -> Path:

@@ -18,6 +18,18 @@ from wwcore.scenario.farm import FARM_DT_S, FARM_FAULT_TYPES, farm_fault_name
 WARMUP_S = SCORING.warmup_s  # s, not scored (scoring_policy says why)
 GRACE_S = SCORING.grace_s  # s after a fault ends during which its flags may still be up (scoring_policy)
 MWH_PER_J = 1.0 / 3.6e9
+MAX_SHOWN = 12  # turbines a plot or a table shows one by one at most
+
+
+def shown_turbines(scenario: Scenario) -> list[int]:
+    """0-based turbines a plot or table shows one by one: all of a farm of at most ``MAX_SHOWN``; else the faulty
+    ones, then the first."""
+    n = scenario.plant.n_turbines
+    if n <= MAX_SHOWN:
+        return list(range(n))
+    faulty = sorted({f.turbine - 1 for f in scenario.faults})[:MAX_SHOWN]
+    rest = [t for t in range(n) if t not in faulty][: MAX_SHOWN - len(faulty)]
+    return sorted(faulty + rest)
 
 
 def farm_windows(scenario: Scenario) -> list[FaultWindow]:
