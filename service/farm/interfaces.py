@@ -6,7 +6,7 @@ is built the same way and has ``step(sample: FarmSample, faulty: np.ndarray) -> 
 turbine's power reference (W); ``faulty`` (n, 3) is the detector's verdict per fault type (all False when
 accommodation is off). Both run on 10 Hz farm samples only and see what a farm controller sees: the turbines'
 SCADA means, their controller outputs, the met mast and the demand; never the plant's truth, the fault schedule
-or the wind case (the paper's detector estimates it, eqs. (1)–(2)).
+or the wind case or direction (the paper's detector estimates it: eqs. (1)–(2) or the mast's vane).
 
 A farm controller may also expose ``mode`` (n,) int8 (``wwcore.farm_frames.DISPATCH_MODES``: 3 holds the torque,
 5 cancels the 3P torque without the hold), ``held_torque`` (n,) N m, ``pitch_trim`` (n, 3) deg and
