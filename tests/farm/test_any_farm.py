@@ -238,6 +238,17 @@ def test_a_layout_scenario_loads_and_the_wind_case_option_is_refused_there():
     assert ok.supervisor.params == {"wind_direction_deg": 250.0}
 
 
+def test_a_wind_case_with_another_farm_or_direction_is_refused():
+    data = _layout_scenario()
+    data["plant"]["wind_case"] = 2
+    with pytest.raises(ScenarioError) as err:
+        parse_scenario(data)
+    assert "wind_case" in str(err.value) and "wind_direction_deg" in str(err.value)
+    seed001 = {"kind": "file", "name": "seed001_3x3"}
+    paper = {"kind": "farm", "wake_model": "gauss", "layout": seed001, "wind_direction_deg": 315.0, "wind_case": 2}
+    assert parse_scenario({"name": "p", "duration_s": 10.0, "plant": paper}).plant.is_paper_farm()
+
+
 def test_the_paper_detector_refuses_the_3x3_direction_test_on_another_layout():
     site = layout_farm(GRID_2X5, 250.0, 30.0).site()
     with pytest.raises(ValueError, match="direction_source"):

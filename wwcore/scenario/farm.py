@@ -197,6 +197,11 @@ class FarmPlant(BaseModel):
         if self.layout is not None and self.spacing_m != type(self).model_fields["spacing_m"].default:
             raise ValueError("spacing_m: the layout gives the positions; spacing_m is the paper's 3 × 3 spacing")
         n = self.n_turbines  # resolves the layout (overlapping turbines, empty layouts are refused there)
+        if self.wind_case != type(self).model_fields["wind_case"].default and not self.is_paper_farm():
+            raise ValueError(
+                f"wind_case: the wind cases are directions on seed 001's 3 × 3 (1: 270°, 2: 315°); this farm has "
+                f"{n} turbines with wind from {self.direction_deg:g}°: leave wind_case out and give wind_direction_deg"
+            )
         if self.demand.points is not None:
             top = n * TURBINE_RATED_MW
             for _, mw in self.demand.points:
