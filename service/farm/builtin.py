@@ -39,7 +39,7 @@ class PaperOptions:
     # time constant of the running circular mean of the mast's vane
     direction_averaging_s: Annotated[float, Bounds(gt=0.0, le=3600.0, unit="s")] = 60.0
     # the rows are formed again when the direction estimate has moved this far from theirs
-    regroup_deg: Annotated[float, Bounds(ge=0.0, le=45.0, unit="deg")] = 5.0
+    regroup_deg: Annotated[float, Bounds(ge=0.0, le=45.0, unit="deg")] = 1.0
 
 
 @dataclass(frozen=True)

@@ -8,10 +8,12 @@ r"""The farm fault detector of seed 001 (Borchersen, Larsen & Stoustrup), as pub
    * ``power``, eqs. (1)–(2), seed 001's 3 × 3 only: the first 500 farm samples, p = |mean(P_1 − P_4)|; case 1
      (270°) if p ≤ 10 kW, else case 2 (315°). Nothing is tested before the case is known. The test knows these two
      directions only: on the 3 × 3 in another wind it picks the nearer pattern, so such a farm needs ``vane``;
-   * ``vane``: the met mast's wind vane, a running circular mean (first order, ``direction_averaging_s``, default
-     60 s) of its readings. Nothing is tested before 500 samples (as eq. (1) waits); the rows are formed again
-     whenever the estimate has moved more than ``regroup_deg`` (default 5°) from the direction they were formed
-     for, the CUSUMs keeping their state (a turbine's comparison changes, not its test);
+   * ``vane``: the met mast's wind vane, a running circular mean of its readings (the mean of all so far, then
+     first order with ``direction_averaging_s``, default 60 s: σ ≈ 0.2° with the vane's 5°). Nothing is tested
+     before 500 samples (as eq. (1) waits); the rows are formed again whenever the estimate has moved more than
+     ``regroup_deg`` (default 1°, several times the estimate's noise: a layout's rows can change within a degree,
+     Horns Rev 1's at 270.7°) from the direction they were formed for, the CUSUMs keeping their state (a
+     turbine's comparison changes, not its test);
    * ``auto`` (the default): ``power`` on seed 001's 3 × 3, ``vane`` on any other layout.
 
    Options ``wind_case`` (1 or 2, the 3 × 3 only) and ``wind_direction_deg`` give the direction instead: diagnostics,
@@ -62,7 +64,7 @@ H0 = (0.1e6, 0.1, 0.5)  # Table 4, h_0 of faults 1–3
 LOCKIN_TAU_S = 1.5  # s, low-pass of the 3P lock-in [PROPOSED]
 KAPPA_3P = 5.0e-3  # –, γ_ω/ω_g,max of eq. (11): mean fault-free 3P amplitude / ω_g (docs/farm.md) [PROPOSED]
 DIRECTION_AVERAGING_S = 60.0  # s, time constant of the vane's running circular mean [PROPOSED]
-REGROUP_DEG = 5.0  # deg the direction estimate moves before the rows are formed again [PROPOSED]
+REGROUP_DEG = 1.0  # deg the direction estimate moves before the rows are formed again [PROPOSED]
 DIRECTION_SOURCES = ("auto", "power", "vane")  # option direction_source (module docstring)
 
 
@@ -160,10 +162,10 @@ class PaperDetector:
             )
         theta = np.radians(sample.mast_direction)
         unit = np.column_stack([np.cos(theta), np.sin(theta)])
-        if self._samples == 0:
-            self._vane = unit
-        else:
-            self._vane += (unit - self._vane) * (1.0 - math.exp(-FARM_DT_S / self._tau))
+        # the mean of every reading so far until the first-order filter averages over more (k + 1 > τ/Δt): an
+        # exponential filter started from one reading would still carry its noise when the rows are first formed
+        gain = max(1.0 / (self._samples + 1), 1.0 - math.exp(-FARM_DT_S / self._tau))
+        self._vane += (unit - self._vane) * gain
         if self._samples + 1 >= CASE_SAMPLES:
             self.direction = np.mod(np.degrees(np.arctan2(self._vane[:, 1], self._vane[:, 0])), 360.0)
 

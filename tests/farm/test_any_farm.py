@@ -156,6 +156,15 @@ def test_paper_rows_follow_the_vane_and_regroup_when_the_direction_moves():
     assert det.grouped[1] > 95.0 and det.rows[0] == context.rows(180.0)
 
 
+def test_the_vane_estimate_averages_every_reading_before_the_rows_are_first_formed():
+    """A first reading 10° off weighs 1/500 when the rows are formed (50 s), not e^(−50/60) as a first-order filter
+    started from it would leave (4.3°)."""
+    det = PaperDetector(context=FarmContext(layout_farm(GRID_2X5, 0.0, 30.0).site(), 10))
+    for j in range(500):
+        det.step(_vane_sample(j, np.array([280.0 if j == 0 else 270.0]), 10))
+    assert det.direction[0] == pytest.approx(270.0 + 10.0 / 500.0, abs=1e-3)
+
+
 def test_the_plant_vane_reads_the_direction_with_its_noise_and_leaves_the_other_streams_alone():
     spec = layout_farm({"kind": "coordinates", "x_m": [0.0, 500.0], "y_m": [0.0, 0.0]}, 250.0, 6.0)
     quiet = spec.model_copy(update={"mast_direction_noise_deg": 0.0})
