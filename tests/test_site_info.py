@@ -68,6 +68,7 @@ def test_the_site_holds_the_published_parameters():
     farm = load_scenario("farm-case1").plant.site()
     assert farm.turbines == tuple(range(1, 10)) and farm.rated_power_w == 4.8e6
     assert farm.positions_m[1] == (farm.spacing_m, 0.0) and farm.mast_distance_m is not None
+    assert farm.positions_m[3] == (0.0, -farm.spacing_m)  # east, north: the second grid row stands south
     assert farm.sensor_sigma["omega_g_m1"] == pytest.approx(0.05)  # PARAMETERS.md a.3, read as σ
     hydro = load_scenario("hydro-fig5").plant.site()
     assert hydro.stroke_max == load_scenario("hydro-fig5").plant.stroke_max

@@ -1,10 +1,10 @@
 """What the wind-farm plant sends to the farm supervisor each tick, and what the supervisor sends back.
 
-Rows are turbines of farms: row ``f·9 + (t − 1)`` is turbine t of farm f (a Monte Carlo run, or its fault-free
-twin). The plant ticks at the turbines' 100 Hz; the farm level works at 10 Hz (``wwcore.scenario.farm.FARM_DT_S``):
-every tenth tick is a *farm sample*, carrying the turbines' SCADA values (the means of their last ten sensor
-samples, an anti-aliasing average), a new met-mast reading and the demand. The supervisor computes on farm
-samples and holds its references in between.
+Rows are turbines of farms: row ``f·N + (t − 1)`` is turbine t of farm f (a Monte Carlo run, or its fault-free
+twin), N the farm's turbines (9 on the paper's 3 × 3). The plant ticks at the turbines' 100 Hz; the farm level works
+at 10 Hz (``wwcore.scenario.farm.FARM_DT_S``): every tenth tick is a *farm sample*, carrying the turbines' SCADA
+values (the means of their last ten sensor samples, an anti-aliasing average), a new met-mast reading (speed and
+vane) and the demand. The supervisor computes on farm samples and holds its references in between.
 """
 
 from __future__ import annotations
@@ -37,6 +37,7 @@ class FarmFrame:
     power_ref_used: np.ndarray  # (n,) W, the power reference each turbine's controller used
     mast: np.ndarray  # (farms,) m/s, met-mast wind reading (10 Hz, held in between)
     demand: np.ndarray  # (farms,) W, the farm power demand P_ref,farm
+    mast_direction: np.ndarray | None = None  # (farms,) deg from north, the mast vane's reading (None: no vane)
 
     @property
     def farms(self) -> int:

@@ -2,7 +2,7 @@
 
 The plant publishes its nominal parameters, the turbine numbers of its rows, its sensors' noise, its sample time and
 (a farm) its layout. It never publishes what only the simulator knows: the fault schedule, the wind, a model
-mismatch, the farm's wind case (a detector estimates it, or is told it through its own ``wind_case`` option). Each
+mismatch, the farm's wind case or direction (a detector estimates it, or is told it through its own options). Each
 scenario section builds its site (``TurbinePlant.site``, ``FarmPlant.site``, ``HydroPlant.site``); a live supervisor
 is built from it and the supervisor's algorithms alone (``windwarden.kinds``). Over the network it travels inside the
 ``plant.run`` message, validated on arrival: an unknown field (a ``mismatch`` or a fault sneaked in) is refused.
@@ -33,9 +33,13 @@ class SiteInfo(BaseModel):
         default_factory=dict, description="σ of each sensor channel's noise under the convention, in its unit"
     )
     positions_m: tuple[tuple[float, float], ...] = Field(
-        default=(), description="farm: (x, y) in m of turbines 1 … n on the grid; empty for a single turbine"
+        default=(),
+        description="farm: (x east, y north) in m of turbines 1 … n, the resolved layout; empty for a single turbine",
     )
-    spacing_m: float | None = Field(default=None, gt=0.0, description="farm: m, grid spacing")
+    spacing_m: float | None = Field(
+        default=None, gt=0.0, description="farm: m, grid spacing (a layout's: the smallest distance between turbines)"
+    )
+    rotor_diameter_m: float | None = Field(default=None, gt=0.0, description="farm: m, rotor diameter D")
     mast_distance_m: float | None = Field(default=None, ge=0.0, description="farm: m, met mast upwind of the front row")
     stroke_max: float | None = Field(
         default=None, gt=0.0, description="hydro: –, mechanical stop of both displacement units"

@@ -319,7 +319,7 @@ METMAST = MessageSchema(
 FARM_SENSORS = MessageSchema(
     "farm.sensors",
     8,
-    2,  # v2: run
+    3,  # v2: run; v3: mast_direction
     "One farm turbine's frame at tick k (FarmFrame row): its own sensors and controller outputs (as turbine.sensors), "
     "and on 10 Hz farm samples its SCADA means, the met mast and the farm demand (the same on every turbine's row).",
     (
@@ -334,6 +334,7 @@ FARM_SENSORS = MessageSchema(
         WireField("power_ref_used", "<f8", "W", "mean power reference of the last ten ticks"),
         WireField("mast", "<f8", "m/s", "met-mast wind reading (10 Hz, held)"),
         WireField("demand", "<f8", "W", "farm power demand P_ref,farm"),
+        WireField("mast_direction", "<f8", "deg", "met-mast vane reading, from north, clockwise (10 Hz, held)"),
     ),
 )
 

@@ -11,7 +11,7 @@ Tick k (100 Hz) of the farm:
 1. ``measure()``: at the start of each 10 Hz block (k mod 10 = 0) the wind field takes the turbines' aerodynamic
    power and moves the wakes on; the turbines measure; their readings are summed into the block's SCADA means.
    The last tick of a block (k mod 10 = 9) is a *farm sample*: SCADA means, a new met-mast reading (true mast wind
-   + noise) and the demand go out with the frame.
+   + noise; the vane's direction + noise, from a stream of its own) and the demand go out with the frame.
 2. ``control(refs)``: a newer ``FarmRefs`` sets each turbine's power reference (followed at the turbine's ramp
    rate); the turbine controllers run.
 3. ``advance()``: the turbines integrate to k + 1.
@@ -43,8 +43,16 @@ from wwcore.scenario.wind import WindSpec
 from wwcore.turbine_params import BENCHMARK, TurbineParams
 
 MAST_TURBINE = 0  # turbine number of the met mast's random streams (row_streams(seed, run, 0))
+VANE_STREAM = 2  # the vane's noise: child 2 of the mast's SeedSequence (row_streams takes children 0 and 1)
 ROW_STREAM_BASE = 100  # row i's shared turbulence: row_streams(seed, run, max(100, N + 1) + i) (row_coherence > 0)
 TRIM_WINDS = np.arange(2.0, 35.01, 0.25)  # m/s, grid of the initial operating points
+
+
+def vane_stream(seed: int, run: int) -> np.random.Generator:
+    """The met-mast vane's noise stream of one run: independent of every stream ``row_streams`` gives (a third child
+    of the mast's sequence), so adding the vane changed no other draw."""
+    children = np.random.SeedSequence(seed, spawn_key=(run, MAST_TURBINE)).spawn(VANE_STREAM + 1)
+    return np.random.default_rng(children[VANE_STREAM])
 
 
 def demand_series(
@@ -109,6 +117,8 @@ class FarmBatch:
         self.mast = MastSeries(plant, wind, [w for w, _ in mast_streams], duration_s)
         self._mast_noise = [noise for _, noise in mast_streams]
         self._mast_noise_chunk = np.empty((len(self.runs), 0))
+        self._vane_noise = [vane_stream(seed, int(r)) for r in self.runs]
+        self._vane_noise_chunk = np.empty((len(self.runs), 0))
         self.n_turbines = n_turbines = plant.n_turbines
         self.wakes: FarmWakes
         if plant.wake_model == "rows":
@@ -152,6 +162,7 @@ class FarmBatch:
         self.scada = np.zeros((self.n, N_SENSORS))
         self.power_ref_used = np.full(self.n, params.rated_power)
         self.mast_reading = self.mast.v[:, self.mast.offset].copy()
+        self.vane_reading = np.full(len(self.runs), plant.direction_deg)
         self._refs_tick = -1
 
     # -- set-up -----------------------------------------------------------------------------------------------
@@ -233,6 +244,8 @@ class FarmBatch:
             self.scada = self._scada_sum * (1.0 / s)
             self.power_ref_used = self._power_ref_sum * (1.0 / s)
             self.mast_reading = self.mast.v[:, self.mast.offset + j] + self.spec.mast_noise_mps * self._mast_noise_now()
+            vane = self.spec.direction_deg + self.spec.mast_direction_noise_deg * self._vane_noise_now()
+            self.vane_reading = np.mod(vane, 360.0)
         return FarmFrame(
             k=k,
             t=self.t,
@@ -242,6 +255,7 @@ class FarmBatch:
             power_ref_used=self.power_ref_used,
             mast=self.mast_reading[self.run_of_farm],
             demand=self.demand[self.run_of_farm, min((k + 1) // s, self.demand.shape[1] - 1)],
+            mast_direction=self.vane_reading[self.run_of_farm],
         )
 
     def control(self, refs: FarmRefs | None) -> None:
@@ -286,6 +300,13 @@ class FarmBatch:
         return self.turbines.blade_torque
 
     # -- internals --------------------------------------------------------------------------------------------
+    def _vane_noise_now(self) -> np.ndarray:
+        """One unit-variance draw per run from the vane's own noise stream (drawn 1000 samples at a time)."""
+        if self._vane_noise_chunk.shape[1] == 0:
+            self._vane_noise_chunk = np.stack([rng.standard_normal(1000) for rng in self._vane_noise])
+        out, self._vane_noise_chunk = self._vane_noise_chunk[:, 0], self._vane_noise_chunk[:, 1:]
+        return out
+
     def _mast_noise_now(self) -> np.ndarray:
         """One unit-variance draw per run from the mast's own noise stream (drawn 1000 samples at a time)."""
         if self._mast_noise_chunk.shape[1] == 0:

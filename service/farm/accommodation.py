@@ -34,7 +34,6 @@ import numpy as np
 from service.farm.interfaces import FarmSample
 from service.farm.pitch_trim import PitchTrim
 from wwcore.farm_frames import CANCEL_3P_MODE, DEBRIS_MODE, DERATED_MODE, HOLD_TORQUE_MODE, PITCH_TRIM_MODE
-from wwcore.scenario.farm import N_TURBINES
 
 DEBRIS_FACTOR = 0.97  # eqs. (23)–(24)
 P_MIN_W = 50e3  # eq. (26)
@@ -44,7 +43,7 @@ DEBRIS, PITCH, DRIVETRAIN = 0, 1, 2  # columns of the detector's ``faulty``
 
 @dataclass
 class AccommodationPlan:
-    """What the rules ask of each turbine; every field (farms, 9)."""
+    """What the rules ask of each turbine; every field (farms, N)."""
 
     debris: np.ndarray  # bool: eqs. (23)–(24)
     trimmed: np.ndarray  # bool: pitch trim (D-28)
@@ -81,7 +80,7 @@ class DebrisRule:
 
     @staticmethod
     def mark(plan: AccommodationPlan, flags: np.ndarray) -> None:
-        """``flags`` (farms, 9, 3): the detector's verdict."""
+        """``flags`` (farms, N, 3): the detector's verdict."""
         plan.debris = flags[:, :, DEBRIS] & ~(flags[:, :, PITCH] | flags[:, :, DRIVETRAIN])
 
     @staticmethod
@@ -163,11 +162,11 @@ class PaperDrivetrainRule(DrivetrainRule):
 
 
 def derate_to_headroom(plan: AccommodationPlan, avail: np.ndarray, over: np.ndarray) -> np.ndarray:
-    """Eq. (26) on the derated and relieved turbines of ``avail`` (farms, 9) W, given P_over (farms,) W of (25):
+    """Eq. (26) on the derated and relieved turbines of ``avail`` (farms, N) W, given P_over (farms,) W of (25):
     P_avail,f = max(pos(P_avail − P_over), floor, min(kept · P_avail, P_avail)), the headroom shared out in turbine
     order (D-26). A new array; the others' P_avail unchanged."""
     avail = avail.copy()
-    for t in range(N_TURBINES):
+    for t in np.flatnonzero((plan.derate | plan.relieved).any(axis=0)):  # turbine order (D-26)
         hit = plan.derate[:, t] | plan.relieved[:, t]
         if hit.any():
             reduced = np.maximum(np.maximum(avail[:, t] - np.maximum(over, 0.0), 0.0), plan.floor[:, t])

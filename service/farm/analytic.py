@@ -34,11 +34,15 @@ is free of the wind (the rotor and the generator turn together below the 4.5 Hz 
 controller. Its 3P lock-in amplitude A (``signals.LockIn3P``, τ = 1.5 s) is Rayleigh-distributed without the
 fault (A/(2s) with s from σ_3), so the alarm is A ≥ h_3 with P(A > h_3) = p_3.
 
-**Thresholds from the budget.** With a budget of B false alarms per 1000 s of farm operation per fault type
-(``false_alarms_per_1000s``, default 0.01: ten times below the target 0.1, for the model's imperfections) and m
-one-sided tests per turbine (m = 1, 6, 1), each test may alarm once per ARL_0 = 10⁴ · 9 m / B samples. Page's CUSUM
-of LLRs has ARL_0 ≥ e^h (Lorden), so h = ln ARL_0 (faults 1, 2: h = 16.0, 17.8 at B = 0.01); for fault 3 the
-exceedance probability per sample is p_3 = B/(10⁴ · 9), a bound on the crossing rate (h_3 = 2s √(2 ln 1/p_3)).
+**Thresholds from the budget.** The budget is per *farm*: B false alarms per 1000 s of farm operation per fault
+type (``false_alarms_per_1000s``, default 0.01: ten times below the target 0.1, for the model's imperfections),
+shared by the farm's N turbines (N from the site) and their m one-sided tests each (m = 1, 6, 1). Each test may
+alarm once per ARL_0 = 10⁴ · N m / B samples. Page's CUSUM of LLRs has ARL_0 ≥ e^h (Lorden), so
+h = ln ARL_0 = ln(10⁴ m / B) + ln N: the thresholds grow with the logarithm of the farm's size (faults 1, 2 at
+B = 0.01: h = 16.0, 17.8 for N = 9; 18.2, 20.0 for N = 80; 13.8, 15.6 for N = 1), and so do the detection delays,
+by Δh over the CUSUM's drift per sample (ln(80/9) = 2.2 more for Horns Rev 1 than for the 3 × 3). For fault 3 the
+exceedance probability per sample is p_3 = B/(10⁴ · N), a bound on the crossing rate (h_3 = 2s √(2 ln 1/p_3),
+growing with √(ln N)).
 The end of a fault is decided by the reverse CUSUM (faults 1, 2; same h) or by A < h_3/2 for 3 s (fault 3).
 No test runs during the first ``warmup_s`` (filters settling).
 """
@@ -65,7 +69,7 @@ from service.farm.interfaces import (
 )
 from service.farm.signals import LockIn3P, lockin_iq_std, rayleigh_threshold
 from wwcore.channels import SENSOR_INDEX
-from wwcore.scenario.farm import FARM_DT_S, N_TURBINES
+from wwcore.scenario.farm import FARM_DT_S
 from wwcore.turbine_params import TurbineParams
 
 DEBRIS_FACTOR = 0.97  # design fault 1: output × 0.97 (PARAMETERS.md b)
@@ -125,9 +129,10 @@ class AnalyticDetector:
         self.var_3 = self.var_w + p.N_g**2 * self.var_r
         budget = float(options.get("false_alarms_per_1000s", 0.01))
         self.budget = budget
-        arl = [SAMPLES_PER_1000S * N_TURBINES * m / budget for m in TESTS_PER_TURBINE]
+        per_farm = context.turbines  # the budget is the farm's, shared by its turbines
+        arl = [SAMPLES_PER_1000S * per_farm * m / budget for m in TESTS_PER_TURBINE]
         self.h1, self.h2 = threshold_for(arl[0]), threshold_for(arl[1])
-        self.p3 = budget / (SAMPLES_PER_1000S * N_TURBINES)
+        self.p3 = budget / (SAMPLES_PER_1000S * per_farm)
         self.s3 = float(lockin_iq_std(math.sqrt(self.var_3), LOCKIN_TAU_S))
         self.h3 = float(rayleigh_threshold(self.s3, self.p3))
         self.warmup = round(float(options.get("warmup_s", 10.0)) / FARM_DT_S)

@@ -28,7 +28,7 @@ import numpy as np
 from service.farm.interfaces import BETA, OMEGA_G, P_G, TAU_G, FarmSample
 from service.farm.power_curve import available_power
 from wwcore import aero
-from wwcore.scenario.farm import FARM_DT_S, N_TURBINES, ROTOR_DIAMETER_M
+from wwcore.scenario.farm import FARM_DT_S, ROTOR_DIAMETER_M
 from wwcore.turbine_params import TurbineParams
 
 HOLD_AVERAGING_S = 10.0  # s, low-pass of the wind the hold's speed floor and torque cap are chosen from [PROPOSED]
@@ -51,7 +51,7 @@ class AvailablePower:
         pitch = y[:, BETA].mean(axis=(1, 2))
         tau_r = p.N_g * (y[:, TAU_G] + p.B_g * omega_g) / p.eta_dt + p.B_r * omega_r
         if self.wind is None:
-            guess = np.repeat(sample.mast, N_TURBINES)
+            guess = np.repeat(sample.mast, sample.turbines_per_farm)
             self.wind = aero.wind_from_torque(tau_r, omega_r, pitch, guess, p, iterations=8)
         else:
             self.wind = aero.wind_from_torque(tau_r, omega_r, pitch, self.wind, p, iterations=3)  # eq. (20)

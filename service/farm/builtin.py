@@ -20,7 +20,7 @@ from service.farm import accommodation, hold, power_loop
 from service.farm.analytic import AnalyticDetector
 from service.farm.dispatch import ACCOMMODATION_RULES, PITCH_RULES, Dispatch
 from service.farm.interfaces import FarmContext, FarmDiagnosis, FarmSample, empty_diagnosis
-from service.farm.paper import PaperDetector
+from service.farm.paper import DIRECTION_SOURCES, PaperDetector
 from service.farm.power_loop import PIFarmController
 from service.plugins import FARM_CONTROLLERS, FARM_DETECTORS
 from wwcore.options import Bounds
@@ -32,6 +32,14 @@ from wwcore.options import Bounds
 @dataclass(frozen=True)
 class PaperOptions:
     wind_case: Annotated[int | None, Bounds(ge=1, le=2)] = None  # give the wind case instead of estimating it
+    # give the wind direction instead of estimating it (deg from north, where the wind comes from)
+    wind_direction_deg: Annotated[float | None, Bounds(ge=0.0, lt=360.0, unit="deg")] = None
+    # where the direction comes from: auto (eqs. (1)-(2) on the 3 × 3, the vane elsewhere), power, vane
+    direction_source: Literal[DIRECTION_SOURCES] = DIRECTION_SOURCES[0]
+    # time constant of the running circular mean of the mast's vane
+    direction_averaging_s: Annotated[float, Bounds(gt=0.0, le=3600.0, unit="s")] = 60.0
+    # the rows are formed again when the direction estimate has moved this far from theirs
+    regroup_deg: Annotated[float, Bounds(ge=0.0, le=45.0, unit="deg")] = 1.0
 
 
 @dataclass(frozen=True)

@@ -47,7 +47,6 @@ from service.farm.interfaces import FarmContext, FarmSample
 from service.farm.power_loop import TRIM_KI, TRIM_KP, TRIM_LIMIT, FarmPowerTrim
 from service.farm.ripple import RippleCompensation
 from service.plugins import AlgorithmOptionError
-from wwcore.scenario.farm import N_TURBINES
 
 ACCOMMODATION_RULES = ("cancel", "hold-torque", "paper")  # drive train; the first is the default
 PITCH_RULES = ("trim", "paper")  # the first is the default
@@ -74,7 +73,7 @@ def _choice(options: dict, name: str, choices: tuple[str, ...]) -> str:
 
 
 class Dispatch:
-    """Eqs. (18)–(26) for ``farms`` farms of nine turbines (module docstring)."""
+    """Eqs. (18)–(26) for ``farms`` farms of N turbines each (module docstring)."""
 
     def __init__(self, *, context: FarmContext, options: dict | None = None):
         options = options or {}
@@ -109,7 +108,7 @@ class Dispatch:
         )
         ripple_share = _share_option(options, "ripple_share", 1.0)  # D-29: the part of the ripple the others cancel
         compensate = bool(options.get("ripple_compensation", True))
-        self.ripple = RippleCompensation(self.p, self.n, ripple_share) if compensate else None
+        self.ripple = RippleCompensation(self.p, self.n, ripple_share, context.turbines) if compensate else None
         self.p_ref = np.full(self.n, self.p.rated_power)  # W, the references sent last
         self.p_avail = np.zeros(self.n)  # W, eq. (22), before accommodation
         # wwcore.farm_frames.DISPATCH_MODES: normal, debris, derated (26), held torque, pitch trim, 3P cancelled
@@ -121,12 +120,12 @@ class Dispatch:
 
     def step(self, sample: FarmSample, faulty: np.ndarray) -> np.ndarray:
         """The references (n,) W answering ``sample``; ``faulty`` (n, 3) the flags to accommodate."""
-        measured, farms = sample, sample.farms
+        measured = sample
         if self.ripple is not None:
             sample = self.ripple.without_ripple(sample)
         self.p_avail = self.estimate_available(sample)
-        avail = self.p_avail.reshape(farms, N_TURBINES).copy()
-        flags = faulty.reshape(farms, N_TURBINES, -1)
+        avail = sample.per_farm(self.p_avail).copy()
+        flags = sample.per_farm(faulty)
         demand = sample.demand
         maximum = avail.sum(axis=1)  # the farm's theoretical maximum production, Σ P_avail (19)
         plan = AccommodationPlan.empty(avail.shape, self.derate_floor)

@@ -63,7 +63,7 @@ class HoldRelease:
         self.released &= flagged.reshape(-1)
 
     def update(self, hold: np.ndarray, others_asked: np.ndarray, others_avail: np.ndarray, active: np.ndarray) -> None:
-        """Release the holds (``hold`` (farms, 9)) of farms whose other turbines have been asked for more than
+        """Release the holds (``hold`` (farms, N)) of farms whose other turbines have been asked for more than
         1 − ``reserve`` of their available power (``others_asked``, ``others_avail`` (farms,) W), or whose demand
         is beyond the farm's maximum (not ``active``), for ``after_s``."""
         needed = ~active | (others_asked > (1.0 - self.reserve) * others_avail)

@@ -6,7 +6,7 @@ is built the same way and has ``step(sample: FarmSample, faulty: np.ndarray) -> 
 turbine's power reference (W); ``faulty`` (n, 3) is the detector's verdict per fault type (all False when
 accommodation is off). Both run on 10 Hz farm samples only and see what a farm controller sees: the turbines'
 SCADA means, their controller outputs, the met mast and the demand; never the plant's truth, the fault schedule
-or the wind case (the paper's detector estimates it, eqs. (1)–(2)).
+or the wind case or direction (the paper's detector estimates it: eqs. (1)–(2) or the mast's vane).
 
 A farm controller may also expose ``mode`` (n,) int8 (``wwcore.farm_frames.DISPATCH_MODES``: 3 holds the torque,
 5 cancels the 3P torque without the hold), ``held_torque`` (n,) N m, ``pitch_trim`` (n, 3) deg and
@@ -23,7 +23,8 @@ import numpy as np
 
 from wwcore.channels import SENSOR_INDEX, SENSORS
 from wwcore.farm_frames import FarmFrame
-from wwcore.scenario.farm import FARM_DT_S, FARM_FAULT_TYPES, N_TURBINES, FarmPlant
+from wwcore.layout import SEED001_DIRECTIONS_DEG, FarmLayout
+from wwcore.scenario.farm import FARM_DT_S, FARM_FAULT_TYPES, ROTOR_DIAMETER_M, ROW_TOLERANCE_D, FarmPlant
 from wwcore.site import SiteInfo
 from wwcore.turbine_params import BENCHMARK, TurbineParams
 
@@ -38,7 +39,7 @@ N_TYPES = len(FARM_FAULT_TYPES)
 
 @dataclass
 class FarmSample:
-    """One 10 Hz farm sample of ``farms`` farms (rows farm-major, 9 turbines each), in SI units."""
+    """One 10 Hz farm sample of ``farms`` farms (rows farm-major, N turbines each), in SI units."""
 
     j: int  # sample index; t = j·FARM_DT_S
     t: float  # s
@@ -47,6 +48,7 @@ class FarmSample:
     power_ref_used: np.ndarray  # (n,) W, the reference each turbine's controller followed
     mast: np.ndarray  # (farms,) m/s
     demand: np.ndarray  # (farms,) W
+    mast_direction: np.ndarray | None = None  # (farms,) deg from north, the mast vane (None: the plant has none)
 
     @classmethod
     def from_frame(cls, frame: FarmFrame, dt: float) -> FarmSample:
@@ -59,11 +61,16 @@ class FarmSample:
             power_ref_used=frame.power_ref_used,
             mast=frame.mast,
             demand=frame.demand,
+            mast_direction=frame.mast_direction,
         )
 
     @property
     def farms(self) -> int:
         return len(self.mast)
+
+    @property
+    def turbines_per_farm(self) -> int:
+        return len(self.scada) // len(self.mast)
 
     def untrimmed(self, pitch_trim: np.ndarray) -> FarmSample:
         """This sample with a commanded per-blade pitch trim (n, 3) deg taken off the pitch readings: the blades as
@@ -73,8 +80,8 @@ class FarmSample:
         return replace(self, scada=scada)
 
     def per_farm(self, values: np.ndarray) -> np.ndarray:
-        """(n, …) → (farms, 9, …)."""
-        return values.reshape(self.farms, N_TURBINES, *values.shape[1:])
+        """(n, …) → (farms, N, …)."""
+        return values.reshape(self.farms, self.turbines_per_farm, *values.shape[1:])
 
 
 @dataclass
@@ -100,27 +107,57 @@ def empty_diagnosis(n: int) -> FarmDiagnosis:
 class FarmContext:
     """What every farm algorithm may know: the turbine's parameters, the sensor noise, the layout, the batch size.
 
-    The layout is the grid and the mast position, *not* the wind case: ``rows(case)`` gives the rows of either
-    case for a detector that has estimated it.
+    The layout is the site's: N = ``turbines`` per farm at ``positions`` (east, north in m) and the mast
+    ``mast_distance_m`` upwind of the front row; *not* the wind direction. ``rows(direction)`` groups the turbines
+    for any direction a detector has estimated (``groups_along_wind``: turbines within ``ROW_TOLERANCE_D`` rotor
+    diameters of each other along the wind form a row), ``rows_of_case(case)`` for the paper's two wind cases on its
+    3 × 3. The batch holds ``farms`` = n / N farms, rows farm-major.
     """
 
     def __init__(self, site: SiteInfo, n: int, params: TurbineParams = BENCHMARK):
-        if site.kind != "farm" or site.spacing_m is None or site.mast_distance_m is None:
-            raise ValueError(f"a farm supervisor needs a farm's site (grid spacing and mast), not a {site.kind}'s")
+        if site.kind != "farm" or site.mast_distance_m is None:
+            raise ValueError(f"a farm supervisor needs a farm's site (its layout and mast), not a {site.kind}'s")
+        turbines = len(site.turbines)
+        if len(site.positions_m) != turbines:
+            raise ValueError(f"the site has {turbines} turbines but {len(site.positions_m)} positions")
+        if n <= 0 or n % turbines:
+            raise ValueError(f"{n} rows are not whole farms of {turbines} turbines")
         self.params = params
         self.n = n
-        self.farms = n // N_TURBINES
+        self.turbines = turbines
+        self.farms = n // turbines
         self.dt = FARM_DT_S
         self.noise_convention = site.noise_convention
         self.sensor_sigma = np.array([site.sensor_sigma[c.name] for c in SENSORS])
-        self._geometry = {
-            case: FarmPlant(spacing_m=site.spacing_m, mast_distance_m=site.mast_distance_m, wind_case=case)
-            for case in (1, 2)
-        }
+        self.rotor_diameter_m = site.rotor_diameter_m or ROTOR_DIAMETER_M
+        xy = np.array(site.positions_m, dtype=float).reshape(turbines, 2)
+        self.layout = FarmLayout(xy[:, 0], xy[:, 1], self.rotor_diameter_m, source="site")
         self.mast_distance_m = site.mast_distance_m
+        self.row_tolerance_m = ROW_TOLERANCE_D * self.rotor_diameter_m
+        self.spacing_m = site.spacing_m
+        self.paper_grid = is_seed001_grid(self.layout, site.spacing_m)
 
-    def rows(self, case: int) -> list[tuple[int, ...]]:
-        return self._geometry[case].rows()
+    def rows(self, direction_deg: float) -> list[tuple[int, ...]]:
+        """Turbine numbers (1-based) grouped by distance along the wind from ``direction_deg``, front to back."""
+        groups = self.layout.groups_along_wind(direction_deg, self.row_tolerance_m)
+        return [tuple(i + 1 for i in g) for g in groups]
 
-    def row_distances_m(self, case: int) -> list[float]:
-        return self._geometry[case].row_distances_m()
+    def row_distances_m(self, direction_deg: float) -> list[float]:
+        """Distance in m of each row of ``rows(direction_deg)`` from the front row along the wind (its first
+        turbine's). On the paper's 3 × 3 in one of its wind cases, the closed form of ``FarmPlant.row_distances_m``
+        (case 1: x; case 2: (x + y)/√2), which the rotation gives up to rounding."""
+        for case, paper_direction in SEED001_DIRECTIONS_DEG.items():
+            if self.paper_grid and direction_deg == paper_direction:
+                plant = FarmPlant(spacing_m=self.spacing_m, mast_distance_m=self.mast_distance_m, wind_case=case)
+                return plant.row_distances_m()
+        s = self.layout.wind_frame(direction_deg).downwind
+        return [float(s[g[0] - 1]) for g in self.rows(direction_deg)]
+
+
+def is_seed001_grid(layout: FarmLayout, spacing_m: float | None) -> bool:
+    """Whether ``layout`` is seed 001's 3 × 3 at ``spacing_m`` (turbines numbered row by row, rows southwards): the
+    farm the paper's wind-case estimate (eqs. (1)–(2)) is written for."""
+    if spacing_m is None or layout.n_turbines != 9:
+        return False
+    paper = FarmPlant(spacing_m=spacing_m).resolved_layout()
+    return bool(np.allclose(layout.x, paper.x, atol=1e-3) and np.allclose(layout.y, paper.y, atol=1e-3))

@@ -1,8 +1,23 @@
 r"""The farm fault detector of seed 001 (Borchersen, Larsen & Stoustrup), as published: detector ``paper``.
 
-1. **Wind direction** (eqs. (1)–(2)): from the first 500 farm samples, p = |mean(P_1 − P_4)|; case 1 if
-   p ≤ 10 kW, else case 2. Nothing is tested before the case is known. (Option ``wind_case`` = 1 or 2 gives the
-   case instead: a diagnostic, not the paper's method.)
+1. **Wind direction and rows.** The paper compares each turbine with the others of its *row*: the turbines at the
+   same distance along the wind. Its rows come from the direction and the layout (``FarmContext.rows``: turbines
+   within ``ROW_TOLERANCE_D`` = 0.5 D of each other along the wind, each row anchored at its most upwind turbine).
+   The direction comes, per farm, from (option ``direction_source``)
+
+   * ``power``, eqs. (1)–(2), seed 001's 3 × 3 only: the first 500 farm samples, p = |mean(P_1 − P_4)|; case 1
+     (270°) if p ≤ 10 kW, else case 2 (315°). Nothing is tested before the case is known. The test knows these two
+     directions only: on the 3 × 3 in another wind it picks the nearer pattern, so such a farm needs ``vane``;
+   * ``vane``: the met mast's wind vane, a running circular mean of its readings (the mean of all so far, then
+     first order with ``direction_averaging_s``, default 60 s: σ ≈ 0.2° with the vane's 5°). Nothing is tested
+     before 500 samples (as eq. (1) waits); the rows are formed again whenever the estimate has moved more than
+     ``regroup_deg`` (default 1°, several times the estimate's noise: a layout's rows can change within a degree,
+     Horns Rev 1's at 270.7°) from the direction they were formed for, the CUSUMs keeping their state (a
+     turbine's comparison changes, not its test);
+   * ``auto`` (the default): ``power`` on seed 001's 3 × 3, ``vane`` on any other layout.
+
+   Options ``wind_case`` (1 or 2, the 3 × 3 only) and ``wind_direction_deg`` give the direction instead: diagnostics,
+   not the paper's method.
 2. **Row winds** (eq. (3)): the mast reading delayed by d_j/v̄, v̄ = v_mast/(s + 1).
 3. **Fault 1, debris** (eqs. (4)–(7), Table 1): P_e = f_ω⁻¹(ω_m) (``power_curve.power_from_speed``),
    r = P_m − P_e, CUSUM with μ_0 = 0, μ_1 = −Amp P_e, Amp = 0.027, σ² = 3000. *Decision D-7*: the paper writes
@@ -26,13 +41,17 @@ r"""The farm fault detector of seed 001 (Borchersen, Larsen & Stoustrup), as pub
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from service.farm.cusum import PaperCusum, llr_increment
 from service.farm.interfaces import BETA, N_TYPES, OMEGA_G, P_G, FarmContext, FarmDiagnosis, FarmSample
 from service.farm.power_curve import available_power, power_from_speed, speed_from_power
 from service.farm.signals import LockIn3P, MastDelays
-from wwcore.scenario.farm import FARM_DT_S, N_TURBINES, ROTOR_DIAMETER_M
+from service.plugins import AlgorithmOptionError
+from wwcore.layout import SEED001_DIRECTIONS_DEG
+from wwcore.scenario.farm import FARM_DT_S, ROTOR_DIAMETER_M
 
 CASE_SAMPLES = 500  # eq. (1)
 CASE_THRESHOLD_W = 10e3  # eq. (2)
@@ -44,12 +63,17 @@ H1 = (0.25e6, 60.0, 3.0)  # Table 4, h_1 of faults 1–3
 H0 = (0.1e6, 0.1, 0.5)  # Table 4, h_0 of faults 1–3
 LOCKIN_TAU_S = 1.5  # s, low-pass of the 3P lock-in [PROPOSED]
 KAPPA_3P = 5.0e-3  # –, γ_ω/ω_g,max of eq. (11): mean fault-free 3P amplitude / ω_g (docs/farm.md) [PROPOSED]
+DIRECTION_AVERAGING_S = 60.0  # s, time constant of the vane's running circular mean [PROPOSED]
+REGROUP_DEG = 1.0  # deg the direction estimate moves before the rows are formed again [PROPOSED]
+DIRECTION_SOURCES = ("auto", "power", "vane")  # option direction_source (module docstring)
 
 
-def row_matrices(rows: list[tuple[int, ...]]) -> tuple[np.ndarray, np.ndarray]:
-    """(M, alone): M[t, u] = 1/(|row| − 1) for the other turbines u of t's row, alone[t] when t has none."""
-    m = np.zeros((N_TURBINES, N_TURBINES))
-    alone = np.zeros(N_TURBINES, dtype=bool)
+def row_matrices(rows: list[tuple[int, ...]], turbines: int | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """(M, alone): M[t, u] = 1/(|row| − 1) for the other turbines u of t's row, alone[t] when t has none; for
+    ``turbines`` turbines (default: the highest number in ``rows``)."""
+    turbines = turbines or max(max(row) for row in rows)
+    m = np.zeros((turbines, turbines))
+    alone = np.zeros(turbines, dtype=bool)
     for row in rows:
         for t in row:
             others = [u for u in row if u != t]
@@ -59,27 +83,53 @@ def row_matrices(rows: list[tuple[int, ...]]) -> tuple[np.ndarray, np.ndarray]:
     return m, alone
 
 
+def angle_between(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """|a − b| in degrees on the circle (0 … 180)."""
+    return np.abs((np.asarray(a) - np.asarray(b) + 180.0) % 360.0 - 180.0)
+
+
 class PaperDetector:
-    """Seed 001's detector, vectorised over farms (module docstring)."""
+    """Seed 001's detector, vectorised over farms of N turbines (module docstring)."""
 
     def __init__(self, *, context: FarmContext, options: dict | None = None):
         options = options or {}
         self.context = context
         self.p = context.params
-        n, farms = context.n, context.farms
-        self.n, self.farms = n, farms
-        given = options.get("wind_case")
-        self.case = np.full(farms, int(given) if given is not None else 0)  # 0: not yet estimated
+        n, farms, per_farm = context.n, context.farms, context.turbines
+        self.n, self.farms, self.per_farm = n, farms, per_farm
+        case = options.get("wind_case")
+        direction = options.get("wind_direction_deg")
+        if case is not None and not context.paper_grid:
+            raise AlgorithmOptionError(
+                "wind_case: the paper's wind cases 1 and 2 are directions on seed 001's 3 × 3; this farm has "
+                f"{per_farm} turbines elsewhere (give wind_direction_deg, or let the mast's vane give it)"
+            )
+        if case is not None and direction is not None:
+            raise AlgorithmOptionError("wind_direction_deg: give the wind case or the direction, not both")
+        if case is not None:
+            direction = SEED001_DIRECTIONS_DEG[int(case)]
+        source = str(options.get("direction_source", "auto"))
+        if source not in DIRECTION_SOURCES:
+            raise AlgorithmOptionError(f"direction_source: {source!r} is not one of {', '.join(DIRECTION_SOURCES)}")
+        if source == "power" and not context.paper_grid:
+            raise AlgorithmOptionError(
+                "direction_source: 'power' is the paper's eqs. (1)–(2), written for seed 001's 3 × 3; this farm "
+                f"has {per_farm} turbines elsewhere (use 'vane' or 'auto')"
+            )
+        self.given = direction is not None
+        self.from_power = not self.given and source != "vane" and context.paper_grid  # eqs. (1)–(2)
+        self.case = np.full(farms, int(case) if case is not None else 0)  # 3 × 3: 0 not yet estimated
         self._p14 = np.zeros(farms)  # Σ (P_1 − P_4) over the first 500 samples
         self._samples = 0
-        self._matrices = {c: row_matrices(context.rows(c)) for c in (1, 2)}
-        self._row_of = {}
-        for c in (1, 2):
-            row_of = np.zeros(N_TURBINES, dtype=int)
-            for i, row in enumerate(context.rows(c)):
-                row_of[[t - 1 for t in row]] = i
-            self._row_of[c] = row_of
-        self._distances = {c: context.mast_distance_m + np.array(context.row_distances_m(c)) for c in (1, 2)}
+        self._tau = float(options.get("direction_averaging_s", DIRECTION_AVERAGING_S))
+        self._regroup = float(options.get("regroup_deg", REGROUP_DEG))
+        self._vane = np.zeros((farms, 2))  # running mean of (cos, sin) of the vane's readings
+        self.direction = np.full(farms, np.nan if direction is None else float(direction))  # deg, the estimate
+        self.grouped = np.full(farms, np.nan)  # deg, the direction each farm's rows were formed for
+        self.rows: list[list[tuple[int, ...]]] = [[] for _ in range(farms)]
+        self._m = np.zeros((farms, per_farm, per_farm))  # row_matrices per farm
+        self._alone = np.zeros((farms, per_farm), dtype=bool)
+        self._distances = np.zeros((farms, per_farm))  # m, mast to each turbine's row along the wind
         self.mast = MastDelays(farms)
         self.lockin = LockIn3P(n, LOCKIN_TAU_S)
         self.p_ag: np.ndarray | None = None  # eq. (12) state
@@ -88,37 +138,72 @@ class PaperDetector:
             PaperCusum((n, 3), H1[1], H0[1]),
             PaperCusum((n,), H1[2], H0[2]),
         ]
-        self.reported = np.full(farms, -1)  # per farm: index type·9 + (t − 1) of the reported fault, −1 none
+        self.reported = np.full(farms, -1)  # per farm: index type·N + (t − 1) of the reported fault, −1 none
         self.residuals = np.zeros((n, N_TYPES))
 
+    # -- the direction and the rows --------------------------------------------------------------------------
+    def _estimate_direction(self, sample: FarmSample, power: np.ndarray) -> None:
+        """Eqs. (1)–(2) on the 3 × 3, the vane's running mean elsewhere; ``direction`` stays NaN until known."""
+        if self.given:
+            return
+        if self.from_power:
+            if self._samples < CASE_SAMPLES and (self.case == 0).any():
+                per = power.reshape(self.farms, self.per_farm)
+                self._p14 += per[:, 0] - per[:, 3]
+                if self._samples + 1 == CASE_SAMPLES:
+                    p_wm = np.abs(self._p14 / CASE_SAMPLES)
+                    self.case = np.where(self.case == 0, np.where(p_wm <= CASE_THRESHOLD_W, 1, 2), self.case)
+                    self.direction = np.where(self.case == 1, SEED001_DIRECTIONS_DEG[1], SEED001_DIRECTIONS_DEG[2])
+            return
+        if sample.mast_direction is None:
+            raise ValueError(
+                "the paper detector on a farm other than seed 001's 3 × 3 needs the mast's wind vane "
+                "(mast_direction) or the option wind_direction_deg"
+            )
+        theta = np.radians(sample.mast_direction)
+        unit = np.column_stack([np.cos(theta), np.sin(theta)])
+        # the mean of every reading so far until the first-order filter averages over more (k + 1 > τ/Δt): an
+        # exponential filter started from one reading would still carry its noise when the rows are first formed
+        gain = max(1.0 / (self._samples + 1), 1.0 - math.exp(-FARM_DT_S / self._tau))
+        self._vane += (unit - self._vane) * gain
+        if self._samples + 1 >= CASE_SAMPLES:
+            self.direction = np.mod(np.degrees(np.arctan2(self._vane[:, 1], self._vane[:, 0])), 360.0)
+
+    def _group(self) -> None:
+        """Form the rows of every farm whose direction estimate moved ``regroup_deg`` from its rows' (or has none)."""
+        known = ~np.isnan(self.direction)
+        stale = known & (np.isnan(self.grouped) | (angle_between(self.direction, self.grouped) > self._regroup))
+        for f in np.flatnonzero(stale):
+            direction = float(self.direction[f])
+            rows = self.context.rows(direction)
+            m, alone = row_matrices(rows, self.per_farm)
+            row_of = np.zeros(self.per_farm, dtype=int)
+            for i, row in enumerate(rows):
+                row_of[[t - 1 for t in row]] = i
+            distances = self.context.mast_distance_m + np.array(self.context.row_distances_m(direction))
+            self._m[f], self._alone[f], self._distances[f] = m, alone, distances[row_of]
+            self.rows[f], self.grouped[f] = rows, direction
+
     def step(self, sample: FarmSample) -> FarmDiagnosis:
-        p, n, farms = self.p, self.n, self.farms
+        p, n, farms, per_farm = self.p, self.n, self.farms, self.per_farm
         y = sample.scada
         self.mast.step(sample.mast)
         power = y[:, P_G]
         omega_g = y[:, OMEGA_G].mean(axis=1)
         amplitude = self.lockin.step(omega_g, omega_g / p.N_g)
-        # eqs. (1)–(2): wind direction from the first 500 samples
-        if self._samples < CASE_SAMPLES and (self.case == 0).any():
-            per = power.reshape(farms, N_TURBINES)
-            self._p14 += per[:, 0] - per[:, 3]
-            if self._samples + 1 == CASE_SAMPLES:
-                p_wm = np.abs(self._p14 / CASE_SAMPLES)
-                self.case = np.where(self.case == 0, np.where(p_wm <= CASE_THRESHOLD_W, 1, 2), self.case)
+        self._estimate_direction(sample, power)
         self._samples += 1
         diagnosis = FarmDiagnosis(
             np.zeros((n, N_TYPES), dtype=bool), np.zeros((n, N_TYPES)), np.tile(np.array(H1), (n, 1))
         )
-        if (self.case == 0).any():
+        if np.isnan(self.direction).any():
             return diagnosis
-        m = np.stack([self._matrices[1][0], self._matrices[2][0]])  # (2, 9, 9)
-        alone = np.stack([self._matrices[1][1], self._matrices[2][1]])  # (2, 9)
-        sel = (self.case == 1)[:, None]
-        alone_t = np.where(sel, alone[0], alone[1]).reshape(-1)  # (n,)
+        self._group()
+        alone_t = self._alone.reshape(-1)  # (n,)
 
         def row_mean_others(x: np.ndarray) -> np.ndarray:  # (n,) → (n,) mean over the row's other turbines
-            xf = x.reshape(farms, N_TURBINES)
-            return np.where(sel, xf @ m[0].T, xf @ m[1].T).reshape(-1)
+            xf = x.reshape(farms, per_farm)
+            return np.matmul(self._m, xf[:, :, None])[:, :, 0].reshape(-1)
 
         # fault 1, eqs. (4)–(7)
         p_e = power_from_speed(p, omega_g, sample.zone)
@@ -130,8 +215,7 @@ class PaperDetector:
         r2 = blades - comp[:, None]
         f2 = self.cusum[1].step(llr_increment(r2, 0.0, MU1_F2, SIGMA2_F2), active=~alone_t[:, None])
         # fault 3, eqs. (11)–(16)
-        v_case = [self.mast.delayed(self._distances[c])[:, self._row_of[c]] for c in (1, 2)]  # (farms, 9) each
-        v_est = np.where(sel, v_case[0], v_case[1]).reshape(-1)  # (n,) the wind at each turbine's row, eq. (3)
+        v_est = self.mast.delayed(self._distances).reshape(-1)  # (n,) the wind at each turbine's row, eq. (3)
         p_a = available_power(p, v_est)
         if self.p_ag is None:
             self.p_ag = p_a.copy()
@@ -147,17 +231,21 @@ class PaperDetector:
         self.residuals = np.column_stack([r1, np.abs(r2).max(axis=1), r3])
         diagnosis.statistics = np.column_stack([self.cusum[0].g, self.cusum[1].g.max(axis=1), self.cusum[2].g])
         diagnosis.faulty = self._one_at_a_time(flags)
-        diagnosis.extra = {"wind_case": np.repeat(self.case, N_TURBINES), "amplitude_3p": amplitude}
+        diagnosis.extra = {
+            "wind_direction": np.repeat(self.direction, per_farm),
+            "wind_case": np.repeat(self.case, per_farm),
+            "amplitude_3p": amplitude,
+        }
         return diagnosis
 
     def _one_at_a_time(self, flags: np.ndarray) -> np.ndarray:
         """Section 3.7: per farm, report the first flag to rise until it falls."""
-        farms = self.farms
-        per = flags.reshape(farms, N_TURBINES, N_TYPES).transpose(0, 2, 1).reshape(farms, -1)  # (farms, type·9 + t)
+        farms, per_farm = self.farms, self.per_farm
+        per = flags.reshape(farms, per_farm, N_TYPES).transpose(0, 2, 1).reshape(farms, -1)  # (farms, type·N + t)
         still = (self.reported >= 0) & per[np.arange(farms), np.maximum(self.reported, 0)]
         first = np.where(per.any(axis=1), per.argmax(axis=1), -1)
         self.reported = np.where(still, self.reported, first)
-        out = np.zeros((farms, N_TYPES * N_TURBINES), dtype=bool)
+        out = np.zeros((farms, N_TYPES * per_farm), dtype=bool)
         has = self.reported >= 0
         out[np.flatnonzero(has), self.reported[has]] = True
-        return out.reshape(farms, N_TYPES, N_TURBINES).transpose(0, 2, 1).reshape(-1, N_TYPES)
+        return out.reshape(farms, N_TYPES, per_farm).transpose(0, 2, 1).reshape(-1, N_TYPES)

@@ -27,7 +27,7 @@ from __future__ import annotations
 import numpy as np
 
 from service.farm.interfaces import P_G, FarmContext, FarmSample
-from wwcore.scenario.farm import FARM_DT_S, N_TURBINES
+from wwcore.scenario.farm import FARM_DT_S
 
 PI_KP, PI_KI, PI_LIMIT = 0.3, 0.05, 0.2  # PARAMETERS.md b [PROPOSED]
 TRIM_KP, TRIM_KI, TRIM_LIMIT = 0.5, 0.5, 0.1  # –, 1/s, –: the dispatch's farm-power trim [PROPOSED]
@@ -58,7 +58,7 @@ class FarmPowerTrim:
         return self.kp > 0.0 or self.ki > 0.0
 
     def apply(self, sample: FarmSample, refs: np.ndarray, active: np.ndarray, free: np.ndarray) -> np.ndarray:
-        """(1 + u) on the references ``refs`` (farms, 9) of the turbines in ``free`` of the farms where the
+        """(1 + u) on the references ``refs`` (farms, N) of the turbines in ``free`` of the farms where the
         dispatch is ``active`` (farms,); I restarts from 0 where it is not."""
         integral, u = farm_power_pi(sample, self.integral, self.kp, self.ki, self.limit)
         self.integral = np.where(active, integral, 0.0)
@@ -80,6 +80,7 @@ class PIFarmController:
 
     def step(self, sample: FarmSample, faulty: np.ndarray) -> np.ndarray:
         self.integral, u = farm_power_pi(sample, self.integral, self.kp, self.ki, PI_LIMIT)
-        refs = np.repeat(sample.demand * (1.0 + u) / N_TURBINES, N_TURBINES)
+        per_farm = sample.turbines_per_farm
+        refs = np.repeat(sample.demand * (1.0 + u) / per_farm, per_farm)
         self.p_ref = np.clip(refs, 0.0, self.p.rated_power)
         return self.p_ref

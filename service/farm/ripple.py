@@ -36,7 +36,7 @@ from dataclasses import replace
 import numpy as np
 
 from service.farm.interfaces import OMEGA_G, P_G, FarmSample
-from wwcore.scenario.farm import FARM_DT_S, N_TURBINES
+from wwcore.scenario.farm import FARM_DT_S
 from wwcore.turbine_params import TurbineParams
 
 PHASOR_TIME_S = 0.4  # s, each of the low-passes of the demodulated ripple [PROPOSED]
@@ -52,11 +52,12 @@ def block_mean_gain(omega: np.ndarray, dt: float) -> np.ndarray:
 
 
 class RippleCompensation:
-    """The estimate and the compensating phasors for ``n`` turbine rows (farm-major, nine per farm)."""
+    """The estimate and the compensating phasors for ``n`` turbine rows (farm-major, ``per_farm`` per farm)."""
 
-    def __init__(self, params: TurbineParams, n: int, share: float = 1.0):
+    def __init__(self, params: TurbineParams, n: int, share: float = 1.0, per_farm: int = 9):
         self.p = params
         self.n = n
+        self.per_farm = per_farm
         self.share = share  # s: the part of the ripple the free turbines are asked to cancel
         self.block_centre_s = 0.5 * (BLOCK_TICKS + 1) * params.dt  # s before t_j: the readings' mean time
         self._reset()
@@ -116,12 +117,12 @@ class RippleCompensation:
     def _share(self, omega_3: np.ndarray, free: np.ndarray) -> None:
         """Each free turbine of a farm takes an equal share of the opposite of its farm's ripple. One turbine
         per farm is the rule (one fault reported at a time); with several, the free ones cancel the largest."""
-        farms = self.n // N_TURBINES
-        ripple = self.ripple.reshape(farms, N_TURBINES)
-        free = free.reshape(farms, N_TURBINES)
+        farms = self.n // self.per_farm
+        ripple = self.ripple.reshape(farms, self.per_farm)
+        free = free.reshape(farms, self.per_farm)
         largest = np.argmax(np.abs(ripple), axis=1)
         rows = np.arange(farms)
         share = -self.share * ripple[rows, largest] / np.maximum(free.sum(axis=1), 1)
         self.power = np.where(free, share[:, None], 0.0).reshape(-1)
-        rate = omega_3.reshape(farms, N_TURBINES)[rows, largest]
+        rate = omega_3.reshape(farms, self.per_farm)[rows, largest]
         self.rate = np.where(free & (share != 0.0)[:, None], rate[:, None], 0.0).reshape(-1)

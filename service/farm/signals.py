@@ -85,8 +85,10 @@ class MastDelays:
         self.count += 1
 
     def delayed(self, distances_m: np.ndarray) -> np.ndarray:
-        """Mast readings d/v̄ ago for each farm and distance, (farms, len(distances)), m/s."""
+        """Mast readings d/v̄ ago for each farm and distance, (farms, k), m/s; ``distances_m`` (k,) the same for every
+        farm or (farms, k) each farm's own."""
         vbar = np.maximum(self.vbar, MIN_MEAN_WIND)
-        lag = np.minimum(np.rint(distances_m[None, :] / vbar[:, None] / self.dt).astype(np.intp), self.size - 1)
+        d = np.atleast_2d(distances_m)
+        lag = np.minimum(np.rint(d / vbar[:, None] / self.dt).astype(np.intp), self.size - 1)
         slot = (self.count - 1 - lag) % self.size
         return self.history[np.arange(len(vbar))[:, None], slot]

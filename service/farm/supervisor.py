@@ -17,7 +17,7 @@ from service.flag_events import flag_events, row_event
 from service.plugins import FARM_CONTROLLERS, FARM_DETECTORS, choose
 from wwcore.events import Event, EventType
 from wwcore.farm_frames import CANCEL_3P_MODE, DISPATCH_MODES, HOLD_TORQUE_MODE, FarmFrame, FarmRefs
-from wwcore.scenario.farm import FARM_FAULT_TYPES, N_TURBINES
+from wwcore.scenario.farm import FARM_FAULT_TYPES
 from wwcore.site import SiteInfo
 from wwcore.turbine_params import BENCHMARK, TurbineParams
 
@@ -26,7 +26,7 @@ DEFAULT_CONTROLLER = FARM_CONTROLLERS.default
 
 
 class FarmSupervisor:
-    """Supervises ``n // 9`` farms of nine turbines (rows farm-major)."""
+    """Supervises ``n // N`` farms of the site's N turbines (rows farm-major; N and the positions from ``site``)."""
 
     def __init__(
         self,
@@ -49,8 +49,9 @@ class FarmSupervisor:
         self.accommodation = accommodation
         self.n = n
         self.dt = params.dt
-        self.turbine_of_row = np.tile(np.arange(1, N_TURBINES + 1), n // N_TURBINES)
-        self.farm_of_row = np.repeat(np.arange(n // N_TURBINES), N_TURBINES)
+        per_farm, farms = self.context.turbines, self.context.farms
+        self.turbine_of_row = np.tile(np.arange(1, per_farm + 1), farms)
+        self.farm_of_row = np.repeat(np.arange(farms), per_farm)
         self.flags = np.zeros((n, len(FARM_FAULT_TYPES)), dtype=bool)
         self.mode = np.zeros(n, dtype=np.int8)
         self.diagnosis: FarmDiagnosis | None = None

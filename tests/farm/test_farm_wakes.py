@@ -237,16 +237,6 @@ def _farm_scenario(**plant) -> dict:
             "plant.layout",
             "overlap",
         ),
-        (
-            {"wake_model": "gauss", "layout": {"kind": "file", "name": "hornsrev1"}, "wind_direction_deg": 270.0},
-            "plant.layout",
-            "handles the paper's 9 turbines",
-        ),
-        (
-            {"wake_model": "gauss", "layout": {"kind": "grid", "rows": 3, "columns": 3}, "wind_direction_deg": 0.0},
-            "plant.layout",
-            "3 × 3 grid in wind case 1 or 2",
-        ),
     ],
 )
 def test_bad_wake_or_layout_settings_are_refused_with_a_clear_message(plant, field, words):

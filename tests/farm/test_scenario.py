@@ -85,3 +85,17 @@ def test_demand_profile_needs_points_and_fraction_mode_refuses_them():
         parse_scenario(data)
     data["plant"]["demand"] = {"mode": "profile", "points": [[0.0, 10.0], [50.0, 20.0]]}
     assert parse_scenario(data).plant.demand.points[1] == (50.0, 20.0)
+
+
+def test_the_horns_rev_1_pair_is_80_turbines_with_every_fault_type_on_turbines_drawn_at_random():
+    faulty, fault_free = load_scenario("farm-hornsrev1"), load_scenario("farm-hornsrev1-fault-free")
+    assert faulty.plant.n_turbines == 80 and faulty.plant.wake_model == "gauss"
+    assert faulty.plant.demand.mode == "profile" and fault_free.faults == []
+    assert faulty.plant == fault_free.plant and faulty.wind == fault_free.wind
+    assert faulty.duration_s == fault_free.duration_s
+    kinds = sorted(f.kind.value for f in faulty.faults)
+    assert kinds == ["debris", "debris", "drivetrain_wear", "drivetrain_wear", "offset", "offset"]
+    assert len({f.turbine for f in faulty.faults}) == 6
+    windows = sorted((f.start_s, f.end_s) for f in faulty.faults)
+    assert all(a[1] < b[0] for a, b in itertools.pairwise(windows))  # one at a time, quiet time between
+    assert faulty.plant.site().turbines == tuple(range(1, 81))

@@ -81,3 +81,41 @@ def test_turbine_lockstep_matches_windwarden_eval(tmp_path):
     assert card["false_alarms"] == evaluation["false_alarms"]
     assert card["false_alarms_per_1000s"] == evaluation["false_alarms_per_1000s"]
     assert card["metrics"]["wind_rmse"] == evaluation["metrics"]["wind_rmse"]
+
+
+FARM_LAYOUT_SHORT = """
+name = "farm-layout-short"
+duration_s = 30.0
+[plant]
+kind = "farm"
+wake_model = "gauss"
+wakes = false
+wind_direction_deg = 200.0
+layout = { kind = "coordinates", x_m = [0.0, 600.0, 250.0], y_m = [0.0, 80.0, -700.0] }
+[plant.demand]
+mode = "profile"
+points = [[0.0, 9.0]]
+[wind]
+mean = [[0.0, 10.0]]
+[[faults]]
+name = "F1 debris wt3"
+target = "rotor"
+kind = "debris"
+value = 0.97
+turbine = 3
+start_s = 20.0
+end_s = 26.0
+"""
+"""Three turbines at explicit coordinates: a farm of N ≠ 9 over the wire (rows, mast, vane, references)."""
+
+
+@pytest.mark.slow  # ~18 s on the loaded 2-core machine
+def test_lockstep_equals_batch_for_a_farm_of_three_turbines(tmp_path):
+    scn, events, card = _lockstep(tmp_path, FARM_LAYOUT_SHORT, 6)
+    batch = run_batch(scn, 6)
+    assert _keys(events) == _keys(batch.events)
+    assert {(e.turbine, e.target) for e in events if e.type.value == "detection"} == {(3, "debris")}
+    live = card.pop("live")
+    assert live["completed"] and live["ticks_without_refs"] == 0 and live["dropped"] == {}
+    assert card == json.loads(json.dumps(batch.scorecard))
+    assert card["turbines"] == 3 and card["wind_direction_deg"] == 200.0

@@ -1,5 +1,5 @@
-"""Monte Carlo runs of the nine-turbine farm (seed 001) and its supervisor, and their scorecard (the evaluator that
-``windwarden eval`` calls is ``farm_eval``).
+"""Monte Carlo runs of a farm (seed 001's nine turbines, or any layout's N) and its supervisor, and their scorecard
+(the evaluator that ``windwarden eval`` calls is ``farm_eval``).
 
 Per run (``FarmBatch``), and when the scenario has faults also its fault-free twin farm (same wind and noise
 streams, no faults, same supervisor), in one batch. The scorecard has the schema of the turbine kind:
@@ -16,6 +16,9 @@ streams, no faults, same supervisor), in one batch. The scorecard has the schema
 * ``metrics.damage``: drive-train damage (rainflow of the shaft torque, m = 4, against the fault-free twin's;
   ``farm_damage``) of the faulty turbine and of the farm's nine, per fault window and over the run, each run's
   figure kept for paired comparisons; the rotor imbalance of pitch faults.
+
+N comes from the scenario's layout (``FarmPlant.n_turbines``); a process takes at most ``MAX_CHUNK_ROWS`` turbine
+rows (``MAX_CHUNK`` runs of nine: 50 runs of the 3 × 3, 5 of Horns Rev 1's 80).
 
 """
 
@@ -46,14 +49,15 @@ from windwarden.evaluation.kinds import EvalOptions
 from windwarden.evaluation.paired import runs_digest
 from windwarden.evaluation.parallel import run_chunks
 from windwarden.evaluation.scoring import FaultWindow, twin_false_alarms
-from windwarden.evaluation.scoring_policy import FARM as SCORING
+from windwarden.evaluation.scoring_policy import farm_policy
 from wwcore.events import Event, EventType
 from wwcore.scenario import Scenario
 from wwcore.scenario.farm import FARM_DT_S, N_TURBINES
 from wwcore.stepping import run_ticks
 
 DAMAGE_BIN_S = 10.0  # s, time resolution of the damage sums (Fig. 4)
-MAX_CHUNK = 50  # runs per process at most: 100 runs are two chunks of 50 (900 turbine rows and their twins)
+MAX_CHUNK = 50  # runs of the 3 × 3 per process at most: 100 runs are two chunks of 50 (900 rows and their twins)
+MAX_CHUNK_ROWS = MAX_CHUNK * N_TURBINES  # turbine rows per process at most (twins apart), for a farm of any size
 PROGRESS_EVERY = 1000  # ticks between progress reports
 
 
@@ -65,8 +69,8 @@ class ChunkResult:
     over_j: np.ndarray  # (farms,) J
     missing_j: np.ndarray  # (farms,) J
     demand_j: np.ndarray  # (farms,) J
-    damage: np.ndarray  # (farms, 9, bins) Σ n S^m per DAMAGE_BIN_S bin; no bins without twins
-    imbalance: np.ndarray  # (farms, 9, windows) complex mean imbalance per fault window; 0 without twins
+    damage: np.ndarray  # (farms, N, bins) Σ n S^m per DAMAGE_BIN_S bin; no bins without twins
+    imbalance: np.ndarray  # (farms, N, windows) complex mean imbalance per fault window; 0 without twins
     twins: bool
     trace: dict[str, np.ndarray] = field(default_factory=dict)  # farm 0 (and its twin), 10 Hz
 
@@ -100,7 +104,7 @@ def simulate_chunk(
         accommodation=accommodation,
         options=options,
     )
-    dt, farms, n = plant.dt, plant.farms, plant.n
+    dt, farms, n, per_farm = plant.dt, plant.farms, plant.n, plant.n_turbines
     n_steps = round(scenario.duration_s / dt)
     per_sample = plant.ticks_per_sample
     windows = farm_windows(scenario)
@@ -110,13 +114,13 @@ def simulate_chunk(
     # Damage numbers are ratios to the fault-free twin, so without twins nothing would read the shaft torque's
     # reversals (under cProfile they took ≈ 13 % of a detection-only run).
     damage_counter = StreamingDamage(n, bins) if twins else None
-    balance = PowerBalance(n, per_sample)
+    balance = PowerBalance(n, per_sample, per_farm)
     imb_sum = np.zeros((n, len(windows)), dtype=complex)
     imb_count = np.zeros(len(windows))
     trace_on = 0 in run_ids
     r0 = run_ids.index(0) if trace_on else 0
     trace_farms = [r0] + ([r0 + len(run_ids)] if twins else [])
-    trace_rows = np.concatenate([np.arange(f * N_TURBINES, (f + 1) * N_TURBINES) for f in trace_farms])
+    trace_rows = np.concatenate([np.arange(f * per_farm, (f + 1) * per_farm) for f in trace_farms])
     trace: dict[str, list] = {k: [] for k in ("t", "power", "demand", "power_t", "ref_t", "stat", "thr", "flags")}
     events: list[Event] = []
 
@@ -154,11 +158,11 @@ def simulate_chunk(
     progress((n_steps % PROGRESS_EVERY) * dt)
     if damage_counter is not None:
         damage_counter.finish(n_steps)
-        damage = damage_counter.sums.reshape(farms, N_TURBINES, -1)
+        damage = damage_counter.sums.reshape(farms, per_farm, -1)
     else:
-        damage = np.zeros((farms, N_TURBINES, 0))
+        damage = np.zeros((farms, per_farm, 0))
     with np.errstate(invalid="ignore"):
-        imbalance = (imb_sum / np.maximum(imb_count, 1)).reshape(farms, N_TURBINES, -1)
+        imbalance = (imb_sum / np.maximum(imb_count, 1)).reshape(farms, per_farm, -1)
     return ChunkResult(
         runs=list(run_ids),
         events=[_relabel(e, plant.run_of_farm, plant.twin_of_farm, run_ids) for e in events],
@@ -199,9 +203,9 @@ class Variant:
     over_j: np.ndarray  # (runs,)
     missing_j: np.ndarray
     demand_j: np.ndarray
-    damage: np.ndarray  # (runs, 9, bins)
+    damage: np.ndarray  # (runs, N, bins)
     twin_damage: np.ndarray | None
-    imbalance: np.ndarray  # (runs, 9, windows) complex
+    imbalance: np.ndarray  # (runs, N, windows) complex
     twin_imbalance: np.ndarray | None
     trace: dict[str, np.ndarray]
 
@@ -224,7 +228,7 @@ def run_variant(
         scenario.duration_s * (2 if twins else 1),
         options,
         args=(scenario, seed, detector, controller, accommodation, dict(scenario.supervisor.params), twins),
-        max_chunk=MAX_CHUNK,
+        max_chunk=max(1, MAX_CHUNK_ROWS // scenario.plant.n_turbines),
         label=label or scenario.name,
     )
     order = np.argsort(np.concatenate([p.runs for p in parts]))
@@ -284,7 +288,7 @@ def power_per_run(v: Variant) -> dict[str, list[float]]:
 def scorecard_of(v: Variant) -> dict[str, Any]:
     scenario = v.scenario
     windows = farm_windows(scenario)
-    score, by_type = detection(v.events, windows, v.runs, scenario.duration_s)
+    score, by_type = detection(v.events, windows, v.runs, scenario.duration_s, scenario.plant.n_turbines)
     metrics: dict[str, Any] = energy_metrics(v.over_j, v.missing_j, v.demand_j)
     metrics["damage"], damage_by_run = damage_metrics(v, windows)
     metrics["detection"] = by_type
@@ -301,7 +305,8 @@ def scorecard_of(v: Variant) -> dict[str, Any]:
     )
     card["per_run"] = power_per_run(v) | damage_by_run  # run order; ``windwarden compare`` pairs two scorecards
     if v.twin_events:
-        observed = v.runs * (scenario.duration_s - WARMUP_S) * N_TURBINES
+        observed = v.runs * (scenario.duration_s - WARMUP_S) * scenario.plant.n_turbines
         whole_run = [(0.0, scenario.duration_s)]
-        card["false_alarms_twin"] = twin_false_alarms(v.twin_events, observed, SCORING, whole_run)
+        policy = farm_policy(scenario.plant.n_turbines)
+        card["false_alarms_twin"] = twin_false_alarms(v.twin_events, observed, policy, whole_run)
     return card

@@ -2,17 +2,17 @@ r"""Table 7's damage figures: the faulty turbine's and the farm's drive-train fa
 
 D_t = Σ n_i S_i^m is the rainflow damage sum of turbine t's low-speed-shaft torque over a span
 (``plant_sim.farm.damage``; m = 4), D'_t the same turbine's in the fault-free twin farm (same wind, noise and
-supervisor, no faults). With one S–N curve for the nine identical drive trains, Miner's damage of turbine t is
+supervisor, no faults). With one S–N curve for the farm's N identical drive trains, Miner's damage of turbine t is
 D_t/K, so damage sums add across turbines. Per run and span:
 
 * **damage number** of turbine t: (D_t / D'_t)^{1/m}, its DEL over the twin's (the paper's Table 7 figure);
 * **Miner ratio** of turbine t: D_t / D'_t, its fatigue damage over the twin's;
-* **farm Miner ratio**: Σ_t D_t / Σ_t D'_t over the nine turbines: the farm's drive-train fatigue damage over the
+* **farm Miner ratio**: Σ_t D_t / Σ_t D'_t over the N turbines: the farm's drive-train fatigue damage over the
   twin farm's, every turbine's damage counted at the same S–N curve. Its excess (ratio − 1) splits exactly into
-  the faulty turbine's share (D_f − D'_f)/Σ_t D'_t and the other eight's, Σ_{t≠f} (D_t − D'_t)/Σ_t D'_t
+  the faulty turbine's share (D_f − D'_f)/Σ_t D'_t and the other N − 1's, Σ_{t≠f} (D_t − D'_t)/Σ_t D'_t
   (``faulty_excess``, ``others_excess``): accommodation that moves damage onto the healthy turbines lowers the first
   and raises the second, and the farm's total shows whether it saved more than it moved;
-* **others' Miner ratio**: Σ_{t≠f} D_t / Σ_{t≠f} D'_t, the eight turbines without the window's fault.
+* **others' Miner ratio**: Σ_{t≠f} D_t / Σ_{t≠f} D'_t, the N − 1 turbines without the window's fault.
 
 Spans: the fault window [start, end) and the run (every bin after the warm-up). Each figure is computed per run
 and averaged over the runs, and also **pooled** (``*_pooled``: the sums of all runs before the ratio, the runs'
@@ -30,21 +30,28 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from plant_sim.farm.damage import WOHLER_M
-from wwcore.scenario.farm import FARM_FAULT_TYPES, N_TURBINES
+from wwcore.scenario.farm import FARM_FAULT_TYPES
 
 if TYPE_CHECKING:
     from windwarden.evaluation.scoring import FaultWindow
 
-DEFINITION = (
-    "D_t = rainflow damage sum Σ n S^4 of turbine t's low-speed-shaft torque over the span, D'_t the same turbine's "
-    "in the fault-free twin farm. damage_number = (D_t/D'_t)^(1/4) (DEL ratio), miner_ratio = D_t/D'_t of the faulty "
-    "turbine; farm_miner_ratio = Σ_9 D_t / Σ_9 D'_t; others_miner_ratio the same over the eight turbines without the "
-    "window's fault; faulty_excess = (D_f − D'_f)/Σ_9 D'_t and others_excess = Σ_(t≠f) (D_t − D'_t)/Σ_9 D'_t add "
-    "up to farm_miner_ratio − 1. Span: the fault window ('window') or the run after the warm-up ('run'). Per run, "
-    "then the mean over runs (the scorecard's per_run keeps each run's value); *_pooled: the sums of all runs "
-    "before the ratio (the runs' total damage over their twins' total). imbalance: |mean rotating-frame "
-    "phasor Σ τ_r,i e^(j2π(i−1)/3)| over the window, N m"
-)
+NUMBER_WORDS = {8: "eight"}  # the others of the paper's nine, as its scorecards have always spelled them
+
+
+def definition(turbines: int) -> str:
+    """The scorecard's definition of the damage figures for a farm of ``turbines`` turbines."""
+    others = NUMBER_WORDS.get(turbines - 1, str(turbines - 1))
+    return (
+        "D_t = rainflow damage sum Σ n S^4 of turbine t's low-speed-shaft torque over the span, D'_t the same "
+        "turbine's in the fault-free twin farm. damage_number = (D_t/D'_t)^(1/4) (DEL ratio), miner_ratio = D_t/D'_t "
+        f"of the faulty turbine; farm_miner_ratio = Σ_{turbines} D_t / Σ_{turbines} D'_t; others_miner_ratio the "
+        f"same over the {others} turbines without the window's fault; faulty_excess = (D_f − D'_f)/Σ_{turbines} D'_t "
+        f"and others_excess = Σ_(t≠f) (D_t − D'_t)/Σ_{turbines} D'_t add up to farm_miner_ratio − 1. Span: the fault "
+        "window ('window') or the run after the warm-up ('run'). Per run, then the mean over runs (the scorecard's "
+        "per_run keeps each run's value); *_pooled: the sums of all runs before the ratio (the runs' total damage "
+        "over their twins' total). imbalance: |mean rotating-frame phasor Σ τ_r,i e^(j2π(i−1)/3)| over the window, "
+        "N m"
+    )
 
 
 def _ratio(num: np.ndarray, den: np.ndarray) -> np.ndarray:
@@ -53,13 +60,13 @@ def _ratio(num: np.ndarray, den: np.ndarray) -> np.ndarray:
 
 
 def span_figures(damage: np.ndarray, twin: np.ndarray, faulty: int | None) -> dict[str, np.ndarray]:
-    """Per-run figures of one span from damage sums ``damage``, ``twin`` (runs, 9) and the faulty turbine's index
+    """Per-run figures of one span from damage sums ``damage``, ``twin`` (runs, N) and the faulty turbine's index
     (0-based; None: the farm only). Each value is an array over the runs."""
     farm, farm_twin = damage.sum(axis=1), twin.sum(axis=1)
     out = {"farm_miner_ratio": _ratio(farm, farm_twin)}
     out["farm_damage_number"] = out["farm_miner_ratio"] ** (1.0 / WOHLER_M)
     if faulty is not None:
-        others = np.arange(N_TURBINES) != faulty
+        others = np.arange(damage.shape[1]) != faulty
         out["miner_ratio"] = _ratio(damage[:, faulty], twin[:, faulty])
         out["damage_number"] = out["miner_ratio"] ** (1.0 / WOHLER_M)
         out["others_miner_ratio"] = _ratio(damage[:, others].sum(axis=1), twin[:, others].sum(axis=1))
@@ -83,7 +90,7 @@ def _means(
 
 
 def turbine_numbers(damage: np.ndarray, twin: np.ndarray) -> dict[str, dict[str, float]]:
-    """Each turbine's mean damage number and Miner ratio over a span, from sums (runs, 9), and its pooled Miner
+    """Each turbine's mean damage number and Miner ratio over a span, from sums (runs, N), and its pooled Miner
     ratio (Σ over runs before the ratio)."""
     miner = _ratio(damage, twin)
     pool = _ratio(damage.sum(axis=0), twin.sum(axis=0))
@@ -93,7 +100,7 @@ def turbine_numbers(damage: np.ndarray, twin: np.ndarray) -> dict[str, dict[str,
             "miner_ratio": float(np.mean(miner[:, t])),
             "miner_ratio_pooled": float(pool[t]),
         }
-        for t in range(N_TURBINES)
+        for t in range(damage.shape[1])
     }
 
 
@@ -118,8 +125,8 @@ def damage_metrics(
     imbalance: np.ndarray,
     twin_imbalance: np.ndarray | None,
 ) -> tuple[dict[str, Any], dict[str, list[float]]]:
-    """Table 7's damage figures from damage sums (runs, 9, bins of ``bin_s``) and the twin's, per fault window
-    (``targets``: their scorecard names) and over the run; ``imbalance`` (runs, 9, windows) complex.
+    """Table 7's damage figures from damage sums (runs, N, bins of ``bin_s``) and the twin's, per fault window
+    (``targets``: their scorecard names) and over the run; ``imbalance`` (runs, N, windows) complex.
 
     Returns the means (``metrics.damage``) and the per-run values (``per_run``: "damage.<span or fault>.<figure>"
     → values in run order). Both empty without twins."""
@@ -167,10 +174,10 @@ def damage_metrics(
     per_run["damage.run.farm_miner_ratio"] = run["farm_miner_ratio"].tolist()
     per_run["damage.run.farm_damage_number"] = run["farm_damage_number"].tolist()
     miner = _ratio(run_sums, run_twin)
-    for t in range(N_TURBINES):
+    for t in range(run_sums.shape[1]):
         per_run[f"damage.run.wt{t + 1}.damage_number"] = (miner[:, t] ** (1.0 / WOHLER_M)).tolist()
     metrics = {
-        "definition": DEFINITION,
+        "definition": definition(run_sums.shape[1]),
         "by_type": summary,
         "farm_damage_number": float(np.mean(run["farm_damage_number"])),
         "farm_miner_ratio": float(np.mean(run["farm_miner_ratio"])),

@@ -11,7 +11,6 @@ from windwarden.evaluation.farm_plots import write_plots
 from windwarden.evaluation.farm_tables import comparison_runs, tables_markdown
 from windwarden.evaluation.kinds import EvalOptions, Evaluation
 from wwcore.scenario import Scenario
-from wwcore.scenario.farm import N_TURBINES
 
 
 def evaluate(scenario: Scenario, runs: int, seed: int, options: EvalOptions) -> Evaluation:
@@ -20,7 +19,8 @@ def evaluate(scenario: Scenario, runs: int, seed: int, options: EvalOptions) -> 
     FARM_DETECTORS.factory(detector)  # unknown names are refused before anything runs
     FARM_CONTROLLERS.factory(controller)
     params = dict(scenario.supervisor.params)  # and so are options they refuse (AlgorithmOptionError)
-    FarmSupervisor(scenario.plant.site(), N_TURBINES, detector=detector, controller=controller, options=params)
+    site = scenario.plant.site()
+    FarmSupervisor(site, len(site.turbines), detector=detector, controller=controller, options=params)
     twins = bool(scenario.faults) and options.twins  # --no-twins: detection only, no damage numbers
     main = run_variant(
         scenario,

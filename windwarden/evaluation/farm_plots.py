@@ -2,7 +2,8 @@
 
 * ``fig2_farm_power.png``: farm power vs demand, dispatch and PI on the fault-free farm (Fig. 2), with a zoom
   (Fig. 3) — from the ``--compare`` runs; without them, the evaluated run's farm power vs demand;
-* ``turbine_power_vs_reference.png``: each turbine's power and its reference (run 0);
+* ``turbine_power_vs_reference.png``: each turbine's power and its reference (run 0; on a farm of more than
+  ``farm_scoring.MAX_SHOWN`` turbines, the faulty ones and then the first ones up to that many);
 * ``fig4_damage.png``: drive-train damage number over time, without and with accommodation, mean over runs, for
   the turbines hit by drive-train faults (Fig. 4), the fault-free twin being 1 by construction; below it the Miner
   ratio of the farm's nine drive trains and of the turbines without a drive-train fault;
@@ -12,6 +13,7 @@
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 
 import matplotlib
@@ -22,10 +24,11 @@ import numpy as np
 
 from plant_sim.farm.damage import WOHLER_M
 from windwarden.evaluation.farm import DAMAGE_BIN_S, Variant
-from windwarden.evaluation.farm_scoring import WARMUP_S
+from windwarden.evaluation.farm_scoring import WARMUP_S, shown_turbines
 from wwcore.scenario import Scenario
-from wwcore.scenario.farm import FARM_FAULT_TYPES, N_TURBINES, farm_fault_name
+from wwcore.scenario.farm import FARM_FAULT_TYPES, farm_fault_name
 
+MAX_LEGEND = 12  # turbines named in a legend at most
 COLORS = {"debris": "tab:orange", "pitch_misalignment": "tab:purple", "drivetrain": "tab:red"}
 
 
@@ -78,9 +81,14 @@ def _farm_power(path: Path, scenario: Scenario, main: Variant, comp: dict) -> Pa
 
 def _turbines(path: Path, scenario: Scenario, v: Variant) -> Path:
     tr = v.trace
-    fig, axes = plt.subplots(3, 3, figsize=(13, 8), sharex=True, sharey=True)
-    for t in range(N_TURBINES):
-        ax = axes.flat[t]
+    shown = shown_turbines(scenario)
+    columns = math.ceil(math.sqrt(len(shown)))
+    rows = math.ceil(len(shown) / columns)
+    fig, axes = plt.subplots(rows, columns, figsize=(13, 8), sharex=True, sharey=True, squeeze=False)
+    for ax in axes.flat[len(shown) :]:
+        ax.set_visible(False)
+    for i, t in enumerate(shown):
+        ax = axes.flat[i]
         ax.plot(tr["t"], tr["power_t"][:, t] / 1e6, lw=0.4, label="power")
         ax.plot(tr["t"], tr["ref_t"][:, t] / 1e6, lw=0.7, label="reference")
         ax.set_title(f"turbine {t + 1}", fontsize=9)
@@ -93,11 +101,12 @@ def _turbines(path: Path, scenario: Scenario, v: Variant) -> Path:
 def _statistics(path: Path, scenario: Scenario, v: Variant) -> Path:
     tr = v.trace
     fig, axes = plt.subplots(len(FARM_FAULT_TYPES), 1, figsize=(11, 8), sharex=True)
+    n = scenario.plant.n_turbines
     for j, (ax, name) in enumerate(zip(axes, FARM_FAULT_TYPES, strict=True)):
         with np.errstate(invalid="ignore", divide="ignore"):
-            margin = tr["stat"][:, :N_TURBINES, j] / tr["thr"][:, :N_TURBINES, j]
-        for t in range(N_TURBINES):
-            ax.plot(tr["t"], margin[:, t], lw=0.5, label=f"wt{t + 1}")
+            margin = tr["stat"][:, :n, j] / tr["thr"][:, :n, j]
+        for t in range(n):
+            ax.plot(tr["t"], margin[:, t], lw=0.5, label=f"wt{t + 1}" if n <= MAX_LEGEND else None)
         ax.axhline(1.0, color="k", lw=0.8, ls="--")
         for w in scenario.faults:
             if _type(w) == name:
@@ -105,7 +114,8 @@ def _statistics(path: Path, scenario: Scenario, v: Variant) -> Path:
         ax.set_ylabel(f"{name}\nstatistic / threshold")
         ax.set_yscale("symlog", linthresh=1.0)
         ax.grid(alpha=0.3)
-    axes[0].legend(ncol=9, fontsize=7, loc="upper left")
+    if n <= MAX_LEGEND:
+        axes[0].legend(ncol=9, fontsize=7, loc="upper left")
     axes[-1].set_xlabel("time [s]")
     fig.suptitle(f"{scenario.name}: detector `{v.detector}` statistics vs thresholds (run 0)")
     return _save(fig, path)
@@ -117,6 +127,7 @@ def _type(fault) -> str:
 
 def _timeline(path: Path, scenario: Scenario, v: Variant) -> Path:
     tr = v.trace
+    n = scenario.plant.n_turbines
     fig, ax = plt.subplots(figsize=(11, 4))
     for w in scenario.faults:
         name = _type(w)
@@ -127,14 +138,14 @@ def _timeline(path: Path, scenario: Scenario, v: Variant) -> Path:
             alpha=0.5,
         )
     for j, name in enumerate(FARM_FAULT_TYPES):
-        flags = tr["flags"][:, :N_TURBINES, j]
-        for t in range(N_TURBINES):
+        flags = tr["flags"][:, :n, j]
+        for t in range(n):
             on = flags[:, t].astype(bool)
             if on.any():
                 ax.fill_between(tr["t"], t + 1.05, t + 1.4, where=on, color=COLORS[name], step="post", label=None)
     handles = [plt.Rectangle((0, 0), 1, 1, color=c, alpha=0.6) for c in COLORS.values()]
     ax.legend(handles, list(COLORS), loc="upper right", fontsize=8)
-    ax.set_yticks(range(1, N_TURBINES + 1))
+    ax.set_yticks(range(1, n + 1, max(1, n // 20)))
     ax.set_ylabel("turbine (lower bar injected, upper detected)")
     ax.set_xlabel("time [s]")
     ax.set_title(f"{scenario.name}: faults injected vs detected by `{v.detector}` (run 0)")
@@ -149,7 +160,8 @@ def _damage(path: Path, scenario: Scenario, with_acc: Variant, without: Variant)
     t_end = (np.arange(with_acc.damage.shape[2]) + 1) * DAMAGE_BIN_S
     scored = t_end > WARMUP_S
     t_end = t_end[scored]
-    healthy = [t for t in range(N_TURBINES) if t + 1 not in turbines]
+    n = scenario.plant.n_turbines
+    healthy = [t for t in range(n) if t + 1 not in turbines]
 
     def number(v: Variant, rows: list[int], power: float) -> np.ndarray:
         """(mean Σ n S⁴ up to t / the twin's)^power over the runs, summed over ``rows``."""
@@ -161,7 +173,7 @@ def _damage(path: Path, scenario: Scenario, with_acc: Variant, without: Variant)
     for label, v, style in (("no accommodation", without, "tab:red"), ("with accommodation", with_acc, "k")):
         if turbines:
             ax.plot(t_end, number(v, [t - 1 for t in turbines], 1.0 / WOHLER_M), color=style, label=label)
-        ax_farm.plot(t_end, number(v, list(range(N_TURBINES)), 1.0), color=style, label=f"farm, {label}")
+        ax_farm.plot(t_end, number(v, list(range(n)), 1.0), color=style, label=f"farm, {label}")
         ax_farm.plot(t_end, number(v, healthy, 1.0), color=style, ls=":", label=f"the other {len(healthy)}, {label}")
     for a in (ax, ax_farm):
         a.axhline(1.0, color="tab:blue", ls="--", label="fault free")
@@ -175,6 +187,6 @@ def _damage(path: Path, scenario: Scenario, with_acc: Variant, without: Variant)
     ax_farm.set_xlabel("time [s]")
     ax_farm.set_ylabel("Miner ratio (Σ n S⁴ up to t / fault-free)")
     ax_farm.set_title(
-        f"the farm's nine drive trains, and the turbines without a drive-train fault ({len(healthy)}), mean over runs"
+        f"the farm's {n} drive trains, and the turbines without a drive-train fault ({len(healthy)}), mean over runs"
     )
     return _save(fig, path)

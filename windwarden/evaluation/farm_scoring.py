@@ -10,14 +10,26 @@ import numpy as np
 
 from windwarden.evaluation.scoring import DetectionScore, FaultWindow, score_detection
 from windwarden.evaluation.scoring_policy import FARM as SCORING
+from windwarden.evaluation.scoring_policy import farm_policy
 from wwcore.events import Event
 from wwcore.scenario import Scenario
-from wwcore.scenario.farm import FARM_DT_S, FARM_FAULT_TYPES, N_TURBINES, farm_fault_name
+from wwcore.scenario.farm import FARM_DT_S, FARM_FAULT_TYPES, farm_fault_name
 
 WARMUP_S = SCORING.warmup_s  # s, not scored (scoring_policy says why)
 GRACE_S = SCORING.grace_s  # s after a fault ends during which its flags may still be up (scoring_policy)
-TURBINES = tuple(range(1, N_TURBINES + 1))
 MWH_PER_J = 1.0 / 3.6e9
+MAX_SHOWN = 12  # turbines a plot or a table shows one by one at most
+
+
+def shown_turbines(scenario: Scenario) -> list[int]:
+    """0-based turbines a plot or table shows one by one: all of a farm of at most ``MAX_SHOWN``; else the faulty
+    ones, then the first."""
+    n = scenario.plant.n_turbines
+    if n <= MAX_SHOWN:
+        return list(range(n))
+    faulty = sorted({f.turbine - 1 for f in scenario.faults})[:MAX_SHOWN]
+    rest = [t for t in range(n) if t not in faulty][: MAX_SHOWN - len(faulty)]
+    return sorted(faulty + rest)
 
 
 def farm_windows(scenario: Scenario) -> list[FaultWindow]:
@@ -33,22 +45,34 @@ def scorecard_target(w: FaultWindow) -> str:
     return f"wt{w.turbine}:{w.target}"
 
 
-def score_farm(events: list[Event], windows: list[FaultWindow], runs: int, duration_s: float) -> DetectionScore:
+def score_farm(
+    events: list[Event], windows: list[FaultWindow], runs: int, duration_s: float, turbines: int
+) -> DetectionScore:
     """The detection figures of farm runs (``scoring.score_detection``, every turbine in the time base)."""
-    return score_detection(events, windows, runs=runs, duration_s=duration_s, policy=SCORING, turbines=TURBINES)
+    return score_detection(
+        events,
+        windows,
+        runs=runs,
+        duration_s=duration_s,
+        policy=farm_policy(turbines),
+        turbines=tuple(range(1, turbines + 1)),
+    )
 
 
-def detection_by_type(events: list[Event], windows: list[FaultWindow], runs: int, duration_s: float) -> dict:
+def detection_by_type(
+    events: list[Event], windows: list[FaultWindow], runs: int, duration_s: float, turbines: int
+) -> dict:
     """Table 5 per fault type: detected % and mean/max delay with the right type and turbine, isolated % (first
     flag), false positives of that type (``DetectionScore.by_target``) per 1000 farm-s and turbine-s."""
-    return detection(events, windows, runs, duration_s)[1]
+    return detection(events, windows, runs, duration_s, turbines)[1]
 
 
 def detection(
-    events: list[Event], windows: list[FaultWindow], runs: int, duration_s: float
+    events: list[Event], windows: list[FaultWindow], runs: int, duration_s: float, turbines: int
 ) -> tuple[DetectionScore, dict[str, Any]]:
-    """The scorecard's detection figures (each window's target ``wt<k>:<type>``) and Table 5 per fault type."""
-    score = score_farm(events, windows, runs, duration_s)
+    """The scorecard's detection figures (each window's target ``wt<k>:<type>``) and Table 5 per fault type, for
+    farms of ``turbines`` turbines."""
+    score = score_farm(events, windows, runs, duration_s, turbines)
     for entry, w in zip(score.faults, windows, strict=True):
         entry["target"] = scorecard_target(w)
     farm_seconds = runs * max(duration_s - WARMUP_S, 0.0)
@@ -57,10 +81,12 @@ def detection(
 
 class PowerBalance:
     """The farm's true output (10 Hz block means of the turbines' power) against the demand, after the warm-up:
-    ∫ pos(P_farm − P_ref,farm) dt, ∫ pos(P_ref,farm − P_farm) dt and ∫ P_ref,farm dt in J, per farm of the batch."""
+    ∫ pos(P_farm − P_ref,farm) dt, ∫ pos(P_ref,farm − P_farm) dt and ∫ P_ref,farm dt in J, per farm of the batch
+    (``rows`` turbine rows, farm-major, ``turbines`` per farm)."""
 
-    def __init__(self, rows: int, ticks_per_sample: int):
-        self.farms = rows // N_TURBINES
+    def __init__(self, rows: int, ticks_per_sample: int, turbines: int):
+        self.turbines = turbines
+        self.farms = rows // turbines
         self.per_sample = ticks_per_sample
         self.warm_sample = round(WARMUP_S / FARM_DT_S)
         self.power_sum = np.zeros(rows)
@@ -74,7 +100,7 @@ class PowerBalance:
         self.power_sum += power
         if not sample:
             return None
-        p_farm = (self.power_sum * (1.0 / self.per_sample)).reshape(self.farms, N_TURBINES).sum(axis=1)
+        p_farm = (self.power_sum * (1.0 / self.per_sample)).reshape(self.farms, self.turbines).sum(axis=1)
         self.power_sum[:] = 0.0
         if (k + 1) // self.per_sample > self.warm_sample:
             gap = p_farm - demand
@@ -82,6 +108,16 @@ class PowerBalance:
             self.missing += np.maximum(-gap, 0.0) * FARM_DT_S
             self.demand += demand * FARM_DT_S
         return p_farm
+
+
+def farm_geometry(scenario: Scenario) -> dict[str, Any]:
+    """The farm the scorecard is of: the paper's wind case on its 3 × 3; for a layout or a direction, the number of
+    turbines, the layout's source and the wind direction instead (the wind case says nothing there)."""
+    plant = scenario.plant
+    if plant.layout is None and plant.wind_direction_deg is None:
+        return {"wind_case": plant.wind_case}
+    layout = plant.resolved_layout()
+    return {"turbines": layout.n_turbines, "layout": layout.source, "wind_direction_deg": plant.direction_deg}
 
 
 def energy_metrics(over_j: np.ndarray, missing_j: np.ndarray, demand_j: np.ndarray) -> dict[str, Any]:
@@ -115,7 +151,7 @@ def scorecard(
         "runs": runs,
         "seed": seed,
         "duration_s": scenario.duration_s,
-        "wind_case": scenario.plant.wind_case,
+        **farm_geometry(scenario),
         "detector": detector,
         "controller": controller,
         "accommodation": accommodation,

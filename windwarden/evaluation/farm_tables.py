@@ -22,7 +22,14 @@ import numpy as np
 
 from service.farm.dispatch import ACCOMMODATION_RULES
 from windwarden.evaluation.farm import Variant, run_variant, scorecard_of
-from windwarden.evaluation.farm_scoring import WARMUP_S, detection_by_type, energy_metrics, farm_windows
+from windwarden.evaluation.farm_damage import NUMBER_WORDS
+from windwarden.evaluation.farm_scoring import (
+    WARMUP_S,
+    detection_by_type,
+    energy_metrics,
+    farm_windows,
+    shown_turbines,
+)
 from windwarden.evaluation.kinds import EvalOptions
 from windwarden.evaluation.paired import paired_row
 from wwcore.scenario import Scenario
@@ -88,6 +95,11 @@ def comparison_runs(scenario: Scenario, runs: int, seed: int, options: EvalOptio
     }
 
 
+def _paper(x: float | None, case: int | None, digits: int = 3) -> str:
+    """A figure of the paper's; – where the farm is not its 3 × 3."""
+    return "–" if case is None else _fmt(x, digits)
+
+
 def _fmt(x: float | None, digits: int = 3) -> str:
     if x is None or (isinstance(x, float) and np.isnan(x)):
         return "NaN"
@@ -99,10 +111,13 @@ def _fmt(x: float | None, digits: int = 3) -> str:
 def table5_rows(scenario: Scenario, faulty: Variant | None, fault_free_run: Variant) -> dict[str, dict[str, Any]]:
     """Per fault type: delay, missed %, false positives per 1000 farm-s (fault-free runs + outside windows)."""
 
-    ff = detection_by_type(fault_free_run.events, [], fault_free_run.runs, fault_free_run.scenario.duration_s)
+    turbines = scenario.plant.n_turbines
+    ff = detection_by_type(fault_free_run.events, [], fault_free_run.runs, fault_free_run.scenario.duration_s, turbines)
     rows: dict[str, dict[str, Any]] = {}
     faulty_by = (
-        detection_by_type(faulty.events, farm_windows(scenario), faulty.runs, scenario.duration_s) if faulty else {}
+        detection_by_type(faulty.events, farm_windows(scenario), faulty.runs, scenario.duration_s, turbines)
+        if faulty
+        else {}
     )
     ff_seconds = fault_free_run.runs * (fault_free_run.scenario.duration_s - WARMUP_S)
     for name in FARM_FAULT_TYPES:
@@ -120,11 +135,30 @@ def table5_rows(scenario: Scenario, faulty: Variant | None, fault_free_run: Vari
     return rows
 
 
+def paper_case(scenario: Scenario) -> int | None:
+    """The paper's wind case when the farm is its 3 × 3 in one of its two winds; None: the paper has no figures."""
+    return scenario.plant.wind_case if scenario.plant.is_paper_farm() else None
+
+
+def farm_words(scenario: Scenario) -> tuple[str, str]:
+    """(all, the others but one) of the farm's turbines as the tables write them: "nine", "eight" on the 3 × 3."""
+    n = scenario.plant.n_turbines
+    return ("nine" if n == 9 else str(n)), NUMBER_WORDS.get(n - 1, str(n - 1))
+
+
 def tables_markdown(scenario: Scenario, main: Variant, comp: dict) -> str:
 
-    case = scenario.plant.wind_case
+    case = paper_case(scenario)
+    if case is None:
+        plant = scenario.plant
+        title = (
+            f"# Tables 5–7 of seed 001's method: {plant.n_turbines} turbines, wind from {plant.direction_deg:g}° "
+            f"(`{scenario.name}`, {main.runs} runs, seed {main.seed}); the paper's columns are for its 3 × 3 (–)"
+        )
+    else:
+        title = f"# Seed 001, Tables 5–7: wind case {case} (`{scenario.name}`, {main.runs} runs, seed {main.seed})"
     lines = [
-        f"# Seed 001, Tables 5–7: wind case {case} (`{scenario.name}`, {main.runs} runs, seed {main.seed})",
+        title,
         "",
         "Ours: this project's farm plant (docs/farm.md); the paper's numbers from seed 001. Detection delay is the",
         "mean over detected faults of the time from onset to the first detection of the right fault type; missed is",
@@ -140,10 +174,14 @@ def tables_markdown(scenario: Scenario, main: Variant, comp: dict) -> str:
     ours_paper = table5_rows(scenario, comp.get("paper"), comp["fault_free_paper"])
     ours_main = table5_rows(scenario, main if scenario.faults else None, comp.get("fault_free", main))
     for name in FARM_FAULT_TYPES:
-        pd, pm, pf = PAPER_TABLE5[case][name]
         a, b = ours_paper[name], ours_main[name]
+        if case is None:
+            paper = "| – | – | –"
+        else:
+            pd, pm, pf = PAPER_TABLE5[case][name]
+            paper = f"| {_fmt(pd)} s | {_fmt(pm)} % | {_fmt(pf)}"
         lines.append(
-            f"| {FAULT_LABEL[name]} {name} | {_fmt(pd)} s | {_fmt(pm)} % | {_fmt(pf)} "
+            f"| {FAULT_LABEL[name]} {name} {paper} "
             f"| {_fmt(a['delay_s'])} s | {_fmt(a['missed_pct'])} % | {_fmt(a['fp_per_1000s'])} "
             f"| {_fmt(b['delay_s'])} s | {_fmt(b['missed_pct'])} % | {_fmt(b['fp_per_1000s'])} |"
         )
@@ -151,7 +189,7 @@ def tables_markdown(scenario: Scenario, main: Variant, comp: dict) -> str:
     pi = _energy(comp["fault_free_pi"])
     over_d, miss_d = dispatch["over_production"]["mwh_per_run"], dispatch["missing_power"]["mwh_per_run"]
     over_p, miss_p = pi["over_production"]["mwh_per_run"], pi["missing_power"]["mwh_per_run"]
-    po, pmiss = PAPER_TABLE6[case]
+    po, pmiss = ("–", "–") if case is None else (f"{PAPER_TABLE6[case][0]:g}", f"{PAPER_TABLE6[case][1]:g}")
     lines += [
         "",
         "## Table 6: power tracking on the fault-free farm (lower is better; dispatch = 1)",
@@ -159,7 +197,7 @@ def tables_markdown(scenario: Scenario, main: Variant, comp: dict) -> str:
         "| controller | paper: over | paper: missing | ours: over | ours: missing | ours: over MWh/run | "
         "ours: missing MWh/run |",
         "|---|---|---|---|---|---|---|",
-        f"| PI reference | {po:g} | {pmiss:g} | {_fmt(over_p / over_d if over_d > 0 else np.inf)} "
+        f"| PI reference | {po} | {pmiss} | {_fmt(over_p / over_d if over_d > 0 else np.inf)} "
         f"| {_fmt(miss_p / miss_d if miss_d > 0 else np.inf, 4)} | {_fmt(over_p)} | {_fmt(miss_p)} |",
         f"| dispatch | 1 | 1 | 1 | 1 | {_fmt(over_d)} | {_fmt(miss_d)} |",
     ]
@@ -176,16 +214,17 @@ ACCOMMODATION_LABEL = {
 }
 PAIRED = (  # per-run metrics Table 7 gives as paired differences, accommodated − not
     ("missing power, MWh", "missing_power_mwh"),
-    ("farm drive-train damage over the run (Miner, 9 turbines)", "damage.run.farm_miner_ratio"),
+    ("farm drive-train damage over the run (Miner, {n} turbines)", "damage.run.farm_miner_ratio"),
 )
 
 
 def table7_lines(scenario: Scenario, main: Variant, comp: dict) -> list[str]:
-    """Table 7: the faulty turbine's damage beside the farm's (all nine turbines), per fault window and over the
+    """Table 7: the faulty turbine's damage beside the farm's (all its turbines), per fault window and over the
     run, without accommodation, with eq. (26) as published and with the main rule; paired differences per run."""
 
-    case = scenario.plant.wind_case
-    (p2n, p3n), (p2a, p3a) = PAPER_TABLE7[case]
+    case = paper_case(scenario)
+    every, others = farm_words(scenario)
+    (p2n, p3n), (p2a, p3a) = PAPER_TABLE7[case] if case is not None else ((None, None), (None, None))
     variants = [("no accommodation", comp["no_accommodation"], p2n, p3n)]
     if "paper_accommodation" in comp:
         variants.append((ACCOMMODATION_LABEL["paper"], comp["paper_accommodation"], p2a, p3a))
@@ -198,7 +237,7 @@ def table7_lines(scenario: Scenario, main: Variant, comp: dict) -> list[str]:
         "Damage 3: DEL of the faulty turbine's shaft torque (rainflow, m = 4) over the whole run / its fault-free",
         "twin's (run), and over the fault window only (window), mean of the drive-train windows. Damage 2: rotor",
         "imbalance (1P phasor of the blade torques) over the fault window / the twin's; the twin's is ≈ 0, so the",
-        "ratio is huge (paper: inf); in N m as well. Farm: the nine turbines' rainflow damage sums Σ_t Σ n S⁴ over",
+        f"ratio is huge (paper: inf); in N m as well. Farm: the {every} turbines' rainflow damage sums Σ_t Σ n S⁴ over",
         "the twin farm's (Miner's damage of the farm's drive trains over the twin's), per run then the mean, and",
         "pooled (the runs' sums before the ratio).",
         "",
@@ -212,7 +251,7 @@ def table7_lines(scenario: Scenario, main: Variant, comp: dict) -> list[str]:
 
     for (label, _, paper2, paper3), card in zip(variants, cards, strict=True):
         lines.append(
-            f"| {label} | {_fmt(paper2)} | {_fmt(paper3, 5)} "
+            f"| {label} | {_paper(paper2, case)} | {_paper(paper3, case, 5)} "
             f"| {_fmt(dn(card, 'pitch_misalignment', 'imbalance_ratio'))}; "
             f"{_fmt(dn(card, 'pitch_misalignment', 'imbalance_nm'))} "
             f"| {_fmt(dn(card, 'drivetrain', 'damage_number_run'), 5)} "
@@ -235,13 +274,13 @@ def table7_lines(scenario: Scenario, main: Variant, comp: dict) -> list[str]:
                 )
     lines += [
         "",
-        "### Table 7, per fault window: the faulty turbine, the other eight and the farm",
+        f"### Table 7, per fault window: the faulty turbine, the other {others} and the farm",
         "",
         "Miner ratios over the window (Σ n S⁴ / the twin's); the farm's excess (farm − 1) is the faulty turbine's",
-        "share plus the other eight's, both in units of the twin farm's damage over the window: damage moved onto",
+        f"share plus the other {others}'s, both in units of the twin farm's damage over the window: damage moved onto",
         "the healthy turbines shows as a larger 'others' share.",
         "",
-        "| fault window | variant | faulty: damage number | faulty: Miner | other eight: Miner | farm: Miner "
+        f"| fault window | variant | faulty: damage number | faulty: Miner | other {others}: Miner | farm: Miner "
         "| farm excess: faulty + others |",
         "|---|---|---|---|---|---|---|",
     ]
@@ -254,16 +293,18 @@ def table7_lines(scenario: Scenario, main: Variant, comp: dict) -> list[str]:
                 f"| {_fmt(e['farm_miner_ratio_window'], 4)} "
                 f"| {e['faulty_excess_window']:+.3f} {e['others_excess_window']:+.3f} |"
             )
+    shown = shown_turbines(scenario)
     lines += [
         "",
-        "### Table 7, over the run: each turbine's damage number and the farm's Miner ratio",
+        "### Table 7, over the run: each turbine's damage number and the farm's Miner ratio"
+        + ("" if len(shown) == scenario.plant.n_turbines else " (the faulty turbines, then the first)"),
         "",
-        "| variant | " + " | ".join(f"wt{t}" for t in range(1, 10)) + " | farm: Miner | farm: damage number |",
-        "|---" * 12 + "|",
+        "| variant | " + " | ".join(f"wt{t + 1}" for t in shown) + " | farm: Miner | farm: damage number |",
+        "|---" * (len(shown) + 3) + "|",
     ]
     for (label, *_), card in zip(variants, cards, strict=True):
         d = card["metrics"]["damage"]
-        numbers = " | ".join(_fmt(d["turbines_run"][f"wt{t}"]["damage_number"], 4) for t in range(1, 10))
+        numbers = " | ".join(_fmt(d["turbines_run"][f"wt{t + 1}"]["damage_number"], 4) for t in shown)
         lines.append(f"| {label} | {numbers} | {_fmt(d['farm_miner_ratio'], 4)} | {_fmt(d['farm_damage_number'], 4)} |")
     lines += [
         "",
@@ -277,8 +318,9 @@ def table7_lines(scenario: Scenario, main: Variant, comp: dict) -> list[str]:
     for label, key in PAIRED:
         if key in cards[0]["per_run"] and key in cards[-1]["per_run"]:
             r = paired_row(key, cards[0]["per_run"][key], cards[-1]["per_run"][key])
+            name = label.format(n=scenario.plant.n_turbines)
             lines.append(
-                f"| {label} | {_fmt(r.mean_a, 4)} | {_fmt(r.mean_b, 4)} | {r.diff:+.3g} ± {_fmt(r.se, 2)} "
+                f"| {name} | {_fmt(r.mean_a, 4)} | {_fmt(r.mean_b, 4)} | {r.diff:+.3g} ± {_fmt(r.se, 2)} "
                 f"| {r.lower} of {r.n} |"
             )
     return lines

@@ -7,7 +7,7 @@ between kinds only where the plant's physics or the published method makes it di
 
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, replace
 from typing import Any
 
 TIME_DECIMALS = 6
@@ -55,11 +55,12 @@ TURBINE = ScoringPolicy(
     "for a clearing test with persistence, 20 times the observer bank's measured ≤ 0.1 s",
 )
 
+FARM_TIME_BASE = "turbine-seconds ({n} per farm-second); Table 5 per farm-second, the paper's basis"
 FARM = ScoringPolicy(
     kind="farm",
     warmup_s=60.0,
     grace_s=10.0,
-    time_base="turbine-seconds (9 per farm-second); Table 5 per farm-second, the paper's basis",
+    time_base=FARM_TIME_BASE.format(n=9),
     warmup_reason="the paper's wind-direction estimate averages 500 farm samples (50 s at 10 Hz) before the "
     "dispatch and the row comparisons of its detector mean anything; 60 s covers it and the 60-s demand average",
     grace_reason="the farm detectors decide on 10 Hz farm samples and recognise an end by a reverse CUSUM or by "
@@ -80,6 +81,12 @@ HYDRO = ScoringPolicy(
 )
 
 POLICIES: dict[str, ScoringPolicy] = {p.kind: p for p in (TURBINE, FARM, HYDRO)}
+
+
+def farm_policy(turbines: int) -> ScoringPolicy:
+    """The farm's policy for a farm of ``turbines`` turbines (``FARM`` is the paper's nine): the time base counts
+    each of them."""
+    return replace(FARM, time_base=FARM_TIME_BASE.format(n=turbines))
 
 
 def policy_for(kind: str) -> ScoringPolicy:

@@ -1,4 +1,4 @@
-"""The nine-turbine wind farm (seed 001) as a plant kind.
+"""The wind farm (seed 001's 3 × 3, or any layout: N turbines per farm, from the plant) as a plant kind.
 
 Plant and supervisor are built as ``windwarden.evaluation.farm.simulate_chunk`` builds run 0 of
 ``windwarden eval SCENARIO --seed S`` (``FarmBatch(..., seed=S, runs=[0])``; the supervisor with the scenario's
@@ -24,7 +24,7 @@ from windwarden.kinds.base import RunInfo, finite_or_none, records_from_batch
 from wwcore.events import Event
 from wwcore.farm_frames import CANCEL_3P_MODE, DISPATCH_MODES, HOLD_TORQUE_MODE, FarmFrame, FarmRefs
 from wwcore.scenario import FaultSpec, Scenario
-from wwcore.scenario.farm import FARM_DT_S, FARM_FAULT_TYPES, N_TURBINES, FarmPlant
+from wwcore.scenario.farm import FARM_DT_S, FARM_FAULT_TYPES, FarmPlant
 from wwcore.turbine_frames import TurbineFrame
 from wwcore.wire import FARM_REFS, FARM_SENSORS, FARM_TRUTH
 
@@ -97,15 +97,17 @@ class FarmKind:
             "sample": frame.sample,
             "scada": frame.scada,
             "power_ref_used": frame.power_ref_used,
-            "mast": np.repeat(frame.mast, N_TURBINES),
-            "demand": np.repeat(frame.demand, N_TURBINES),
         }
+        per_farm = len(turbines) // frame.farms
+        values["mast"] = np.repeat(frame.mast, per_farm)
+        values["demand"] = np.repeat(frame.demand, per_farm)
+        if frame.mast_direction is not None:
+            values["mast_direction"] = np.repeat(frame.mast_direction, per_farm)
         return records_from_batch(FARM_SENSORS, values, turbines)
 
     def frame_from_records(self, records: np.ndarray) -> FarmFrame:
         k, t = int(records["tick"][0]), float(records["t"][0])
-        farms = len(records) // N_TURBINES
-        first = np.arange(farms) * N_TURBINES
+        first = np.flatnonzero(records["turbine"] == records["turbine"][0])  # each farm's first row
         return FarmFrame(
             k=k,
             t=t,
@@ -123,6 +125,7 @@ class FarmKind:
             power_ref_used=np.array(records["power_ref_used"]),
             mast=np.array(records["mast"][first]),
             demand=np.array(records["demand"][first]),
+            mast_direction=np.array(records["mast_direction"][first]),
         )
 
     def refs_records(self, refs: FarmRefs | None, supervisor: FarmSupervisor, turbines: list[int]) -> np.ndarray:
@@ -163,7 +166,8 @@ class FarmKind:
 
     def truth_records(self, plant: FarmBatch, frame: FarmFrame, turbines: list[int]) -> np.ndarray:
         truth = plant.truth()
-        farm_power = truth["power"].reshape(-1, N_TURBINES).sum(axis=1)
+        per_farm = len(turbines) // frame.farms
+        farm_power = truth["power"].reshape(-1, per_farm).sum(axis=1)
         values = {
             "tick": plant.k,
             "t": plant.t,
@@ -176,7 +180,7 @@ class FarmKind:
             "wind_rotor": truth["wind_rotor"],
             "row_wind": truth["row_wind"],
             "zone": truth["zone"],
-            "farm_power": np.repeat(farm_power, N_TURBINES),
+            "farm_power": np.repeat(farm_power, per_farm),
         }
         return records_from_batch(FARM_TRUTH, values, turbines)
 
@@ -224,7 +228,8 @@ class FarmKind:
         from service.farm.supervisor import DEFAULT_CONTROLLER, DEFAULT_DETECTOR
 
         live = scenario.model_copy(update={"faults": faults})
-        score, by_type = farm_scoring.detection(events, farm_scoring.farm_windows(live), 1, scenario.duration_s)
+        windows = farm_scoring.farm_windows(live)
+        score, by_type = farm_scoring.detection(events, windows, 1, scenario.duration_s, scenario.plant.n_turbines)
         sup = scenario.supervisor
         return farm_scoring.scorecard(
             scenario,
@@ -248,7 +253,7 @@ class FarmScore:
 
     def __init__(self, scenario: Scenario, n_steps: int, dt: float):
         self.n_steps = n_steps
-        self.balance = PowerBalance(N_TURBINES, round(FARM_DT_S / dt))
+        self.balance = PowerBalance(scenario.plant.n_turbines, round(FARM_DT_S / dt), scenario.plant.n_turbines)
         self.have = np.zeros(n_steps, dtype=bool)  # ticks whose references reached the plant
         self.ticks = 0  # ticks that ran
 

@@ -11,8 +11,8 @@ of the front row, on the wind axis, in both cases.
 
 ``wake_model`` picks the wakes: ``rows`` (the paper's row model, the default) or FLORIS's ``gauss`` / ``jensen``
 (``plant_sim.farm.wakes``). With a FLORIS model the farm may also have any ``layout`` (``wwcore.layout``: a grid,
-coordinates or a shipped file, 1 to 250 turbines) and any constant ``wind_direction_deg``; the plant runs it, but
-the supervisor handles only the paper's farm, which ``Scenario.problems`` enforces (``is_paper_farm``).
+coordinates or a shipped file, 1 to 250 turbines) and any constant ``wind_direction_deg``. The supervisor
+(``service.farm``) learns the layout from ``site()`` (turbine numbers and positions) and handles any of them.
 
 The scenario's top-level ``[wind]`` section describes the free stream at the mast (mean profile) and each
 turbine's own turbulence (``turbulence_intensity``); the farm adds a slow turbulence common to all turbines
@@ -52,7 +52,7 @@ from wwcore.scenario.turbine import NoiseConvention, check_turbine_fault, sensor
 from wwcore.site import SiteInfo
 from wwcore.turbine_params import BENCHMARK
 
-N_TURBINES = 9  # turbines of the paper's farm, the only farm the supervisor (service.farm) handles
+N_TURBINES = 9  # turbines of the paper's farm (seed 001's 3 × 3); any other farm's come from its layout
 GRID = 3  # turbines per side of the square grid
 ROTOR_DIAMETER_M = 115.0  # m, 2R of the benchmark turbine (PARAMETERS.md a.1)
 FARM_DT_S = 0.1  # s, sample time of the farm controller, farm FDI and met mast [PAPER] Section 2 (10 Hz)
@@ -118,6 +118,13 @@ class FarmPlant(BaseModel):
         default=287.5, ge=0.0, le=3000.0, description="m, met mast upwind of the front row (5 D) [PROPOSED]"
     )
     mast_noise_mps: float = Field(default=0.5, ge=0.0, le=5.0, description="m/s, σ of the mast reading [PROPOSED]")
+    mast_direction_noise_deg: float = Field(
+        default=5.0,
+        ge=0.0,
+        le=45.0,
+        description="deg, σ of the mast's wind-vane reading (white, 10 Hz; vane accuracy and the turbulence's "
+        "direction swings at the mast) [PROPOSED]",
+    )
     coherent_ti: float = Field(
         default=0.05, ge=0.0, le=0.3, description="–, σ/mean of the slow turbulence all turbines share [PROPOSED]"
     )
@@ -190,6 +197,11 @@ class FarmPlant(BaseModel):
         if self.layout is not None and self.spacing_m != type(self).model_fields["spacing_m"].default:
             raise ValueError("spacing_m: the layout gives the positions; spacing_m is the paper's 3 × 3 spacing")
         n = self.n_turbines  # resolves the layout (overlapping turbines, empty layouts are refused there)
+        if self.wind_case != type(self).model_fields["wind_case"].default and not self.is_paper_farm():
+            raise ValueError(
+                f"wind_case: the wind cases are directions on seed 001's 3 × 3 (1: 270°, 2: 315°); this farm has "
+                f"{n} turbines with wind from {self.direction_deg:g}°: leave wind_case out and give wind_direction_deg"
+            )
         if self.demand.points is not None:
             top = n * TURBINE_RATED_MW
             for _, mw in self.demand.points:
@@ -202,18 +214,23 @@ class FarmPlant(BaseModel):
         return self.resolved_layout().n_turbines
 
     def site(self, dt: float = BENCHMARK.dt) -> SiteInfo:
-        """What the farm's supervisor may know: the turbines' parameters and sensor noise, the grid and the mast;
-        never the wind case (``rows(case)`` of ``service.farm.interfaces.FarmContext`` gives either)."""
+        """What the farm's supervisor may know: the turbines' parameters and sensor noise, their positions (the
+        resolved layout, east/north in m) and the mast's distance; never the wind case or direction (a detector
+        estimates it, ``service.farm.interfaces.FarmContext.rows`` groups the layout for any direction)."""
+        layout = self.resolved_layout()
+        n = layout.n_turbines
+        spacing = self.spacing_m if self.layout is None else (layout.spacing_d() * ROTOR_DIAMETER_M if n > 1 else None)
         return SiteInfo(
             kind="farm",
-            turbines=tuple(range(1, N_TURBINES + 1)),
+            turbines=tuple(range(1, n + 1)),
             dt=float(dt),
             rated_power_w=BENCHMARK.rated_power,
             noise_convention=self.noise_convention,
             sensor_sigma=sensor_sigma(self.noise_convention),
-            positions_m=tuple(self.position(t) for t in range(1, N_TURBINES + 1)),
-            spacing_m=self.spacing_m,
+            positions_m=tuple((float(x) + 0.0, float(y) + 0.0) for x, y in zip(layout.x, layout.y, strict=True)),
+            spacing_m=spacing,
             mast_distance_m=self.mast_distance_m,
+            rotor_diameter_m=ROTOR_DIAMETER_M,
         )
 
     # -- geometry ---------------------------------------------------------------------------------------------

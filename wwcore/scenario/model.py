@@ -77,15 +77,17 @@ class Scenario(BaseModel):
                     )
                 )
         if isinstance(self.plant, FarmPlant) and not self.plant.is_paper_farm():
-            found.append(
-                (
-                    "plant.layout",
-                    f"the farm supervisor (detection, dispatch) handles the paper's {N_TURBINES} turbines on its "
-                    f"3 × 3 grid in wind case 1 or 2; this farm has {self.plant.n_turbines} turbines with wind from "
-                    f"{self.plant.direction_deg:g} deg. Other farms run in the plant alone (plant_sim.farm.FarmBatch) "
-                    "until the supervisor handles any layout (issue 24 §3)",
-                )
-            )
+            for key in ("wind_case",):  # what the supervisor cannot do on this farm
+                if key in self.supervisor.params:
+                    found.append(
+                        (
+                            f"supervisor.params.{key}",
+                            f"the wind cases 1 and 2 are directions on seed 001's {N_TURBINES} turbines (its 3 × 3); "
+                            f"this farm has {self.plant.n_turbines} turbines with wind from "
+                            f"{self.plant.direction_deg:g} deg: give wind_direction_deg, or let the paper detector "
+                            "read the mast's vane",
+                        )
+                    )
         check = FAULT_CHECKS[self.plant.kind]
         for i, fault in enumerate(self.faults):
             for field, message in check(fault, self.plant.n_turbines):
