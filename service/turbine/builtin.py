@@ -77,7 +77,8 @@ class UIOBankDetector:
 
     def __init__(self, *, context: TurbineContext, options: dict | None = None):
         self.context = context
-        self.fdi = SpeedSensorFDI(context.bank_design, context.n, context.dt, _settings(FDISettings, options or {}))
+        settings = _settings(FDISettings, options or {})
+        self.fdi = SpeedSensorFDI(context.bank_design, context.n, context.dt, settings, fast=context.fast)
         design = context.bank_design
         self._margin_names = tuple(f"observer {name}" for name in design.names[: design.n_isolating])
 
@@ -112,7 +113,7 @@ class BenchmarkDetector(UIOBankDetector):
             ComponentSettings,
             {k[len("component_") :]: v for k, v in (options or {}).items() if k.startswith("component_")},
         )
-        self.components = ComponentFDI(context.params, context.n, context.sensor_sigma, settings)
+        self.components = ComponentFDI(context.params, context.n, context.sensor_sigma, settings, fast=context.fast)
 
     def step(self, frame: TurbineFrame) -> Diagnosis:
         diagnosis = super().step(frame)
@@ -160,6 +161,7 @@ class UIOBankEstimator:
             context.n,
             wind_cutoff_hz=settings.wind_cutoff_hz,
             speed_cutoff_hz=settings.speed_cutoff_hz,
+            fast=context.fast,
         )
         self.warmup_ticks = round(settings.warmup_s / context.dt)
         self.wind_every = settings.wind_every

@@ -105,7 +105,7 @@ CROSS_BLADE = np.array([[1.0, -0.5, -0.5], [-0.5, 1.0, -0.5], [-0.5, -0.5, 1.0]]
 class ComponentFDI:
     """Flags pitch sensors, pitch actuators and the converter for n turbines (DIAGNOSIS_TARGETS columns)."""
 
-    def __init__(self, p: TurbineParams, n: int, sigma: dict[str, float], settings: ComponentSettings):
+    def __init__(self, p: TurbineParams, n: int, sigma: dict[str, float], settings: ComponentSettings, fast=None):
         if settings.actuator_window % settings.block or settings.converter_window % settings.block:
             raise AlgorithmOptionError(
                 f"component_actuator_window ({settings.actuator_window}) and component_converter_window "
@@ -113,6 +113,7 @@ class ComponentFDI:
             )
         self.s = settings
         self.n = n
+        self._fast = fast  # ``service.turbine.fast`` (``wwcore.backend``) or None
         alpha = settings.false_alarms_per_1000s * p.dt / 1000.0
         self.sigma_beta = sigma["beta_1_m1"]
         self.sigma_tau = sigma["tau_g_m"]
@@ -142,7 +143,7 @@ class ComponentFDI:
         self._converter_gain = float(np.exp(-p.alpha_gc * p.dt))
         self._actuator_rest = np.zeros(n, dtype=np.int64)  # blocks until the actuator test may flag again
         self._actuator_quiet = np.zeros((n, 3), dtype=np.int64)  # consecutive blocks below the clearing threshold
-        self.readings = FrozenReadings((n, 6), settings.frozen_ticks)  # [β_i,m1 | β_i,m2]
+        self.readings = FrozenReadings((n, 6), settings.frozen_ticks, fast=fast)  # [β_i,m1 | β_i,m2]
         self.flags = np.zeros((n, len(TARGET_INDEX)), dtype=bool)
         self.ticks = 0
         self.warmup_ticks = round(settings.warmup_s / p.dt)
@@ -169,10 +170,22 @@ class ComponentFDI:
     def _pitch_sensors(self, beta: np.ndarray, m1: np.ndarray, m2: np.ndarray) -> None:
         """beta = [m1 | m2] (n, 6), the readings of the blades' first and second pitch sensors."""
         self.readings.push(beta)
-        parity = (m1 - m2) * self._parity_scale
-        window = self.parity.push(parity) * self._window_scale
-        suspicious = np.maximum(np.abs(parity), np.abs(window)) > self.z_single
+        if self._fast is not None:
+            w = self.parity
+            parity, window = np.empty((self.n, 3)), np.empty((self.n, 3))
+            slot = w.count % w.size
+            any_suspicious = self._fast.parity(
+                beta, self._parity_scale, w.ring, slot, w.total, self._window_scale, self.z_single, parity, window
+            )
+            w.count += 1
+        else:
+            parity = (m1 - m2) * self._parity_scale
+            window = self.parity.push(parity) * self._window_scale
+            any_suspicious = None
         maybe_frozen = self.readings.counting or self.s.frozen_ticks < 2  # else nothing can be frozen
+        if any_suspicious is False and not (maybe_frozen or self._pitch_flagged):
+            return  # the healthy fast path, known without the array of suspicious blades
+        suspicious = np.maximum(np.abs(parity), np.abs(window)) > self.z_single
         if not (maybe_frozen or self._pitch_flagged or suspicious.any()):
             return  # the healthy fast path: nothing suspicious, frozen or flagged
         frozen = self.readings.frozen

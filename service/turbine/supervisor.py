@@ -36,9 +36,10 @@ class TurbineSupervisor:
         params: TurbineParams = BENCHMARK,
         run_of_row: Sequence[int] | None = None,
         turbine_of_row: Sequence[int] | None = None,
+        backend: str | None = None,
     ):
         self.choice = choose("turbine", options, detector=detector, estimator=estimator)  # refuses bad options
-        self.context = TurbineContext(params, n, noise_convention)
+        self.context = TurbineContext(params, n, noise_convention, backend=backend)
         names, chosen = self.choice.names, self.choice.options
         self.detector = TURBINE_DETECTORS.create(names["detector"], context=self.context, options=chosen["detector"])
         self.estimator = TURBINE_ESTIMATORS.create(

@@ -98,8 +98,11 @@ class WindRecovery:
     of biquads filters them (τ̂_r and the pitch at ``wind_cutoff_hz``, the speeds at ``speed_cutoff_hz``).
     """
 
-    def __init__(self, p: TurbineParams, bank: BankDesign, n: int, wind_cutoff_hz: float, speed_cutoff_hz: float):
+    def __init__(
+        self, p: TurbineParams, bank: BankDesign, n: int, wind_cutoff_hz: float, speed_cutoff_hz: float, fast=None
+    ):
         self.p = p
+        self._fast = fast  # ``service.turbine.fast`` (``wwcore.backend``) or None
         self.n = n
         m = len(bank.names)
         width = bank.F_blk.shape[0]
@@ -199,6 +202,12 @@ class WindRecovery:
         stacked[:, width:] = self._x_prev
         raw = stacked @ self._map
         modelled = self.pitch.step(beta_ref_prev)
+        if self._fast is not None and healthy_m1 is None and healthy_m2 is None:
+            f = self.filter
+            self._filtered = np.empty_like(self._filter_in)
+            self._fast.recovery_filter(raw, pitch_m1, pitch_m2, f._b0, f._a1, f._a2, f.s1, f.s2, self._filtered)
+            self._x_prev = x_hat
+            return
         if healthy_m1 is None and healthy_m2 is None:
             # both sensors of every blade: the weighted mean below with weights 1, 1 (the same operations)
             per_blade = (pitch_m1 + pitch_m2) / 2.0

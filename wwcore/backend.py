@@ -1,0 +1,56 @@
+"""Which implementation runs the batch step: the numpy reference or its compiled twin.
+
+``numpy`` is the readable, vectorised formulation with units and equation numbers: the reference. ``numba`` runs
+the same operations, in the same order, as compiled loops over the rows (the modules named ``fast`` next to the
+numpy code they mirror); tests compare the two (``tests/test_fast_backend.py``). The compiled twin matters where
+a tick is a few hundred small numpy calls on a handful of rows: one Monte Carlo run, one farm.
+
+An object that steps (``TurbineBatch``, ``TurbineSupervisor``) takes ``backend=`` when it is built; ``None`` means
+``$WINDWARDEN_BACKEND``, else ``numpy``. ``windwarden eval`` and ``windwarden bench`` choose ``numba`` (their
+``--backend``), by setting the variable for their own process and the worker processes it starts; the live
+plant and supervisor keep ``numpy`` (their tick is paced by the clock, and they start without compiling).
+
+This module imports no compiler: ``numba`` is imported only when a ``fast`` module is loaded (``fast_module``),
+so commands that never step a batch start as quickly without it.
+"""
+
+from __future__ import annotations
+
+import importlib
+import os
+from types import ModuleType
+
+BACKENDS = ("numpy", "numba")
+ENV_VAR = "WINDWARDEN_BACKEND"
+
+
+class BackendError(ValueError):
+    """An unknown backend name, or ``numba`` asked for where it is not installed."""
+
+
+def resolve_backend(backend: str | None = None) -> str:
+    """The backend to use: ``backend`` if given, else ``$WINDWARDEN_BACKEND``, else ``numpy``; checked."""
+    name = backend if backend is not None else (os.environ.get(ENV_VAR) or "numpy")
+    if name not in BACKENDS:
+        source = "backend" if backend is not None else ENV_VAR
+        raise BackendError(f"{source} = {name!r}: choose one of {', '.join(BACKENDS)}")
+    return name
+
+
+def choose_for_process(backend: str) -> str:
+    """Make ``backend`` the default of this process and of the processes it starts (``$WINDWARDEN_BACKEND``)."""
+    name = resolve_backend(backend)
+    os.environ[ENV_VAR] = name
+    return name
+
+
+def fast_module(name: str) -> ModuleType:
+    """Import the compiled twin ``name`` (e.g. ``plant_sim.turbine.fast``) on first use.
+
+    Imported here rather than at the top of the numpy modules so that importing the simulator or the supervisor
+    (the live nodes, ``windwarden --help``) does not import the compiler; there is no import cycle to avoid.
+    """
+    try:
+        return importlib.import_module(name)
+    except ImportError as exc:  # numba missing or broken: say so instead of a traceback from deep inside
+        raise BackendError(f"backend 'numba' needs numba installed ({exc})") from exc
