@@ -6,8 +6,8 @@ numpy code they mirror); tests compare the two (``tests/test_fast_backend.py``).
 a tick is a few hundred small numpy calls on a handful of rows: one Monte Carlo run, one farm.
 
 An object that steps (``TurbineBatch``, ``TurbineSupervisor``) takes ``backend=`` when it is built; ``None`` means
-``$WINDWARDEN_BACKEND``, else ``numpy``. ``windwarden eval`` and ``windwarden bench`` choose ``numba`` (their
-``--backend``), by setting the variable for their own process and the worker processes it starts; the live
+``$WINDWARDEN_BACKEND``, else ``numpy``. ``windwarden eval`` chooses ``numba`` (its ``--backend``) by setting the
+variable for its own process and the worker processes it starts (``process_backend``); the live
 plant and supervisor keep ``numpy`` (their tick is paced by the clock, and they start without compiling).
 
 This module imports no compiler: ``numba`` is imported only when a ``fast`` module is loaded (``fast_module``),
@@ -18,6 +18,8 @@ from __future__ import annotations
 
 import importlib
 import os
+from collections.abc import Iterator
+from contextlib import contextmanager
 from types import ModuleType
 
 BACKENDS = ("numpy", "numba")
@@ -37,11 +39,20 @@ def resolve_backend(backend: str | None = None) -> str:
     return name
 
 
-def choose_for_process(backend: str) -> str:
-    """Make ``backend`` the default of this process and of the processes it starts (``$WINDWARDEN_BACKEND``)."""
+@contextmanager
+def process_backend(backend: str) -> Iterator[str]:
+    """Within the block, ``backend`` is the default of this process and of the processes it starts
+    (``$WINDWARDEN_BACKEND``); the variable is restored after it."""
     name = resolve_backend(backend)
+    before = os.environ.get(ENV_VAR)
     os.environ[ENV_VAR] = name
-    return name
+    try:
+        yield name
+    finally:
+        if before is None:
+            os.environ.pop(ENV_VAR, None)
+        else:
+            os.environ[ENV_VAR] = before
 
 
 def fast_module(name: str) -> ModuleType:

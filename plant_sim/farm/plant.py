@@ -78,7 +78,7 @@ class FarmBatch:
     ``mismatch`` (a scenario's ``[mismatch]`` section) gives each turbine of each run its own plant
     (``plant_sim.turbine.mismatch``): drawn per turbine and run from the section's spread, or set per turbine. The
     wakes see each rotor's own air density; the demand's available-power estimate stays the design model's, as a
-    grid operator's would.
+    grid operator's would. ``backend`` (``wwcore.backend``) is the turbines' (``TurbineBatch``).
     """
 
     def __init__(
@@ -94,6 +94,7 @@ class FarmBatch:
         fault_free_twins: bool = False,
         mismatch: Mismatch | None = None,
         wake_cache_dir: Path | str | None = None,
+        backend: str | None = None,
     ):
         self.spec = plant
         self.p = params
@@ -140,6 +141,7 @@ class FarmBatch:
             wind_field=self.field,
             fault_free_twins=fault_free_twins,
             mismatch=mismatch,
+            backend=backend,
         )
         if mismatch is not None:
             self.field.set_air_density(params.rho * self.turbines.mismatch.density_ratio)

@@ -123,3 +123,24 @@ def step_inputs(x, tau_r, tau_g_ref, torque_offset, beta_ref, pitch_error, z):
         z[r, n_states + 1] = tau_g_ref[r] + torque_offset[r]
         for b in range(3):
             z[r, n_states + 2 + b] = beta_ref[r] + pitch_error[r, b]
+
+
+@kernel
+def faulty_readings(q, pick, noise, bias, beta_m1, beta_m2, x, faults, t, drift, y, pitch_error):
+    """y = ((q[pick] + bias) + noise f_σ) g + o, plus the drift r (t − t_0) when ``drift``, then the fixed and the
+    stuck values where set (``TurbineBatch.measure`` with a sensor fault), and the pitch error of these readings.
+    ``faults`` = (noise scale, gain, offset, drift rate, drift start, fixed, fixed value, stuck, stuck value),
+    each (n, sensors)."""
+    noise_scale, gain, offset, drift_rate, drift_start, fixed, fixed_value, stuck, stuck_value = faults
+    for r in range(q.shape[0]):
+        for s in range(pick.size):
+            v = ((q[r, pick[s]] + bias[s]) + noise[r, s] * noise_scale[r, s]) * gain[r, s] + offset[r, s]
+            if drift:
+                v += drift_rate[r, s] * (t - drift_start[r, s])
+            if fixed[r, s]:
+                v = fixed_value[r, s]
+            if stuck[r, s]:
+                v = stuck_value[r, s]
+            y[r, s] = v
+        for b in range(3):
+            pitch_error[r, b] = 0.5 * (y[r, beta_m1[b]] + y[r, beta_m2[b]]) - x[r, 5 + 2 * b]

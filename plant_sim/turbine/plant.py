@@ -216,7 +216,7 @@ class TurbineBatch:
             self.blade_torque, self.tau_aero = fast.blade_torques(
                 x[:, OMEGA_R], pitch + f.pitch_offset, ws.blades, gain, self.p.radius
             )
-            if not f.sensor_faults_active and self.bias.ndim == 1:
+            if self.bias.ndim == 1:
                 return self._fast_frame(fast, x, ws, pitch)
         else:
             self.blade_torque = torque = self.dynamics.blade_torques(
@@ -253,14 +253,21 @@ class TurbineBatch:
         return TurbineFrame(self.k, self.t, y, c.tau_g_ref.copy(), c.beta_ref.copy(), c.power_ref.copy(), c.zone.copy())
 
     def _fast_frame(self, fast, x: np.ndarray, ws, pitch: np.ndarray) -> TurbineFrame:
-        """``measure``'s readings without a sensor fault, by ``plant_sim.turbine.fast.readings``."""
+        """``measure``'s readings, by ``plant_sim.turbine.fast``: ``readings``, then with a sensor fault active
+        ``faulty_readings`` in their place (the same operations as the numpy code's two branches)."""
         y = np.empty((self.n, len(SENSORS)))
         self._pitch_error = np.empty((self.n, 3))
         power_gain = self.p.eta_gc * self.faults.power_factor
         noise = self._next_noise()
+        f = self.faults
         fast.readings(
             x, ws.hub, power_gain, _PICK, noise, self.bias, _BETA_M1, _BETA_M2, self._quantities, y, self._pitch_error
         )
+        if f.sensor_faults_active:
+            faults = (f.noise_scale, f.gain, f.offset, f.drift_rate, f.drift_start, f.fixed, f.fixed_value)
+            faults += (f.stuck, f.stuck_value)
+            sensors = (self._quantities, _PICK, noise, self.bias, _BETA_M1, _BETA_M2)
+            fast.faulty_readings(*sensors, x, faults, self.t, f.drift_active, y, self._pitch_error)
         self.last_reading = y
         return self._frame(y)
 

@@ -22,6 +22,7 @@ from service.turbine.bank import estimate_observers
 from service.turbine.component_fdi import ComponentFDI, ComponentSettings
 from service.turbine.fdi import FDISettings, SpeedSensorFDI
 from service.turbine.interfaces import (
+    POWER_SPEED_DESIGN_TORQUES,
     POWER_SPEED_MIN_TORQUE,
     SPEED_COLUMNS,
     Diagnosis,
@@ -44,6 +45,7 @@ PITCH_M1_T = np.array([TARGET_INDEX[f"beta_{i}_m1"] for i in (1, 2, 3)])
 PITCH_M2_T = np.array([TARGET_INDEX[f"beta_{i}_m2"] for i in (1, 2, 3)])
 _MASK_WEIGHTS = 1 << np.arange(len(SPEED_SENSORS))
 # Diagnosis row of each speed-sensor bitmask (16, len(DIAGNOSIS_TARGETS)): one gather gives the whole verdict.
+_P_G_M, _TAU_G_M = SENSOR_INDEX["p_g_m"], SENSOR_INDEX["tau_g_m"]
 _DIAGNOSIS_OF_MASK = np.zeros((1 << len(SPEED_SENSORS), len(DIAGNOSIS_TARGETS)), dtype=bool)
 _DIAGNOSIS_OF_MASK[:, SPEED_TARGETS] = (np.arange(1 << len(SPEED_SENSORS))[:, None] & _MASK_WEIGHTS) != 0
 
@@ -81,23 +83,37 @@ class UIOBankDetector:
         self.fdi = SpeedSensorFDI(context.bank_design, context.n, context.dt, settings, fast=context.fast)
         design = context.bank_design
         self._margin_names = tuple(f"observer {name}" for name in design.names[: design.n_isolating])
+        torques = np.asarray(POWER_SPEED_DESIGN_TORQUES)  # the edges of ``power_speed_band``, for the fast path
+        self._band_edges = np.sqrt(np.multiply(torques[:-1], torques[1:])) * context.params.rated_torque
 
     def step(self, frame: TurbineFrame) -> Diagnosis:
         bank = self.context.bank(frame)
         speed = self.context.speed_readings(frame)
         p = self.context.params
-        power, torque = frame.sensors[:, SENSOR_INDEX["p_g_m"]], frame.sensors[:, SENSOR_INDEX["tau_g_m"]]
-        usable = torque >= POWER_SPEED_MIN_TORQUE * p.rated_torque
-        self.fdi.step(
-            speed,
-            bank.chi2,
-            bank.x_hat,
-            power_speed_band(frame.tau_g_ref, p, frame.zone),
-            np.where(usable, power / (p.eta_gc * np.where(usable, torque, 1.0)), np.nan),
-        )
+        fast = self.context.fast
+        if fast is not None:  # the channel and the design band below, by one kernel
+            channel, band = np.empty(self.context.n), np.empty(self.context.n, dtype=np.int64)
+            threshold = POWER_SPEED_MIN_TORQUE * p.rated_torque
+            fast.power_speed_test(
+                frame.sensors, _P_G_M, _TAU_G_M, threshold, p.eta_gc, frame.tau_g_ref, frame.zone, self._band_edges,
+                len(POWER_SPEED_DESIGN_TORQUES), channel, band,
+            )  # fmt: skip
+            self.fdi.step(speed, bank.chi2, bank.x_hat, band, channel)
+        else:
+            power, torque = frame.sensors[:, _P_G_M], frame.sensors[:, _TAU_G_M]
+            usable = torque >= POWER_SPEED_MIN_TORQUE * p.rated_torque
+            self.fdi.step(
+                speed,
+                bank.chi2,
+                bank.x_hat,
+                power_speed_band(frame.tau_g_ref, p, frame.zone),
+                np.where(usable, power / (p.eta_gc * np.where(usable, torque, 1.0)), np.nan),
+            )
         # = empty_diagnosis with the speed-sensor columns set to fdi.faulty, and margins = fdi.margins(bank.chi2)
         fdi = self.fdi
-        suspect = _DIAGNOSIS_OF_MASK[np.where(fdi.deadline >= 0, fdi.flagged | fdi.provisional, fdi.flagged)]
+        suspect = None  # read only while an isolation is pending; the fast path skips it otherwise
+        if fdi.pending or fast is None:
+            suspect = _DIAGNOSIS_OF_MASK[np.where(fdi.deadline >= 0, fdi.flagged | fdi.provisional, fdi.flagged)]
         return Diagnosis(
             _DIAGNOSIS_OF_MASK[fdi.flagged], fdi.ratio, self._margin_names, suspect if fdi.pending else None
         )

@@ -212,15 +212,18 @@ class ComponentFDI:
         # The input products b_i e of all the block's ticks are taken at once; only the recursion runs per tick.
         (b0, b1, b2), (_, a1, a2) = self.whiten_b, self.whiten_a
         e = self._e_block
-        b0e, b1e, b2e = b0 * e, b1 * e, b2 * e
-        w = self._w_block
-        s1, s2 = self._w_state
-        for k in range(len(e)):
-            wk = np.add(b0e[k], s1, out=w[k])
-            s1, s2 = b1e[k] - a1 * wk + s2, b2e[k] - a2 * wk
-        self._w_state = (s1, s2)
-        w *= w
-        z2 = np.add.accumulate(w, axis=0)[-1]  # Σ_k w_k², added in tick order
+        if self._fast is not None:
+            z2 = self._fast.whiten_block(e, b0, b1, b2, a1, a2, *self._w_state)  # the same, states in place
+        else:
+            b0e, b1e, b2e = b0 * e, b1 * e, b2 * e
+            w = self._w_block
+            s1, s2 = self._w_state
+            for k in range(len(e)):
+                wk = np.add(b0e[k], s1, out=w[k])
+                s1, s2 = b1e[k] - a1 * wk + s2, b2e[k] - a2 * wk
+            self._w_state = (s1, s2)
+            w *= w
+            z2 = np.add.accumulate(w, axis=0)[-1]  # Σ_k w_k², added in tick order
         total = self.actuator.push(z2 * (1.0 / (0.75 * self.sigma_beta**2)))
         sensor_flagged = self.flags[:, M1_TARGET].any(axis=1) | self.flags[:, M2_TARGET].any(axis=1)
         rest = self.actuator.size
@@ -241,6 +244,13 @@ class ComponentFDI:
     def _converter(self) -> None:
         # τ̂_g[k] = a τ̂_g[k−1] + (1 − a) τ_g,r[k−1] tick by tick, the input term of all the block's ticks at once
         a = self._converter_gain
+        if self._fast is not None:
+            started = self._tau_hat is not None
+            previous = self._tau_hat if started else self._tau_hat_block[0]
+            r = self._fast.converter_block(self._tau_block, a, previous, started, self._tau_hat_block)
+            self._tau_hat = self._tau_hat_block[-1].copy()
+            self._converter_test(r)
+            return
         tau_g_m = self._tau_block[:, 0]
         drive = (1.0 - a) * self._tau_block[:, 1]
         tau_hat = self._tau_hat_block
@@ -253,6 +263,10 @@ class ComponentFDI:
             previous = tau_hat[k]
         self._tau_hat = tau_hat[-1].copy()
         r = np.add.accumulate(tau_g_m - tau_hat, axis=0)[-1]  # Σ_k (τ_g,m − τ̂_g), added in tick order
+        self._converter_test(r)
+
+    def _converter_test(self, r: np.ndarray) -> None:
+        """The window-mean test on the block sums ``r`` of τ_g,m − τ̂_g."""
         mean = self.converter.push(r) * (1.0 / (self.sigma_tau * np.sqrt(self.s.converter_window)))
         if not self.converter.full:
             return

@@ -4,12 +4,15 @@ and χ² statistics, the wind recovery's filters, the FDI's window tests and the
 Each kernel performs the numpy reference's operations in its order, row by row, so its results equal the
 reference's bit for bit (``tests/test_fast_backend.py``). The matrix products (the bank's two, the recovery's
 map) stay numpy's (BLAS): a compiled loop would sum in another order. Decisions (isolation, clearing, events)
-stay in Python: they run on the rare ticks where something is suspected.
+stay in Python: they run on the rare ticks where something is suspected. ``wind_from_torque`` is
+``wwcore.aero_fast``'s, for the wind recovery.
 """
 
 from __future__ import annotations
 
-from wwcore.aero_fast import maximum
+import numpy as np
+
+from wwcore.aero_fast import maximum, wind_from_torque  # noqa: F401 (the wind recovery's inversion)
 from wwcore.jit import kernel
 
 
@@ -63,16 +66,27 @@ def _square(out, r, width, column, n_res):
 
 # -- wind recovery (``service.turbine.wind_recovery.WindRecovery.step``, every pitch sensor healthy) ------------------
 @kernel
-def recovery_filter(raw, pitch_m1, pitch_m2, b0, a1, a2, s1, s2, filtered):
-    """The biquads of every column of [raw, β̄] (β̄ the mean over the blades of both sensors' mean), states in
-    place: y = b0 x + s1, s1 ← (2 b0 x + s2) − a1 y, s2 ← b0 x − a2 y (``Biquad.__call__``)."""
+def recovery_filter(raw, pitch_m1, pitch_m2, healthy, modelled, b0, a1, a2, s1, s2, filtered):
+    """The biquads of every column of [raw, β̄], states in place: y = b0 x + s1, s1 ← (2 b0 x + s2) − a1 y,
+    s2 ← b0 x − a2 y (``Biquad.__call__``). β̄ is the mean over the blades of both sensors' mean, or with
+    ``healthy`` = (healthy_m1, healthy_m2) given (n, 3 each) of the healthy sensors' mean, the pitch model's
+    ``modelled`` where neither is (``WindRecovery.step``)."""
     m = raw.shape[1]
+    blade = np.empty(3)
     for r in range(raw.shape[0]):
-        p0 = (pitch_m1[r, 0] + pitch_m2[r, 0]) / 2.0
-        p1 = (pitch_m1[r, 1] + pitch_m2[r, 1]) / 2.0
-        p2 = (pitch_m1[r, 2] + pitch_m2[r, 2]) / 2.0
+        for b in range(3):
+            if healthy is None:
+                blade[b] = (pitch_m1[r, b] + pitch_m2[r, b]) / 2.0
+            else:
+                h1 = 1.0 if healthy[0][r, b] else 0.0
+                h2 = 1.0 if healthy[1][r, b] else 0.0
+                weight = h1 + h2
+                if weight > 0:
+                    blade[b] = (h1 * pitch_m1[r, b] + h2 * pitch_m2[r, b]) / maximum(weight, 1.0)
+                else:
+                    blade[b] = modelled[r]
         for c in range(m + 1):
-            x = raw[r, c] if c < m else ((p0 + p1) + p2) / 3.0
+            x = raw[r, c] if c < m else ((blade[0] + blade[1]) + blade[2]) / 3.0
             bx = b0[c] * x
             y = bx + s1[r, c]
             twice = bx + bx
@@ -121,3 +135,101 @@ def parity(beta, scale, ring, slot, total, window_scale, z_single, par, window):
             if maximum(abs(x), abs(w)) > z_single:
                 suspicious = True
     return suspicious
+
+
+@kernel
+def power_speed_test(sensors, power_col, torque_col, threshold, eta_gc, tau_g_ref, zone, edges, region3, channel, band):
+    """The detector's power-speed channel P_g,m/(η_gc τ_g,m) (nan where τ_g,m < ``threshold``) and the 5-pe design
+    of each row (``interfaces.power_speed_band``: ``region3`` in zone 1, else the edges below τ_g,r)."""
+    for r in range(sensors.shape[0]):
+        torque = sensors[r, torque_col]
+        channel[r] = sensors[r, power_col] / (eta_gc * torque) if torque >= threshold else np.nan
+        v = tau_g_ref[r]
+        if zone[r] == 1:
+            band[r] = region3
+        elif v != v:  # searchsorted puts nan after every edge
+            band[r] = edges.size
+        else:
+            below = 0
+            for e in edges:
+                if e < v:
+                    below += 1
+            band[r] = below
+
+
+@kernel
+def whiten_block(e, b0, b1, b2, a1, a2, s1, s2):
+    """Σ_k w_k² over the block's ticks (n, 3), w = (1 + G)⁻¹ e by the second-order section in transposed direct
+    form II, states ``s1``, ``s2`` in place (``ComponentFDI._actuators``)."""
+    n = e.shape[1]
+    z2 = np.zeros((n, 3))
+    for k in range(e.shape[0]):
+        for r in range(n):
+            for b in range(3):
+                ek = e[k, r, b]
+                wk = b0 * ek + s1[r, b]
+                s1[r, b] = b1 * ek - a1 * wk + s2[r, b]
+                s2[r, b] = b2 * ek - a2 * wk
+                z2[r, b] += wk * wk
+    return z2
+
+
+@kernel
+def pitch_model(beta, rate, reference, coef, new_beta, new_rate):
+    """[β, β̇] ← [a β + b β̇ + g0 β_ref, c β + d β̇ + g1 β_ref] (``wind_recovery.PitchModel.step``)."""
+    a, b, c, d, g0, g1 = coef[0], coef[1], coef[2], coef[3], coef[4], coef[5]
+    for r in range(beta.size):
+        new_beta[r] = a * beta[r] + b * rate[r] + g0 * reference[r]
+        new_rate[r] = c * beta[r] + d * rate[r] + g1 * reference[r]
+
+
+@kernel
+def converter_block(tau_block, a, previous, started, tau_hat):
+    """τ̂_g[k] = a τ̂_g[k−1] + (1 − a) τ_g,r[k−1] over the block's ticks (from τ_g,m[0] when not ``started``), and
+    Σ_k (τ_g,m − τ̂_g) added in tick order (``ComponentFDI._converter``)."""
+    n = tau_hat.shape[1]
+    total = np.zeros(n)
+    for k in range(tau_hat.shape[0]):
+        for i in range(n):
+            if k == 0 and not started:
+                tau_hat[k, i] = tau_block[k, 0, i]
+            else:
+                prev = previous[i] if k == 0 else tau_hat[k - 1, i]
+                tau_hat[k, i] = a * prev + (1.0 - a) * tau_block[k, 1, i]
+            d = tau_block[k, 0, i] - tau_hat[k, i]
+            total[i] = d if k == 0 else total[i] + d
+    return total
+
+
+@kernel
+def any_above(values, column, level):
+    """Whether any row's ``values[:, column]`` exceeds ``level``."""
+    for r in range(values.shape[0]):  # noqa: SIM110 (a loop: numba compiles no generator into any())
+        if values[r, column] > level:
+            return True
+    return False
+
+
+# -- flag clearing (``service.turbine.clearing.FlagClearing.step``) -------------------------------------------------
+@kernel
+def cusum(y, x_hat, mask, frozen, predictor, column, scale, min_weight, floor, h, state, ready):
+    """Advance the CUSUM of every flagged speed sensor: e = (y − C x̂_j) / σ_e with j the row's ``predictor``
+    (−1: none), μ̂ ← μ̂ + w (e − μ̂), w = max(1/count, w_min), S ← max(0, S + m (m/2 − sign(μ̂) e)), m = max(|μ̂|,
+    floor); ``ready`` where S ≥ h. ``state`` = (count, mean, statistic, residual), (n, 4) each, in place."""
+    count, mean, statistic, residual = state
+    for r in range(y.shape[0]):
+        j = predictor[r]
+        if mask[r] == 0 or j < 0:
+            continue
+        for s in range(y.shape[1]):
+            sc = scale[j, s]
+            active = ((mask[r] >> s) & 1) == 1 and np.isfinite(sc)
+            e = (y[r, s] - x_hat[r, column[j, s]]) * sc if active else 0.0
+            c = count[r, s] + (1.0 if active else 0.0)
+            weight = maximum(1.0 / maximum(c, 1.0), min_weight) if active else 0.0
+            mu = mean[r, s] + weight * (e - mean[r, s])
+            m = maximum(abs(mu), floor)
+            llr = m * (0.5 * m - (-e if mu < 0.0 else e))
+            stat = maximum(0.0, statistic[r, s] + llr) if active and not frozen[r, s] else 0.0
+            count[r, s], mean[r, s], statistic[r, s], residual[r, s] = c, mu, stat, e
+            ready[r, s] = active and stat >= h

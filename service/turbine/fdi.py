@@ -138,7 +138,14 @@ class SpeedSensorFDI:
         predictors = estimate_observers(bank, from_generator=len(bank.single_generator) > 0)
         self._estimable = predictors >= 0  # masks for which some observer gives the estimate
         self.clearing = FlagClearing(
-            bank, n, dt, settings.false_clears_per_1000s, settings.clear_floor, settings.fault_memory_s, predictors
+            bank,
+            n,
+            dt,
+            settings.false_clears_per_1000s,
+            settings.clear_floor,
+            settings.fault_memory_s,
+            predictors,
+            fast,
         )
         self._history = np.zeros((settings.window, n, bank.n_isolating))  # ring of the last χ² statistics
         self._window_sum = np.zeros((n, bank.n_isolating))
@@ -202,12 +209,12 @@ class SpeedSensorFDI:
         channel (n,) (NaN where it is only the rotor-speed mean; ``arbitration``)."""
         chi2_stat = chi2_stat[:, : self.bank.n_isolating]
         slot = self.ticks % self.s.window
+        exceeded = True  # whether a ratio of the all-sensor observer is above 1 (computed on the fast path)
         if self._fast is not None:
-            ratio = np.empty_like(self._window_sum)
-            self._fast.window_ratio(
-                chi2_stat, self._history, slot, self._window_sum, self.h_detect, self.h_window, ratio
-            )
+            ratio, fast = np.empty_like(self._window_sum), self._fast
+            fast.window_ratio(chi2_stat, self._history, slot, self._window_sum, self.h_detect, self.h_window, ratio)
             self.ratio = ratio
+            exceeded = fast.any_above(ratio, self._all_healthy, 1.0)
         else:
             self._window_sum += chi2_stat - self._history[slot]
             self._history[slot] = chi2_stat
@@ -217,6 +224,8 @@ class SpeedSensorFDI:
             self.ratio = ratio = np.maximum(chi2_stat / self.h_detect, self._window_sum / self.h_window)
         if self.ticks <= self.warmup_ticks:
             return
+        if not (exceeded or any_frozen or self._maybe_flagged or self._pending):
+            return  # nothing inconsistent, frozen, flagged or pending: what the lines below conclude on such a tick
         frozen_mask = self.readings.frozen @ _BITS if any_frozen else self._no_frozen
         if self._maybe_flagged or self._pending:
             selected = self.observer_of_mask[self.flagged]
