@@ -48,10 +48,10 @@ def _add_eval(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--scheduler", metavar="ADDRESS", help="run on this Dask scheduler (docs/cluster.md)")
     p.add_argument("--no-plots", action="store_true", help="skip the PNG plots")
     p.add_argument(
-        "--backend",
+        "--step-backend",
         choices=("numba", "numpy"),
         default="numba",
-        help="step code: compiled (numba, default) or the numpy reference; the same numbers (docs/cluster.md)",
+        help="the step code: compiled (numba, default) or the numpy reference; the same numbers (docs/cluster.md)",
     )
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.add_argument("--scenarios", type=positive_int, default=None, help="random:KIND: scenarios drawn (default: runs)")
@@ -84,7 +84,7 @@ def cmd_eval(args: argparse.Namespace) -> int:
         progress=not args.quiet,
     )
     if args.scenario.startswith("random:"):
-        with process_backend(args.backend):
+        with process_backend(args.step_backend):
             return eval_random(args, options)
     if args.scenarios is not None:
         raise BadInputError("--scenarios: only a random set (random:KIND) is drawn from scenarios")
@@ -97,7 +97,7 @@ def cmd_eval(args: argparse.Namespace) -> int:
     if refused:
         raise BadInputError("\n".join(refused))
     try:
-        with ResourceMonitor() as usage, process_backend(args.backend):
+        with ResourceMonitor() as usage, process_backend(args.step_backend):
             evaluation = kind_for(scenario.plant.kind).evaluate(scenario, args.runs, args.seed, options)
     except (UnknownAlgorithmError, AlgorithmOptionError) as error:
         raise BadInputError(str(error)) from None
@@ -105,6 +105,7 @@ def cmd_eval(args: argparse.Namespace) -> int:
         raise BadInputError(f"--scheduler: {error}") from None
     console.print(render(evaluation.scorecard))
     execution = execution_record(options, usage.report())
+    execution["step_backend"] = args.step_backend
     console.print(execution_line(execution), highlight=False)
     if args.out is not None:
         args.out.mkdir(parents=True, exist_ok=True)

@@ -5,10 +5,11 @@ the same operations, in the same order, as compiled loops over the rows (the mod
 numpy code they mirror); tests compare the two (``tests/test_fast_backend.py``). The compiled twin matters where
 a tick is a few hundred small numpy calls on a handful of rows: one Monte Carlo run, one farm.
 
-An object that steps (``TurbineBatch``, ``TurbineSupervisor``) takes ``backend=`` when it is built; ``None`` means
-``$WINDWARDEN_BACKEND``, else ``numpy``. ``windwarden eval`` chooses ``numba`` (its ``--backend``) by setting the
-variable for its own process and the worker processes it starts (``process_backend``); the live
-plant and supervisor keep ``numpy`` (their tick is paced by the clock, and they start without compiling).
+An object that steps (``TurbineBatch``, ``TurbineSupervisor``, ``FarmBatch``) takes ``backend=`` when it is built;
+``None`` means ``$WINDWARDEN_STEP_BACKEND``, else ``numpy``. ``windwarden eval`` chooses ``numba`` (its
+``--step-backend``) by setting the variable for its own process and the worker processes it starts
+(``process_backend``); the live plant and supervisor keep ``numpy`` (their tick is paced by the clock, and they
+start without importing the compiler).
 
 This module imports no compiler: ``numba`` is imported only when a ``fast`` module is loaded (``fast_module``),
 so commands that never step a batch start as quickly without it.
@@ -23,7 +24,7 @@ from contextlib import contextmanager
 from types import ModuleType
 
 BACKENDS = ("numpy", "numba")
-ENV_VAR = "WINDWARDEN_BACKEND"
+ENV_VAR = "WINDWARDEN_STEP_BACKEND"
 
 
 class BackendError(ValueError):
@@ -31,7 +32,7 @@ class BackendError(ValueError):
 
 
 def resolve_backend(backend: str | None = None) -> str:
-    """The backend to use: ``backend`` if given, else ``$WINDWARDEN_BACKEND``, else ``numpy``; checked."""
+    """The backend to use: ``backend`` if given, else ``$WINDWARDEN_STEP_BACKEND``, else ``numpy``; checked."""
     name = backend if backend is not None else (os.environ.get(ENV_VAR) or "numpy")
     if name not in BACKENDS:
         source = "backend" if backend is not None else ENV_VAR
@@ -42,7 +43,7 @@ def resolve_backend(backend: str | None = None) -> str:
 @contextmanager
 def process_backend(backend: str) -> Iterator[str]:
     """Within the block, ``backend`` is the default of this process and of the processes it starts
-    (``$WINDWARDEN_BACKEND``); the variable is restored after it."""
+    (``$WINDWARDEN_STEP_BACKEND``); the variable is restored after it."""
     name = resolve_backend(backend)
     before = os.environ.get(ENV_VAR)
     os.environ[ENV_VAR] = name
@@ -55,13 +56,34 @@ def process_backend(backend: str) -> Iterator[str]:
             os.environ[ENV_VAR] = before
 
 
-def fast_module(name: str) -> ModuleType:
-    """Import the compiled twin ``name`` (e.g. ``plant_sim.turbine.fast``) on first use.
+class Kernels:
+    """A compiled twin's public names (``kernels.name``), which copies and pickles as the module's name: the objects
+    that hold one can be deep-copied (a fault-free twin run in the same process) or sent to another process."""
+
+    def __init__(self, module: ModuleType):
+        self.__dict__.update({k: v for k, v in vars(module).items() if not k.startswith("__")})
+        self.module_name = module.__name__
+
+    def __reduce__(self):
+        return fast_module, (self.module_name,)
+
+    def __deepcopy__(self, memo: dict) -> Kernels:
+        return self  # stateless: the kernels and constants of a module
+
+
+def fast_module(name: str) -> Kernels:
+    """The compiled twin ``name`` (e.g. ``plant_sim.turbine.fast``), imported on first use.
 
     Imported here rather than at the top of the numpy modules so that importing the simulator or the supervisor
     (the live nodes, ``windwarden --help``) does not import the compiler; there is no import cycle to avoid.
     """
-    try:
-        return importlib.import_module(name)
-    except ImportError as exc:  # numba missing or broken: say so instead of a traceback from deep inside
-        raise BackendError(f"backend 'numba' needs numba installed ({exc})") from exc
+    if name not in _LOADED:
+        try:
+            module = importlib.import_module(name)
+        except ImportError as exc:  # numba missing or broken: say so instead of a traceback from deep inside
+            raise BackendError(f"backend 'numba' needs numba installed ({exc})") from exc
+        _LOADED[name] = Kernels(module)
+    return _LOADED[name]
+
+
+_LOADED: dict[str, Kernels] = {}

@@ -183,7 +183,9 @@ class UIOBankEstimator:
         self.wind_every = settings.wind_every
         self.observer_of_mask = estimate_observers(design, settings.estimate_from == "generator", settings.power_speed)
         # With both generator-speed sensors flagged: the 5-pe observer designed nearest the torque (step)
-        self._power_speed = np.array(design.power_speed if settings.power_speed else ())
+        self._power_speed = np.array(design.power_speed if settings.power_speed else (), dtype=np.int64)
+        torques = np.asarray(POWER_SPEED_DESIGN_TORQUES)  # the edges of ``power_speed_band``, for the fast path
+        self._band_edges = np.sqrt(np.multiply(torques[:-1], torques[1:])) * context.params.rated_torque
         self._previous: np.ndarray | None = None  # ``selected`` of the last tick
         self._previous_mask = np.zeros(context.n, dtype=np.int64)  # the distrusted speed sensors of the last tick
         self._switched = False  # whether any row distrusted a speed sensor at the last tick
@@ -202,6 +204,11 @@ class UIOBankEstimator:
         them for seconds (the wind filter's 0.3 Hz)."""
         previous, previous_mask = self._previous, self._previous_mask
         self._previous, self._previous_mask = selected, mask
+        fast = self.context.fast
+        if fast is not None and previous is not None:  # the tests below, at once, for the common tick
+            self._switched, moving = fast.handover(previous, previous_mask, selected, mask)
+            if not moving:
+                return
         self._switched = bool(mask.any())
         if previous is None:
             return
@@ -221,7 +228,22 @@ class UIOBankEstimator:
         pitch = frame.sensors[:, PITCH_M12]  # [β_i,m1 | β_i,m2], one gather
         pitch_m1, pitch_m2 = pitch[:, :3], pitch[:, 3:]
         recovery = self.recovery
-        if faulty.any():
+        fast = self.context.fast
+        if fast is not None and faulty.any():
+            n = self.context.n
+            mask, selected = np.empty(n, dtype=np.int64), np.empty(n, dtype=np.int64)
+            fast.select_observers(
+                faulty, SPEED_TARGETS, _MASK_WEIGHTS, self.observer_of_mask, self._power_speed, frame.tau_g_ref,
+                frame.zone, self._band_edges, mask, selected,
+            )  # fmt: skip
+            self._take_over(bank, selected, mask)
+            recovery.step(
+                bank.x_hat, frame.beta_ref, pitch_m1, pitch_m2, ~faulty[:, PITCH_M1_T], ~faulty[:, PITCH_M2_T]
+            )
+            columns = np.maximum(selected, 0)
+            omega_r, omega_g = np.empty(n), np.empty(n)
+            fast.gather_speeds(recovery.filtered, *recovery.speed_starts, selected, omega_r, omega_g)
+        elif faulty.any():
             mask = faulty[:, SPEED_TARGETS] @ _MASK_WEIGHTS
             selected = self.observer_of_mask[mask]
             if len(self._power_speed):

@@ -233,3 +233,61 @@ def cusum(y, x_hat, mask, frozen, predictor, column, scale, min_weight, floor, h
             stat = maximum(0.0, statistic[r, s] + llr) if active and not frozen[r, s] else 0.0
             count[r, s], mean[r, s], statistic[r, s], residual[r, s] = c, mu, stat, e
             ready[r, s] = active and stat >= h
+
+
+# -- the estimator's observer (``service.turbine.builtin.UIOBankEstimator.step`` with a flag raised) ----------------
+@kernel
+def select_observers(faulty, speed_targets, weights, observer_of_mask, power_speed, tau_g_ref, zone, edges, mask, out):
+    """The bitmask of the distrusted speed sensors and the observer each row's estimate comes from (5-pe: the
+    design of the row's torque band, ``interfaces.power_speed_band``)."""
+    for r in range(faulty.shape[0]):
+        m = 0
+        for t in range(speed_targets.size):
+            if faulty[r, speed_targets[t]]:
+                m += weights[t]
+        mask[r] = m
+        j = observer_of_mask[m]
+        if power_speed.size and j == power_speed[0]:
+            v = tau_g_ref[r]
+            if zone[r] == 1:
+                band = edges.size + 1
+            elif v != v:
+                band = edges.size
+            else:
+                band = 0
+                for e in edges:
+                    if e < v:
+                        band += 1
+            j = power_speed[band]
+        out[r] = j
+
+
+@kernel
+def handover(previous, previous_mask, selected, mask):
+    """(any sensor distrusted now, any row whose estimate moves to another observer as a sensor is trusted again)
+    (``UIOBankEstimator._take_over``)."""
+    distrusted, moving = False, False
+    for r in range(selected.size):
+        if mask[r] != 0:
+            distrusted = True
+        if (previous_mask[r] & ~mask[r]) != 0 and selected[r] != previous[r] and selected[r] >= 0 and previous[r] >= 0:
+            moving = True
+    return distrusted, moving
+
+
+@kernel
+def gather_speeds(filtered, rotor_start, generator_start, selected, omega_r, omega_g):
+    """ω̂_r, ω̂_g of each row's observer (observer 0 where none is selected) from the filtered columns."""
+    for r in range(selected.size):
+        j = max(selected[r], 0)
+        omega_r[r] = filtered[r, rotor_start + j]
+        omega_g[r] = filtered[r, generator_start + j]
+
+
+@kernel
+def any_differ(a, b):
+    """Whether ``a`` and ``b`` (1-D, one length) differ anywhere."""
+    for i in range(a.size):  # noqa: SIM110 (a loop: numba compiles no generator into any())
+        if a[i] != b[i]:
+            return True
+    return False

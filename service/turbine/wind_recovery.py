@@ -156,6 +156,16 @@ class WindRecovery:
         self._filter_in = np.empty((n, 3 * m + 1))
 
     @property
+    def filtered(self) -> np.ndarray:
+        """(n, 3 n_obs + 1) the filtered columns [τ̂_r | ω̂_r | ω̂_g | β̄] (no copy)."""
+        return self._filtered
+
+    @property
+    def speed_starts(self) -> tuple[int, int]:
+        """The first column of ω̂_r and of ω̂_g in ``filtered``."""
+        return self._groups[1].start, self._groups[2].start
+
+    @property
     def omega_r(self) -> np.ndarray:
         """(n, n_obs) filtered rotor-speed estimates, rad/s."""
         return self._filtered[:, self._groups[1]]
