@@ -127,7 +127,16 @@ class FarmBatch:
             row_streams(seed, int(r), row_base + i)[0] for _ in range(copies) for r in self.runs for i in range(n_rows)
         ]
         self.field = FarmWindField(
-            plant, wind, params, wind_rngs, self.mast, self.run_of_farm, self.dt, row_rngs=row_rngs, wakes=self.wakes
+            plant,
+            wind,
+            params,
+            wind_rngs,
+            self.mast,
+            self.run_of_farm,
+            self.dt,
+            row_rngs=row_rngs,
+            wakes=self.wakes,
+            backend=backend,
         )
         turbine_spec = TurbinePlant(noise_convention=plant.noise_convention, power_reference_w=params.rated_power)
         self.turbines = TurbineBatch(
@@ -146,7 +155,9 @@ class FarmBatch:
         if mismatch is not None:
             self.field.set_air_density(params.rho * self.turbines.mismatch.density_ratio)
         self.n = self.turbines.n
-        self.controller = FarmTurbineController(params, self.n, params.rated_power, plant.cancel_3p_in_hold)
+        self.controller = FarmTurbineController(
+            params, self.n, params.rated_power, plant.cancel_3p_in_hold, backend=self.turbines.backend
+        )
         self.turbines.controller = self.controller
         self._trim(self.field.turbine_wind.reshape(-1))
         self._scada_sum = np.zeros((self.n, N_SENSORS))
