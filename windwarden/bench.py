@@ -2,12 +2,12 @@
 
 ``windwarden bench turbine`` times plant + supervisor of the benchmark turbine, and ``windwarden bench farm`` the
 3 × 3 farm, for a batch of 1 run and a batch of N runs over the same simulated span, each with the numpy reference
-and with the compiled backend (``wwcore.backend``), in one process one after the other. It reports simulated
-seconds per wall-clock second, run-seconds per wall second (the batch's gain from vectorisation), the time split
-between the four calls of the step contract, and the compiled backend's speed-up over numpy per batch: the ratio
-is what to compare across machines and loads, the absolute figures only on a quiet machine. The compiled code is
-loaded (or compiled, on a first use) before the clock starts; that time is printed apart. No timing assertion
-lives in the tests; this command is the measurement.
+and with the compiled backend (``wwcore.backend``), in one process, the two taking turns every 100 ticks (a change
+of the machine's load then hits both alike). It reports simulated seconds per wall-clock second, run-seconds per
+wall second (the batch's gain from vectorisation), the time split between the four calls of the step contract,
+and the compiled backend's speed-up over numpy per batch: the ratio is what to compare across machines and loads,
+the absolute figures only on a quiet machine. The compiled code is loaded (or compiled, on a first use) before the
+clock starts; that time is printed apart. No timing assertion lives in the tests; this command is the measurement.
 """
 
 from __future__ import annotations
@@ -67,36 +67,50 @@ def _farm_pair(scenario_name: str, runs: int, seed: int, twins: bool, backend: s
     return plant, supervisor
 
 
-def _timed(plant, supervisor, seconds: float, runs: int) -> dict[str, float]:
-    refs = None
-    spent = np.zeros(4)
-    ticks = round(seconds / plant.dt)
-    clock = time.perf_counter
-    for _ in range(ticks):
-        t0 = clock()
-        frame = plant.measure()
-        t1 = clock()
-        plant.control(refs)
-        t2 = clock()
-        refs = supervisor.step(frame)
-        t3 = clock()
-        plant.advance()
-        spent += (t1 - t0, t2 - t1, t3 - t2, clock() - t3)
-    wall = float(spent.sum())
-    return {
-        "rows": plant.n,
-        "wall_s": wall,
-        "sim_per_wall": seconds / wall,
-        "run_s_per_wall": runs * seconds / wall,
-        "ms_per_tick": 1e3 * wall / ticks,
-        "split": spent / wall,
-    }
+class _Stepper:
+    """A plant and its supervisor stepped in blocks of ticks, with the time spent in each call of the contract."""
+
+    def __init__(self, plant, supervisor):
+        self.plant, self.supervisor = plant, supervisor
+        self.refs = None
+        self.spent = np.zeros(4)
+        self.ticks = 0
+
+    def run(self, ticks: int) -> None:
+        plant, supervisor, refs, spent = self.plant, self.supervisor, self.refs, self.spent
+        clock = time.perf_counter
+        for _ in range(ticks):
+            t0 = clock()
+            frame = plant.measure()
+            t1 = clock()
+            plant.control(refs)
+            t2 = clock()
+            refs = supervisor.step(frame)
+            t3 = clock()
+            plant.advance()
+            spent += (t1 - t0, t2 - t1, t3 - t2, clock() - t3)
+        self.refs = refs
+        self.ticks += ticks
+
+    def figures(self, runs: int) -> dict[str, float]:
+        wall = float(self.spent.sum())
+        seconds = self.ticks * self.plant.dt
+        return {
+            "rows": self.plant.n,
+            "wall_s": wall,
+            "sim_per_wall": seconds / wall,
+            "run_s_per_wall": runs * seconds / wall,
+            "ms_per_tick": 1e3 * wall / self.ticks,
+            "split": self.spent / wall,
+        }
+
+
+BLOCK_TICKS = 100  # the two backends take turns every this many ticks, so a change of load hits both alike
 
 
 def _bench(args: argparse.Namespace, title: str, make: Callable[[int, str], tuple]) -> int:
     t0 = time.perf_counter()
-    plant, supervisor = make(1, "numba")  # one tick loads the compiled kernels from the cache, or compiles them
-    _timed(plant, supervisor, plant.dt, 1)
+    _Stepper(*make(1, "numba")).run(1)  # one tick loads the compiled kernels from the cache, or compiles them
     console.print(f"compiled kernels of a tick ready in {time.perf_counter() - t0:.1f} s (cache load or compilation)")
     table = Table(title=f"{title}: {args.scenario}, {args.seconds:g} s simulated per batch, seed {args.seed}")
     for column in (
@@ -113,10 +127,13 @@ def _bench(args: argparse.Namespace, title: str, make: Callable[[int, str], tupl
     speedups = {}
     results = {}
     for runs in dict.fromkeys((1, args.runs)):
+        steppers = {backend: _Stepper(*make(runs, backend)) for backend in BACKENDS}
+        ticks = round(args.seconds / steppers["numpy"].plant.dt)
+        for first in range(0, ticks, BLOCK_TICKS):  # the same ticks, in turns
+            for stepper in steppers.values():
+                stepper.run(min(BLOCK_TICKS, ticks - first))
         for backend in BACKENDS:
-            plant, supervisor = make(runs, backend)
-            r = _timed(plant, supervisor, args.seconds, runs)
-            results[runs, backend] = r
+            r = results[runs, backend] = steppers[backend].figures(runs)
             table.add_row(
                 f"{runs} run" + ("s" if runs > 1 else ""),
                 backend,

@@ -264,8 +264,12 @@ class UIOBankEstimator:
                 self._take_over(bank, selected, np.zeros(len(selected), dtype=np.int64))
             recovery.step(bank.x_hat, frame.beta_ref, pitch_m1, pitch_m2, None, None)
             columns = self._all_healthy
-            healthy = int(columns[0])
-            omega_r, omega_g = recovery.omega_r[:, healthy].copy(), recovery.omega_g[:, healthy].copy()
+            if fast is not None:
+                omega_r, omega_g = np.empty(self.context.n), np.empty(self.context.n)
+                fast.gather_speeds(recovery.filtered, *recovery.speed_starts, selected, omega_r, omega_g)
+            else:
+                healthy = int(columns[0])
+                omega_r, omega_g = recovery.omega_r[:, healthy].copy(), recovery.omega_g[:, healthy].copy()
         if self.ticks % self.wind_every == 0:
             self._winds = recovery.wind(np.stack([columns, self._reference_columns]), self._winds)
         self.ticks += 1

@@ -150,13 +150,16 @@ class ComponentFDI:
 
     def step(self, frame: TurbineFrame) -> np.ndarray:
         y = frame.sensors
-        beta = y[:, M12]  # [β_i,m1 | β_i,m2], one gather
-        m1, m2 = beta[:, :3], beta[:, 3:]
-        self._pitch_sensors(beta, m1, m2)
         j = self.ticks % self.s.block
-        np.matmul(0.5 * (m1 + m2), CROSS_BLADE, out=self._e_block[j])
-        self._tau_block[j, 0] = y[:, TAU_G_M]
-        self._tau_block[j, 1] = frame.tau_g_ref
+        if self._fast is not None:
+            self._fast_tick(frame, j)
+        else:
+            beta = y[:, M12]  # [β_i,m1 | β_i,m2], one gather
+            m1, m2 = beta[:, :3], beta[:, 3:]
+            self._pitch_sensors(beta, m1, m2)
+            np.matmul(0.5 * (m1 + m2), CROSS_BLADE, out=self._e_block[j])
+            self._tau_block[j, 0] = y[:, TAU_G_M]
+            self._tau_block[j, 1] = frame.tau_g_ref
         self.ticks += 1
         if j == self.s.block - 1:
             self._actuators()
@@ -166,22 +169,33 @@ class ComponentFDI:
             self._pitch_flagged = False
         return self.flags
 
+    def _fast_tick(self, frame: TurbineFrame, j: int) -> None:
+        """The gathers, the parity statistics and the block's inputs of ``step`` by one kernel
+        (``service.turbine.fast.component_tick``, the same operations), then the pitch-sensor decisions."""
+        n, w = self.n, self.parity
+        beta, parity, window = np.empty((n, 6)), np.empty((n, 3)), np.empty((n, 3))
+        ring = (w.ring, w.count % w.size, w.total)
+        scales = (self._parity_scale, self._window_scale, self.z_single)
+        inputs = (frame.sensors, M12, TAU_G_M, frame.tau_g_ref, j, CROSS_BLADE)
+        outputs = (beta, parity, window)
+        any_suspicious = self._fast.component_tick(*inputs, self._e_block, self._tau_block, ring, scales, *outputs)
+        w.count += 1
+        self.readings.push(beta)
+        self._pitch_flags(beta[:, :3], beta[:, 3:], parity, window, any_suspicious)
+
     # -- pitch sensors ------------------------------------------------------------------------------------------
     def _pitch_sensors(self, beta: np.ndarray, m1: np.ndarray, m2: np.ndarray) -> None:
         """beta = [m1 | m2] (n, 6), the readings of the blades' first and second pitch sensors."""
         self.readings.push(beta)
-        if self._fast is not None:
-            w = self.parity
-            parity, window = np.empty((self.n, 3)), np.empty((self.n, 3))
-            slot = w.count % w.size
-            any_suspicious = self._fast.parity(
-                beta, self._parity_scale, w.ring, slot, w.total, self._window_scale, self.z_single, parity, window
-            )
-            w.count += 1
-        else:
-            parity = (m1 - m2) * self._parity_scale
-            window = self.parity.push(parity) * self._window_scale
-            any_suspicious = None
+        parity = (m1 - m2) * self._parity_scale
+        window = self.parity.push(parity) * self._window_scale
+        self._pitch_flags(m1, m2, parity, window, None)
+
+    def _pitch_flags(
+        self, m1: np.ndarray, m2: np.ndarray, parity: np.ndarray, window: np.ndarray, any_suspicious: bool | None
+    ) -> None:
+        """Raise and clear the pitch-sensor flags from the parity and its window mean (``any_suspicious``: whether
+        any exceeds the single-tick level, None when not known)."""
         maybe_frozen = self.readings.counting or self.s.frozen_ticks < 2  # else nothing can be frozen
         if any_suspicious is False and not (maybe_frozen or self._pitch_flagged):
             return  # the healthy fast path, known without the array of suspicious blades

@@ -120,16 +120,30 @@ def any_equal(a, b):
 
 # -- pitch-sensor parity (``service.turbine.component_fdi.ComponentFDI._pitch_sensors``) ---------------------------
 @kernel
-def parity(beta, scale, ring, slot, total, window_scale, z_single, par, window):
-    """parity = (β_m1 − β_m2) scale, its running window sum (ring slot ``slot`` replaced), window = Σ × scale;
-    True when any |parity| or |window| exceeds ``z_single``."""
+def component_tick(y, m12, tau_col, tau_g_ref, j, cross, e_block, tau_block, ring, scales, beta, par, window):
+    """``ComponentFDI.step``'s per-tick arithmetic: β = y[:, m12] ([β_i,m1 | β_i,m2]); parity = (β_m1 − β_m2) s,
+    its running window sum (``ring`` = (ring, slot, total), slot replaced), window = Σ × s_w; the block's
+    e[j] = ½(β_m1 + β_m2) @ ``cross`` and [τ_g,m, τ_g,r]. True when any |parity| or |window| exceeds z (``scales`` =
+    (s, s_w, z)). ``cross`` is CROSS_BLADE, whose entries 1 and −½ make every product exact: the three terms added
+    left to right are numpy's product bit for bit (the one product computed in a kernel; checked by the tests)."""
+    ring_values, slot, total = ring
+    scale, window_scale, z_single = scales
     suspicious = False
-    for r in range(beta.shape[0]):
+    for r in range(y.shape[0]):
+        for c in range(6):
+            beta[r, c] = y[r, m12[c]]
+        mean0 = 0.5 * (beta[r, 0] + beta[r, 3])
+        mean1 = 0.5 * (beta[r, 1] + beta[r, 4])
+        mean2 = 0.5 * (beta[r, 2] + beta[r, 5])
+        for c in range(3):
+            e_block[j, r, c] = mean0 * cross[0, c] + mean1 * cross[1, c] + mean2 * cross[2, c]
+        tau_block[j, 0, r] = y[r, tau_col]
+        tau_block[j, 1, r] = tau_g_ref[r]
         for b in range(3):
             x = (beta[r, b] - beta[r, 3 + b]) * scale
             par[r, b] = x
-            total[r, b] += x - ring[slot, r, b]
-            ring[slot, r, b] = x
+            total[r, b] += x - ring_values[slot, r, b]
+            ring_values[slot, r, b] = x
             w = total[r, b] * window_scale
             window[r, b] = w
             if maximum(abs(x), abs(w)) > z_single:
