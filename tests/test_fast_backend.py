@@ -8,6 +8,7 @@ gets it to the last bit: the largest difference is printed by the assertion when
 from __future__ import annotations
 
 import copy
+import importlib.util
 import json
 import os
 import pickle
@@ -23,10 +24,11 @@ from plant_sim.turbine import TurbineBatch
 from service.farm.supervisor import FarmSupervisor
 from service.turbine.supervisor import TurbineSupervisor
 from tests.live.helpers import TURBINE_SHORT
+from windwarden.cli import EXIT_BAD_INPUT, main
 from windwarden.evaluation.kinds import EvalOptions
 from windwarden.kinds import kind_for
 from wwcore import aero, aero_fast
-from wwcore.backend import ENV_VAR, BackendError, fast_module, process_backend, resolve_backend
+from wwcore.backend import ENV_VAR, BackendError, available, fast_module, process_backend, resolve_backend
 from wwcore.scenario import load_scenario, parse_scenario
 from wwcore.turbine_params import BENCHMARK
 
@@ -277,3 +279,13 @@ def test_starting_the_cli_and_the_live_nodes_does_not_import_the_compiler():
     env.pop(ENV_VAR, None)
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env, check=True)
     assert out.stdout.strip() == "False"
+
+
+def test_eval_refuses_the_numba_backend_where_numba_is_missing(monkeypatch, tmp_path, capsys):
+    real = importlib.util.find_spec
+    monkeypatch.setattr(importlib.util, "find_spec", lambda name, *a: None if name == "numba" else real(name, *a))
+    with pytest.raises(BackendError, match="pip install numba"):
+        available("numba")
+    out = tmp_path / "out"
+    assert main(["eval", "ftwse-2012", "--runs", "1", "--quiet", "--out", str(out)]) == EXIT_BAD_INPUT
+    assert "--step-backend" in capsys.readouterr().err and not out.exists()  # refused before anything ran

@@ -24,7 +24,7 @@ from windwarden.commands.common import (
 from windwarden.commands.live import LIVE_SUBCOMMANDS
 from windwarden.commands.scenario_list import scenarios_listing
 from windwarden.commands.sweep import add_detectability_parser, add_random_parser, eval_random
-from wwcore.backend import process_backend
+from wwcore.backend import BackendError, available, process_backend
 from wwcore.scenario import ScenarioError, load_scenario, shipped_scenarios
 
 
@@ -70,6 +70,10 @@ def cmd_eval(args: argparse.Namespace) -> int:
         load_plugins(tuple(args.plugin))
     except ModuleNotFoundError as error:
         raise BadInputError(f"--plugin: cannot import {error.name!r}") from None
+    try:
+        available(args.step_backend)
+    except BackendError as error:
+        raise BadInputError(f"--step-backend: {error}") from None
     options = EvalOptions(
         detector=args.detector,
         estimator=args.estimator,

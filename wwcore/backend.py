@@ -18,6 +18,7 @@ so commands that never step a batch start as quickly without it.
 from __future__ import annotations
 
 import importlib
+import importlib.util
 import os
 from collections.abc import Iterator
 from contextlib import contextmanager
@@ -40,11 +41,19 @@ def resolve_backend(backend: str | None = None) -> str:
     return name
 
 
+def available(backend: str) -> str:
+    """``backend``, checked: a known name, and for ``numba`` the package installed (not imported)."""
+    name = resolve_backend(backend)
+    if name == "numba" and importlib.util.find_spec("numba") is None:
+        raise BackendError("the numba step backend needs numba installed (pip install numba), or use numpy")
+    return name
+
+
 @contextmanager
 def process_backend(backend: str) -> Iterator[str]:
     """Within the block, ``backend`` is the default of this process and of the processes it starts
     (``$WINDWARDEN_STEP_BACKEND``); the variable is restored after it."""
-    name = resolve_backend(backend)
+    name = available(backend)
     before = os.environ.get(ENV_VAR)
     os.environ[ENV_VAR] = name
     try:
