@@ -89,6 +89,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import linalg, signal
 
+from wwcore.backend import fast_module, resolve_backend
 from wwcore.scenario.wind import WindSpec
 from wwcore.turbine_params import TurbineParams
 
@@ -260,8 +261,17 @@ class WindSample:
 class WindField:
     """Per-tick wind for a batch of n turbines: ``sample(k, azimuth)`` for k = 0, 1, 2, … (module docstring)."""
 
-    def __init__(self, spec: WindSpec, params: TurbineParams, rngs: Sequence[np.random.Generator], dt: float):
+    def __init__(
+        self,
+        spec: WindSpec,
+        params: TurbineParams,
+        rngs: Sequence[np.random.Generator],
+        dt: float,
+        backend: str | None = None,
+    ):
         self.spec = spec
+        # ``"numba"``: ``sample``'s interpolation by ``plant_sim.turbine.fast.blade_winds``, the same numbers
+        self._fast = fast_module("plant_sim.turbine.fast") if resolve_backend(backend) == "numba" else None
         self.n = len(rngs)
         self.dt = float(dt)
         self._streams = TurbulenceStreams(spec, params, rngs)
@@ -313,6 +323,21 @@ class WindField:
         if k >= self._chunk_end:
             self._refill()
         j = k - self._chunk_start
+        if self._fast is not None:
+            blades, rotor = np.empty((self.n, 3)), np.empty(self.n)
+            azimuth = np.ascontiguousarray(azimuth, dtype=float)
+            self._fast.blade_winds(
+                azimuth,
+                self._table,
+                self._slope,
+                self._per_rad,
+                self._offsets,
+                self._base[j],
+                self._u3[j],
+                blades,
+                rotor,
+            )
+            return WindSample(blades=blades, hub=self._hub[j], rotor=rotor, mean=self._mean[j])
         x = np.mod(azimuth, TWO_PI)[:, None] * self._per_rad + self._offsets  # (n, 3) in grid steps
         i = x.astype(np.intp)
         f = np.take(self._table, i) + np.take(self._slope, i) * (x - i)  # F(ψ_i), linear interpolation

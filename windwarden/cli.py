@@ -24,6 +24,7 @@ from windwarden.commands.common import (
 from windwarden.commands.live import LIVE_SUBCOMMANDS
 from windwarden.commands.scenario_list import scenarios_listing
 from windwarden.commands.sweep import add_detectability_parser, add_random_parser, eval_random
+from wwcore.backend import BackendError, available, process_backend
 from wwcore.scenario import ScenarioError, load_scenario, shipped_scenarios
 
 
@@ -46,6 +47,12 @@ def _add_eval(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--workers", type=positive_int, default=None, help="local processes (default: one per core)")
     p.add_argument("--scheduler", metavar="ADDRESS", help="run on this Dask scheduler (docs/cluster.md)")
     p.add_argument("--no-plots", action="store_true", help="skip the PNG plots")
+    p.add_argument(
+        "--step-backend",
+        choices=("numba", "numpy"),
+        default="numba",
+        help="the step code: compiled (numba, default) or the numpy reference; the same numbers (docs/cluster.md)",
+    )
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.add_argument("--scenarios", type=positive_int, default=None, help="random:KIND: scenarios drawn (default: runs)")
     p.set_defaults(func=cmd_eval)
@@ -63,6 +70,10 @@ def cmd_eval(args: argparse.Namespace) -> int:
         load_plugins(tuple(args.plugin))
     except ModuleNotFoundError as error:
         raise BadInputError(f"--plugin: cannot import {error.name!r}") from None
+    try:
+        available(args.step_backend)
+    except BackendError as error:
+        raise BadInputError(f"--step-backend: {error}") from None
     options = EvalOptions(
         detector=args.detector,
         estimator=args.estimator,
@@ -77,7 +88,8 @@ def cmd_eval(args: argparse.Namespace) -> int:
         progress=not args.quiet,
     )
     if args.scenario.startswith("random:"):
-        return eval_random(args, options)
+        with process_backend(args.step_backend):
+            return eval_random(args, options)
     if args.scenarios is not None:
         raise BadInputError("--scenarios: only a random set (random:KIND) is drawn from scenarios")
     scenario = load_scenario(args.scenario)
@@ -89,7 +101,7 @@ def cmd_eval(args: argparse.Namespace) -> int:
     if refused:
         raise BadInputError("\n".join(refused))
     try:
-        with ResourceMonitor() as usage:
+        with ResourceMonitor() as usage, process_backend(args.step_backend):
             evaluation = kind_for(scenario.plant.kind).evaluate(scenario, args.runs, args.seed, options)
     except (UnknownAlgorithmError, AlgorithmOptionError) as error:
         raise BadInputError(str(error)) from None
@@ -97,6 +109,7 @@ def cmd_eval(args: argparse.Namespace) -> int:
         raise BadInputError(f"--scheduler: {error}") from None
     console.print(render(evaluation.scorecard))
     execution = execution_record(options, usage.report())
+    execution["step_backend"] = args.step_backend
     console.print(execution_line(execution), highlight=False)
     if args.out is not None:
         args.out.mkdir(parents=True, exist_ok=True)

@@ -116,6 +116,7 @@ import numpy as np
 from scipy import signal
 
 from plant_sim.turbine.controller import BenchmarkController
+from wwcore.backend import fast_module
 from wwcore.farm_frames import MIN_SPEED_FRACTION
 from wwcore.turbine_frames import TurbineRefs
 from wwcore.turbine_params import TurbineParams
@@ -143,8 +144,12 @@ def speed_setpoint(params: TurbineParams, power_ref: np.ndarray) -> np.ndarray:
 class FarmTurbineController(BenchmarkController):
     """The benchmark controller for n farm turbines, derating by speed set point (module docstring)."""
 
-    def __init__(self, params: TurbineParams, n: int, power_reference: float, cancel_3p: bool = True):
-        super().__init__(params, n, power_reference)
+    def __init__(
+        self, params: TurbineParams, n: int, power_reference: float, cancel_3p: bool = True, backend: str | None = None
+    ):
+        super().__init__(params, n, power_reference, backend=backend)
+        # ``"numba"``: the zone logic, PI, damper and torque laws by ``plant_sim.farm.fast.control``, the same numbers
+        self._farm_fast = fast_module("plant_sim.farm.fast") if self._fast is not None else None
         self.cancel_3p = cancel_3p  # the hold also cancels the 3P shaft torque (module docstring)
         self.power_ref_target = np.full(n, float(power_reference))  # W, the last reference received
         self.ramp = RAMP_FRACTION_PER_S * params.rated_power * params.dt  # W per tick
@@ -156,6 +161,9 @@ class FarmTurbineController(BenchmarkController):
             ([DAMPER_GAIN * 2.0 * DAMPER_ZETA * w0, 0.0], [1.0, 2.0 * DAMPER_ZETA * w0, w0 * w0]), params.dt, "bilinear"
         )
         self._bp_b, self._bp_a = np.ravel(b), np.ravel(a)
+        p = params
+        self._fast_constants = (p.dt, p.pitch_min_deg, p.pitch_max_deg, p.K_p, p.K_i, p.eta_gc, p.k_opt)
+        self._fast_constants += tuple(float(v) for v in (self._bp_b[0], self._bp_b[2], self._bp_a[1], self._bp_a[2]))
         self._bp_state = np.zeros((2, n))  # transposed direct form II
         self._bp_ready = False
         self.damper_torque = np.zeros(n)  # N m, the damper's share of τ_g,r
@@ -293,27 +301,17 @@ class FarmTurbineController(BenchmarkController):
         if self.hold.any():
             self._hold_setpoint(omega_g)
         setpoint, hysteresis = self.setpoint, self._hysteresis
-        to_region3 = (omega_g >= setpoint) | ((p_g_m >= self.power_ref) & ~self.hold)
-        stay_region3 = omega_g >= setpoint - hysteresis
-        region3 = np.where(self.zone == 0, to_region3, stay_region3)
-        self.zone = region3.view(np.int8)
-        error = omega_g - setpoint
-        lo, hi = p.pitch_min_deg, p.pitch_max_deg
-        self.integrator = np.minimum(np.maximum(self.integrator + p.dt * error, lo), hi)
-        beta_pi = np.minimum(np.maximum(p.K_p * error + p.K_i * self.integrator, lo), hi)
-        self.beta_ref = np.where(region3, beta_pi, 0.0)
-        safe_omega = np.maximum(omega_g, 1.0)
-        self._omega_g = omega_g
         # drive-train damper: band-pass of ω_g,m at the torsion mode (transposed direct form II; b1 = 0)
-        b, a, z = self._bp_b, self._bp_a, self._bp_state
+        b, z = self._bp_b, self._bp_state
         if not self._bp_ready:  # steady state of the band-pass for a constant input: zero output
             z[0] = z[1] = -b[0] * omega_g_m
             self._bp_ready = True
-        damper = b[0] * omega_g_m + z[0]
-        z[0] = z[1] - a[1] * damper
-        z[1] = b[2] * omega_g_m - a[2] * damper
+        if self._farm_fast is not None:
+            region3, damper, base = self._fast_laws(omega_g, omega_g_m, p_g_m)
+        else:
+            region3, damper, base = self._laws(omega_g, omega_g_m, p_g_m)
+        self._omega_g = omega_g
         self.damper_torque = damper
-        base = np.where(region3, self.power_ref / (p.eta_gc * safe_omega), p.k_opt * omega_g * omega_g)
         if self.hold.any():
             # zone 0 in the hold: too little wind for the set point (or, on the way back, for the climb): let the
             # torque go steeply below the speed the rotor last held
@@ -332,6 +330,49 @@ class FarmTurbineController(BenchmarkController):
             self.tau_g_ref = self.tau_g_ref + self.ripple_torque
         if extra is not None:
             self.tau_g_ref = self.tau_g_ref + extra / (p.eta_gc * np.maximum(omega_g_m, 1.0))
+
+    def _laws(
+        self, omega_g: np.ndarray, omega_g_m: np.ndarray, p_g_m: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Zone logic, PI and the damper (updating zone, integrator, β_ref and the damper's state); returns
+        (region 3, damper torque, the torque law's τ_g,r before hold, fade and damper)."""
+        p, setpoint, hysteresis = self.p, self.setpoint, self._hysteresis
+        to_region3 = (omega_g >= setpoint) | ((p_g_m >= self.power_ref) & ~self.hold)
+        stay_region3 = omega_g >= setpoint - hysteresis
+        region3 = np.where(self.zone == 0, to_region3, stay_region3)
+        self.zone = region3.view(np.int8)
+        error = omega_g - setpoint
+        lo, hi = p.pitch_min_deg, p.pitch_max_deg
+        self.integrator = np.minimum(np.maximum(self.integrator + p.dt * error, lo), hi)
+        beta_pi = np.minimum(np.maximum(p.K_p * error + p.K_i * self.integrator, lo), hi)
+        self.beta_ref = np.where(region3, beta_pi, 0.0)
+        safe_omega = np.maximum(omega_g, 1.0)
+        b, a, z = self._bp_b, self._bp_a, self._bp_state
+        damper = b[0] * omega_g_m + z[0]
+        z[0] = z[1] - a[1] * damper
+        z[1] = b[2] * omega_g_m - a[2] * damper
+        base = np.where(region3, self.power_ref / (p.eta_gc * safe_omega), p.k_opt * omega_g * omega_g)
+        return region3, damper, base
+
+    def _fast_laws(
+        self, omega_g: np.ndarray, omega_g_m: np.ndarray, p_g_m: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """``_laws`` by ``plant_sim.farm.fast.control``: the same operations, row by row."""
+        n = self.n
+        zone, integrator = self.zone.copy(), self.integrator.copy()
+        self.beta_ref, damper, base = np.empty(n), np.empty(n), np.empty(n)
+        state = (zone, integrator, self.beta_ref, self._bp_state, damper, base)
+        references = (
+            np.ascontiguousarray(self.power_ref, dtype=float),
+            np.ascontiguousarray(self.setpoint, dtype=float),
+            np.ascontiguousarray(self._hysteresis, dtype=float),
+            self.hold,
+        )
+        self._farm_fast.control(
+            np.ascontiguousarray(omega_g, dtype=float), omega_g_m, p_g_m, state, references, self._fast_constants
+        )
+        self.zone, self.integrator = zone, integrator
+        return zone.view(bool), damper, base
 
     def _extra_power(self, k: int) -> np.ndarray | None:
         """W to add to each turbine's power over tick k (held over the step: taken at its middle), or None; a

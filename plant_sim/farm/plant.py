@@ -86,7 +86,7 @@ class FarmBatch:
     ``mismatch`` (a scenario's ``[mismatch]`` section) gives each turbine of each run its own plant
     (``plant_sim.turbine.mismatch``): drawn per turbine and run from the section's spread, or set per turbine. The
     wakes see each rotor's own air density; the demand's available-power estimate stays the design model's, as a
-    grid operator's would.
+    grid operator's would. ``backend`` (``wwcore.backend``) is the turbines' (``TurbineBatch``).
     """
 
     def __init__(
@@ -102,6 +102,7 @@ class FarmBatch:
         fault_free_twins: bool = False,
         mismatch: Mismatch | None = None,
         wake_cache_dir: Path | str | None = None,
+        backend: str | None = None,
     ):
         self.spec = plant
         self.p = params
@@ -136,7 +137,16 @@ class FarmBatch:
             row_streams(seed, int(r), row_base + i)[0] for _ in range(copies) for r in self.runs for i in range(n_rows)
         ]
         self.field = FarmWindField(
-            plant, wind, params, wind_rngs, self.mast, self.run_of_farm, self.dt, row_rngs=row_rngs, wakes=self.wakes
+            plant,
+            wind,
+            params,
+            wind_rngs,
+            self.mast,
+            self.run_of_farm,
+            self.dt,
+            row_rngs=row_rngs,
+            wakes=self.wakes,
+            backend=backend,
         )
         turbine_spec = TurbinePlant(noise_convention=plant.noise_convention, power_reference_w=params.rated_power)
         self.turbines = TurbineBatch(
@@ -150,11 +160,14 @@ class FarmBatch:
             wind_field=self.field,
             fault_free_twins=fault_free_twins,
             mismatch=mismatch,
+            backend=backend,
         )
         if mismatch is not None:
             self.field.set_air_density(params.rho * self.turbines.mismatch.density_ratio)
         self.n = self.turbines.n
-        self.controller = FarmTurbineController(params, self.n, params.rated_power, plant.cancel_3p_in_hold)
+        self.controller = FarmTurbineController(
+            params, self.n, params.rated_power, plant.cancel_3p_in_hold, backend=self.turbines.backend
+        )
         self.turbines.controller = self.controller
         self._trim(self.field.turbine_wind.reshape(-1))
         self._scada_sum = np.zeros((self.n, N_SENSORS))

@@ -54,6 +54,7 @@ from scipy import signal
 
 from plant_sim.turbine.trim import power_curve
 from plant_sim.wind import WindField, WindSample, mean_wind
+from wwcore.backend import fast_module
 from wwcore.scenario.farm import FARM_DT_S, FarmPlant
 from wwcore.scenario.wind import WindSpec
 from wwcore.turbine_params import TurbineParams
@@ -289,8 +290,11 @@ class FarmWindField(WindField):
         dt: float,
         row_rngs: Sequence[np.random.Generator] | None = None,
         wakes: FarmWakes | None = None,
+        backend: str | None = None,
     ) -> None:
-        super().__init__(spec, params, rngs, dt)
+        super().__init__(spec, params, rngs, dt, backend=backend)
+        # ``"numba"``: ``sample`` by ``plant_sim.farm.fast.blade_winds`` (the same numbers)
+        self._farm_fast = fast_module("plant_sim.farm.fast") if self._fast is not None else None
         self.plant = plant
         self.params = params
         self.mast = mast
@@ -378,6 +382,8 @@ class FarmWindField(WindField):
         if k >= self._chunk_end:
             self._refill()
         j = k - self._chunk_start
+        if self._farm_fast is not None:
+            return self._fast_sample(j, k, azimuth)
         offset = self._offset_now + self._offset_step * (k % self.ticks_per_sample)  # v_row − v_m, interpolated
         x = np.mod(azimuth, 2.0 * math.pi)[:, None] * self._per_rad + self._offsets
         i = x.astype(np.intp)
@@ -392,3 +398,15 @@ class FarmWindField(WindField):
         self.rotor_wind = rotor
         mean = self._mean[j] + offset
         return WindSample(blades=blades, hub=hub + offset, rotor=rotor, mean=mean)
+
+    def _fast_sample(self, j: int, k: int, azimuth: np.ndarray) -> WindSample:
+        """``sample``'s arithmetic by ``plant_sim.farm.fast.blade_winds``; the blades' mean by the same product."""
+        n = self.n
+        blades, hub, mean = np.empty((n, 3)), np.empty(n), np.empty(n)
+        fields = (self._base[j], self._hub[j], self._u3[j], self._mean[j])
+        drift = (self._offset_now, self._offset_step, float(k % self.ticks_per_sample))
+        azimuth = np.ascontiguousarray(azimuth, dtype=float)
+        args = (self._table, self._slope, self._per_rad, self._offsets, fields, self.turbulence_gain, drift)
+        self._farm_fast.blade_winds(azimuth, *args, blades, hub, mean)
+        self.rotor_wind = rotor = blades @ _THIRDS
+        return WindSample(blades=blades, hub=hub, rotor=rotor, mean=mean)

@@ -17,15 +17,23 @@ from __future__ import annotations
 
 import numpy as np
 
+from wwcore.backend import fast_module, resolve_backend
 from wwcore.turbine_frames import TurbineRefs
 from wwcore.turbine_params import TurbineParams
 
 
 class BenchmarkController:
-    """Region 2/3 controller for n turbines. ``step`` is called once per tick."""
+    """Region 2/3 controller for n turbines. ``step`` is called once per tick; ``backend`` as ``wwcore.backend``
+    (``"numba"``: the zone logic and laws by ``plant_sim.turbine.fast.control``, the same numbers)."""
 
-    def __init__(self, params: TurbineParams, n: int, power_reference: float, max_ref_age: int = 10):
+    def __init__(
+        self, params: TurbineParams, n: int, power_reference: float, max_ref_age: int = 10, backend: str | None = None
+    ):
         self.p = params
+        self._fast = fast_module("plant_sim.turbine.fast") if resolve_backend(backend) == "numba" else None
+        p = params
+        self._constants = (p.omega_nom, p.omega_delta, p.dt, p.pitch_min_deg, p.pitch_max_deg, p.K_p, p.K_i)
+        self._constants += (p.eta_gc, p.k_opt)
         self.n = n
         self.max_ref_age = max_ref_age  # ticks after which the supervisor's references count as stale
         self.zone = np.zeros(n, dtype=np.int8)
@@ -56,6 +64,15 @@ class BenchmarkController:
                 self.power_ref = np.where(refs.valid, refs.power_ref, self.power_ref)
         else:
             self.using_estimates[:] = False
+        if self._fast is not None:  # the same operations, in place, row by row
+            zone, integrator = self.zone.copy(), self.integrator.copy()
+            self.beta_ref, self.tau_g_ref = np.empty(self.n), np.empty(self.n)
+            power_ref = np.ascontiguousarray(self.power_ref, dtype=float)
+            self._fast.control(
+                omega_g, p_g_m, power_ref, zone, integrator, self.beta_ref, self.tau_g_ref, self._constants
+            )
+            self.zone, self.integrator = zone, integrator
+            return
         # Zone logic with the previous zone held (unit delay).
         to_region3 = (p_g_m >= self.power_ref) | (omega_g >= p.omega_nom)
         stay_region3 = omega_g >= p.omega_nom - p.omega_delta

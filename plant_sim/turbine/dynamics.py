@@ -188,8 +188,8 @@ class DiscreteStep:
         self.gamma_p = np.zeros((n, 3, 2))
         self._key_m: np.ndarray | None = None
         self._key_p: np.ndarray | None = None
-        self._shared: np.ndarray | None = None  # (16, 11) when every row is alike
-        self._z = np.empty((n, N_STATES + 5))  # [x, τ_r, τ_g,cmd, β_ref,1..3], the shared path's input
+        self.shared: np.ndarray | None = None  # (16, 11) when every row is alike: x' = inputs @ shared
+        self.inputs = np.empty((n, N_STATES + 5))  # [x, τ_r, τ_g,cmd, β_ref,1..3], the shared path's input
 
     def update(self, faults) -> None:
         """Recompute Φ, Γ for the rows whose drive-train or pitch parameters differ from last time."""
@@ -229,9 +229,9 @@ class DiscreteStep:
                 cols = slice(N_MECH + 2 * b, N_MECH + 2 * b + 2)
                 m[cols, cols] = self.phi_p[0, b].T
                 m[N_STATES + 2 + b, cols] = self.gamma_p[0, b]
-            self._shared = m
+            self.shared = m
         else:
-            self._shared = None
+            self.shared = None
 
     def step(
         self,
@@ -241,13 +241,13 @@ class DiscreteStep:
         pitch_ref: np.ndarray,
         tau_ext: np.ndarray | None = None,
     ) -> np.ndarray:
-        if self._shared is not None:
-            z = self._z
+        if self.shared is not None:
+            z = self.inputs
             z[:, :N_STATES] = x
             z[:, N_STATES] = tau_r
             z[:, N_STATES + 1] = tau_g_cmd
             z[:, N_STATES + 2 :] = pitch_ref
-            out = z @ self._shared
+            out = z @ self.shared
         else:
             out = np.empty_like(x)
             mech = x[:, :N_MECH]

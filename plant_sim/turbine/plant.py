@@ -32,6 +32,7 @@ from plant_sim.turbine.faults import FaultState, ScheduledFault
 from plant_sim.turbine.mismatch import resolve
 from plant_sim.turbine.trim import PlantAero, trim
 from plant_sim.wind import WindField
+from wwcore.backend import fast_module, resolve_backend
 from wwcore.channels import SENSOR_INDEX, SENSORS, noise_std
 from wwcore.events import Event, EventType
 from wwcore.scenario.faults import FaultKind, FaultSpec
@@ -67,6 +68,9 @@ class TurbineBatch:
     ``mismatch`` (a scenario's ``[mismatch]`` section) makes the plant differ from the design model: its rows get
     their own aerodynamics, drive train, pitch actuators, sensor noise and calibration biases (``self.mismatch``,
     per row, ``plant_sim.turbine.mismatch``); the turbine's controller keeps the design values, as a real one would.
+
+    ``backend`` (``wwcore.backend``): ``"numba"`` runs the common tick through ``plant_sim.turbine.fast``, with the
+    same results; ``None`` takes the process default.
     """
 
     def __init__(
@@ -83,8 +87,11 @@ class TurbineBatch:
         noise_chunk: int = 1000,
         fault_free_twins: bool = False,
         mismatch: Mismatch | None = None,
+        backend: str | None = None,
     ):
         self.p = params
+        self.backend = resolve_backend(backend)
+        self._fast = fast_module("plant_sim.turbine.fast") if self.backend == "numba" else None
         self.dt = params.dt
         self.k = 0
         run_of_row = np.repeat(np.asarray(runs, dtype=int), len(turbines))
@@ -99,7 +106,11 @@ class TurbineBatch:
         streams = [row_streams(seed, int(r), int(t)) for r, t in zip(self.run_of_row, self.turbine_of_row, strict=True)]
         self._noise_rngs = [noise for _, noise in streams]
         self._noise_rows = self.n // copies  # rows that draw noise; twins reuse their run's
-        self.wind = wind_field if wind_field is not None else WindField(wind, params, [w for w, _ in streams], self.dt)
+        self.wind = (
+            wind_field
+            if wind_field is not None
+            else WindField(wind, params, [w for w, _ in streams], self.dt, backend=self.backend)
+        )
         self.dynamics = TurbineDynamics(params)
         self.discrete = DiscreteStep(params, self.n)
         self.mismatch = resolve(mismatch, params, seed, self.run_of_row, self.turbine_of_row)
@@ -123,7 +134,7 @@ class TurbineBatch:
         self._next_change = 0  # tick at which the fault arrays may next change
         for fault in faults:
             self.inject(fault)
-        self.controller = BenchmarkController(params, self.n, plant.power_reference_w)
+        self.controller = BenchmarkController(params, self.n, plant.power_reference_w, backend=self.backend)
         self.x = np.zeros((self.n, N_STATES))
         self._trim(float(np.interp(0.0, *zip(*wind.mean, strict=True))), plant.power_reference_w)
         self.discrete.update(self.faults)
@@ -199,10 +210,19 @@ class TurbineBatch:
         self._wind_sample = ws
         pitch = x[:, PITCH]
         f = self.faults
-        self.blade_torque = torque = self.dynamics.blade_torques(
-            x[:, OMEGA_R], pitch + f.pitch_offset, ws.blades, f.aero_factor, self._tsr_shift
-        )
-        self.tau_aero = (torque[:, 0] + torque[:, 1]) + torque[:, 2]  # Σ_i τ_r,i, in the order sum(axis=1) adds
+        fast = self._fast
+        if fast is not None and self._tsr_shift is None:
+            gain = self.dynamics.blade_gain * f.aero_factor
+            self.blade_torque, self.tau_aero = fast.blade_torques(
+                x[:, OMEGA_R], pitch + f.pitch_offset, ws.blades, gain, self.p.radius
+            )
+            if self.bias.ndim == 1:
+                return self._fast_frame(fast, x, ws, pitch)
+        else:
+            self.blade_torque = torque = self.dynamics.blade_torques(
+                x[:, OMEGA_R], pitch + f.pitch_offset, ws.blades, f.aero_factor, self._tsr_shift
+            )
+            self.tau_aero = (torque[:, 0] + torque[:, 1]) + torque[:, 2]  # Σ_i τ_r,i, in sum(axis=1)'s order
         # [ω_r, ω_g, v_hub, β_1..3, τ_g, P_g] (``_QUANTITIES``) written into a reused buffer: cheaper than stacking
         quantities = self._quantities
         quantities[:, :2] = x[:, OMEGA_R : OMEGA_G + 1]
@@ -226,8 +246,30 @@ class TurbineBatch:
         # which every published FDI result on this benchmark was obtained (docs/turbine.md).
         beta_m = y[:, _BETA_M12]
         self._pitch_error = 0.5 * (beta_m[:, :3] + beta_m[:, 3:]) - pitch
+        return self._frame(y)
+
+    def _frame(self, y: np.ndarray) -> TurbineFrame:
         c = self.controller
         return TurbineFrame(self.k, self.t, y, c.tau_g_ref.copy(), c.beta_ref.copy(), c.power_ref.copy(), c.zone.copy())
+
+    def _fast_frame(self, fast, x: np.ndarray, ws, pitch: np.ndarray) -> TurbineFrame:
+        """``measure``'s readings, by ``plant_sim.turbine.fast``: ``readings``, then with a sensor fault active
+        ``faulty_readings`` in their place (the same operations as the numpy code's two branches)."""
+        y = np.empty((self.n, len(SENSORS)))
+        self._pitch_error = np.empty((self.n, 3))
+        power_gain = self.p.eta_gc * self.faults.power_factor
+        noise = self._next_noise()
+        f = self.faults
+        fast.readings(
+            x, ws.hub, power_gain, _PICK, noise, self.bias, _BETA_M1, _BETA_M2, self._quantities, y, self._pitch_error
+        )
+        if f.sensor_faults_active:
+            faults = (f.noise_scale, f.gain, f.offset, f.drift_rate, f.drift_start, f.fixed, f.fixed_value)
+            faults += (f.stuck, f.stuck_value)
+            sensors = (self._quantities, _PICK, noise, self.bias, _BETA_M1, _BETA_M2)
+            fast.faulty_readings(*sensors, x, faults, self.t, f.drift_active, y, self._pitch_error)
+        self.last_reading = y
+        return self._frame(y)
 
     def control(self, refs: TurbineRefs | None) -> None:
         y = self.last_reading
@@ -236,6 +278,14 @@ class TurbineBatch:
     def advance(self) -> None:
         """Exact step from tick k to k+1 with controller outputs, wind and aerodynamic torque held."""
         c, f, x = self.controller, self.faults, self.x
+        shared = self.discrete.shared
+        if self._fast is not None and shared is not None and not self._adjusted():
+            # every row alike and nothing but the commands and the pitch-sensor errors in the inputs
+            z = self.discrete.inputs
+            self._fast.step_inputs(x, self.tau_aero, c.tau_g_ref, f.torque_offset, c.beta_ref, self._pitch_error, z)
+            self.x = z @ shared
+            self.k += 1
+            return
         pitch_ref = c.beta_ref[:, None] + self._pitch_error
         if f.command_offset_active:
             pitch_ref = pitch_ref + f.pitch_command_offset
@@ -259,6 +309,11 @@ class TurbineBatch:
             tau_r, tau_ext = tau_r + pair, -f.eta_dt * pair / self.p.N_g
         self.x = self.discrete.step(x, tau_r, c.tau_g_ref + f.torque_offset, pitch_ref, tau_ext)
         self.k += 1
+
+    def _adjusted(self) -> bool:
+        """Whether the step's inputs get more than the controller's commands and the pitch-sensor errors."""
+        f = self.faults
+        return f.command_offset_active or self.controller.pitch_trim is not None or f.mesh_active or self._error_active
 
     def truth(self) -> dict[str, np.ndarray]:
         """Ground truth for scoring and display only; the supervisor never reads it."""

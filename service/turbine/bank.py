@@ -245,8 +245,9 @@ class ObserverBank:
     [z[n], y[n]] @ [[I, −Lᵀ], [Hᵀ, Gᵀ]] gives x̂[n] (12) and the whitened residuals side by side.
     """
 
-    def __init__(self, design: BankDesign, n: int):
+    def __init__(self, design: BankDesign, n: int, fast=None):
         self.d = design
+        self._fast = fast  # ``service.turbine.fast`` (``wwcore.backend``) or None
         self.n = n
         width = design.F_blk.shape[0]
 
@@ -295,6 +296,9 @@ class ObserverBank:
         """Advance with y[n] (n, n_inputs: the speed sensors, then the power-speed channel if any) and u[n−1]
         (n,) the torque reference of the previous tick."""
         width = self._width
+        if self._fast is not None:
+            self._fast_step(y, u_prev)
+            return
         if self._y_prev is not None:
             update = self._update_transient[self.steps] if self.steps < len(self._update_transient) else self._update
             # (11) z[n] = F z[n−1] + T B_d u[n−1] + K y[n−1]
@@ -316,6 +320,21 @@ class ObserverBank:
         terms = squares[:, self._terms]
         m = len(self.d.ranks)
         self.chi2 = terms[:, :m] + (terms[:, m : 2 * m] + terms[:, 2 * m :])  # = reduceat(w², res_starts)
+        self._y_prev = y
+
+    def _fast_step(self, y: np.ndarray, u_prev: np.ndarray) -> None:
+        """``step`` with the stacking and the χ² sums compiled (``service.turbine.fast``), the products numpy's."""
+        fast, width = self._fast, self._width
+        if self._y_prev is not None:
+            update = self._update_transient[self.steps] if self.steps < len(self._update_transient) else self._update
+            fast.stack(self.z, u_prev.reshape(-1, 1), self._y_prev, self._update_in)
+            self.z = self._update_in @ update
+            self.steps += 1
+        fast.stack(self.z, y[:, :0], y, self._output_in)
+        out = self._output_in @ self._output
+        self.x_hat = out[:, :width]
+        self.chi2 = np.empty((self.n, len(self.d.names)))
+        fast.chi2(out, width, self._terms, self._squares.shape[1] - 1, self.chi2)
         self._y_prev = y
 
     def restart(self, rows: np.ndarray, target: np.ndarray, source: np.ndarray) -> None:

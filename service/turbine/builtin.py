@@ -22,6 +22,7 @@ from service.turbine.bank import estimate_observers
 from service.turbine.component_fdi import ComponentFDI, ComponentSettings
 from service.turbine.fdi import FDISettings, SpeedSensorFDI
 from service.turbine.interfaces import (
+    POWER_SPEED_DESIGN_TORQUES,
     POWER_SPEED_MIN_TORQUE,
     SPEED_COLUMNS,
     Diagnosis,
@@ -44,6 +45,7 @@ PITCH_M1_T = np.array([TARGET_INDEX[f"beta_{i}_m1"] for i in (1, 2, 3)])
 PITCH_M2_T = np.array([TARGET_INDEX[f"beta_{i}_m2"] for i in (1, 2, 3)])
 _MASK_WEIGHTS = 1 << np.arange(len(SPEED_SENSORS))
 # Diagnosis row of each speed-sensor bitmask (16, len(DIAGNOSIS_TARGETS)): one gather gives the whole verdict.
+_P_G_M, _TAU_G_M = SENSOR_INDEX["p_g_m"], SENSOR_INDEX["tau_g_m"]
 _DIAGNOSIS_OF_MASK = np.zeros((1 << len(SPEED_SENSORS), len(DIAGNOSIS_TARGETS)), dtype=bool)
 _DIAGNOSIS_OF_MASK[:, SPEED_TARGETS] = (np.arange(1 << len(SPEED_SENSORS))[:, None] & _MASK_WEIGHTS) != 0
 
@@ -77,26 +79,41 @@ class UIOBankDetector:
 
     def __init__(self, *, context: TurbineContext, options: dict | None = None):
         self.context = context
-        self.fdi = SpeedSensorFDI(context.bank_design, context.n, context.dt, _settings(FDISettings, options or {}))
+        settings = _settings(FDISettings, options or {})
+        self.fdi = SpeedSensorFDI(context.bank_design, context.n, context.dt, settings, fast=context.fast)
         design = context.bank_design
         self._margin_names = tuple(f"observer {name}" for name in design.names[: design.n_isolating])
+        torques = np.asarray(POWER_SPEED_DESIGN_TORQUES)  # the edges of ``power_speed_band``, for the fast path
+        self._band_edges = np.sqrt(np.multiply(torques[:-1], torques[1:])) * context.params.rated_torque
 
     def step(self, frame: TurbineFrame) -> Diagnosis:
         bank = self.context.bank(frame)
         speed = self.context.speed_readings(frame)
         p = self.context.params
-        power, torque = frame.sensors[:, SENSOR_INDEX["p_g_m"]], frame.sensors[:, SENSOR_INDEX["tau_g_m"]]
-        usable = torque >= POWER_SPEED_MIN_TORQUE * p.rated_torque
-        self.fdi.step(
-            speed,
-            bank.chi2,
-            bank.x_hat,
-            power_speed_band(frame.tau_g_ref, p, frame.zone),
-            np.where(usable, power / (p.eta_gc * np.where(usable, torque, 1.0)), np.nan),
-        )
+        fast = self.context.fast
+        if fast is not None:  # the channel and the design band below, by one kernel
+            channel, band = np.empty(self.context.n), np.empty(self.context.n, dtype=np.int64)
+            threshold = POWER_SPEED_MIN_TORQUE * p.rated_torque
+            fast.power_speed_test(
+                frame.sensors, _P_G_M, _TAU_G_M, threshold, p.eta_gc, frame.tau_g_ref, frame.zone, self._band_edges,
+                len(POWER_SPEED_DESIGN_TORQUES), channel, band,
+            )  # fmt: skip
+            self.fdi.step(speed, bank.chi2, bank.x_hat, band, channel)
+        else:
+            power, torque = frame.sensors[:, _P_G_M], frame.sensors[:, _TAU_G_M]
+            usable = torque >= POWER_SPEED_MIN_TORQUE * p.rated_torque
+            self.fdi.step(
+                speed,
+                bank.chi2,
+                bank.x_hat,
+                power_speed_band(frame.tau_g_ref, p, frame.zone),
+                np.where(usable, power / (p.eta_gc * np.where(usable, torque, 1.0)), np.nan),
+            )
         # = empty_diagnosis with the speed-sensor columns set to fdi.faulty, and margins = fdi.margins(bank.chi2)
         fdi = self.fdi
-        suspect = _DIAGNOSIS_OF_MASK[np.where(fdi.deadline >= 0, fdi.flagged | fdi.provisional, fdi.flagged)]
+        suspect = None  # read only while an isolation is pending; the fast path skips it otherwise
+        if fdi.pending or fast is None:
+            suspect = _DIAGNOSIS_OF_MASK[np.where(fdi.deadline >= 0, fdi.flagged | fdi.provisional, fdi.flagged)]
         return Diagnosis(
             _DIAGNOSIS_OF_MASK[fdi.flagged], fdi.ratio, self._margin_names, suspect if fdi.pending else None
         )
@@ -112,7 +129,7 @@ class BenchmarkDetector(UIOBankDetector):
             ComponentSettings,
             {k[len("component_") :]: v for k, v in (options or {}).items() if k.startswith("component_")},
         )
-        self.components = ComponentFDI(context.params, context.n, context.sensor_sigma, settings)
+        self.components = ComponentFDI(context.params, context.n, context.sensor_sigma, settings, fast=context.fast)
 
     def step(self, frame: TurbineFrame) -> Diagnosis:
         diagnosis = super().step(frame)
@@ -160,12 +177,15 @@ class UIOBankEstimator:
             context.n,
             wind_cutoff_hz=settings.wind_cutoff_hz,
             speed_cutoff_hz=settings.speed_cutoff_hz,
+            fast=context.fast,
         )
         self.warmup_ticks = round(settings.warmup_s / context.dt)
         self.wind_every = settings.wind_every
         self.observer_of_mask = estimate_observers(design, settings.estimate_from == "generator", settings.power_speed)
         # With both generator-speed sensors flagged: the 5-pe observer designed nearest the torque (step)
-        self._power_speed = np.array(design.power_speed if settings.power_speed else ())
+        self._power_speed = np.array(design.power_speed if settings.power_speed else (), dtype=np.int64)
+        torques = np.asarray(POWER_SPEED_DESIGN_TORQUES)  # the edges of ``power_speed_band``, for the fast path
+        self._band_edges = np.sqrt(np.multiply(torques[:-1], torques[1:])) * context.params.rated_torque
         self._previous: np.ndarray | None = None  # ``selected`` of the last tick
         self._previous_mask = np.zeros(context.n, dtype=np.int64)  # the distrusted speed sensors of the last tick
         self._switched = False  # whether any row distrusted a speed sensor at the last tick
@@ -184,6 +204,11 @@ class UIOBankEstimator:
         them for seconds (the wind filter's 0.3 Hz)."""
         previous, previous_mask = self._previous, self._previous_mask
         self._previous, self._previous_mask = selected, mask
+        fast = self.context.fast
+        if fast is not None and previous is not None:  # the tests below, at once, for the common tick
+            self._switched, moving = fast.handover(previous, previous_mask, selected, mask)
+            if not moving:
+                return
         self._switched = bool(mask.any())
         if previous is None:
             return
@@ -203,7 +228,22 @@ class UIOBankEstimator:
         pitch = frame.sensors[:, PITCH_M12]  # [β_i,m1 | β_i,m2], one gather
         pitch_m1, pitch_m2 = pitch[:, :3], pitch[:, 3:]
         recovery = self.recovery
-        if faulty.any():
+        fast = self.context.fast
+        if fast is not None and faulty.any():
+            n = self.context.n
+            mask, selected = np.empty(n, dtype=np.int64), np.empty(n, dtype=np.int64)
+            fast.select_observers(
+                faulty, SPEED_TARGETS, _MASK_WEIGHTS, self.observer_of_mask, self._power_speed, frame.tau_g_ref,
+                frame.zone, self._band_edges, mask, selected,
+            )  # fmt: skip
+            self._take_over(bank, selected, mask)
+            recovery.step(
+                bank.x_hat, frame.beta_ref, pitch_m1, pitch_m2, ~faulty[:, PITCH_M1_T], ~faulty[:, PITCH_M2_T]
+            )
+            columns = np.maximum(selected, 0)
+            omega_r, omega_g = np.empty(n), np.empty(n)
+            fast.gather_speeds(recovery.filtered, *recovery.speed_starts, selected, omega_r, omega_g)
+        elif faulty.any():
             mask = faulty[:, SPEED_TARGETS] @ _MASK_WEIGHTS
             selected = self.observer_of_mask[mask]
             if len(self._power_speed):
@@ -224,8 +264,12 @@ class UIOBankEstimator:
                 self._take_over(bank, selected, np.zeros(len(selected), dtype=np.int64))
             recovery.step(bank.x_hat, frame.beta_ref, pitch_m1, pitch_m2, None, None)
             columns = self._all_healthy
-            healthy = int(columns[0])
-            omega_r, omega_g = recovery.omega_r[:, healthy].copy(), recovery.omega_g[:, healthy].copy()
+            if fast is not None:
+                omega_r, omega_g = np.empty(self.context.n), np.empty(self.context.n)
+                fast.gather_speeds(recovery.filtered, *recovery.speed_starts, selected, omega_r, omega_g)
+            else:
+                healthy = int(columns[0])
+                omega_r, omega_g = recovery.omega_r[:, healthy].copy(), recovery.omega_g[:, healthy].copy()
         if self.ticks % self.wind_every == 0:
             self._winds = recovery.wind(np.stack([columns, self._reference_columns]), self._winds)
         self.ticks += 1

@@ -69,7 +69,9 @@ class FlagClearing:
         floor: float,
         memory_s: float,
         predictor_of_mask: np.ndarray,
+        fast=None,
     ):
+        self._fast = fast  # ``service.turbine.fast`` (``wwcore.backend``) or None
         self.predictor_of_mask = predictor_of_mask  # (16,) observer predicting the flagged sensors, −1 none
         self.power_speed = np.array(bank.power_speed)
         self.h = math.log(1000.0 / (rate_per_1000s * dt))
@@ -115,6 +117,11 @@ class FlagClearing:
         predictor = self.predictor_of_mask[mask]
         if torque_band is not None and len(self.power_speed):
             predictor = np.where(predictor == self.power_speed[0], self.power_speed[torque_band], predictor)
+        if self._fast is not None:  # the same per row and sensor, in place
+            state = (self.count, self.mean, self.statistic, self.residual)
+            args = (self.column, self.scale, self.min_weight, self.floor, self.h, state, ready)
+            self._fast.cusum(y, x_hat, mask, frozen, predictor, *args)
+            return ready
         rows = np.flatnonzero((mask != 0) & (predictor >= 0))
         if len(rows) == 0:
             return ready

@@ -105,7 +105,7 @@ CROSS_BLADE = np.array([[1.0, -0.5, -0.5], [-0.5, 1.0, -0.5], [-0.5, -0.5, 1.0]]
 class ComponentFDI:
     """Flags pitch sensors, pitch actuators and the converter for n turbines (DIAGNOSIS_TARGETS columns)."""
 
-    def __init__(self, p: TurbineParams, n: int, sigma: dict[str, float], settings: ComponentSettings):
+    def __init__(self, p: TurbineParams, n: int, sigma: dict[str, float], settings: ComponentSettings, fast=None):
         if settings.actuator_window % settings.block or settings.converter_window % settings.block:
             raise AlgorithmOptionError(
                 f"component_actuator_window ({settings.actuator_window}) and component_converter_window "
@@ -113,6 +113,7 @@ class ComponentFDI:
             )
         self.s = settings
         self.n = n
+        self._fast = fast  # ``service.turbine.fast`` (``wwcore.backend``) or None
         alpha = settings.false_alarms_per_1000s * p.dt / 1000.0
         self.sigma_beta = sigma["beta_1_m1"]
         self.sigma_tau = sigma["tau_g_m"]
@@ -142,20 +143,23 @@ class ComponentFDI:
         self._converter_gain = float(np.exp(-p.alpha_gc * p.dt))
         self._actuator_rest = np.zeros(n, dtype=np.int64)  # blocks until the actuator test may flag again
         self._actuator_quiet = np.zeros((n, 3), dtype=np.int64)  # consecutive blocks below the clearing threshold
-        self.readings = FrozenReadings((n, 6), settings.frozen_ticks)  # [β_i,m1 | β_i,m2]
+        self.readings = FrozenReadings((n, 6), settings.frozen_ticks, fast=fast)  # [β_i,m1 | β_i,m2]
         self.flags = np.zeros((n, len(TARGET_INDEX)), dtype=bool)
         self.ticks = 0
         self.warmup_ticks = round(settings.warmup_s / p.dt)
 
     def step(self, frame: TurbineFrame) -> np.ndarray:
         y = frame.sensors
-        beta = y[:, M12]  # [β_i,m1 | β_i,m2], one gather
-        m1, m2 = beta[:, :3], beta[:, 3:]
-        self._pitch_sensors(beta, m1, m2)
         j = self.ticks % self.s.block
-        np.matmul(0.5 * (m1 + m2), CROSS_BLADE, out=self._e_block[j])
-        self._tau_block[j, 0] = y[:, TAU_G_M]
-        self._tau_block[j, 1] = frame.tau_g_ref
+        if self._fast is not None:
+            self._fast_tick(frame, j)
+        else:
+            beta = y[:, M12]  # [β_i,m1 | β_i,m2], one gather
+            m1, m2 = beta[:, :3], beta[:, 3:]
+            self._pitch_sensors(beta, m1, m2)
+            np.matmul(0.5 * (m1 + m2), CROSS_BLADE, out=self._e_block[j])
+            self._tau_block[j, 0] = y[:, TAU_G_M]
+            self._tau_block[j, 1] = frame.tau_g_ref
         self.ticks += 1
         if j == self.s.block - 1:
             self._actuators()
@@ -165,14 +169,37 @@ class ComponentFDI:
             self._pitch_flagged = False
         return self.flags
 
+    def _fast_tick(self, frame: TurbineFrame, j: int) -> None:
+        """The gathers, the parity statistics and the block's inputs of ``step`` by one kernel
+        (``service.turbine.fast.component_tick``, the same operations), then the pitch-sensor decisions."""
+        n, w = self.n, self.parity
+        beta, parity, window = np.empty((n, 6)), np.empty((n, 3)), np.empty((n, 3))
+        ring = (w.ring, w.count % w.size, w.total)
+        scales = (self._parity_scale, self._window_scale, self.z_single)
+        inputs = (frame.sensors, M12, TAU_G_M, frame.tau_g_ref, j, CROSS_BLADE)
+        outputs = (beta, parity, window)
+        any_suspicious = self._fast.component_tick(*inputs, self._e_block, self._tau_block, ring, scales, *outputs)
+        w.count += 1
+        self.readings.push(beta)
+        self._pitch_flags(beta[:, :3], beta[:, 3:], parity, window, any_suspicious)
+
     # -- pitch sensors ------------------------------------------------------------------------------------------
     def _pitch_sensors(self, beta: np.ndarray, m1: np.ndarray, m2: np.ndarray) -> None:
         """beta = [m1 | m2] (n, 6), the readings of the blades' first and second pitch sensors."""
         self.readings.push(beta)
         parity = (m1 - m2) * self._parity_scale
         window = self.parity.push(parity) * self._window_scale
-        suspicious = np.maximum(np.abs(parity), np.abs(window)) > self.z_single
+        self._pitch_flags(m1, m2, parity, window, None)
+
+    def _pitch_flags(
+        self, m1: np.ndarray, m2: np.ndarray, parity: np.ndarray, window: np.ndarray, any_suspicious: bool | None
+    ) -> None:
+        """Raise and clear the pitch-sensor flags from the parity and its window mean (``any_suspicious``: whether
+        any exceeds the single-tick level, None when not known)."""
         maybe_frozen = self.readings.counting or self.s.frozen_ticks < 2  # else nothing can be frozen
+        if any_suspicious is False and not (maybe_frozen or self._pitch_flagged):
+            return  # the healthy fast path, known without the array of suspicious blades
+        suspicious = np.maximum(np.abs(parity), np.abs(window)) > self.z_single
         if not (maybe_frozen or self._pitch_flagged or suspicious.any()):
             return  # the healthy fast path: nothing suspicious, frozen or flagged
         frozen = self.readings.frozen
@@ -199,15 +226,18 @@ class ComponentFDI:
         # The input products b_i e of all the block's ticks are taken at once; only the recursion runs per tick.
         (b0, b1, b2), (_, a1, a2) = self.whiten_b, self.whiten_a
         e = self._e_block
-        b0e, b1e, b2e = b0 * e, b1 * e, b2 * e
-        w = self._w_block
-        s1, s2 = self._w_state
-        for k in range(len(e)):
-            wk = np.add(b0e[k], s1, out=w[k])
-            s1, s2 = b1e[k] - a1 * wk + s2, b2e[k] - a2 * wk
-        self._w_state = (s1, s2)
-        w *= w
-        z2 = np.add.accumulate(w, axis=0)[-1]  # Σ_k w_k², added in tick order
+        if self._fast is not None:
+            z2 = self._fast.whiten_block(e, b0, b1, b2, a1, a2, *self._w_state)  # the same, states in place
+        else:
+            b0e, b1e, b2e = b0 * e, b1 * e, b2 * e
+            w = self._w_block
+            s1, s2 = self._w_state
+            for k in range(len(e)):
+                wk = np.add(b0e[k], s1, out=w[k])
+                s1, s2 = b1e[k] - a1 * wk + s2, b2e[k] - a2 * wk
+            self._w_state = (s1, s2)
+            w *= w
+            z2 = np.add.accumulate(w, axis=0)[-1]  # Σ_k w_k², added in tick order
         total = self.actuator.push(z2 * (1.0 / (0.75 * self.sigma_beta**2)))
         sensor_flagged = self.flags[:, M1_TARGET].any(axis=1) | self.flags[:, M2_TARGET].any(axis=1)
         rest = self.actuator.size
@@ -228,6 +258,13 @@ class ComponentFDI:
     def _converter(self) -> None:
         # τ̂_g[k] = a τ̂_g[k−1] + (1 − a) τ_g,r[k−1] tick by tick, the input term of all the block's ticks at once
         a = self._converter_gain
+        if self._fast is not None:
+            started = self._tau_hat is not None
+            previous = self._tau_hat if started else self._tau_hat_block[0]
+            r = self._fast.converter_block(self._tau_block, a, previous, started, self._tau_hat_block)
+            self._tau_hat = self._tau_hat_block[-1].copy()
+            self._converter_test(r)
+            return
         tau_g_m = self._tau_block[:, 0]
         drive = (1.0 - a) * self._tau_block[:, 1]
         tau_hat = self._tau_hat_block
@@ -240,6 +277,10 @@ class ComponentFDI:
             previous = tau_hat[k]
         self._tau_hat = tau_hat[-1].copy()
         r = np.add.accumulate(tau_g_m - tau_hat, axis=0)[-1]  # Σ_k (τ_g,m − τ̂_g), added in tick order
+        self._converter_test(r)
+
+    def _converter_test(self, r: np.ndarray) -> None:
+        """The window-mean test on the block sums ``r`` of τ_g,m − τ̂_g."""
         mean = self.converter.push(r) * (1.0 / (self.sigma_tau * np.sqrt(self.s.converter_window)))
         if not self.converter.full:
             return

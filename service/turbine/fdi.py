@@ -119,8 +119,9 @@ def _mask(left_out: frozenset[str]) -> int:
 class SpeedSensorFDI:
     """Flags faulty speed sensors for n turbines; ``faulty`` (n, 4) bool in SPEED_SENSORS order."""
 
-    def __init__(self, bank: BankDesign, n: int, dt: float, settings: FDISettings = FDISettings()):
+    def __init__(self, bank: BankDesign, n: int, dt: float, settings: FDISettings = FDISettings(), fast=None):
         self.bank = bank
+        self._fast = fast  # ``service.turbine.fast`` (``wwcore.backend``) or None
         self.s = settings
         self.n = n
         alpha = settings.false_alarms_per_1000s * dt / 1000.0
@@ -137,7 +138,14 @@ class SpeedSensorFDI:
         predictors = estimate_observers(bank, from_generator=len(bank.single_generator) > 0)
         self._estimable = predictors >= 0  # masks for which some observer gives the estimate
         self.clearing = FlagClearing(
-            bank, n, dt, settings.false_clears_per_1000s, settings.clear_floor, settings.fault_memory_s, predictors
+            bank,
+            n,
+            dt,
+            settings.false_clears_per_1000s,
+            settings.clear_floor,
+            settings.fault_memory_s,
+            predictors,
+            fast,
         )
         self._history = np.zeros((settings.window, n, bank.n_isolating))  # ring of the last χ² statistics
         self._window_sum = np.zeros((n, bank.n_isolating))
@@ -159,7 +167,7 @@ class SpeedSensorFDI:
             ]
         ).astype(float)
         self.flagged = np.zeros(n, dtype=np.int64)  # bitmask of flagged sensors per turbine
-        self.readings = FrozenReadings((n, N_SPEED), settings.frozen_ticks)
+        self.readings = FrozenReadings((n, N_SPEED), settings.frozen_ticks, fast=fast)
         self.ticks = 0
         self.ambiguous = np.zeros(n, dtype=bool)  # no consistent observer was found at the last search
         self._rows = np.arange(n)
@@ -201,13 +209,23 @@ class SpeedSensorFDI:
         channel (n,) (NaN where it is only the rotor-speed mean; ``arbitration``)."""
         chi2_stat = chi2_stat[:, : self.bank.n_isolating]
         slot = self.ticks % self.s.window
-        self._window_sum += chi2_stat - self._history[slot]
-        self._history[slot] = chi2_stat
+        exceeded = True  # whether a ratio of the all-sensor observer is above 1 (computed on the fast path)
+        if self._fast is not None:
+            ratio, fast = np.empty_like(self._window_sum), self._fast
+            fast.window_ratio(chi2_stat, self._history, slot, self._window_sum, self.h_detect, self.h_window, ratio)
+            self.ratio = ratio
+            exceeded = fast.any_above(ratio, self._all_healthy, 1.0)
+        else:
+            self._window_sum += chi2_stat - self._history[slot]
+            self._history[slot] = chi2_stat
         any_frozen = self.readings.push(y)
         self.ticks += 1
-        self.ratio = ratio = np.maximum(chi2_stat / self.h_detect, self._window_sum / self.h_window)
+        if self._fast is None:
+            self.ratio = ratio = np.maximum(chi2_stat / self.h_detect, self._window_sum / self.h_window)
         if self.ticks <= self.warmup_ticks:
             return
+        if not (exceeded or any_frozen or self._maybe_flagged or self._pending):
+            return  # nothing inconsistent, frozen, flagged or pending: what the lines below conclude on such a tick
         frozen_mask = self.readings.frozen @ _BITS if any_frozen else self._no_frozen
         if self._maybe_flagged or self._pending:
             selected = self.observer_of_mask[self.flagged]

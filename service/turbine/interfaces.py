@@ -17,6 +17,7 @@ import numpy as np
 
 from service.turbine.bank import BankDesign, ObserverBank, design_bank
 from service.turbine.design_model import design_model
+from wwcore.backend import fast_module, resolve_backend
 from wwcore.channels import DIAGNOSIS_TARGETS, SENSOR_INDEX, SENSORS, SPEED_SENSORS, noise_std
 from wwcore.turbine_frames import TurbineFrame
 from wwcore.turbine_params import TurbineParams
@@ -84,10 +85,15 @@ class TurbineContext:
 
     It also owns the observer bank of seed 000, designed once and stepped at most once per tick however many
     algorithms ask for it.
+
+    ``backend`` (``wwcore.backend``): with ``"numba"``, ``fast`` is ``service.turbine.fast``, whose kernels the
+    bank and the built-in algorithms use for their per-tick arithmetic (the same numbers); else ``fast`` is None.
     """
 
-    def __init__(self, params: TurbineParams, n: int, noise_convention: str = "sigma"):
+    def __init__(self, params: TurbineParams, n: int, noise_convention: str = "sigma", backend: str | None = None):
         self.params = params
+        self.backend = resolve_backend(backend)
+        self.fast = fast_module("service.turbine.fast") if self.backend == "numba" else None
         self.n = n
         self.dt = params.dt
         self.noise_convention = noise_convention
@@ -104,7 +110,7 @@ class TurbineContext:
         """The observer bank advanced to ``frame`` (initialised on the first frame)."""
         if self._bank is None:
             y = self._bank_inputs(frame)
-            self._bank = ObserverBank(self.bank_design, self.n)
+            self._bank = ObserverBank(self.bank_design, self.n, fast=self.fast)
             self._bank.initialise(static_state_guess(self.params, self._speed, frame.tau_g_ref), y)
             self._bank_tick = frame.k
             self._bank.step(y, frame.tau_g_ref)
@@ -116,8 +122,15 @@ class TurbineContext:
     def _bank_inputs(self, frame: TurbineFrame) -> np.ndarray:
         """The bank's input columns (``bank_design.inputs``: 4 speeds, the power-speed channel) for this frame;
         keeps the speed readings aside."""
-        read = frame.sensors.take(BANK_COLUMNS, axis=1)  # (n, 6); column 4 becomes the power-speed channel
-        read[:, 4] = power_speed(read[:, 4], read[:, 5], read, self.params)
+        if self.fast is not None:
+            p = self.params
+            read = np.empty((self.n, len(BANK_COLUMNS)))
+            self.fast.bank_inputs(
+                frame.sensors, BANK_COLUMNS, POWER_SPEED_MIN_TORQUE * p.rated_torque, p.N_g, p.eta_gc, read
+            )
+        else:
+            read = frame.sensors.take(BANK_COLUMNS, axis=1)  # (n, 6); column 4 becomes the power-speed channel
+            read[:, 4] = power_speed(read[:, 4], read[:, 5], read, self.params)
         self._speed = read[:, :4]
         return read[:, :5]
 

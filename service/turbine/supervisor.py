@@ -36,9 +36,10 @@ class TurbineSupervisor:
         params: TurbineParams = BENCHMARK,
         run_of_row: Sequence[int] | None = None,
         turbine_of_row: Sequence[int] | None = None,
+        backend: str | None = None,
     ):
         self.choice = choose("turbine", options, detector=detector, estimator=estimator)  # refuses bad options
-        self.context = TurbineContext(params, n, noise_convention)
+        self.context = TurbineContext(params, n, noise_convention, backend=backend)
         names, chosen = self.choice.names, self.choice.options
         self.detector = TURBINE_DETECTORS.create(names["detector"], context=self.context, options=chosen["detector"])
         self.estimator = TURBINE_ESTIMATORS.create(
@@ -84,6 +85,12 @@ class TurbineSupervisor:
         return events
 
     def _record(self, t: float, diagnosis: Diagnosis, estimates: Estimates) -> None:
+        fast = self.context.fast
+        arrays = isinstance(diagnosis.faulty, np.ndarray) and isinstance(estimates.selected, np.ndarray)
+        if fast is not None and arrays:  # the common tick: no flag changed, no row switched observer
+            same_flags = not fast.any_differ(self.flags.ravel(), diagnosis.faulty.ravel())
+            if same_flags and not fast.any_differ(self.selected, estimates.selected):
+                return
         rows = self.turbine_of_row, self.run_of_row
         raised = flag_events(t, self.flags, diagnosis.faulty, DIAGNOSIS_TARGETS, *rows)
         if raised:

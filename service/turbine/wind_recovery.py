@@ -79,10 +79,19 @@ class PitchModel:
         self.Ad, self.Bd = Ad, Bd.ravel()
         # the six coefficients as Python floats (the same doubles; unpacking the arrays every tick costs more)
         self._coef = (*(float(v) for v in Ad.ravel()), *(float(v) for v in self.Bd))
+        self._coef_array = np.array(self._coef)
         self.x = (np.zeros(n), np.zeros(n))  # (β, β̇)
 
     def start(self, beta: np.ndarray) -> None:
         self.x = (beta.astype(float).copy(), np.zeros_like(beta, dtype=float))
+
+    def step_fast(self, fast, beta_ref_prev: np.ndarray) -> np.ndarray:
+        """``step`` by ``service.turbine.fast.pitch_model`` (the same operations)."""
+        beta, rate = np.empty(len(beta_ref_prev)), np.empty(len(beta_ref_prev))
+        reference = np.ascontiguousarray(beta_ref_prev, dtype=float)
+        fast.pitch_model(self.x[0], self.x[1], reference, self._coef_array, beta, rate)
+        self.x = (beta, rate)
+        return beta
 
     def step(self, beta_ref_prev: np.ndarray) -> np.ndarray:
         a, b, c, d, g0, g1 = self._coef
@@ -98,8 +107,11 @@ class WindRecovery:
     of biquads filters them (τ̂_r and the pitch at ``wind_cutoff_hz``, the speeds at ``speed_cutoff_hz``).
     """
 
-    def __init__(self, p: TurbineParams, bank: BankDesign, n: int, wind_cutoff_hz: float, speed_cutoff_hz: float):
+    def __init__(
+        self, p: TurbineParams, bank: BankDesign, n: int, wind_cutoff_hz: float, speed_cutoff_hz: float, fast=None
+    ):
         self.p = p
+        self._fast = fast  # ``service.turbine.fast`` (``wwcore.backend``) or None
         self.n = n
         m = len(bank.names)
         width = bank.F_blk.shape[0]
@@ -142,6 +154,16 @@ class WindRecovery:
         self._width = width
         self._stacked = np.empty((n, 2 * width))
         self._filter_in = np.empty((n, 3 * m + 1))
+
+    @property
+    def filtered(self) -> np.ndarray:
+        """(n, 3 n_obs + 1) the filtered columns [τ̂_r | ω̂_r | ω̂_g | β̄] (no copy)."""
+        return self._filtered
+
+    @property
+    def speed_starts(self) -> tuple[int, int]:
+        """The first column of ω̂_r and of ω̂_g in ``filtered``."""
+        return self._groups[1].start, self._groups[2].start
 
     @property
     def omega_r(self) -> np.ndarray:
@@ -195,10 +217,24 @@ class WindRecovery:
         """Update torque, speed and pitch estimates of every observer from the bank's x̂[n] and the pitch
         sensors (n, 3 blades each) with their health flags (None and None: every pitch sensor is healthy)."""
         width, stacked = self._width, self._stacked
-        stacked[:, :width] = x_hat
-        stacked[:, width:] = self._x_prev
-        raw = stacked @ self._map
-        modelled = self.pitch.step(beta_ref_prev)
+        if self._fast is not None:
+            self._fast.stack(x_hat, x_hat[:, :0], self._x_prev, stacked)
+            raw = stacked @ self._map
+            modelled = self.pitch.step_fast(self._fast, beta_ref_prev)
+        else:
+            stacked[:, :width] = x_hat
+            stacked[:, width:] = self._x_prev
+            raw = stacked @ self._map
+            modelled = self.pitch.step(beta_ref_prev)
+        if self._fast is not None:
+            f = self.filter
+            self._filtered = np.empty_like(self._filter_in)
+            healthy = None if healthy_m1 is None and healthy_m2 is None else (healthy_m1, healthy_m2)
+            self._fast.recovery_filter(
+                raw, pitch_m1, pitch_m2, healthy, modelled, f._b0, f._a1, f._a2, f.s1, f.s2, self._filtered
+            )
+            self._x_prev = x_hat
+            return
         if healthy_m1 is None and healthy_m2 is None:
             # both sensors of every blade: the weighted mean below with weights 1, 1 (the same operations)
             per_blade = (pitch_m1 + pitch_m2) / 2.0
@@ -219,7 +255,8 @@ class WindRecovery:
         """Wind speed of observer ``columns[i]`` (shape (m, n)) for every row: (m, n) m/s, one inversion call."""
         rows = np.broadcast_to(np.arange(self.n), columns.shape)
         torque, omega_r = self._groups[0], self._groups[1]  # the published ω̂_r (see the module docstring)
-        return aero.wind_from_torque(
+        invert = aero.wind_from_torque if self._fast is None else self._fast.wind_from_torque
+        return invert(
             self._filtered[rows, torque.start + columns],
             self._filtered[rows, omega_r.start + columns],
             np.broadcast_to(self.pitch_filtered, columns.shape),

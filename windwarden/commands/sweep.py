@@ -30,7 +30,7 @@ def _refuse(message: str) -> int:
 
 # ---- detectability ------------------------------------------------------------------------------------------------
 def add_detectability_parser(sub: argparse._SubParsersAction) -> None:
-    p = sub.add_parser("detectability", help="detection %, isolation % and delay against fault size, per fault type")
+    p = sub.add_parser("detectability", help="detection %%, isolation %% and delay against fault size, per fault type")
     p.add_argument("plant", help="turbine, farm or hydro, or a scenario (name or file) whose plant settings to keep")
     p.add_argument("--fault", action="append", default=[], help="fault type (repeat it); default: all of the kind")
     p.add_argument("--sizes", default=None, help="comma-separated sizes in the type's unit (with one --fault)")

@@ -1,0 +1,146 @@
+"""Compiled twin of the turbine plant's tick (``wwcore.backend``): ``TurbineBatch`` and ``BenchmarkController``
+call these with ``backend="numba"`` and the numpy code otherwise.
+
+Each kernel performs the numpy reference's operations in its order, row by row, so its results equal the
+reference's bit for bit (``tests/test_fast_backend.py``); the matrix products stay numpy's (BLAS). They cover the
+common tick: a nominal plant (no ``[mismatch]`` surface shift) and no sensor fault active; the plant falls back
+to the numpy code for the rest.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from wwcore.aero import _M_T, TSR_MAX
+from wwcore.aero_fast import cq_inside, features, maximum, minimum
+from wwcore.jit import kernel
+
+TWO_PI = 2.0 * math.pi
+
+
+# -- wind (``plant_sim.wind.WindField.sample``) -------------------------------------------------------------------
+@kernel
+def blade_winds(azimuth, table, slope, per_rad, offsets, base, u3, blades, rotor):
+    """F(ψ_i) by linear interpolation in the table, w = v_m + u_0 + u_3 cos 3ψ; blades = w F, rotor = mean."""
+    for r in range(azimuth.size):
+        psi = azimuth[r]
+        turned = (psi % TWO_PI) * per_rad
+        w = base[r] + u3[r] * math.cos(3.0 * psi)
+        for b in range(3):
+            x = turned + offsets[b]
+            i = int(x)
+            blades[r, b] = w * (table[i] + slope[i] * (x - i))
+        rotor[r] = ((blades[r, 0] + blades[r, 1]) + blades[r, 2]) * (1.0 / 3.0)
+
+
+# -- aerodynamic torque (``TurbineDynamics.blade_torques``, nominal plant) --------------------------------------------
+@kernel
+def _blade_features(omega_r, radius, wind, pitch, tsr, lam, f):
+    """tsr = ω_r (R / v) per blade, λ its clip, and the pitch features of β (n, 3, already offset)."""
+    n = omega_r.size
+    for r in range(n):
+        for b in range(3):
+            i = 3 * r + b
+            tsr[i] = omega_r[r] * (radius / wind[r, b])
+            lam[i] = tsr[i]
+    features(lam, pitch.ravel(), f)
+
+
+@kernel
+def _blade_torques(tsr, lam, f, g, wind, gain, torque, tau_aero):
+    cq = np.empty(lam.size)
+    cq_inside(lam, f, g, cq)
+    for r in range(tau_aero.size):
+        for b in range(3):
+            i = 3 * r + b
+            c = cq[i] * (TSR_MAX / maximum(tsr[i], TSR_MAX))
+            v = wind[r, b]
+            torque[r, b] = gain[r] * (c * (v * v))
+        tau_aero[r] = (torque[r, 0] + torque[r, 1]) + torque[r, 2]
+
+
+def blade_torques(
+    omega_r: np.ndarray, pitch: np.ndarray, wind: np.ndarray, gain: np.ndarray, radius: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """(τ_r,i (n, 3), τ_r = Σ_i τ_r,i (n,)) in N m; pitch (n, 3) deg with its offsets, gain (n,) factor ρπR³/6."""
+    n = len(omega_r)
+    tsr, lam, f = np.empty(3 * n), np.empty(3 * n), np.empty((6, 3 * n))
+    _blade_features(omega_r, radius, wind, pitch, tsr, lam, f)
+    torque, tau_aero = np.empty((n, 3)), np.empty(n)
+    _blade_torques(tsr, lam, f, _M_T @ f, wind, gain, torque, tau_aero)
+    return torque, tau_aero
+
+
+# -- sensors (``TurbineBatch.measure``, no sensor fault) ----------------------------------------------------------
+@kernel
+def readings(x, hub, power_gain, pick, noise, bias, beta_m1, beta_m2, quantities, y, pitch_error):
+    """[ω_r, ω_g, v_hub, β_1..3, τ_g, P_g] (P_g = η_gc f_P ω_g τ_g), y = q[pick] + (noise + bias), and the pitch
+    error ½(β_i,m1 + β_i,m2) − β_i that reaches the actuators."""
+    for r in range(x.shape[0]):
+        quantities[r, 0] = x[r, 0]
+        quantities[r, 1] = x[r, 1]
+        quantities[r, 2] = hub[r]
+        quantities[r, 3] = x[r, 5]
+        quantities[r, 4] = x[r, 7]
+        quantities[r, 5] = x[r, 9]
+        quantities[r, 6] = x[r, 3]
+        quantities[r, 7] = power_gain[r] * x[r, 1] * x[r, 3]
+        for s in range(pick.size):
+            y[r, s] = quantities[r, pick[s]] + (noise[r, s] + bias[s])
+        for b in range(3):
+            pitch_error[r, b] = 0.5 * (y[r, beta_m1[b]] + y[r, beta_m2[b]]) - x[r, 5 + 2 * b]
+
+
+# -- controller (``BenchmarkController.step``) ------------------------------------------------------------------
+@kernel
+def control(omega_g, p_g_m, power_ref, zone, integrator, beta_ref, tau_g_ref, consts):
+    """Zone logic, the region-3 PI (saturated integrator and output) and the two torque laws, in place."""
+    omega_nom, omega_delta, dt, lo, hi, k_p, k_i, eta_gc, k_opt = consts
+    for r in range(omega_g.size):
+        w = omega_g[r]
+        # the previous zone held: region 3 stays above Ω_nom − Ω_Δ, is entered at P_r or Ω_nom
+        stay, enter = w >= omega_nom - omega_delta, (p_g_m[r] >= power_ref[r]) or (w >= omega_nom)
+        region3 = stay if zone[r] != 0 else enter
+        zone[r] = 1 if region3 else 0
+        error = w - omega_nom
+        integrator[r] = minimum(maximum(integrator[r] + dt * error, lo), hi)
+        beta_pi = minimum(maximum(k_p * error + k_i * integrator[r], lo), hi)
+        beta_ref[r] = beta_pi if region3 else 0.0
+        tau_g_ref[r] = power_ref[r] / (eta_gc * maximum(w, 1.0)) if region3 else k_opt * w * w
+
+
+# -- step (``DiscreteStep.step``, every row alike) -----------------------------------------------------------
+@kernel
+def step_inputs(x, tau_r, tau_g_ref, torque_offset, beta_ref, pitch_error, z):
+    """z = [x, τ_r, τ_g,r + Δτ, β_ref + β_f,1..3], the left operand of the shared step matrix."""
+    n_states = x.shape[1]
+    for r in range(x.shape[0]):
+        for c in range(n_states):
+            z[r, c] = x[r, c]
+        z[r, n_states] = tau_r[r]
+        z[r, n_states + 1] = tau_g_ref[r] + torque_offset[r]
+        for b in range(3):
+            z[r, n_states + 2 + b] = beta_ref[r] + pitch_error[r, b]
+
+
+@kernel
+def faulty_readings(q, pick, noise, bias, beta_m1, beta_m2, x, faults, t, drift, y, pitch_error):
+    """y = ((q[pick] + bias) + noise f_σ) g + o, plus the drift r (t − t_0) when ``drift``, then the fixed and the
+    stuck values where set (``TurbineBatch.measure`` with a sensor fault), and the pitch error of these readings.
+    ``faults`` = (noise scale, gain, offset, drift rate, drift start, fixed, fixed value, stuck, stuck value),
+    each (n, sensors)."""
+    noise_scale, gain, offset, drift_rate, drift_start, fixed, fixed_value, stuck, stuck_value = faults
+    for r in range(q.shape[0]):
+        for s in range(pick.size):
+            v = ((q[r, pick[s]] + bias[s]) + noise[r, s] * noise_scale[r, s]) * gain[r, s] + offset[r, s]
+            if drift:
+                v += drift_rate[r, s] * (t - drift_start[r, s])
+            if fixed[r, s]:
+                v = fixed_value[r, s]
+            if stuck[r, s]:
+                v = stuck_value[r, s]
+            y[r, s] = v
+        for b in range(3):
+            pitch_error[r, b] = 0.5 * (y[r, beta_m1[b]] + y[r, beta_m2[b]]) - x[r, 5 + 2 * b]

@@ -1,0 +1,307 @@
+"""Compiled twin of the turbine supervisor's per-tick arithmetic (``wwcore.backend``): the observer bank's inputs
+and χ² statistics, the wind recovery's filters, the FDI's window tests and the pitch-sensor parity.
+
+Each kernel performs the numpy reference's operations in its order, row by row, so its results equal the
+reference's bit for bit (``tests/test_fast_backend.py``). The matrix products (the bank's two, the recovery's
+map) stay numpy's (BLAS): a compiled loop would sum in another order. Decisions (isolation, clearing, events)
+stay in Python: they run on the rare ticks where something is suspected. ``wind_from_torque`` is
+``wwcore.aero_fast``'s, for the wind recovery.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from wwcore.aero_fast import maximum, wind_from_torque  # noqa: F401 (the wind recovery's inversion)
+from wwcore.jit import kernel
+
+
+# -- observer bank (``service.turbine.bank.ObserverBank.step``, ``TurbineContext._bank_inputs``) --------------------
+@kernel
+def bank_inputs(sensors, columns, threshold, n_g, eta_gc, read):
+    """read = sensors[:, columns] (n, 6: ω_r,m1..ω_g,m2, P_g,m, τ_g,m) with column 4 the power-speed channel
+    P_g,m / (η_gc τ_g,m), or N_g × the rotor-speed mean where τ_g,m < ``threshold`` (``interfaces.power_speed``)."""
+    for r in range(sensors.shape[0]):
+        for c in range(columns.size):
+            read[r, c] = sensors[r, columns[c]]
+        torque = read[r, 5]
+        if torque < threshold:
+            read[r, 4] = n_g * 0.5 * (read[r, 0] + read[r, 1])
+        else:
+            read[r, 4] = read[r, 4] / (eta_gc * torque)
+
+
+@kernel
+def stack(left, middle, right, out):
+    """out = [left | middle | right] row by row; ``middle`` (n,) may be empty (n, 0)-free: pass a (n, 0) array."""
+    a, b = left.shape[1], middle.shape[1]
+    for r in range(left.shape[0]):
+        for c in range(a):
+            out[r, c] = left[r, c]
+        for c in range(b):
+            out[r, a + c] = middle[r, c]
+        for c in range(right.shape[1]):
+            out[r, a + b + c] = right[r, c]
+
+
+@kernel
+def chi2(out, width, terms, n_res, stat):
+    """χ²_j = w_a² + (w_b² + w_c²) over the segment's whitened residuals (``terms``: first, second, third column
+    of each segment, ``n_res`` where the segment is shorter: a zero), ``out[:, width:]`` the residuals."""
+    m = stat.shape[1]
+    for r in range(out.shape[0]):
+        for j in range(m):
+            acc = _square(out, r, width, terms[j], n_res)
+            acc += _square(out, r, width, terms[m + j], n_res) + _square(out, r, width, terms[2 * m + j], n_res)
+            stat[r, j] = acc
+
+
+@kernel
+def _square(out, r, width, column, n_res):
+    if column == n_res:
+        return 0.0
+    w = out[r, width + column]
+    return w * w
+
+
+# -- wind recovery (``service.turbine.wind_recovery.WindRecovery.step``, every pitch sensor healthy) ------------------
+@kernel
+def recovery_filter(raw, pitch_m1, pitch_m2, healthy, modelled, b0, a1, a2, s1, s2, filtered):
+    """The biquads of every column of [raw, β̄], states in place: y = b0 x + s1, s1 ← (2 b0 x + s2) − a1 y,
+    s2 ← b0 x − a2 y (``Biquad.__call__``). β̄ is the mean over the blades of both sensors' mean, or with
+    ``healthy`` = (healthy_m1, healthy_m2) given (n, 3 each) of the healthy sensors' mean, the pitch model's
+    ``modelled`` where neither is (``WindRecovery.step``)."""
+    m = raw.shape[1]
+    blade = np.empty(3)
+    for r in range(raw.shape[0]):
+        for b in range(3):
+            if healthy is None:
+                blade[b] = (pitch_m1[r, b] + pitch_m2[r, b]) / 2.0
+            else:
+                h1 = 1.0 if healthy[0][r, b] else 0.0
+                h2 = 1.0 if healthy[1][r, b] else 0.0
+                weight = h1 + h2
+                if weight > 0:
+                    blade[b] = (h1 * pitch_m1[r, b] + h2 * pitch_m2[r, b]) / maximum(weight, 1.0)
+                else:
+                    blade[b] = modelled[r]
+        for c in range(m + 1):
+            x = raw[r, c] if c < m else ((blade[0] + blade[1]) + blade[2]) / 3.0
+            bx = b0[c] * x
+            y = bx + s1[r, c]
+            twice = bx + bx
+            twice += s2[r, c]
+            s1[r, c] = twice - a1[c] * y
+            s2[r, c] = bx - a2[c] * y
+            filtered[r, c] = y
+
+
+# -- speed-sensor FDI (``service.turbine.fdi.SpeedSensorFDI.step``) -----------------------------------------------
+@kernel
+def window_ratio(stat, history, slot, window_sum, h_detect, h_window, ratio):
+    """Σ over the window of χ²_j (ring ``history``, slot ``slot`` replaced), and max(χ²_j/h_j, Σχ²_j/h_w,j)."""
+    for r in range(window_sum.shape[0]):
+        for j in range(window_sum.shape[1]):
+            x = stat[r, j]
+            window_sum[r, j] += x - history[slot, r, j]
+            history[slot, r, j] = x
+            ratio[r, j] = maximum(x / h_detect[j], window_sum[r, j] / h_window[j])
+
+
+@kernel
+def any_equal(a, b):
+    """Whether any element of ``a`` equals ``b``'s (``FrozenReadings.push``'s repeated reading)."""
+    for r in range(a.shape[0]):
+        for c in range(a.shape[1]):
+            if a[r, c] == b[r, c]:
+                return True
+    return False
+
+
+# -- pitch-sensor parity (``service.turbine.component_fdi.ComponentFDI._pitch_sensors``) ---------------------------
+@kernel
+def component_tick(y, m12, tau_col, tau_g_ref, j, cross, e_block, tau_block, ring, scales, beta, par, window):
+    """``ComponentFDI.step``'s per-tick arithmetic: β = y[:, m12] ([β_i,m1 | β_i,m2]); parity = (β_m1 − β_m2) s,
+    its running window sum (``ring`` = (ring, slot, total), slot replaced), window = Σ × s_w; the block's
+    e[j] = ½(β_m1 + β_m2) @ ``cross`` and [τ_g,m, τ_g,r]. True when any |parity| or |window| exceeds z (``scales`` =
+    (s, s_w, z)). ``cross`` is CROSS_BLADE, whose entries 1 and −½ make every product exact: the three terms added
+    left to right are numpy's product bit for bit (the one product computed in a kernel; checked by the tests)."""
+    ring_values, slot, total = ring
+    scale, window_scale, z_single = scales
+    suspicious = False
+    for r in range(y.shape[0]):
+        for c in range(6):
+            beta[r, c] = y[r, m12[c]]
+        mean0 = 0.5 * (beta[r, 0] + beta[r, 3])
+        mean1 = 0.5 * (beta[r, 1] + beta[r, 4])
+        mean2 = 0.5 * (beta[r, 2] + beta[r, 5])
+        for c in range(3):
+            e_block[j, r, c] = mean0 * cross[0, c] + mean1 * cross[1, c] + mean2 * cross[2, c]
+        tau_block[j, 0, r] = y[r, tau_col]
+        tau_block[j, 1, r] = tau_g_ref[r]
+        for b in range(3):
+            x = (beta[r, b] - beta[r, 3 + b]) * scale
+            par[r, b] = x
+            total[r, b] += x - ring_values[slot, r, b]
+            ring_values[slot, r, b] = x
+            w = total[r, b] * window_scale
+            window[r, b] = w
+            if maximum(abs(x), abs(w)) > z_single:
+                suspicious = True
+    return suspicious
+
+
+@kernel
+def power_speed_test(sensors, power_col, torque_col, threshold, eta_gc, tau_g_ref, zone, edges, region3, channel, band):
+    """The detector's power-speed channel P_g,m/(η_gc τ_g,m) (nan where τ_g,m < ``threshold``) and the 5-pe design
+    of each row (``interfaces.power_speed_band``: ``region3`` in zone 1, else the edges below τ_g,r)."""
+    for r in range(sensors.shape[0]):
+        torque = sensors[r, torque_col]
+        channel[r] = sensors[r, power_col] / (eta_gc * torque) if torque >= threshold else np.nan
+        v = tau_g_ref[r]
+        if zone[r] == 1:
+            band[r] = region3
+        elif v != v:  # searchsorted puts nan after every edge
+            band[r] = edges.size
+        else:
+            below = 0
+            for e in edges:
+                if e < v:
+                    below += 1
+            band[r] = below
+
+
+@kernel
+def whiten_block(e, b0, b1, b2, a1, a2, s1, s2):
+    """Σ_k w_k² over the block's ticks (n, 3), w = (1 + G)⁻¹ e by the second-order section in transposed direct
+    form II, states ``s1``, ``s2`` in place (``ComponentFDI._actuators``)."""
+    n = e.shape[1]
+    z2 = np.zeros((n, 3))
+    for k in range(e.shape[0]):
+        for r in range(n):
+            for b in range(3):
+                ek = e[k, r, b]
+                wk = b0 * ek + s1[r, b]
+                s1[r, b] = b1 * ek - a1 * wk + s2[r, b]
+                s2[r, b] = b2 * ek - a2 * wk
+                z2[r, b] += wk * wk
+    return z2
+
+
+@kernel
+def pitch_model(beta, rate, reference, coef, new_beta, new_rate):
+    """[β, β̇] ← [a β + b β̇ + g0 β_ref, c β + d β̇ + g1 β_ref] (``wind_recovery.PitchModel.step``)."""
+    a, b, c, d, g0, g1 = coef[0], coef[1], coef[2], coef[3], coef[4], coef[5]
+    for r in range(beta.size):
+        new_beta[r] = a * beta[r] + b * rate[r] + g0 * reference[r]
+        new_rate[r] = c * beta[r] + d * rate[r] + g1 * reference[r]
+
+
+@kernel
+def converter_block(tau_block, a, previous, started, tau_hat):
+    """τ̂_g[k] = a τ̂_g[k−1] + (1 − a) τ_g,r[k−1] over the block's ticks (from τ_g,m[0] when not ``started``), and
+    Σ_k (τ_g,m − τ̂_g) added in tick order (``ComponentFDI._converter``)."""
+    n = tau_hat.shape[1]
+    total = np.zeros(n)
+    for k in range(tau_hat.shape[0]):
+        for i in range(n):
+            if k == 0 and not started:
+                tau_hat[k, i] = tau_block[k, 0, i]
+            else:
+                prev = previous[i] if k == 0 else tau_hat[k - 1, i]
+                tau_hat[k, i] = a * prev + (1.0 - a) * tau_block[k, 1, i]
+            d = tau_block[k, 0, i] - tau_hat[k, i]
+            total[i] = d if k == 0 else total[i] + d
+    return total
+
+
+@kernel
+def any_above(values, column, level):
+    """Whether any row's ``values[:, column]`` exceeds ``level``."""
+    for r in range(values.shape[0]):  # noqa: SIM110 (a loop: numba compiles no generator into any())
+        if values[r, column] > level:
+            return True
+    return False
+
+
+# -- flag clearing (``service.turbine.clearing.FlagClearing.step``) -------------------------------------------------
+@kernel
+def cusum(y, x_hat, mask, frozen, predictor, column, scale, min_weight, floor, h, state, ready):
+    """Advance the CUSUM of every flagged speed sensor: e = (y − C x̂_j) / σ_e with j the row's ``predictor``
+    (−1: none), μ̂ ← μ̂ + w (e − μ̂), w = max(1/count, w_min), S ← max(0, S + m (m/2 − sign(μ̂) e)), m = max(|μ̂|,
+    floor); ``ready`` where S ≥ h. ``state`` = (count, mean, statistic, residual), (n, 4) each, in place."""
+    count, mean, statistic, residual = state
+    for r in range(y.shape[0]):
+        j = predictor[r]
+        if mask[r] == 0 or j < 0:
+            continue
+        for s in range(y.shape[1]):
+            sc = scale[j, s]
+            active = ((mask[r] >> s) & 1) == 1 and np.isfinite(sc)
+            e = (y[r, s] - x_hat[r, column[j, s]]) * sc if active else 0.0
+            c = count[r, s] + (1.0 if active else 0.0)
+            weight = maximum(1.0 / maximum(c, 1.0), min_weight) if active else 0.0
+            mu = mean[r, s] + weight * (e - mean[r, s])
+            m = maximum(abs(mu), floor)
+            llr = m * (0.5 * m - (-e if mu < 0.0 else e))
+            stat = maximum(0.0, statistic[r, s] + llr) if active and not frozen[r, s] else 0.0
+            count[r, s], mean[r, s], statistic[r, s], residual[r, s] = c, mu, stat, e
+            ready[r, s] = active and stat >= h
+
+
+# -- the estimator's observer (``service.turbine.builtin.UIOBankEstimator.step`` with a flag raised) ----------------
+@kernel
+def select_observers(faulty, speed_targets, weights, observer_of_mask, power_speed, tau_g_ref, zone, edges, mask, out):
+    """The bitmask of the distrusted speed sensors and the observer each row's estimate comes from (5-pe: the
+    design of the row's torque band, ``interfaces.power_speed_band``)."""
+    for r in range(faulty.shape[0]):
+        m = 0
+        for t in range(speed_targets.size):
+            if faulty[r, speed_targets[t]]:
+                m += weights[t]
+        mask[r] = m
+        j = observer_of_mask[m]
+        if power_speed.size and j == power_speed[0]:
+            v = tau_g_ref[r]
+            if zone[r] == 1:
+                band = edges.size + 1
+            elif v != v:
+                band = edges.size
+            else:
+                band = 0
+                for e in edges:
+                    if e < v:
+                        band += 1
+            j = power_speed[band]
+        out[r] = j
+
+
+@kernel
+def handover(previous, previous_mask, selected, mask):
+    """(any sensor distrusted now, any row whose estimate moves to another observer as a sensor is trusted again)
+    (``UIOBankEstimator._take_over``)."""
+    distrusted, moving = False, False
+    for r in range(selected.size):
+        if mask[r] != 0:
+            distrusted = True
+        if (previous_mask[r] & ~mask[r]) != 0 and selected[r] != previous[r] and selected[r] >= 0 and previous[r] >= 0:
+            moving = True
+    return distrusted, moving
+
+
+@kernel
+def gather_speeds(filtered, rotor_start, generator_start, selected, omega_r, omega_g):
+    """ω̂_r, ω̂_g of each row's observer (observer 0 where none is selected) from the filtered columns."""
+    for r in range(selected.size):
+        j = max(selected[r], 0)
+        omega_r[r] = filtered[r, rotor_start + j]
+        omega_g[r] = filtered[r, generator_start + j]
+
+
+@kernel
+def any_differ(a, b):
+    """Whether ``a`` and ``b`` (1-D, one length) differ anywhere."""
+    for i in range(a.size):  # noqa: SIM110 (a loop: numba compiles no generator into any())
+        if a[i] != b[i]:
+            return True
+    return False

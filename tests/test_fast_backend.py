@@ -1,0 +1,291 @@
+"""The compiled backend (``wwcore.backend``, ``numba``) against the numpy reference: the same numbers.
+
+The kernels perform the reference's floating-point operations in its order and leave its matrix products to
+numpy, so the comparison asks for equality within 1e-12 (relative, of each quantity's scale) and, in practice,
+gets it to the last bit: the largest difference is printed by the assertion when it is not zero.
+"""
+
+from __future__ import annotations
+
+import copy
+import importlib.util
+import json
+import os
+import pickle
+import subprocess
+import sys
+import tomllib
+
+import numpy as np
+import pytest
+
+from plant_sim.farm import FarmBatch
+from plant_sim.turbine import TurbineBatch
+from service.farm.supervisor import FarmSupervisor
+from service.turbine.supervisor import TurbineSupervisor
+from tests.live.helpers import TURBINE_SHORT
+from windwarden.cli import EXIT_BAD_INPUT, main
+from windwarden.evaluation.kinds import EvalOptions
+from windwarden.kinds import kind_for
+from wwcore import aero, aero_fast
+from wwcore.backend import ENV_VAR, BackendError, available, fast_module, process_backend, resolve_backend
+from wwcore.scenario import load_scenario, parse_scenario
+from wwcore.turbine_params import BENCHMARK
+
+SEED = 6151  # fresh: nothing is tuned on it
+RTOL = 1e-12
+
+# 60 s with a fault of every class the fast path treats apart: speed-sensor fixed, gain and stuck (flags, isolation,
+# clearing, the observer switch), a drifting anemometer, pitch-sensor offset (parity, weighted pitch), a pitch
+# actuator's dynamics and the drive train's efficiency (the per-row step matrices), a converter offset and a noisy
+# torque sensor; the mean wind crosses rated, so both control zones run.
+FAULTY = """
+name = "fast-backend-check"
+duration_s = 60.0
+[plant]
+kind = "turbine"
+[wind]
+mean = [[0.0, 10.0], [60.0, 13.5]]
+turbulence_intensity = 0.12
+[[faults]]
+name = "generator sensor 2 fixed"
+target = "omega_g_m2"
+kind = "fixed"
+value = 100.0
+start_s = 12.0
+end_s = 20.0
+[[faults]]
+name = "anemometer drift"
+target = "v_hub_m"
+kind = "drift"
+value = 0.02
+start_s = 8.0
+[[faults]]
+name = "rotor sensor 1 stuck"
+target = "omega_r_m1"
+kind = "stuck"
+start_s = 24.0
+end_s = 32.0
+[[faults]]
+name = "rotor sensor 2 gain"
+target = "omega_r_m2"
+kind = "gain"
+value = 1.1
+start_s = 36.0
+end_s = 44.0
+[[faults]]
+name = "pitch sensor offset"
+target = "beta_1_m1"
+kind = "offset"
+value = 2.0
+start_s = 14.0
+end_s = 30.0
+[[faults]]
+name = "pitch actuator dynamics"
+target = "pitch_actuator_2"
+kind = "pitch_dynamics"
+omega_n = 3.42
+zeta = 0.9
+start_s = 30.0
+end_s = 45.0
+ramp_s = 5.0
+[[faults]]
+name = "drive train efficiency"
+target = "drivetrain"
+kind = "efficiency"
+value = 0.92
+start_s = 40.0
+end_s = 55.0
+[[faults]]
+name = "converter offset"
+target = "converter"
+kind = "torque_offset"
+value = 100.0
+start_s = 46.0
+end_s = 56.0
+[[faults]]
+name = "torque sensor noise"
+target = "tau_g_m"
+kind = "noise"
+value = 3.0
+start_s = 50.0
+end_s = 58.0
+"""
+
+
+def assert_close(fast: np.ndarray, reference: np.ndarray, what: str) -> None:
+    fast, reference = np.asarray(fast, dtype=float), np.asarray(reference, dtype=float)
+    assert fast.shape == reference.shape, what
+    assert np.array_equal(np.isnan(fast), np.isnan(reference)), what
+    scale = np.nanmax(np.abs(reference)) if reference.size else 0.0
+    diff = np.nan_to_num(np.abs(fast - reference))
+    assert diff.max(initial=0.0) <= RTOL * max(scale, 1e-300), f"{what}: largest difference {diff.max():.3g}"
+
+
+def turbine_trace(scenario, backend: str, runs: list[int], ticks: int, every: int = 5) -> dict[str, np.ndarray]:
+    """The plant state of every tick; the sensor frame, bank χ² and x̂, FDI ratios, CUSUM, estimates and refs of
+    every ``every``-th tick (a difference in any of them reaches the state within a tick); the events."""
+    plant = TurbineBatch(
+        scenario.plant,
+        scenario.wind,
+        scenario.faults,
+        seed=SEED,
+        runs=runs,
+        mismatch=scenario.mismatch,
+        backend=backend,
+    )
+    supervisor = TurbineSupervisor(plant.n, noise_convention=scenario.plant.noise_convention, backend=backend)
+    trace: dict[str, list] = {}
+    refs = None
+    for k in range(ticks):
+        frame = plant.measure()
+        plant.control(refs)
+        refs = supervisor.step(frame)
+        plant.advance()
+        trace.setdefault("x", []).append(plant.x.copy())
+        if k % every:
+            continue
+        fdi = supervisor.detector.fdi
+        est = supervisor.estimates
+        for name, value in {
+            "sensors": frame.sensors,
+            "tau_g_ref": frame.tau_g_ref,
+            "beta_ref": frame.beta_ref,
+            "zone": frame.zone,
+            "chi2": supervisor.context._bank.chi2,
+            "x_hat": supervisor.context._bank.x_hat,
+            "ratio": fdi.ratio,
+            "cusum": fdi.clearing.statistic,
+            "actuator_test": supervisor.detector.components.actuator.total,
+            "converter_test": supervisor.detector.components.converter.total,
+            "parity_window": supervisor.detector.components.parity.total,
+            "residual": fdi.clearing.residual,
+            "flags": supervisor.flags,
+            "omega_g": est.omega_g,
+            "wind": est.wind,
+            "wind_reference": est.wind_reference,
+            "selected": est.selected,
+            "refs_valid": refs.valid,
+        }.items():
+            trace.setdefault(name, []).append(np.array(value, dtype=float))
+    out = {name: np.array(values) for name, values in trace.items()}
+    events = plant.drain_events() + supervisor.drain_events()
+    out["events"] = np.array([(e.t, e.turbine, e.run) for e in events], dtype=float)
+    out["event_kinds"] = [(e.type.value, e.target, json.dumps(e.detail, sort_keys=True, default=str)) for e in events]
+    return out
+
+
+def compare(reference: dict, fast: dict) -> None:
+    assert fast.keys() == reference.keys()
+    assert fast.pop("event_kinds") == reference.pop("event_kinds")
+    for name in reference:
+        assert_close(fast[name], reference[name], name)
+
+
+def test_aero_kernels_equal_the_reference_inside_and_outside_the_table():
+    rng = np.random.default_rng(SEED)
+    for shape in [(1, 3), (9, 3), (2, 5)]:
+        tsr, pitch = rng.uniform(-1.0, 16.0, shape), rng.uniform(-5.0, 100.0, shape)
+        assert_close(aero_fast.torque_coefficient(tsr, pitch), aero.torque_coefficient(tsr, pitch), "C_q")
+        tau, omega = rng.uniform(-1e5, 3e6, shape), rng.uniform(0.3, 2.5, shape)
+        guess = rng.uniform(0.5, 45.0, shape)
+        for iterations in (3, 8):
+            assert_close(
+                aero_fast.wind_from_torque(tau, omega, pitch, guess, BENCHMARK, iterations),
+                aero.wind_from_torque(tau, omega, pitch, guess, BENCHMARK, iterations),
+                "wind",
+            )
+
+
+def test_turbine_tick_by_tick_through_every_fault_class():
+    scenario = parse_scenario(tomllib.loads(FAULTY))
+    ticks = round(scenario.duration_s / BENCHMARK.dt)
+    reference = turbine_trace(scenario, "numpy", [0, 1], ticks)
+    assert reference["flags"].any() and reference["cusum"].any()  # the isolation and the clearing both ran
+    compare(reference, turbine_trace(scenario, "numba", [0, 1], ticks))
+
+
+def test_a_plant_unlike_the_design_model_falls_back_and_still_matches():
+    scenario = load_scenario("ftwse-2012-mismatch")
+    compare(turbine_trace(scenario, "numpy", [3], 1500), turbine_trace(scenario, "numba", [3], 1500))
+
+
+def test_farm_turbines_match():
+    scenario = load_scenario("farm-case1")
+    states = {}
+    for backend in ("numpy", "numba"):
+        plant = FarmBatch(
+            scenario.plant, scenario.wind, scenario.faults, seed=SEED, duration_s=20.0, runs=[0], backend=backend
+        )
+        sup = scenario.supervisor
+        supervisor = FarmSupervisor(
+            scenario.plant.site(plant.dt), plant.n, detector=sup.detector, controller=sup.controller, options=sup.params
+        )
+        refs, trace = None, []
+        for _ in range(1500):
+            frame = plant.measure()
+            plant.control(refs)
+            refs = supervisor.step(frame)
+            plant.advance()
+            trace.append(plant.turbines.x.copy())
+        states[backend] = np.array(trace)
+    assert_close(states["numba"], states["numpy"], "farm turbine states")
+
+
+def test_the_scorecard_is_the_same_with_either_backend():
+    # two worker processes, which take the backend from the environment ``eval --backend`` sets; fault-free twins
+    scenario = parse_scenario(tomllib.loads(TURBINE_SHORT))
+    cards = []
+    for backend in ("numpy", "numba"):
+        with process_backend(backend):
+            evaluation = kind_for("turbine").evaluate(scenario, 2, SEED, EvalOptions(workers=2, progress=False))
+        cards.append(json.dumps(evaluation.scorecard, indent=2, sort_keys=True))
+    assert cards[0] == cards[1]
+
+
+def test_backend_choice_refuses_unknown_names_and_restores_the_environment(monkeypatch):
+    monkeypatch.delenv(ENV_VAR, raising=False)
+    assert resolve_backend() == "numpy"
+    with pytest.raises(BackendError, match="numpy, numba"):
+        resolve_backend("fortran")
+    monkeypatch.setenv(ENV_VAR, "cuda")
+    with pytest.raises(BackendError, match=ENV_VAR):
+        resolve_backend()
+    monkeypatch.setenv(ENV_VAR, "numpy")
+    with process_backend("numba"):
+        assert os.environ[ENV_VAR] == "numba" and resolve_backend() == "numba"
+    assert os.environ[ENV_VAR] == "numpy"
+    with pytest.raises(BackendError):
+        TurbineSupervisor(1, backend="numbba")
+
+
+def test_compiled_objects_copy_and_pickle():
+    kernels = fast_module("plant_sim.turbine.fast")
+    assert copy.deepcopy(kernels) is kernels
+    assert pickle.loads(pickle.dumps(kernels)).blade_winds is kernels.blade_winds
+    scenario = parse_scenario(tomllib.loads(FAULTY))
+    plant = TurbineBatch(scenario.plant, scenario.wind, scenario.faults, seed=SEED, backend="numba")
+    twin = copy.deepcopy(plant)  # a fault-free twin run in the same process copies the plant
+    twin.measure(), plant.measure()
+    np.testing.assert_array_equal(twin.last_reading, plant.last_reading)
+
+
+def test_starting_the_cli_and_the_live_nodes_does_not_import_the_compiler():
+    code = (
+        "import sys, windwarden.cli, plant_sim.turbine, plant_sim.farm, service.turbine.supervisor; "
+        "print('numba' in sys.modules)"
+    )
+    env = {**os.environ}
+    env.pop(ENV_VAR, None)
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env, check=True)
+    assert out.stdout.strip() == "False"
+
+
+def test_eval_refuses_the_numba_backend_where_numba_is_missing(monkeypatch, tmp_path, capsys):
+    real = importlib.util.find_spec
+    monkeypatch.setattr(importlib.util, "find_spec", lambda name, *a: None if name == "numba" else real(name, *a))
+    with pytest.raises(BackendError, match="pip install numba"):
+        available("numba")
+    out = tmp_path / "out"
+    assert main(["eval", "ftwse-2012", "--runs", "1", "--quiet", "--out", str(out)]) == EXIT_BAD_INPUT
+    assert "--step-backend" in capsys.readouterr().err and not out.exists()  # refused before anything ran
