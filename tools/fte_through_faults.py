@@ -17,10 +17,10 @@ import argparse
 import json
 import sys
 import tomllib
+from concurrent.futures import ProcessPoolExecutor
 from dataclasses import asdict
 
 from windwarden.evaluation import fte_faults as ff
-from windwarden.evaluation.parallel import run_chunks
 
 
 def _floats(text: str) -> tuple[float, ...]:
@@ -41,6 +41,10 @@ def print_groups(records: list[dict]) -> None:
         )
 
 
+def _no_progress(seconds: float) -> None:
+    """``simulate_wind``'s progress hook: this tool reports per wind instead."""
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--winds", type=_floats, default=ff.DEFAULT_WINDS, help="mean winds, m/s (comma-separated)")
@@ -55,7 +59,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--estimator")
     ap.add_argument("--params", default="", help="supervisor options as TOML, e.g. 'power_speed = false'")
     ap.add_argument("--noise-convention", default="sigma", choices=("sigma", "variance"))
-    ap.add_argument("--workers", type=int, default=1)
+    ap.add_argument("--workers", type=int, default=2, help="processes, one mean wind each")
     ap.add_argument("--json", help="write every window's figures to this file")
     args = ap.parse_args(argv)
     kinds = [k for k in args.kinds.split(",") if k]
@@ -72,19 +76,17 @@ def main(argv: list[str] | None = None) -> int:
         () if args.no_pairs else ff.DEFAULT_PAIRS,
     )
     options = tomllib.loads(args.params)
-    duration = ff.START_S[1] + args.window + ff.GRACE_S + 1.0
-    results = run_chunks(
-        ff.simulate_wind,
-        args.runs,
-        duration,
-        chunk=args.runs,
-        workers=args.workers,
-        label="fte through faults",
-        variants=[
-            (cells, w, args.seed, args.window, args.detector, args.estimator, options, args.noise_convention)
-            for w in args.winds
-        ],
-    )
+    winds = list(args.winds)
+    wind_args = [
+        (cells, w, args.seed, args.window, args.detector, args.estimator, options, args.noise_convention) for w in winds
+    ]
+    run_ids = list(range(args.runs))
+    with ProcessPoolExecutor(max(1, min(args.workers, len(winds)))) as pool:  # one task per mean wind
+        futures = [pool.submit(ff.simulate_wind, run_ids, _no_progress, *a) for a in wind_args]
+        results = []
+        for w, future in zip(winds, futures, strict=True):
+            results.append(future.result())
+            print(f"wind {w:g} m/s done", file=sys.stderr, flush=True)
     print(f"seed {args.seed}, {args.runs} windows of {args.window:g} s per cell, options {options or '{}'}")
     header = (
         f"{'wind':>5} {'fault':<30} {'det%':>5} {'iso1%':>5} {'delay':>6} {'onsets':>6} {'flaps':>6} {'fmax':>4} "
