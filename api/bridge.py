@@ -15,7 +15,8 @@ from api.settings import ApiSettings
 from windwarden.live.runfolder import EVENTS, read_events
 from windwarden.live.transport import LivenessWatch, QueryFailedError, open_session, query_json
 from wwcore.events import Event
-from wwcore.wire import DropCounter, Process, WireError, decode_json
+from wwcore.keys import Process
+from wwcore.wire import DropCounter, WireError, decode_json
 
 RUN_INFO_TTL_S = 2.0  # the run description is re-asked at most this often
 

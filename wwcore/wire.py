@@ -1,4 +1,5 @@
-"""The wire contract, declared once: key expressions, message schemas with units, versions, and the codec.
+"""The wire contract, declared once: message schemas with units, versions, and the codec; the key expressions
+they travel on are in ``wwcore.keys``.
 
 Pure (numpy and the standard library only): the Zenoh edges in ``windwarden.live`` and ``api`` put on the wire
 what this module encodes and refuse what it cannot decode. Nothing here opens a socket.
@@ -37,9 +38,8 @@ so the supervisor can tell a new run from an old or replayed frame.
 from __future__ import annotations
 
 import json
-import re
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from enum import StrEnum
 from functools import cached_property
 from typing import Any
@@ -454,148 +454,3 @@ def decode_json(schema: str, payload: bytes) -> dict[str, Any]:
     if not isinstance(body, dict):
         raise WireError(DropReason.BAD_BODY, f"{schema}: body is not an object")
     return body
-
-
-# -- the key-expression tree ---------------------------------------------------------------------------------------
-_CHUNK = re.compile(r"^[A-Za-z0-9_\-]+$")
-
-
-class Process(StrEnum):
-    """The processes that declare liveliness tokens."""
-
-    PLANT = "plant"
-    SUPERVISOR = "supervisor"
-    API = "api"
-
-
-@dataclass(frozen=True)
-class Qos:
-    """Quality of service of a stream, mapped onto Zenoh by the edges."""
-
-    reliable: bool  # reliable transport (retransmitted) rather than best effort
-    block: bool  # a full queue blocks the publisher rather than dropping the sample
-    priority: str  # Zenoh priority name: REAL_TIME, INTERACTIVE_HIGH, DATA_HIGH, DATA, …
-    express: bool = True  # sent at once, not batched
-
-
-SENSORS_QOS = Qos(reliable=False, block=False, priority="DATA_HIGH")
-"""Sensor streams may drop under congestion (realtime). Lockstep sends them with ``COMMAND_QOS``: the plant
-waits for every reply anyway, so nothing can queue up, and a lost sample would stall the step."""
-COMMAND_QOS = Qos(reliable=True, block=True, priority="REAL_TIME")
-"""References, fault commands and events never drop."""
-DISPLAY_QOS = Qos(reliable=False, block=False, priority="DATA_LOW", express=False)
-"""Truth and status: for display; the newest sample is what matters."""
-EVENT_QOS = Qos(reliable=True, block=True, priority="INTERACTIVE_HIGH")
-
-
-@dataclass(frozen=True)
-class KeySpec:
-    """One entry of the key-expression registry (for docs and the layering of who publishes what)."""
-
-    pattern: str
-    publisher: str
-    payload: str
-    qos: Qos | None
-    doc: str
-
-
-@dataclass(frozen=True)
-class KeyTree:
-    """Every key expression of one farm, built from the farm id. ``root`` is fixed by the protocol."""
-
-    farm: str = "default"
-    root: str = field(default="windwarden", init=False)
-
-    def __post_init__(self) -> None:
-        if not _CHUNK.match(self.farm):
-            raise ValueError(f"farm id {self.farm!r} must be letters, digits, '_' or '-' (one key chunk)")
-
-    @classmethod
-    def every_farm(cls) -> KeyTree:
-        """The tree with ``*`` for the farm chunk: patterns for access-control rules, never keys to publish on."""
-        tree = object.__new__(cls)
-        object.__setattr__(tree, "farm", "*")
-        object.__setattr__(tree, "root", "windwarden")
-        return tree
-
-    @property
-    def base(self) -> str:
-        return f"{self.root}/{self.farm}"
-
-    def sensors(self, turbine: int | str) -> str:
-        return f"{self.base}/turbine/{turbine}/sensors"
-
-    def refs(self, turbine: int | str) -> str:
-        return f"{self.base}/turbine/{turbine}/refs"
-
-    def truth(self, turbine: int | str) -> str:
-        return f"{self.base}/turbine/{turbine}/truth"
-
-    @property
-    def metmast(self) -> str:
-        return f"{self.base}/metmast"
-
-    @property
-    def plant_status(self) -> str:
-        return f"{self.base}/plant/status"
-
-    @property
-    def run(self) -> str:
-        return f"{self.base}/plant/run"
-
-    @property
-    def faults(self) -> str:
-        return f"{self.base}/plant/faults"
-
-    @property
-    def supervisor_status(self) -> str:
-        return f"{self.base}/supervisor/status"
-
-    @property
-    def plant_events(self) -> str:
-        return f"{self.base}/plant/events"
-
-    @property
-    def supervisor_events(self) -> str:
-        return f"{self.base}/supervisor/events"
-
-    @property
-    def events_all(self) -> str:
-        """Both event streams (plant and supervisor), for readers."""
-        return f"{self.base}/*/events"
-
-    def alive(self, process: Process | str) -> str:
-        return f"{self.base}/alive/{process}"
-
-    @property
-    def alive_all(self) -> str:
-        return f"{self.base}/alive/*"
-
-    def process_of(self, key: str) -> str:
-        """The process named by a liveliness key (``…/alive/<process>``)."""
-        return key.rsplit("/", 1)[-1]
-
-    def turbine_of(self, key: str) -> int:
-        """The turbine number in a ``…/turbine/<id>/…`` key; ``WireError`` when there is none."""
-        parts = key.split("/")
-        try:
-            return int(parts[parts.index("turbine") + 1])
-        except (ValueError, IndexError):
-            raise WireError(DropReason.BAD_BODY, f"no turbine number in {key!r}") from None
-
-    def registry(self) -> list[KeySpec]:
-        """The whole tree as data: what is published where, how, with which payload."""
-        t = "<id>"
-        return [
-            KeySpec(self.sensors(t), "plant", "turbine.sensors | hydro.sensors", SENSORS_QOS, "per tick"),
-            KeySpec(self.refs(t), "supervisor", "turbine.refs | hydro.refs", COMMAND_QOS, "per received tick"),
-            KeySpec(self.truth(t), "plant", "turbine.truth | hydro.truth", DISPLAY_QOS, "decimated; display only"),
-            KeySpec(self.metmast, "plant (farm)", "farm.metmast", SENSORS_QOS, "per tick"),
-            KeySpec(self.plant_status, "plant", "JSON plant.status", DISPLAY_QOS, "2 Hz; also a queryable"),
-            KeySpec(self.run, "plant (queryable)", "JSON plant.run", None, "what the supervisor may know"),
-            KeySpec(self.faults, "plant (queryable)", "JSON plant.faults", None, "inject, clear, list"),
-            KeySpec(self.supervisor_status, "supervisor", "JSON supervisor.status", DISPLAY_QOS, "2 Hz; queryable"),
-            KeySpec(self.plant_events, "plant", "JSON events", EVENT_QOS, "the plant's events, append-only"),
-            KeySpec(self.supervisor_events, "supervisor", "JSON events", EVENT_QOS, "the supervisor's events"),
-            KeySpec(self.alive("<process>"), "every process", "liveliness token", None, "plant, supervisor, api"),
-        ]

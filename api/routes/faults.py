@@ -29,7 +29,7 @@ from api.deps import (
 from api.limits import cap_problems
 from api.models import FaultList, FaultOut, FaultRequest, Injected
 from windwarden.live.faults import InjectionRefusedError, check_injection
-from wwcore.wire import Process
+from wwcore.keys import Process
 
 router = APIRouter(prefix="/faults", tags=["faults"])
 LABEL_PATTERN = r"^[\x20-\x7e]+$"  # printable ASCII: every label a scenario or an injection can give

@@ -8,7 +8,7 @@ from fastapi import APIRouter
 
 from api.deps import ANY_ROUTE, BridgeDep, documented
 from api.models import Health
-from wwcore.wire import Process
+from wwcore.keys import Process
 
 router = APIRouter(tags=["health"])
 

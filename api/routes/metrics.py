@@ -11,7 +11,7 @@ from fastapi.responses import PlainTextResponse
 
 from api.bridge import Bridge, QueryFailedError
 from api.deps import ANY_ROUTE, BridgeDep, CountersDep, documented
-from wwcore.wire import Process
+from wwcore.keys import Process
 
 router = APIRouter(tags=["metrics"])
 STATUS_TIMEOUT_S = 0.5

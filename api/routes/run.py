@@ -6,7 +6,7 @@ from fastapi import APIRouter
 
 from api.deps import ANY_ROUTE, UPSTREAM, UPSTREAM_503, BridgeDep, ask, documented, from_upstream, unavailable
 from api.models import RunStatus
-from wwcore.wire import Process
+from wwcore.keys import Process
 
 router = APIRouter(tags=["run"])
 

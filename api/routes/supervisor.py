@@ -8,7 +8,7 @@ from fastapi import APIRouter, HTTPException, Path
 
 from api.deps import ANY_ROUTE, UPSTREAM, UPSTREAM_503, BridgeDep, ask, documented, from_upstream, unavailable
 from api.models import SupervisorStatus, TurbineStatus
-from wwcore.wire import Process
+from wwcore.keys import Process
 
 router = APIRouter(prefix="/supervisor", tags=["supervisor"])
 

@@ -26,7 +26,7 @@ from windwarden.live.audit import RouterAudit
 from windwarden.live.config import ZenohSettings
 from windwarden.live.router import RouterAccess, TlsFiles, router_file_config
 from windwarden.live.transport import open_session
-from wwcore.wire import KeyTree
+from wwcore.keys import KeyTree
 
 ROOT = Path(__file__).resolve().parents[2]
 K = KeyTree("default")

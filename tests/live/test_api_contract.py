@@ -25,7 +25,8 @@ from api.main import create_app
 from api.settings import ApiSettings
 from tests.live.api_server import serve
 from windwarden.live.transport import QueryFailedError
-from wwcore.wire import DropCounter, Process
+from wwcore.keys import Process
+from wwcore.wire import DropCounter
 
 TOKEN = "contract-token"
 AUTH = {"Authorization": f"Bearer {TOKEN}"}

@@ -27,7 +27,8 @@ from windwarden.live.access import new_passwords, password_file, write_credentia
 from windwarden.live.config import ZenohSettings
 from windwarden.live.router import free_port
 from windwarden.live.transport import open_session
-from wwcore.wire import TURBINE_REFS, KeyTree
+from wwcore.keys import KeyTree
+from wwcore.wire import TURBINE_REFS
 
 ROOT = Path(__file__).resolve().parents[2]
 TOKEN = "compose-engine-token"

@@ -22,7 +22,7 @@ from tests.live.helpers import router, wait_for
 from windwarden.live.config import ZenohSettings
 from windwarden.live.runfolder import EVENTS, read_events
 from windwarden.live.transport import open_session, query_json
-from wwcore.wire import KeyTree
+from wwcore.keys import KeyTree
 
 SCENARIO = """
 name = "degrade"

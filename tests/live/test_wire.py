@@ -11,6 +11,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 
+from wwcore.keys import KeyTree
 from wwcore.wire import (
     HEADER,
     HYDRO_REFS,
@@ -20,7 +21,6 @@ from wwcore.wire import (
     TURBINE_SENSORS,
     DropCounter,
     DropReason,
-    KeyTree,
     WireError,
     check_header,
     decode_json,

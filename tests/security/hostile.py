@@ -17,7 +17,8 @@ import zenoh
 
 from windwarden.live.config import ZenohSettings
 from windwarden.live.transport import open_session, query_json
-from wwcore.wire import KeyTree, MessageSchema, WireError
+from wwcore.keys import KeyTree
+from wwcore.wire import MessageSchema, WireError
 
 
 class HostileClient:

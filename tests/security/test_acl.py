@@ -38,7 +38,8 @@ from windwarden.live.router import free_port
 from windwarden.live.runfolder import EVENTS
 from windwarden.live.transport import open_session, query_json
 from wwcore.events import Event, EventType
-from wwcore.wire import TURBINE_REFS, TURBINE_SENSORS, KeyTree, encode_json
+from wwcore.keys import KeyTree
+from wwcore.wire import TURBINE_REFS, TURBINE_SENSORS, encode_json
 
 SCENARIO = """
 name = "acl-probes"

@@ -35,7 +35,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from wwcore.wire import KeyTree, Process
+from wwcore.keys import KeyTree, Process
 
 ROLES: tuple[str, ...] = ("plant", "supervisor", "api", "viewer")
 USERS_FILE = "zenoh-users.txt"  # the router's dictionary: one ``user:password`` line per role

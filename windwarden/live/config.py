@@ -15,7 +15,7 @@ from pydantic import Field, SecretStr, field_validator
 from pydantic_settings import BaseSettings, SettingsConfigDict
 
 from windwarden.live.access import read_password
-from wwcore.wire import KeyTree
+from wwcore.keys import KeyTree
 
 TimingMode = Literal["realtime", "lockstep"]
 

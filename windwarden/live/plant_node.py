@@ -39,18 +39,9 @@ from windwarden.live.runfolder import EVENTS, FAULTS, LIVE, EventLog, write_json
 from windwarden.live.timing import LatencyStats, Pacer
 from windwarden.live.transport import JsonQueryable, LivenessWatch, QueryError, declare_publisher
 from wwcore.events import Event, EventType
+from wwcore.keys import COMMAND_QOS, DISPLAY_QOS, EVENT_QOS, SENSORS_QOS, Process
 from wwcore.scenario import FaultSpec, Scenario, dump_scenario
-from wwcore.wire import (
-    COMMAND_QOS,
-    DISPLAY_QOS,
-    EVENT_QOS,
-    SENSORS_QOS,
-    DropCounter,
-    Process,
-    WireError,
-    decode_json,
-    encode_json,
-)
+from wwcore.wire import DropCounter, WireError, decode_json, encode_json
 
 log = logging.getLogger(__name__)
 

@@ -27,7 +27,7 @@ import zenoh
 from windwarden.live.access import access_control, check_users_file
 from windwarden.live.config import ZenohSettings
 from windwarden.live.transport import zenoh_config
-from wwcore.wire import KeyTree
+from wwcore.keys import KeyTree
 
 DEFAULT_PORT = 7447
 

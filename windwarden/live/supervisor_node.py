@@ -35,7 +35,8 @@ from windwarden.live.runfolder import EVENTS, EventLog
 from windwarden.live.timing import LatencyStats
 from windwarden.live.transport import JsonQueryable, LivenessWatch, QueryFailedError, declare_publisher, query_json
 from wwcore.events import Event, EventType
-from wwcore.wire import COMMAND_QOS, EVENT_QOS, DropCounter, Process, WireError, decode_json, encode_json
+from wwcore.keys import COMMAND_QOS, EVENT_QOS, Process
+from wwcore.wire import DropCounter, WireError, decode_json, encode_json
 
 log = logging.getLogger(__name__)
 PLANT_APPEARED = None  # put in the sensor queue by the liveliness callback: the main loop handles it in turn

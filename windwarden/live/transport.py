@@ -19,7 +19,8 @@ from typing import Any
 import zenoh
 
 from windwarden.live.config import ZenohSettings
-from wwcore.wire import DropCounter, Qos, WireError, decode_json, encode_json
+from wwcore.keys import Qos
+from wwcore.wire import DropCounter, WireError, decode_json, encode_json
 
 log = logging.getLogger(__name__)
 

@@ -55,8 +55,9 @@ from windwarden.live.status_line import StatusDisplay
 from windwarden.live.transport import open_session
 from windwarden.live.watchdog import WatchdogLink
 from wwcore.events import Event, EventType
+from wwcore.keys import KeyTree
 from wwcore.scenario import Scenario, dump_scenario
-from wwcore.wire import KeyTree, WireError, decode_json
+from wwcore.wire import WireError, decode_json
 
 console = Console(stderr=True, highlight=False, soft_wrap=True)
 STOP_TIMEOUT_S = 15.0
