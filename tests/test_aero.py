@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 from scipy.optimize import minimize
 
+from plant_sim.turbine.trim import trim
 from wwcore import aero
 from wwcore.turbine_params import BENCHMARK
 
@@ -175,3 +176,18 @@ def test_wind_from_torque_stays_bounded_where_wind_is_unobservable():
     tau = np.array([-1e5, 0.0, 1e6, 5e7])
     est = aero.wind_from_torque(tau, 1.0, 90.0, np.full(4, 10.0), BENCHMARK)
     assert np.all(np.isfinite(est)) and np.all((est >= aero.WIND_MIN) & (est <= aero.WIND_MAX))
+
+
+def test_wind_from_torque_crosses_the_stall_plateau_to_the_one_root():
+    # Region 1 at 4 m/s: the rotor turns at 0.137 rad/s (λ ≈ 2, deep stall) and τ(v) is flat for λ ≈ 3.2–3.8
+    # (v ≈ 2.1–2.5 m/s here). From a guess below the plateau the root is at higher wind: the iteration must cross
+    # the plateau rather than cycle beneath it.
+    op = trim(BENCHMARK, 4.0)
+    tau = aero.rotor_torque(4.0, op.omega_r, 0.0, BENCHMARK)
+    guesses = np.array([1.2, 1.6, 2.0, 2.3, 2.6, 3.0, 5.0, 6.0])
+    est = aero.wind_from_torque(np.full(guesses.size, tau), op.omega_r, 0.0, guesses, BENCHMARK, iterations=40)
+    assert np.abs(est - 4.0).max() < 1e-6
+    # and below the plateau's torque level the root is below it, reached from guesses on either side
+    low = aero.rotor_torque(1.6, op.omega_r, 0.0, BENCHMARK)
+    est = aero.wind_from_torque(np.full(guesses.size, low), op.omega_r, 0.0, guesses, BENCHMARK, iterations=40)
+    assert np.abs(est - 1.6).max() < 1e-6

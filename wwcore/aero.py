@@ -190,7 +190,9 @@ WIND_MIN, WIND_MAX = 1.0, 40.0  # m/s, bounds of wind_from_torque
 _MAX_STEP = 0.25  # –, largest step as a fraction of v (damping)
 _AWAY_STEP = 0.2  # –, step off a flat or falling branch, as a fraction of v
 _MIN_SLOPE = 1e-3  # –, (2 C_q − λ ∂C_q/∂λ) below this counts as a flat or falling branch of τ(v)
-_STALL_TSR = 6.0  # –, a flat/falling branch below this λ is stall (root at lower v), above it braking (higher v)
+_STALL_TSR = (
+    6.0  # –, a flat/falling branch below this λ is stall (plateau or hump), above it braking (root at higher v)
+)
 
 
 def wind_from_torque(
@@ -206,15 +208,21 @@ def wind_from_torque(
     Solves f(v) = ½ρπR³ C_q(ω_r R/v, β) v² − τ = 0 from ``v_guess`` (m/s), with
     ∂f/∂v = ½ρπR³ v s,  s = 2 C_q − λ ∂C_q/∂λ (> 0 iff ∂C_p/∂λ < 3 C_p/λ).
     Step: v ← clip(v (1 − clip(f/(f′ v), ±0.25)), 1, 40) where τ(v) rises (s > 0.001): Newton, damped to
-    at most 25 % per step. Where τ(v) is flat or falling, v moves 20 % back towards the rising branch: to lower
-    wind if λ < 6 (stall), to higher wind otherwise (braking: negative C_p at high λ).
+    at most 25 % per step. Below λ = 6, where τ(v) is flat (|s| ≤ 0.001) v moves 20 % towards the root the
+    residual's sign points to (lower wind if τ(v) > τ, higher if τ(v) < τ), and where it falls (s < −0.001, the
+    stall hump) 20 % to lower wind, back to the unstalled branch. From λ = 6 up, where τ(v) is flat or falling
+    (braking: negative C_p at high λ), v moves 20 % to higher wind, back to the rising branch.
 
     Which root: at fixed ω_r and β, τ(v) rises with v on the operating (unstalled) branch and has one root there.
-    At low λ and small pitch (λ ≈ 2.8–5 with β ≲ 1 deg, i.e. 20–35 m/s at rated speed with the pitch stuck
-    near 0) the rotor stalls: τ(v) flattens or falls and a second, deep-stall root can exist at higher wind; from
-    a guess at or above the stall hump the iteration returns to the unstalled root, from a guess deep in stall
-    (λ ≲ 3) it may return the stall root. Where the rotor only brakes (high pitch and λ: C_p ∝ −λ³, τ ∝ ω²
-    independent of v) the wind is not observable from torque: the result stays in [1, 40] m/s but is meaningless.
+    At low λ and small pitch the rotor stalls. With β ≳ 0 deg, τ(v) only flattens (λ ≈ 3.2–3.8 at β = 0, where
+    s ≥ −0.0007 and τ changes by < 0.1 %): one root, and the residual's sign gives the way to it across the
+    plateau. This plateau is met at rated speed with the pitch stuck near 0 (20–25 m/s) and in region 1, where the
+    rotor turns slowly (λ ≈ 2 at 4 m/s) and an estimate that dips below the plateau must cross it upwards. With
+    negative pitch (β ≈ −2 deg) τ(v) falls after a hump near λ ≈ 4.7 and a second, deep-stall root can exist at
+    higher wind; from a guess at or above the hump the iteration returns to the unstalled root, from a guess deep
+    in stall (λ ≲ 3) it may return the stall root. Where the rotor only brakes (high pitch and λ: C_p ∝ −λ³,
+    τ ∝ ω² independent of v) the wind is not observable from torque: the result stays in [1, 40] m/s but is
+    meaningless.
 
     Accuracy: Newton converges quadratically; from a guess within ±30 % of the root 8 iterations reach
     |Δv|/v < 1e-12 in the operating region (λ 3–12, C_p ≥ 0.05, outside the stall pocket; checked by
@@ -230,7 +238,9 @@ def wind_from_torque(
         s = 2.0 * cq - lam * dcq
         f = gain * cq * v * v - tau_aero
         rising = s > _MIN_SLOPE
-        away = np.where(lam < _STALL_TSR, _AWAY_STEP, -_AWAY_STEP)  # off the rising branch: back towards it
+        # off the rising branch: below λ 6, across a flat plateau towards the root or down a falling branch to the
+        # unstalled root; from λ 6 up, back from braking
+        away = np.where((lam < _STALL_TSR) & ((f > 0.0) | (s < -_MIN_SLOPE)), _AWAY_STEP, -_AWAY_STEP)
         step = np.where(rising, f / (gain * v * v * np.where(rising, s, 1.0)), away)  # relative step Δv/v
         v = np.minimum(np.maximum(v * (1.0 - np.clip(step, -_MAX_STEP, _MAX_STEP)), WIND_MIN), WIND_MAX)
     return v

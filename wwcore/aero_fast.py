@@ -120,7 +120,8 @@ def _newton(tau_aero, rw, v, f, g, gain, iterations):
             if s > _MIN_SLOPE:
                 step = residual / (gain * v[i] * v[i] * s)
             else:
-                step = _AWAY_STEP if tsr < _STALL_TSR else -_AWAY_STEP
+                down = tsr < _STALL_TSR and (residual > 0.0 or s < -_MIN_SLOPE)
+                step = _AWAY_STEP if down else -_AWAY_STEP
             step = minimum(maximum(step, -_MAX_STEP), _MAX_STEP)
             v[i] = minimum(maximum(v[i] * (1.0 - step), WIND_MIN), WIND_MAX)
 
