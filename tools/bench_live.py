@@ -8,6 +8,7 @@ to its detection in the status route (measured from outside, over HTTP).
     .venv/bin/python tools/bench_live.py --kind turbine --seconds 300
     .venv/bin/python tools/bench_live.py --kind hydro --seconds 300
     .venv/bin/python tools/bench_live.py --kind farm --seconds 300 --offset 1450   # a drive-train hold in it
+    .venv/bin/python tools/bench_live.py --kind farm --scenario farm-hornsrev1 --seconds 300   # 80 turbines
 
 What access control costs: ``--compare-acl`` runs the same benchmark back to back with an open router
 (``up --no-acl``) and with the router ``up`` runs by default (access control, user/password per role, and the audit
@@ -45,10 +46,12 @@ ACL_MODES = {  # name → flags of `windwarden up`
 }
 
 
-def bench_scenario(kind: str, seconds: float, folder: Path, offset: float = 0.0) -> Path:
-    """The kind's shipped scenario from ``offset`` s on, cut to ``seconds`` (the mean wind and the faults moved
-    back by ``offset``; faults outside the span left out or cut)."""
-    base = load_scenario(SCENARIOS[kind])
+def bench_scenario(kind: str, seconds: float, folder: Path, offset: float = 0.0, name: str | None = None) -> Path:
+    """The shipped scenario ``name`` (default: the kind's, ``SCENARIOS``) from ``offset`` s on, cut to ``seconds``
+    (the mean wind and the faults moved back by ``offset``; faults outside the span left out or cut)."""
+    base = load_scenario(name or SCENARIOS[kind])
+    if base.plant.kind != kind:
+        raise SystemExit(f"--scenario {name}: a {base.plant.kind} scenario, not {kind}")
     data = tomllib.loads(dump_scenario(base))
     data["name"] = f"bench-{kind}"
     data["duration_s"] = seconds
@@ -88,6 +91,7 @@ def main() -> int:
     parser.add_argument("--nice", type=int, default=None, help="niceness of plant and supervisor (busy machines)")
     parser.add_argument("--inject-at", type=float, default=None, help="turbine: s of simulation time (default: half)")
     parser.add_argument("--offset", type=float, default=0.0, help="start this far into the shipped scenario (s)")
+    parser.add_argument("--scenario", default=None, help="a shipped scenario of --kind (default: the kind's own)")
     parser.add_argument("--compare-acl", action="store_true", help="run without and with access control, compare")
     parser.add_argument(
         "--acl-modes",
@@ -154,7 +158,7 @@ def _median(values: list) -> float | None:
 def run_once(args: argparse.Namespace, extra: list[str], label: str) -> tuple[int, dict]:
     """One ``windwarden up`` benchmark run with ``extra`` flags; its exit code and figures."""
     folder = Path(tempfile.mkdtemp(prefix="bench-live-"))
-    scenario = bench_scenario(args.kind, args.seconds, folder, args.offset)
+    scenario = bench_scenario(args.kind, args.seconds, folder, args.offset, args.scenario)
     token = secrets.token_urlsafe(16)
     port = free_port()
     run_id = f"bench-{args.kind}{label}-{time.strftime('%Y%m%d-%H%M%S')}"

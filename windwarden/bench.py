@@ -4,10 +4,12 @@
 3 × 3 farm, for a batch of 1 run and a batch of N runs over the same simulated span, each with the numpy reference
 and with the compiled backend (``wwcore.backend``), in one process, the two taking turns every 100 ticks (a change
 of the machine's load then hits both alike). It reports simulated seconds per wall-clock second, run-seconds per
-wall second (the batch's gain from vectorisation), the time split between the four calls of the step contract,
-and the compiled backend's speed-up over numpy per batch: the ratio is what to compare across machines and loads,
-the absolute figures only on a quiet machine. The compiled code is loaded (or compiled, on a first use) before the
-clock starts; that time is printed apart. No timing assertion lives in the tests; this command is the measurement.
+wall second (the batch's gain from vectorisation), turbine-seconds per wall second (every row is one turbine: a
+farm run counts each of its turbines, so ``--scenario farm-hornsrev1`` and the 3 × 3 compare per turbine), the time
+split between the four calls of the step contract, and the compiled backend's speed-up over numpy per batch: the
+ratio is what to compare across machines and loads, the absolute figures only on a quiet machine. The compiled code
+is loaded (or compiled, on a first use) before the clock starts; that time is printed apart.
+No timing assertion lives in the tests; this command is the measurement.
 """
 
 from __future__ import annotations
@@ -100,6 +102,7 @@ class _Stepper:
             "wall_s": wall,
             "sim_per_wall": seconds / wall,
             "run_s_per_wall": runs * seconds / wall,
+            "turbine_s_per_wall": self.plant.n * seconds / wall,  # every row is one turbine (twins included)
             "ms_per_tick": 1e3 * wall / self.ticks,
             "split": self.spent / wall,
         }
@@ -120,6 +123,7 @@ def _bench(args: argparse.Namespace, title: str, make: Callable[[int, str], tupl
         "wall s",
         "sim s / wall s",
         "run-s / wall s",
+        "turbine-s / wall s",
         "ms / tick",
         "|".join(CALLS),
     ):
@@ -141,6 +145,7 @@ def _bench(args: argparse.Namespace, title: str, make: Callable[[int, str], tupl
                 f"{r['wall_s']:.1f}",
                 f"{r['sim_per_wall']:.1f}",
                 f"{r['run_s_per_wall']:.0f}",
+                f"{r['turbine_s_per_wall']:.0f}",
                 f"{r['ms_per_tick']:.3f}",
                 " | ".join(f"{v:.0%}" for v in r["split"]),
             )
