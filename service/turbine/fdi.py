@@ -46,6 +46,7 @@ from typing import Annotated
 import numpy as np
 
 from service.plugins import AlgorithmOptionError
+from service.turbine.adaptive import HealthySpread
 from service.turbine.arbitration import GeneratorArbiter
 from service.turbine.bank import GENERATOR, BankDesign, estimate_observers
 from service.turbine.clearing import FlagClearing
@@ -88,6 +89,10 @@ class FDISettings:
     frozen_ticks: Annotated[int, Bounds(ge=2, le=1000, unit="ticks")] = 3
     # no decisions while the observers converge from their initial state
     warmup_s: Annotated[float, Bounds(ge=0.0, le=600.0, unit="s")] = 5.0
+    # adaptation time T_a of each observer's healthy χ² scale (``adaptive``; 0: the design thresholds, fixed)
+    adapt_time_s: Annotated[float, Bounds(ge=0.0, le=3600.0, unit="s")] = 60.0
+    # largest sensor-noise scale the adaptive thresholds accept (their χ² scale is at most its square)
+    max_noise_scale: Annotated[float, Bounds(ge=1.0, le=10.0)] = 3.0
 
     def __post_init__(self) -> None:
         if self.isolation_delay >= self.window:
@@ -147,6 +152,8 @@ class SpeedSensorFDI:
             predictors,
             fast,
         )
+        self.spread = HealthySpread((n, bank.n_isolating), dt, settings.adapt_time_s, settings.max_noise_scale)
+        self._rank = np.asarray(ranks, dtype=float)
         self._history = np.zeros((settings.window, n, bank.n_isolating))  # ring of the last χ² statistics
         self._window_sum = np.zeros((n, bank.n_isolating))
         self.warmup_ticks = round(settings.warmup_s / dt)
@@ -207,7 +214,8 @@ class SpeedSensorFDI:
         """Update the flags from speed readings y (n, 4), the bank's χ² statistics (n, n_obs), its stacked
         state estimates x̂ (n, width), the 5-pe design for the torque (``clearing``) and the power-speed
         channel (n,) (NaN where it is only the rotor-speed mean; ``arbitration``)."""
-        chi2_stat = chi2_stat[:, : self.bank.n_isolating]
+        raw = chi2_stat[:, : self.bank.n_isolating]
+        chi2_stat = raw / self.spread.scale2 if self.spread.enabled else raw  # χ²_j / ŝ²_j (``adaptive``)
         slot = self.ticks % self.s.window
         exceeded = True  # whether a ratio of the all-sensor observer is above 1 (computed on the fast path)
         if self._fast is not None:
@@ -222,6 +230,9 @@ class SpeedSensorFDI:
         self.ticks += 1
         if self._fast is None:
             self.ratio = ratio = np.maximum(chi2_stat / self.h_detect, self._window_sum / self.h_window)
+        if self.spread.enabled:  # learn from rows with nothing flagged, pending or inconsistent
+            healthy = (self.flagged == 0) & (self.deadline < 0) & (ratio <= 1.0).all(axis=1)
+            self.spread.update(raw / self._rank, np.broadcast_to(healthy[:, None], raw.shape))
         if self.ticks <= self.warmup_ticks:
             return
         if not (exceeded or any_frozen or self._maybe_flagged or self._pending):
