@@ -18,6 +18,11 @@ when the turbine is healthy, so each test's threshold follows from the false-ala
 * **Converter** (fault 8). r = τ_g,m − τ̂_g, with τ̂_g the first-order converter (α_gc) driven by the torque
   reference: white with σ_τ. An offset shows in the window mean of r.
 
+Adaptive thresholds (``adaptive``, ``adapt_time_s``): each test uses its residual's healthy spread ŝ learnt online
+(the parity, the actuator sum per blade, the converter's block sums) and, for the two mean tests, its offset b̂
+(a calibration bias: within ±2 × 0.2 deg on a parity, ±90 N m on τ_g,m): (p − b̂)/ŝ, (Σp/√W − b̂√W)/ŝ, Σw²/ŝ²
+and (Σr − W b̂)/(ŝ σ_τ √W) against the design thresholds.
+
 Fault 9 (drive-train efficiency) has no test: a gearbox that loses more torque looks, to an observer that
 treats the rotor torque as unknown, exactly like a different aerodynamic torque (docs/turbine.md).
 """

@@ -36,6 +36,11 @@ evenly between the single-tick and the window test: h_j = χ²⁻¹_{rank_j}(1 �
 scaled χ², c·χ²_ν, with the sum's exact mean and variance from the residual's closed-form autocovariance
 (Satterthwaite: c = Var/2E, ν = 2E²/Var; ``uio``). Isolation and the re-admission test use the same forms at
 α_iso and α_clear.
+
+Adaptive thresholds (``adaptive``): every statistic enters the tests as χ²_j/ŝ²_j, with ŝ²_j observer j's healthy
+scale of χ²_j/rank_j (design 1) learnt with adaptation time ``adapt_time_s`` from rows with nothing flagged or
+pending and every observer consistent, used within [1, ``max_noise_scale``²]. A plant whose sensors are noisier
+than the design σ, or carry calibration biases, then keeps the design false-alarm rate.
 """
 
 from __future__ import annotations
