@@ -30,8 +30,9 @@ def test_the_scale_converges_to_the_true_sigma_of_white_noise(sigma):
     for z in _white(sigma, 20_000):  # 200 s, ten adaptation times
         spread.update(z * z, healthy)
     # an EWMA of χ²₁ over T_a/Δt = 2000 samples: relative sd √(2/(2·2000)) ≈ 2.2 %, so 10 % is > 4 sd
-    assert spread.scale == pytest.approx(np.full(3, sigma), rel=0.1)
-    assert np.all(spread.scale2 == spread.scale**2)
+    assert spread.estimate == pytest.approx(np.full(3, sigma**2), rel=0.1)
+    assert np.array_equal(spread.scale2, np.clip(spread.estimate, 1.0, 9.0))
+    assert spread.scale == pytest.approx(np.sqrt(spread.scale2), rel=1e-15)
 
 
 def test_the_design_sigma_is_a_floor_and_max_noise_scale_a_ceiling():
@@ -122,10 +123,11 @@ def test_no_false_alarm_under_a_model_mismatch_and_the_fixed_thresholds_do_raise
     assert flags.any(), "without adaptation the same plant raises false alarms (the test can fail)"
 
 
+# the rotor-speed gain is 0.14 rad/s at 10 m/s: 3.7 σ of this plant's noisier sensor (5.6 σ of the design's)
 @pytest.mark.parametrize(
     ("fault", "target", "within_s"),
     [
-        (FaultSpec(target="omega_r_m1", kind="gain", value=1.1, start_s=60.0, end_s=80.0), "omega_r_m1", 0.05),
+        (FaultSpec(target="omega_r_m1", kind="gain", value=1.1, start_s=60.0, end_s=80.0), "omega_r_m1", 0.5),
         (FaultSpec(target="omega_g_m2", kind="fixed", value=100.0, start_s=60.0, end_s=80.0), "omega_g_m2", 0.05),
         (FaultSpec(target="beta_2_m1", kind="fixed", value=5.0, start_s=60.0, end_s=80.0), "beta_2_m1", 0.05),
         (FaultSpec(target="converter", kind="torque_offset", value=100.0, start_s=60.0, end_s=80.0), "converter", 1.5),

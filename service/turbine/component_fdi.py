@@ -75,7 +75,7 @@ class ComponentSettings:
     frozen_ticks: Annotated[int, Bounds(ge=2, le=1000, unit="ticks")] = 3
     warmup_s: Annotated[float, Bounds(ge=0.0, le=600.0, unit="s")] = 5.0
     # adaptation time T_a of the residuals' healthy spread and offset (``adaptive``; 0: design thresholds, fixed)
-    adapt_time_s: Annotated[float, Bounds(ge=0.0, le=3600.0, unit="s")] = 60.0
+    adapt_time_s: Annotated[float, Bounds(ge=0.0, le=3600.0, unit="s")] = 600.0
     # largest sensor-noise scale the adaptive thresholds accept
     max_noise_scale: Annotated[float, Bounds(ge=1.0, le=10.0)] = 3.0
 

@@ -60,6 +60,7 @@ from service.turbine.uio import LAGS
 from wwcore.channels import SPEED_SENSORS
 from wwcore.options import Bounds
 from wwcore.quantiles import chi2_isf
+from wwcore.scenario.mismatch import SENSOR_BIAS_TOLERANCE
 
 N_SPEED = len(SPEED_SENSORS)
 _BITS = 1 << np.arange(N_SPEED)
@@ -95,7 +96,7 @@ class FDISettings:
     # no decisions while the observers converge from their initial state
     warmup_s: Annotated[float, Bounds(ge=0.0, le=600.0, unit="s")] = 5.0
     # adaptation time T_a of each observer's healthy χ² scale (``adaptive``; 0: the design thresholds, fixed)
-    adapt_time_s: Annotated[float, Bounds(ge=0.0, le=3600.0, unit="s")] = 60.0
+    adapt_time_s: Annotated[float, Bounds(ge=0.0, le=3600.0, unit="s")] = 600.0
     # largest sensor-noise scale the adaptive thresholds accept (their χ² scale is at most its square)
     max_noise_scale: Annotated[float, Bounds(ge=1.0, le=10.0)] = 3.0
 
@@ -159,6 +160,12 @@ class SpeedSensorFDI:
         )
         self.spread = HealthySpread((n, bank.n_isolating), dt, settings.adapt_time_s, settings.max_noise_scale)
         self._rank = np.asarray(ranks, dtype=float)
+        # calibration offsets of the four speed sensors against the redundant ones (``adaptive``): the rotor-speed
+        # sensors against the generator-speed mean / N_g, each generator-speed sensor against the pair's mean;
+        # within the channels' calibration tolerance
+        tolerance = np.array([SENSOR_BIAS_TOLERANCE[s] for s in SPEED_SENSORS])
+        self.calibration = HealthySpread((n, N_SPEED), dt, settings.adapt_time_s, 1.0, tolerance)
+        self._gear_ratio = bank.gear_ratio
         self._history = np.zeros((settings.window, n, bank.n_isolating))  # ring of the last χ² statistics
         self._window_sum = np.zeros((n, bank.n_isolating))
         self.warmup_ticks = round(settings.warmup_s / dt)
@@ -231,13 +238,19 @@ class SpeedSensorFDI:
         else:
             self._window_sum += chi2_stat - self._history[slot]
             self._history[slot] = chi2_stat
-        any_frozen = self.readings.push(y)
+        any_frozen = self.readings.push(y)  # the raw readings: a frozen one stays frozen
+        y_raw = y
+        if self.calibration.enabled:  # the clearing and the arbitration see the bank's calibrated readings
+            y = y - self.calibration.offset
         self.ticks += 1
         if self._fast is None:
             self.ratio = ratio = np.maximum(chi2_stat / self.h_detect, self._window_sum / self.h_window)
         if self.spread.enabled:  # learn from rows with nothing flagged, pending or inconsistent
             healthy = (self.flagged == 0) & (self.deadline < 0) & (ratio <= 1.0).all(axis=1)
             self.spread.update(raw / self._rank, np.broadcast_to(healthy[:, None], raw.shape))
+            generator = 0.5 * (y_raw[:, 2] + y_raw[:, 3])
+            deviation = y_raw - np.column_stack([generator / self._gear_ratio] * 2 + [generator] * 2)
+            self.calibration.update(np.ones_like(y_raw), np.broadcast_to(healthy[:, None], y_raw.shape), deviation)
         if self.ticks <= self.warmup_ticks:
             return
         if not (exceeded or any_frozen or self._maybe_flagged or self._pending):
@@ -358,6 +371,9 @@ class SpeedSensorFDI:
 
     def _clear(self, y: np.ndarray, x_hat: np.ndarray, frozen_mask: np.ndarray, skip: np.ndarray, torque_band) -> None:
         """Unflag sensor s where its CUSUM says healthy and the observer 'selected set + s' is consistent."""
+        if self.spread.enabled:  # the exclusion residuals in units of the row's healthy noise scale (``adaptive``)
+            noise = self.spread.scale[:, self._all_healthy, None]
+            y, x_hat = y / noise, x_hat / noise
         ready = self.clearing.step(y, x_hat, self.flagged, _SENSORS_OF_MASK[frozen_mask], torque_band)
         ready &= ~skip[:, None]
         if not ready.any():
