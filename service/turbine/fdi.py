@@ -39,8 +39,13 @@ scaled χ², c·χ²_ν, with the sum's exact mean and variance from the residua
 
 Adaptive thresholds (``adaptive``): every statistic enters the tests as χ²_j/ŝ²_j, with ŝ²_j observer j's healthy
 scale of χ²_j/rank_j (design 1) learnt with adaptation time ``adapt_time_s`` from rows with nothing flagged or
-pending and every observer consistent, used within [1, ``max_noise_scale``²]. A plant whose sensors are noisier
-than the design σ, or carry calibration biases, then keeps the design false-alarm rate.
+pending and every observer consistent, used within [1, ``max_noise_scale``²]. The speed sensors' calibration offsets
+b̂_s are learnt on the same rows, against the redundant sensors (a rotor-speed sensor against the generator-speed
+mean / N_g: their difference is dθ_Δ/dt, zero on average; a generator-speed sensor against the pair's mean), within
+the channels' tolerance (rad/s), and subtracted from the bank's inputs (``TurbineContext.speed_offset``) and from the
+readings the clearing and arbitration use; the clearing's exclusion residuals are divided by the row's noise scale
+(ŝ of observer 1). A plant whose sensors are noisier than the design σ, or carry calibration biases, then keeps the
+design false-alarm rate.
 """
 
 from __future__ import annotations
