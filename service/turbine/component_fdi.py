@@ -18,6 +18,11 @@ when the turbine is healthy, so each test's threshold follows from the false-ala
 * **Converter** (fault 8). r = τ_g,m − τ̂_g, with τ̂_g the first-order converter (α_gc) driven by the torque
   reference: white with σ_τ. An offset shows in the window mean of r.
 
+Adaptive thresholds (``adaptive``, ``adapt_time_s``): each test uses its residual's healthy spread ŝ learnt online
+(the parity, the actuator sum per blade, the converter's block sums) and, for the two mean tests, its offset b̂
+(a calibration bias: within ±2 × 0.2 deg on a parity, ±90 N m on τ_g,m): (p − b̂)/ŝ, (Σp/√W − b̂√W)/ŝ, Σw²/ŝ²
+and (Σr − W b̂)/(ŝ σ_τ √W) against the design thresholds.
+
 Fault 9 (drive-train efficiency) has no test: a gearbox that loses more torque looks, to an observer that
 treats the rotor torque as unknown, exactly like a different aerodynamic torque (docs/turbine.md).
 """
@@ -30,11 +35,13 @@ from typing import Annotated
 import numpy as np
 
 from service.plugins import AlgorithmOptionError
+from service.turbine.adaptive import HealthySpread
 from service.turbine.frozen import FrozenReadings
 from wwcore.channels import SENSOR_INDEX, TARGET_INDEX, Component
 from wwcore.lti import second_order_tf, zoh
 from wwcore.options import Bounds
 from wwcore.quantiles import chi2_isf, norm_isf
+from wwcore.scenario.mismatch import SENSOR_BIAS_TOLERANCE
 from wwcore.turbine_frames import TurbineFrame
 from wwcore.turbine_params import TurbineParams
 
@@ -67,6 +74,10 @@ class ComponentSettings:
     block: Annotated[int, Bounds(ge=1, le=1000, unit="ticks")] = 10
     frozen_ticks: Annotated[int, Bounds(ge=2, le=1000, unit="ticks")] = 3
     warmup_s: Annotated[float, Bounds(ge=0.0, le=600.0, unit="s")] = 5.0
+    # adaptation time T_a of the residuals' healthy spread and offset (``adaptive``; 0: design thresholds, fixed)
+    adapt_time_s: Annotated[float, Bounds(ge=0.0, le=3600.0, unit="s")] = 600.0
+    # largest sensor-noise scale the adaptive thresholds accept
+    max_noise_scale: Annotated[float, Bounds(ge=1.0, le=10.0)] = 3.0
 
 
 class _Window:
@@ -147,6 +158,15 @@ class ComponentFDI:
         self.flags = np.zeros((n, len(TARGET_INDEX)), dtype=bool)
         self.ticks = 0
         self.warmup_ticks = round(settings.warmup_s / p.dt)
+        # adaptive thresholds (``adaptive``): the parity's offset is at most the two sensors' calibration
+        # tolerances, in parity units; the converter residual's at most τ_g,m's (N m per tick)
+        adapt, top = settings.adapt_time_s, settings.max_noise_scale
+        parity_limit = 2.0 * SENSOR_BIAS_TOLERANCE["beta_1_m1"] * self._parity_scale
+        self.parity_spread = HealthySpread((n, 3), p.dt, adapt, top, parity_limit)
+        block_s = p.dt * settings.block
+        self.actuator_spread = HealthySpread((n, 3), block_s, adapt, top)
+        self.converter_spread = HealthySpread((n,), block_s, adapt, top, SENSOR_BIAS_TOLERANCE["tau_g_m"])
+        self._root_parity_window = float(np.sqrt(settings.parity_window))
 
     def step(self, frame: TurbineFrame) -> np.ndarray:
         y = frame.sensors
@@ -181,7 +201,10 @@ class ComponentFDI:
         any_suspicious = self._fast.component_tick(*inputs, self._e_block, self._tau_block, ring, scales, *outputs)
         w.count += 1
         self.readings.push(beta)
-        self._pitch_flags(beta[:, :3], beta[:, 3:], parity, window, any_suspicious)
+        if self.parity_spread.enabled:  # the kernel's ``any_suspicious`` is on the unadapted parity
+            self._pitch_flags(beta[:, :3], beta[:, 3:], *self._adapt_parity(parity, window))
+        else:
+            self._pitch_flags(beta[:, :3], beta[:, 3:], parity, window, any_suspicious)
 
     # -- pitch sensors ------------------------------------------------------------------------------------------
     def _pitch_sensors(self, beta: np.ndarray, m1: np.ndarray, m2: np.ndarray) -> None:
@@ -189,7 +212,21 @@ class ComponentFDI:
         self.readings.push(beta)
         parity = (m1 - m2) * self._parity_scale
         window = self.parity.push(parity) * self._window_scale
-        self._pitch_flags(m1, m2, parity, window, None)
+        self._pitch_flags(m1, m2, *self._adapt_parity(parity, window))
+
+    def _adapt_parity(self, parity: np.ndarray, window: np.ndarray) -> tuple[np.ndarray, np.ndarray, None]:
+        """(p − b̂)/ŝ and (Σ_W p/√W − b̂ √W)/ŝ per blade (``adaptive``), and learn b̂, ŝ² from blades with no flag
+        whose parity passes both tests."""
+        spread = self.parity_spread
+        if not spread.enabled:
+            return parity, window, None
+        centred = parity - spread.offset
+        parity_n = centred / spread.scale
+        window_n = (window - spread.offset * self._root_parity_window) / spread.scale
+        flagged = self.flags[:, M1_TARGET] | self.flags[:, M2_TARGET]
+        healthy = ~flagged & (np.maximum(np.abs(parity_n), np.abs(window_n)) <= self.z_single)
+        spread.update(centred * centred, healthy, parity)
+        return parity_n, window_n, None
 
     def _pitch_flags(
         self, m1: np.ndarray, m2: np.ndarray, parity: np.ndarray, window: np.ndarray, any_suspicious: bool | None
@@ -238,10 +275,17 @@ class ComponentFDI:
             self._w_state = (s1, s2)
             w *= w
             z2 = np.add.accumulate(w, axis=0)[-1]  # Σ_k w_k², added in tick order
-        total = self.actuator.push(z2 * (1.0 / (0.75 * self.sigma_beta**2)))
+        z2 = z2 * (1.0 / (0.75 * self.sigma_beta**2))  # Σ over the block of w², in units of its design variance
+        total = self.actuator.push(z2)
         sensor_flagged = self.flags[:, M1_TARGET].any(axis=1) | self.flags[:, M2_TARGET].any(axis=1)
         rest = self.actuator.size
         self._actuator_rest = np.where(sensor_flagged, rest, np.maximum(self._actuator_rest - 1, 0))
+        spread = self.actuator_spread
+        if spread.enabled:  # the window χ² over its healthy scale ŝ² (``adaptive``)
+            total = total / spread.scale2
+            quiet = ~self.flags[:, ACTUATOR_TARGET].any(axis=1) & (self._actuator_rest == 0)
+            healthy = quiet & (total <= self.h_actuator).all(axis=1) if self.actuator.full else quiet
+            spread.update(z2 * (1.0 / self.s.block), np.broadcast_to(healthy[:, None], z2.shape))
         if not self.actuator.full:
             return
         worst = np.argmax(total, axis=1)
@@ -281,7 +325,19 @@ class ComponentFDI:
 
     def _converter_test(self, r: np.ndarray) -> None:
         """The window-mean test on the block sums ``r`` of τ_g,m − τ̂_g."""
-        mean = self.converter.push(r) * (1.0 / (self.sigma_tau * np.sqrt(self.s.converter_window)))
+        total = self.converter.push(r)
+        spread = self.converter_spread
+        scale = 1.0 / (self.sigma_tau * np.sqrt(self.s.converter_window))
+        if spread.enabled:  # the window mean less its healthy offset b̂, over its healthy spread ŝ (``adaptive``)
+            mean = (total - self.s.converter_window * spread.offset) * scale / spread.scale
+            centred = r - self.s.block * spread.offset
+            q = centred * centred * (1.0 / (self.s.block * self.sigma_tau**2))
+            healthy = ~self.flags[:, CONVERTER_TARGET]
+            if self.converter.full:
+                healthy &= np.abs(mean) <= self.z_converter
+            spread.update(q, healthy, r * (1.0 / self.s.block))
+        else:
+            mean = total * scale
         if not self.converter.full:
             return
         flagged = self.flags[:, CONVERTER_TARGET]

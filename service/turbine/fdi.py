@@ -36,6 +36,16 @@ evenly between the single-tick and the window test: h_j = χ²⁻¹_{rank_j}(1 �
 scaled χ², c·χ²_ν, with the sum's exact mean and variance from the residual's closed-form autocovariance
 (Satterthwaite: c = Var/2E, ν = 2E²/Var; ``uio``). Isolation and the re-admission test use the same forms at
 α_iso and α_clear.
+
+Adaptive thresholds (``adaptive``): every statistic enters the tests as χ²_j/ŝ²_j, with ŝ²_j observer j's healthy
+scale of χ²_j/rank_j (design 1) learnt with adaptation time ``adapt_time_s`` from rows with nothing flagged or
+pending and every observer consistent, used within [1, ``max_noise_scale``²]. The speed sensors' calibration offsets
+b̂_s are learnt on the same rows, against the redundant sensors (a rotor-speed sensor against the generator-speed
+mean / N_g: their difference is dθ_Δ/dt, zero on average; a generator-speed sensor against the pair's mean), within
+the channels' tolerance (rad/s), and subtracted from the bank's inputs (``TurbineContext.speed_offset``) and from the
+readings the clearing and arbitration use; the clearing's exclusion residuals are divided by the row's noise scale
+(ŝ of observer 1). A plant whose sensors are noisier than the design σ, or carry calibration biases, then keeps the
+design false-alarm rate.
 """
 
 from __future__ import annotations
@@ -46,6 +56,7 @@ from typing import Annotated
 import numpy as np
 
 from service.plugins import AlgorithmOptionError
+from service.turbine.adaptive import HealthySpread
 from service.turbine.arbitration import GeneratorArbiter
 from service.turbine.bank import GENERATOR, BankDesign, estimate_observers
 from service.turbine.clearing import FlagClearing
@@ -54,6 +65,7 @@ from service.turbine.uio import LAGS
 from wwcore.channels import SPEED_SENSORS
 from wwcore.options import Bounds
 from wwcore.quantiles import chi2_isf
+from wwcore.scenario.mismatch import SENSOR_BIAS_TOLERANCE
 
 N_SPEED = len(SPEED_SENSORS)
 _BITS = 1 << np.arange(N_SPEED)
@@ -88,6 +100,10 @@ class FDISettings:
     frozen_ticks: Annotated[int, Bounds(ge=2, le=1000, unit="ticks")] = 3
     # no decisions while the observers converge from their initial state
     warmup_s: Annotated[float, Bounds(ge=0.0, le=600.0, unit="s")] = 5.0
+    # adaptation time T_a of each observer's healthy χ² scale (``adaptive``; 0: the design thresholds, fixed)
+    adapt_time_s: Annotated[float, Bounds(ge=0.0, le=3600.0, unit="s")] = 600.0
+    # largest sensor-noise scale the adaptive thresholds accept (their χ² scale is at most its square)
+    max_noise_scale: Annotated[float, Bounds(ge=1.0, le=10.0)] = 3.0
 
     def __post_init__(self) -> None:
         if self.isolation_delay >= self.window:
@@ -147,6 +163,14 @@ class SpeedSensorFDI:
             predictors,
             fast,
         )
+        self.spread = HealthySpread((n, bank.n_isolating), dt, settings.adapt_time_s, settings.max_noise_scale)
+        self._rank = np.asarray(ranks, dtype=float)
+        # calibration offsets of the four speed sensors against the redundant ones (``adaptive``): the rotor-speed
+        # sensors against the generator-speed mean / N_g, each generator-speed sensor against the pair's mean;
+        # within the channels' calibration tolerance
+        tolerance = np.array([SENSOR_BIAS_TOLERANCE[s] for s in SPEED_SENSORS])
+        self.calibration = HealthySpread((n, N_SPEED), dt, settings.adapt_time_s, 1.0, tolerance)
+        self._gear_ratio = bank.gear_ratio
         self._history = np.zeros((settings.window, n, bank.n_isolating))  # ring of the last χ² statistics
         self._window_sum = np.zeros((n, bank.n_isolating))
         self.warmup_ticks = round(settings.warmup_s / dt)
@@ -207,7 +231,8 @@ class SpeedSensorFDI:
         """Update the flags from speed readings y (n, 4), the bank's χ² statistics (n, n_obs), its stacked
         state estimates x̂ (n, width), the 5-pe design for the torque (``clearing``) and the power-speed
         channel (n,) (NaN where it is only the rotor-speed mean; ``arbitration``)."""
-        chi2_stat = chi2_stat[:, : self.bank.n_isolating]
+        raw = chi2_stat[:, : self.bank.n_isolating]
+        chi2_stat = raw / self.spread.scale2 if self.spread.enabled else raw  # χ²_j / ŝ²_j (``adaptive``)
         slot = self.ticks % self.s.window
         exceeded = True  # whether a ratio of the all-sensor observer is above 1 (computed on the fast path)
         if self._fast is not None:
@@ -218,10 +243,19 @@ class SpeedSensorFDI:
         else:
             self._window_sum += chi2_stat - self._history[slot]
             self._history[slot] = chi2_stat
-        any_frozen = self.readings.push(y)
+        any_frozen = self.readings.push(y)  # the raw readings: a frozen one stays frozen
+        y_raw = y
+        if self.calibration.enabled:  # the clearing and the arbitration see the bank's calibrated readings
+            y = y - self.calibration.offset
         self.ticks += 1
         if self._fast is None:
             self.ratio = ratio = np.maximum(chi2_stat / self.h_detect, self._window_sum / self.h_window)
+        if self.spread.enabled:  # learn from rows with nothing flagged, pending or inconsistent
+            healthy = (self.flagged == 0) & (self.deadline < 0) & (ratio <= 1.0).all(axis=1)
+            self.spread.update(raw / self._rank, np.broadcast_to(healthy[:, None], raw.shape))
+            generator = 0.5 * (y_raw[:, 2] + y_raw[:, 3])
+            deviation = y_raw - np.column_stack([generator / self._gear_ratio] * 2 + [generator] * 2)
+            self.calibration.update(np.ones_like(y_raw), np.broadcast_to(healthy[:, None], y_raw.shape), deviation)
         if self.ticks <= self.warmup_ticks:
             return
         if not (exceeded or any_frozen or self._maybe_flagged or self._pending):
@@ -342,6 +376,9 @@ class SpeedSensorFDI:
 
     def _clear(self, y: np.ndarray, x_hat: np.ndarray, frozen_mask: np.ndarray, skip: np.ndarray, torque_band) -> None:
         """Unflag sensor s where its CUSUM says healthy and the observer 'selected set + s' is consistent."""
+        if self.spread.enabled:  # the exclusion residuals in units of the row's healthy noise scale (``adaptive``)
+            noise = self.spread.scale[:, self._all_healthy, None]
+            y, x_hat = y / noise, x_hat / noise
         ready = self.clearing.step(y, x_hat, self.flagged, _SENSORS_OF_MASK[frozen_mask], torque_band)
         ready &= ~skip[:, None]
         if not ready.any():

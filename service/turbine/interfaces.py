@@ -101,6 +101,9 @@ class TurbineContext:
         self._bank: ObserverBank | None = None
         self._bank_tick: int | None = None
         self._speed: np.ndarray | None = None  # the four speed readings of tick _bank_tick
+        # (n, 4) calibration offsets of the speed sensors, subtracted from the bank's inputs (None: none); a
+        # detector that estimates them (``fdi``, ``adaptive``) keeps them here, updated in place
+        self.speed_offset: np.ndarray | None = None
 
     @cached_property
     def bank_design(self) -> BankDesign:
@@ -131,7 +134,9 @@ class TurbineContext:
         else:
             read = frame.sensors.take(BANK_COLUMNS, axis=1)  # (n, 6); column 4 becomes the power-speed channel
             read[:, 4] = power_speed(read[:, 4], read[:, 5], read, self.params)
-        self._speed = read[:, :4]
+        self._speed = read[:, :4].copy() if self.speed_offset is not None else read[:, :4]
+        if self.speed_offset is not None:
+            read[:, :4] -= self.speed_offset
         return read[:, :5]
 
     def speed_readings(self, frame: TurbineFrame) -> np.ndarray:
