@@ -19,16 +19,20 @@ minutes too, the first-order simplification of a direction field that is itself 
 
 **Travel geometry along the actual direction.** At every farm sample the plant recomputes, for the current θ,
 each turbine's distance s_t(θ) downwind of the farm's upwind edge (its most upwind turbine, ``FarmLayout.wind_frame``)
-and the pair distances x_ij(θ) = s_j − s_i. Turbine t sees the mast's frozen turbulence (Taylor's hypothesis,
-advected along the *current* direction) from
+and the pair distances x_ij(θ) = s_j − s_i. Turbine t sees the mast's frozen turbulence (Taylor's hypothesis),
+carried at the mean wind v̄ along the *current* direction: the field now at distance d_t = d_mast + s_t(θ(t)) from
+the mast passed the mast when the wind had carried it d_t less far,
 
-.. math::  τ_t(t) = \max\Bigl(τ_t(t - Δt),\; t - \frac{d_{mast} + s_t(θ(t))}{\bar v(t)}\Bigr)
+.. math::  X(t) = \int_{-H}^{t} \bar v\,dt',\qquad
+           τ_t(t) = \max\Bigl(τ_t(t - Δt),\; X^{-1}\bigl(X(t) - d_t\bigr)\Bigr)
 
-the mast wind v_mast(τ_t): the geometric lookup time t − d_t/v̄, kept non-decreasing. When the direction swings a
-turbine upwind faster than the wind carries the field to it (|ṡ_t| > v̄, a far turbine under a quick veer), the
-geometric lookup would run backwards through the field it has already seen; there the turbine holds the sample it
-has until the geometry catches up (no time reversal). With a constant direction the lookup is the plain
-t − d_t/v̄ of seed 001 eq. (3). The wake of i reaches j a time x_ij(θ)/v̄ after it left i (the pair's delayed C_T).
+and the turbine sees v_mast(τ_t). With a fixed distance τ_t only moves forward, whatever v̄ does (eq. (3)'s
+t − d/v̄(t), which the fixed-direction plant keeps bit for bit, runs backwards when v̄ rises quickly:
+``docs/farm.md`` §1.9). When the direction swings a
+turbine away from the upwind edge faster than the wind carries the field (ṡ_t > v̄: a far turbine under a quick
+veer) the advected lookup would run backwards through the field the turbine has already seen; the maximum holds
+the sample it has until the geometry catches up (no time reversal). The wake of i reaches j a time x_ij(θ)/v̄
+after it left i (the pair's delayed C_T, as with a fixed direction).
 
 The met-mast vane reads θ(t) modulo 360° plus its white noise (``mast_direction_noise_deg``).
 """
@@ -41,7 +45,7 @@ from collections.abc import Sequence
 import numpy as np
 from scipy import signal
 
-from plant_sim.farm.wind import HISTORY_S
+from plant_sim.farm.wind import HISTORY_S, MIN_MEAN_WIND
 from wwcore.layout import FarmLayout
 from wwcore.scenario.farm import FARM_DT_S, VEER_BOUND_SIGMA, FarmPlant
 
@@ -97,8 +101,18 @@ def downwind_distances(layout: FarmLayout, direction_deg: np.ndarray) -> np.ndar
     return s - s.min(axis=-1, keepdims=True)
 
 
-def lookup_times(t: np.ndarray, distances_m: np.ndarray, vbar: np.ndarray, previous: np.ndarray | None) -> np.ndarray:
-    """τ = max(previous, t − d/v̄) (s): when the mast saw the frozen field now at each point (module docstring);
-    ``t`` (...,), ``distances_m`` (..., N), ``vbar`` (...,); the delay d/v̄ at most HISTORY_S."""
-    tau = t[..., None] - np.minimum(distances_m / vbar[..., None], HISTORY_S)
+def advected_distance(vbar: np.ndarray) -> np.ndarray:
+    """X (m), shape of ``vbar`` (..., samples): how far the mean wind has carried the frozen field past the mast since
+    the first sample, X_i = Σ_{k<i} max(v̄_k, MIN_MEAN_WIND) Δt (increasing)."""
+    v = np.maximum(vbar, MIN_MEAN_WIND) * FARM_DT_S
+    return np.concatenate([np.zeros_like(v[..., :1]), np.cumsum(v[..., :-1], axis=-1)], axis=-1)
+
+
+def lookup_times(
+    x_now: float, distances_m: np.ndarray, advected: np.ndarray, times: np.ndarray, previous: np.ndarray | None
+) -> np.ndarray:
+    """τ = max(previous, X⁻¹(X(t) − d)) (s) of one run, ``distances_m`` (..., N) from the mast: when the mast saw the
+    frozen field now at each point (module docstring); ``x_now`` = X(t), ``advected`` X on the sample ``times``
+    (np.interp clamps at the first sample, −HISTORY_S)."""
+    tau = np.interp(x_now - distances_m, advected, times)
     return tau if previous is None else np.maximum(tau, previous)

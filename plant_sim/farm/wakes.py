@@ -38,7 +38,7 @@ from pathlib import Path
 
 import numpy as np
 
-from plant_sim.farm.direction import DirectionSeries, downwind_distances, lookup_times
+from plant_sim.farm.direction import DirectionSeries, advected_distance, downwind_distances, lookup_times
 from plant_sim.farm.operating_curve import rated_curve
 from plant_sim.farm.wake_tables import WakeTables
 from plant_sim.farm.wind import CT_FILTER_S, HISTORY_S, MIN_MEAN_WIND, MastSeries
@@ -137,8 +137,8 @@ class TableWakes:
             self._layout = layout
             self._directions = self.direction.at(self.run_of_farm, 0)
             s0 = downwind_distances(layout, self._directions)  # (farms, N)
-            vbar0 = np.maximum(mast.vbar[self.run_of_farm, mast.offset], MIN_MEAN_WIND)
-            self._lookup = lookup_times(np.zeros(self.farms), plant.mast_distance_m + s0, vbar0, None)
+            self._advected = advected_distance(mast.vbar)  # (runs, samples) X of each run's mast series
+            self._lookup = self._lookup_times(0, plant.mast_distance_m + s0, None)
             v0, ct0 = steady_winds(self.tables, self._directions, free0, params)
             self.initial_power = np.interp(v0, winds, power) / (params.eta_gc * params.eta_dt)
             self._ct[:] = ct0[:, :, None].astype(np.float32)
@@ -169,8 +169,7 @@ class TableWakes:
         else:  # along the direction of this sample (plant_sim.farm.direction)
             self._directions = self.direction.at(runs, nxt)
             s = downwind_distances(self._layout, self._directions)  # (farms, N)
-            t_next = np.full(self.farms, nxt * FARM_DT_S)
-            self._lookup = lookup_times(t_next, self._mast_distance + s, vbar, self._lookup)
+            self._lookup = self._lookup_times(nxt, self._mast_distance + s, self._lookup)
             free = self.mast.at(np.broadcast_to(runs[:, None], s.shape), self._lookup)
             x = np.maximum(s[:, None, :] - s[:, :, None], 0.0)  # (farms, N, N) x_ij
         if self.tables is None:
@@ -192,11 +191,19 @@ class TableWakes:
             return None
         runs = self.mast.v.shape[0]
         span = slice(self.direction.offset, self.direction.offset + samples)
-        s = downwind_distances(self._layout, self.direction.deg[:, span])  # (runs, samples, N)
-        vbar = np.maximum(self.mast.vbar[:, span], MIN_MEAN_WIND)
-        t = np.broadcast_to(np.arange(samples) * FARM_DT_S, vbar.shape)
-        tau = np.maximum.accumulate(lookup_times(t, self._mast_distance + s, vbar, None), axis=1)
+        d = self._mast_distance + downwind_distances(self._layout, self.direction.deg[:, span])  # (runs, samples, N)
+        x_now = self._advected[:, self.mast.offset : self.mast.offset + samples, None]
+        tau = np.stack([np.interp(x_now[r] - d[r], self._advected[r], self.mast.t) for r in range(runs)])
+        tau = np.maximum.accumulate(tau, axis=1)
         return self.mast.at(np.broadcast_to(np.arange(runs)[:, None, None], tau.shape), tau)
+
+    def _lookup_times(self, j: int, distances: np.ndarray, previous: np.ndarray | None) -> np.ndarray:
+        """τ (farms, N) at farm sample j for points ``distances`` (farms, N) m from the mast (``lookup_times``)."""
+        out = np.empty_like(distances)
+        for f, r in enumerate(self.run_of_farm):
+            x = self._advected[r]
+            out[f] = lookup_times(x[self.mast.offset + j], distances[f], x, self.mast.t, None)
+        return out if previous is None else np.maximum(out, previous)
 
     def _set_turbulence(self, turbulence: np.ndarray) -> None:
         """Each turbine's turbulence intensity over the ambient, the factor on its own turbulence."""
