@@ -27,7 +27,12 @@ The steady state (t = 0, and the delta-control demand's available power) puts ea
 steady operating curve (``operating_curve.rated_curve``, the curve the FLORIS turbine is defined by) and sweeps the
 tables until the winds stop changing. The ambient turbulence intensity of the tables is the scenario's
 ``wind.turbulence_intensity`` (at least ``MIN_WAKE_TI``); the tables cover ``SECTOR_HALF_WIDTH_DEG`` either side
-of the wind direction, which is constant in a run.
+of the directions a run can reach (``FarmPlant.direction_sector_deg``: the constant direction, or a moving one's
+range with its veer bound).
+
+**A moving direction** (``plant_sim.farm.direction``): the free streams, the pair distances and the tables'
+direction are those of the run's direction at each sample, and the steady states (t = 0, the demand's updates)
+are taken at the direction of their sample.
 """
 
 from __future__ import annotations

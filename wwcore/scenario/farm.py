@@ -11,7 +11,9 @@ of the front row, on the wind axis, in both cases.
 
 ``wake_model`` picks the wakes: ``rows`` (the paper's row model, the default) or FLORIS's ``gauss`` / ``jensen``
 (``plant_sim.farm.wakes``). With a FLORIS model the farm may also have any ``layout`` (``wwcore.layout``: a grid,
-coordinates or a shipped file, 1 to 250 turbines) and any constant ``wind_direction_deg``. The supervisor
+coordinates or a shipped file, 1 to 250 turbines) and any constant ``wind_direction_deg``, or a direction that
+moves: ``wind_direction_profile`` plus a slow random veer (``veer_sigma_deg``, ``veer_time_s``;
+``plant_sim.farm.direction``). The supervisor
 (``service.farm``) learns the layout from ``site()`` (turbine numbers and positions) and handles any of them.
 
 The scenario's top-level ``[wind]`` section describes the free stream at the mast (mean profile) and each
