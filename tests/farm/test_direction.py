@@ -266,3 +266,19 @@ def test_the_shipped_veer_scenario_reads_and_moves():
     assert plant.direction_varies and plant.direction_deg == 270.0
     assert plant.direction_profile_deg(1200.0) == pytest.approx(300.0)
     assert not plant.is_paper_farm()
+
+
+def test_the_demand_reads_the_free_streams_the_turbines_see(cache):
+    """The delta-control demand's free streams (``free_stream_series``) are the plant's, sample for sample, under a
+    veering, gusting wind."""
+    plant_spec = moving([(0.0, 280.0), (30.0, 292.0)], sigma=3.0, time_s=20.0, coherent_ti=0.08)
+    plant = FarmBatch(plant_spec, WindSpec(mean=[(0.0, 9.0)]), [], seed=8, duration_s=4.0, runs=(0, 2),
+                      wake_cache_dir=cache)  # fmt: skip
+    series = plant.wakes.free_stream_series(41)  # (runs, samples, N)
+    for k in range(round(4.0 / plant.dt)):
+        plant.measure()
+        plant.control(None)
+        plant.advance()
+        if (k + 1) % plant.ticks_per_sample == 0:
+            j = plant.field.sample_index
+            np.testing.assert_allclose(plant.wakes.free_wind, series[:, j], rtol=0, atol=1e-12)
