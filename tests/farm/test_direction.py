@@ -22,6 +22,7 @@ from plant_sim.farm.direction import (
 from plant_sim.farm.floris_wakes import floris_model
 from plant_sim.farm.plant import row_streams, vane_stream, veer_stream
 from plant_sim.farm.wakes import plant_wake_tables
+from windwarden.evaluation.farm_scoring import farm_geometry
 from wwcore.scenario.farm import VEER_BOUND_SIGMA, FarmDemand, FarmPlant
 from wwcore.scenario.loader import ScenarioError, load_scenario, parse_scenario
 from wwcore.scenario.wind import WindSpec, direction_at, unwrap_direction_points
@@ -282,3 +283,13 @@ def test_the_demand_reads_the_free_streams_the_turbines_see(cache):
         if (k + 1) % plant.ticks_per_sample == 0:
             j = plant.field.sample_index
             np.testing.assert_allclose(plant.wakes.free_wind, series[:, j], rtol=0, atol=1e-12)
+
+
+def test_a_moving_direction_reads_back_and_the_scorecard_names_it():
+    plant = load_scenario("farm-3x3-veer").plant
+    again = FarmPlant.model_validate(plant.model_dump())  # the live adapter's round trip
+    assert again == plant and again.direction_sector_deg() == plant.direction_sector_deg()
+    geometry = farm_geometry(load_scenario("farm-3x3-veer"))
+    assert geometry["wind_direction_deg"] == 270.0 and geometry["veer_sigma_deg"] == 2.0
+    assert geometry["wind_direction_range_deg"] == [270.0 - 8.0, 300.0 + 8.0]
+    assert "wind_direction_range_deg" not in farm_geometry(load_scenario("farm-hornsrev1"))
