@@ -293,3 +293,25 @@ def test_a_moving_direction_reads_back_and_the_scorecard_names_it():
     assert geometry["wind_direction_deg"] == 270.0 and geometry["veer_sigma_deg"] == 2.0
     assert geometry["wind_direction_range_deg"] == [270.0 - 8.0, 300.0 + 8.0]
     assert "wind_direction_range_deg" not in farm_geometry(load_scenario("farm-hornsrev1"))
+
+
+@pytest.mark.slow
+def test_running_plant_between_table_directions_equals_floris(cache):
+    """The running 3 × 3 at 9 m/s, TI 0.03 (as ``test_farm_wakes``'s running test), the wind moving 0.1° over the
+    averaging window around 271.5° (between two table directions, the moving-direction code path): each turbine's
+    mean wind over the last 20 s equals FLORIS's at 271.5° within 0.1 m/s."""
+    spec = moving([(0.0, 271.4), (200.0, 271.4), (220.0, 271.6)], wake_added_turbulence=False)
+    wind = WindSpec(mean=[(0.0, 9.0)], turbulence_intensity=0.03)
+    plant = FarmBatch(spec, wind, [], seed=7, duration_s=220.0, wake_cache_dir=cache)
+    winds = []
+    for k in range(round(220.0 / plant.dt)):
+        frame = plant.measure()
+        plant.control(None)
+        if frame.sample and (k + 1) * plant.dt > 200.0:
+            winds.append(plant.truth()["row_wind"])
+        plant.advance()
+    fm = floris_model(spec.resolved_layout(), "gauss", BENCHMARK, [271.5], [9.0], 0.03)
+    fm.run()
+    ref = fm.turbine_average_velocities[0]
+    assert ref.min() < 8.0  # waked
+    assert np.abs(np.mean(winds, axis=0) - ref).max() < 0.1
