@@ -210,8 +210,9 @@ def test_a_plant_unlike_the_design_model_falls_back_and_still_matches():
     compare(turbine_trace(scenario, "numpy", [3], 1500), turbine_trace(scenario, "numba", [3], 1500))
 
 
-def test_farm_turbines_match():
-    scenario = load_scenario("farm-case1")
+@pytest.mark.parametrize("name", ["farm-case1", "farm-3x3-veer"])  # the row model; FLORIS wakes, a moving direction
+def test_farm_turbines_match(name):
+    scenario = load_scenario(name)
     states = {}
     for backend in ("numpy", "numba"):
         plant = FarmBatch(

@@ -26,6 +26,7 @@ import numpy as np
 from scipy import signal
 
 from plant_sim.farm.controller import FarmTurbineController
+from plant_sim.farm.direction import DirectionSeries
 from plant_sim.farm.wakes import TableWakes, plant_wake_tables
 from plant_sim.farm.wind import HISTORY_S, MIN_MEAN_WIND, FarmWakes, FarmWindField, MastSeries, RowWakes
 from plant_sim.turbine import TurbineBatch
@@ -44,15 +45,27 @@ from wwcore.turbine_params import BENCHMARK, TurbineParams
 
 MAST_TURBINE = 0  # turbine number of the met mast's random streams (row_streams(seed, run, 0))
 VANE_STREAM = 2  # the vane's noise: child 2 of the mast's SeedSequence (row_streams takes children 0 and 1)
+VEER_STREAM = 3  # the random veer of the wind direction: child 3
 ROW_STREAM_BASE = 100  # row i's shared turbulence: row_streams(seed, run, max(100, N + 1) + i) (row_coherence > 0)
 TRIM_WINDS = np.arange(2.0, 35.01, 0.25)  # m/s, grid of the initial operating points
 
 
+def mast_child_stream(seed: int, run: int, child: int) -> np.random.Generator:
+    """Child ``child`` of the mast's SeedSequence for one run (a SeedSequence's children do not depend on how many
+    are spawned, so each is independent of every stream ``row_streams`` gives and of the other children)."""
+    children = np.random.SeedSequence(seed, spawn_key=(run, MAST_TURBINE)).spawn(child + 1)
+    return np.random.default_rng(children[child])
+
+
 def vane_stream(seed: int, run: int) -> np.random.Generator:
-    """The met-mast vane's noise stream of one run: independent of every stream ``row_streams`` gives (a third child
-    of the mast's sequence), so adding the vane changed no other draw."""
-    children = np.random.SeedSequence(seed, spawn_key=(run, MAST_TURBINE)).spawn(VANE_STREAM + 1)
-    return np.random.default_rng(children[VANE_STREAM])
+    """The met-mast vane's noise stream of one run: adding the vane changed no other draw."""
+    return mast_child_stream(seed, run, VANE_STREAM)
+
+
+def veer_stream(seed: int, run: int) -> np.random.Generator:
+    """The random veer's stream of one run (``plant_sim.farm.direction``): switching the veer on changes no other
+    draw."""
+    return mast_child_stream(seed, run, VEER_STREAM)
 
 
 def demand_series(
@@ -69,11 +82,14 @@ def demand_series(
     # delayed by d_j/v̄, eq. (3)) averaged over ``averaging_s`` (first order) and ``wakes``' static model; set every
     # ``update_s`` and held. Computed from the true wind: the demand is an exogenous signal, "below the available
     # power" by construction up to the turbines' own turbulence.
-    runs = np.arange(mast.v.shape[0])[:, None, None]
-    d = wakes.mast_distances  # (rows,) or (turbines,): where the free stream is delayed to
-    vbar = np.maximum(mast.vbar[:, mast.offset : mast.offset + n], MIN_MEAN_WIND)  # (runs, n)
-    delays = np.minimum(d[None, None, :] / vbar[:, :, None], HISTORY_S)  # (runs, n, rows)
-    rows_free = mast.at(np.broadcast_to(runs, delays.shape), t[None, :, None] - delays)
+    moving = getattr(wakes, "free_stream_series", None)
+    rows_free = None if moving is None else moving(n)  # a moving direction: along it (plant_sim.farm.direction)
+    if rows_free is None:
+        runs = np.arange(mast.v.shape[0])[:, None, None]
+        d = wakes.mast_distances  # (rows,) or (turbines,): where the free stream is delayed to
+        vbar = np.maximum(mast.vbar[:, mast.offset : mast.offset + n], MIN_MEAN_WIND)  # (runs, n)
+        delays = np.minimum(d[None, None, :] / vbar[:, :, None], HISTORY_S)  # (runs, n, rows)
+        rows_free = mast.at(np.broadcast_to(runs, delays.shape), t[None, :, None] - delays)
     a = np.exp(-FARM_DT_S / spec.averaging_s)
     avg, _ = signal.lfilter([1.0 - a], [1.0, -a], rows_free, axis=1, zi=rows_free[:, :1, :] * a)
     held = np.minimum(np.rint(np.floor(t / spec.update_s) * spec.update_s / FARM_DT_S).astype(int), n - 1)
@@ -120,13 +136,15 @@ class FarmBatch:
         self._mast_noise_chunk = np.empty((len(self.runs), 0))
         self._vane_noise = [vane_stream(seed, int(r)) for r in self.runs]
         self._vane_noise_chunk = np.empty((len(self.runs), 0))
+        veer = [veer_stream(seed, int(r)) for r in self.runs] if plant.veer_sigma_deg > 0.0 else None
+        self.direction = DirectionSeries(plant, veer, len(self.runs), duration_s)  # θ(t) of each run, deg
         self.n_turbines = n_turbines = plant.n_turbines
         self.wakes: FarmWakes
         if plant.wake_model == "rows":
             self.wakes = RowWakes(plant, params, self.mast, self.run_of_farm)
         else:
             tables = plant_wake_tables(plant, wind, params, wake_cache_dir) if plant.wakes else None
-            self.wakes = TableWakes(plant, params, tables, self.mast, self.run_of_farm)
+            self.wakes = TableWakes(plant, params, tables, self.mast, self.run_of_farm, self.direction)
         self.demand = demand_series(plant, params, self.mast, duration_s, self.wakes)  # (runs, samples) W
         wind_rngs = [
             row_streams(seed, int(r), t)[0] for _ in range(copies) for r in self.runs for t in range(1, n_turbines + 1)
@@ -175,7 +193,7 @@ class FarmBatch:
         self.scada = np.zeros((self.n, N_SENSORS))
         self.power_ref_used = np.full(self.n, params.rated_power)
         self.mast_reading = self.mast.v[:, self.mast.offset].copy()
-        self.vane_reading = np.full(len(self.runs), plant.direction_deg)
+        self.vane_reading = np.mod(self.direction.at(np.arange(len(self.runs)), 0), 360.0)
         self._refs_tick = -1
 
     # -- set-up -----------------------------------------------------------------------------------------------
@@ -257,7 +275,8 @@ class FarmBatch:
             self.scada = self._scada_sum * (1.0 / s)
             self.power_ref_used = self._power_ref_sum * (1.0 / s)
             self.mast_reading = self.mast.v[:, self.mast.offset + j] + self.spec.mast_noise_mps * self._mast_noise_now()
-            vane = self.spec.direction_deg + self.spec.mast_direction_noise_deg * self._vane_noise_now()
+            direction = self.direction.deg[:, self.direction.offset + j]  # θ(t), deg (plant_sim.farm.direction)
+            vane = direction + self.spec.mast_direction_noise_deg * self._vane_noise_now()
             self.vane_reading = np.mod(vane, 360.0)
         return FarmFrame(
             k=k,

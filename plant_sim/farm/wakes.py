@@ -27,7 +27,12 @@ The steady state (t = 0, and the delta-control demand's available power) puts ea
 steady operating curve (``operating_curve.rated_curve``, the curve the FLORIS turbine is defined by) and sweeps the
 tables until the winds stop changing. The ambient turbulence intensity of the tables is the scenario's
 ``wind.turbulence_intensity`` (at least ``MIN_WAKE_TI``); the tables cover ``SECTOR_HALF_WIDTH_DEG`` either side
-of the wind direction, which is constant in a run.
+of the directions a run can reach (``FarmPlant.direction_sector_deg``: the constant direction, or a moving one's
+range with its veer bound).
+
+**A moving direction** (``plant_sim.farm.direction``): the free streams, the pair distances and the tables'
+direction are those of the run's direction at each sample, and the steady states (t = 0, the demand's updates)
+are taken at the direction of their sample.
 """
 
 from __future__ import annotations
@@ -38,6 +43,7 @@ from pathlib import Path
 
 import numpy as np
 
+from plant_sim.farm.direction import DirectionSeries, advected_distance, downwind_distances, lookup_times
 from plant_sim.farm.operating_curve import rated_curve
 from plant_sim.farm.wake_tables import WakeTables
 from plant_sim.farm.wind import CT_FILTER_S, HISTORY_S, MIN_MEAN_WIND, MastSeries
@@ -63,19 +69,21 @@ def plant_wake_tables(
     # Imported here, not at the top: FLORIS takes seconds to import and only farms with FLORIS wakes need it (every
     # farm scenario imports this module). There is no import cycle to dodge: floris_wakes does not import this module.
     floris_wakes = importlib.import_module("plant_sim.farm.floris_wakes")
-    theta = plant.direction_deg
+    lo, hi = plant.direction_sector_deg()  # the direction, or the range a moving one reaches
+    lo, hi = lo - SECTOR_HALF_WIDTH_DEG, hi + SECTOR_HALF_WIDTH_DEG
     settings = floris_wakes.WakeSettings(
         model=plant.wake_model,
         turbulence_intensity=max(wind.turbulence_intensity, MIN_WAKE_TI),
-        sector_deg=(theta - SECTOR_HALF_WIDTH_DEG, theta + SECTOR_HALF_WIDTH_DEG),
+        sector_deg=(lo, hi) if hi - lo < 360.0 else None,
     )
     return floris_wakes.wake_tables(plant.resolved_layout(), settings, params, cache_dir)
 
 
 def steady_winds(
-    tables: WakeTables | None, direction_deg: float, free: np.ndarray, params: TurbineParams
+    tables: WakeTables | None, direction_deg: float | np.ndarray, free: np.ndarray, params: TurbineParams
 ) -> tuple[np.ndarray, np.ndarray]:
-    """(speed, C_T), each (B, N), of B farms in steady state on the rated curve, for free streams ``free`` (B, N).
+    """(speed, C_T), each (B, N), of B farms in steady state on the rated curve, for free streams ``free`` (B, N)
+    and wind from ``direction_deg`` (one for all, or (B,) each farm's).
 
     Wakes run downstream only, so the sweeps reach the fixed point after the longest chain of turbines in each
     other's wake (at most N + 1 sweeps).
@@ -84,7 +92,7 @@ def steady_winds(
     free = np.asarray(free, dtype=float)
     speed = free.copy()
     if tables is not None:
-        directions = np.full(free.shape[0], direction_deg)
+        directions = np.broadcast_to(np.asarray(direction_deg, dtype=float), free.shape[:1])
         for _ in range(free.shape[1] + 1):
             new = tables.waked(directions, np.interp(speed, winds, ct_curve), free)[0]
             if np.array_equal(new, speed):
@@ -103,6 +111,7 @@ class TableWakes:
         tables: WakeTables | None,
         mast: MastSeries,
         run_of_farm: np.ndarray,
+        direction: DirectionSeries | None = None,
     ) -> None:
         if tables is not None and tables.n_turbines != plant.n_turbines:
             raise ValueError(f"wake tables for {tables.n_turbines} turbines, the farm has {plant.n_turbines}")
@@ -128,6 +137,18 @@ class TableWakes:
         self._farm = np.arange(self.farms)[:, None, None]
         self._source = np.arange(n)[None, :, None]
         self._directions = np.full(self.farms, self.direction_deg)
+        self.direction = direction if direction is not None and direction.varies else None
+        if self.direction is not None:  # a moving direction: the geometry at every sample (plant_sim.farm.direction)
+            self._layout = layout
+            self._directions = self.direction.at(self.run_of_farm, 0)
+            s0 = downwind_distances(layout, self._directions)  # (farms, N)
+            self._advected = advected_distance(mast.vbar)  # (runs, samples) X of each run's mast series
+            self._lookup = self._lookup_times(0, plant.mast_distance_m + s0, None)
+            v0, ct0 = steady_winds(self.tables, self._directions, free0, params)
+            self.initial_power = np.interp(v0, winds, power) / (params.eta_gc * params.eta_dt)
+            self._ct[:] = ct0[:, :, None].astype(np.float32)
+            self._ct_filtered = ct0
+        self._mast_distance = plant.mast_distance_m
         self.turbine_wind = v0
         self.free_wind = free0
         self.turbulence_ratio: np.ndarray | None = None  # (farms, N) TI_t / TI_0; None: ambient everywhere
@@ -146,12 +167,20 @@ class TableWakes:
         nxt = j + 1
         runs = self.run_of_farm
         vbar = np.maximum(self.mast.vbar[runs, self.mast.offset + nxt], MIN_MEAN_WIND)  # (farms,)
-        delays = np.minimum(self.mast_distances[None, :] / vbar[:, None], HISTORY_S)  # d_t / v̄, eq. (3)
-        free = self.mast.at(np.broadcast_to(runs[:, None], delays.shape), nxt * FARM_DT_S - delays)
+        if self.direction is None:
+            delays = np.minimum(self.mast_distances[None, :] / vbar[:, None], HISTORY_S)  # d_t / v̄, eq. (3)
+            free = self.mast.at(np.broadcast_to(runs[:, None], delays.shape), nxt * FARM_DT_S - delays)
+            x = self._x[None, :, :]
+        else:  # along the direction of this sample (plant_sim.farm.direction)
+            self._directions = self.direction.at(runs, nxt)
+            s = downwind_distances(self._layout, self._directions)  # (farms, N)
+            self._lookup = self._lookup_times(nxt, self._mast_distance + s, self._lookup)
+            free = self.mast.at(np.broadcast_to(runs[:, None], s.shape), self._lookup)
+            x = np.maximum(s[:, None, :] - s[:, :, None], 0.0)  # (farms, N, N) x_ij
         if self.tables is None:
             self.free_wind, self.turbine_wind = free, free
             return
-        lag = np.rint(self._x[None, :, :] / (vbar[:, None, None] * FARM_DT_S)).astype(np.intp)
+        lag = np.rint(x / (vbar[:, None, None] * FARM_DT_S)).astype(np.intp)
         lag = np.clip(lag, 1, self._history - 1)  # the newest C_T is sample j's
         slot = (nxt - lag) % self._history  # (farms, N, N): when the wake now at j left i
         pair_thrust = self._ct[self._farm, self._source, slot]
@@ -159,6 +188,27 @@ class TableWakes:
         self.free_wind = free
         if self._added_turbulence:
             self._set_turbulence(turbulence)
+
+    def free_stream_series(self, samples: int) -> np.ndarray | None:
+        """The free stream (m/s) each turbine of each run sees at farm samples 0 … samples − 1, (runs, samples, N),
+        along the moving direction with the same lookup times as ``advance``; None when the direction is fixed."""
+        if self.direction is None:
+            return None
+        runs = self.mast.v.shape[0]
+        span = slice(self.direction.offset, self.direction.offset + samples)
+        d = self._mast_distance + downwind_distances(self._layout, self.direction.deg[:, span])  # (runs, samples, N)
+        x_now = self._advected[:, self.mast.offset : self.mast.offset + samples, None]
+        tau = np.stack([np.interp(x_now[r] - d[r], self._advected[r], self.mast.t) for r in range(runs)])
+        tau = np.maximum.accumulate(tau, axis=1)
+        return self.mast.at(np.broadcast_to(np.arange(runs)[:, None, None], tau.shape), tau)
+
+    def _lookup_times(self, j: int, distances: np.ndarray, previous: np.ndarray | None) -> np.ndarray:
+        """τ (farms, N) at farm sample j for points ``distances`` (farms, N) m from the mast (``lookup_times``)."""
+        out = np.empty_like(distances)
+        for f, r in enumerate(self.run_of_farm):
+            x = self._advected[r]
+            out[f] = lookup_times(x[self.mast.offset + j], distances[f], x, self.mast.t, None)
+        return out if previous is None else np.maximum(out, previous)
 
     def _set_turbulence(self, turbulence: np.ndarray) -> None:
         """Each turbine's turbulence intensity over the ambient, the factor on its own turbulence."""
@@ -171,7 +221,10 @@ class TableWakes:
         """
         distinct, which = np.unique(held, return_inverse=True)
         runs, _, n = free.shape
-        speed, _ = steady_winds(self.tables, self.direction_deg, free[:, distinct, :].reshape(-1, n), params)
+        direction: float | np.ndarray = self.direction_deg
+        if self.direction is not None:  # each run's direction at each update
+            direction = self.direction.deg[:runs, self.direction.offset + distinct].reshape(-1)
+        speed, _ = steady_winds(self.tables, direction, free[:, distinct, :].reshape(-1, n), params)
         winds, power, _ = rated_curve(params)
         total = np.interp(speed, winds, power).sum(axis=1).reshape(runs, len(distinct))
         return total[:, which.reshape(-1)]

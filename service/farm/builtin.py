@@ -20,7 +20,7 @@ from service.farm import accommodation, hold, power_loop
 from service.farm.analytic import AnalyticDetector
 from service.farm.dispatch import ACCOMMODATION_RULES, PITCH_RULES, Dispatch
 from service.farm.interfaces import FarmContext, FarmDiagnosis, FarmSample, empty_diagnosis
-from service.farm.paper import DIRECTION_SOURCES, PaperDetector
+from service.farm.paper import DIRECTION_SOURCES, RUNNING_CASE, PaperDetector
 from service.farm.power_loop import PIFarmController
 from service.plugins import FARM_CONTROLLERS, FARM_DETECTORS
 from wwcore.options import Bounds
@@ -40,6 +40,8 @@ class PaperOptions:
     direction_averaging_s: Annotated[float, Bounds(gt=0.0, le=3600.0, unit="s")] = 60.0
     # the rows are formed again when the direction estimate has moved this far from theirs
     regroup_deg: Annotated[float, Bounds(ge=0.0, le=45.0, unit="deg")] = 1.0
+    # eqs. (1)-(2) taken again on every block of 500 samples (false: the first block's case is kept)
+    running_case: bool = RUNNING_CASE
 
 
 @dataclass(frozen=True)

@@ -6,14 +6,19 @@ r"""The farm fault detector of seed 001 (Borchersen, Larsen & Stoustrup), as pub
    The direction comes, per farm, from (option ``direction_source``)
 
    * ``power``, eqs. (1)–(2), seed 001's 3 × 3 only: the first 500 farm samples, p = |mean(P_1 − P_4)|; case 1
-     (270°) if p ≤ 10 kW, else case 2 (315°). Nothing is tested before the case is known. The test knows these two
-     directions only: on the 3 × 3 in another wind it picks the nearer pattern, so such a farm needs ``vane``;
+     (270°) if p ≤ 10 kW, else case 2 (315°). Nothing is tested before the case is known. With option
+     ``running_case`` (default ``RUNNING_CASE``) the estimate runs: eq. (1) is taken again on every following block
+     of 500 samples (50 s), and the case changes when two consecutive blocks both give the other case, blocks
+     during which a fault was reported not counting (a faulty turbine 1 or 4 biases P_1 − P_4: debris alone is
+     3 % of its power). The test knows these two directions only: on the 3 × 3 in another wind it picks the nearer
+     pattern, so a farm whose wind leaves the two cases needs ``vane``;
    * ``vane``: the met mast's wind vane, a running circular mean of its readings (the mean of all so far, then
-     first order with ``direction_averaging_s``, default 60 s: σ ≈ 0.2° with the vane's 5°). Nothing is tested
+     first order with ``direction_averaging_s``, default 60 s: σ ≈ 0.2° with the vane's 5°, and a lag of
+     ``direction_averaging_s`` × the veer rate behind a steadily moving wind, 1.8° at 0.03°/s). Nothing is tested
      before 500 samples (as eq. (1) waits); the rows are formed again whenever the estimate has moved more than
      ``regroup_deg`` (default 1°, several times the estimate's noise: a layout's rows can change within a degree,
      Horns Rev 1's at 270.7°) from the direction they were formed for, the CUSUMs keeping their state (a
-     turbine's comparison changes, not its test);
+     turbine's comparison changes, not its test) and each row's eq. (3) delay following its new distance;
    * ``auto`` (the default): ``power`` on seed 001's 3 × 3, ``vane`` on any other layout.
 
    Options ``wind_case`` (1 or 2, the 3 × 3 only) and ``wind_direction_deg`` give the direction instead: diagnostics,
@@ -65,6 +70,7 @@ LOCKIN_TAU_S = 1.5  # s, low-pass of the 3P lock-in [PROPOSED]
 KAPPA_3P = 5.0e-3  # –, γ_ω/ω_g,max of eq. (11): mean fault-free 3P amplitude / ω_g (docs/farm.md) [PROPOSED]
 DIRECTION_AVERAGING_S = 60.0  # s, time constant of the vane's running circular mean [PROPOSED]
 REGROUP_DEG = 1.0  # deg the direction estimate moves before the rows are formed again [PROPOSED]
+RUNNING_CASE = True  # eqs. (1)–(2) taken again on every block of CASE_SAMPLES (module docstring) [PROPOSED]
 DIRECTION_SOURCES = ("auto", "power", "vane")  # option direction_source (module docstring)
 
 
@@ -119,7 +125,10 @@ class PaperDetector:
         self.given = direction is not None
         self.from_power = not self.given and source != "vane" and context.paper_grid  # eqs. (1)–(2)
         self.case = np.full(farms, int(case) if case is not None else 0)  # 3 × 3: 0 not yet estimated
-        self._p14 = np.zeros(farms)  # Σ (P_1 − P_4) over the first 500 samples
+        self._p14 = np.zeros(farms)  # Σ (P_1 − P_4) over the current block of 500 samples
+        self._running_case = bool(options.get("running_case", RUNNING_CASE))
+        self._block_quiet = np.ones(farms, dtype=bool)  # no fault reported during the current block
+        self._pending = np.zeros(farms, dtype=int)  # the case the last quiet block gave (0: none)
         self._samples = 0
         self._tau = float(options.get("direction_averaging_s", DIRECTION_AVERAGING_S))
         self._regroup = float(options.get("regroup_deg", REGROUP_DEG))
@@ -147,12 +156,19 @@ class PaperDetector:
         if self.given:
             return
         if self.from_power:
-            if self._samples < CASE_SAMPLES and (self.case == 0).any():
+            first = self.case == 0
+            if first.any() or self._running_case:
                 per = power.reshape(self.farms, self.per_farm)
                 self._p14 += per[:, 0] - per[:, 3]
-                if self._samples + 1 == CASE_SAMPLES:
+                self._block_quiet &= self.reported < 0  # a block with a fault reported does not count
+                if (self._samples + 1) % CASE_SAMPLES == 0:
                     p_wm = np.abs(self._p14 / CASE_SAMPLES)
-                    self.case = np.where(self.case == 0, np.where(p_wm <= CASE_THRESHOLD_W, 1, 2), self.case)
+                    block = np.where(p_wm <= CASE_THRESHOLD_W, 1, 2)  # eq. (2) on this block
+                    confirmed = self._block_quiet & (block == self._pending)  # two quiet blocks in a row agree
+                    self.case = np.where(first | confirmed, block, self.case)
+                    self._pending = np.where(self._block_quiet, block, 0)
+                    self._p14[:] = 0.0
+                    self._block_quiet[:] = True
                     self.direction = np.where(self.case == 1, SEED001_DIRECTIONS_DEG[1], SEED001_DIRECTIONS_DEG[2])
             return
         if sample.mast_direction is None:

@@ -114,10 +114,14 @@ def farm_geometry(scenario: Scenario) -> dict[str, Any]:
     """The farm the scorecard is of: the paper's wind case on its 3 × 3; for a layout or a direction, the number of
     turbines, the layout's source and the wind direction instead (the wind case says nothing there)."""
     plant = scenario.plant
-    if plant.layout is None and plant.wind_direction_deg is None:
+    if plant.layout is None and plant.wind_direction_deg is None and plant.wind_direction_profile is None:
         return {"wind_case": plant.wind_case}
     layout = plant.resolved_layout()
-    return {"turbines": layout.n_turbines, "layout": layout.source, "wind_direction_deg": plant.direction_deg}
+    out = {"turbines": layout.n_turbines, "layout": layout.source, "wind_direction_deg": plant.direction_deg}
+    if plant.direction_varies:  # the direction at t = 0, and how it moves
+        lo, hi = plant.direction_sector_deg()
+        out |= {"wind_direction_range_deg": [lo, hi], "veer_sigma_deg": plant.veer_sigma_deg}
+    return out
 
 
 def energy_metrics(over_j: np.ndarray, missing_j: np.ndarray, demand_j: np.ndarray) -> dict[str, Any]:

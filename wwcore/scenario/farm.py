@@ -11,7 +11,9 @@ of the front row, on the wind axis, in both cases.
 
 ``wake_model`` picks the wakes: ``rows`` (the paper's row model, the default) or FLORIS's ``gauss`` / ``jensen``
 (``plant_sim.farm.wakes``). With a FLORIS model the farm may also have any ``layout`` (``wwcore.layout``: a grid,
-coordinates or a shipped file, 1 to 250 turbines) and any constant ``wind_direction_deg``. The supervisor
+coordinates or a shipped file, 1 to 250 turbines) and any constant ``wind_direction_deg``, or a direction that
+moves: ``wind_direction_profile`` plus a slow random veer (``veer_sigma_deg``, ``veer_time_s``;
+``plant_sim.farm.direction``). The supervisor
 (``service.farm``) learns the layout from ``site()`` (turbine numbers and positions) and handles any of them.
 
 The scenario's top-level ``[wind]`` section describes the free stream at the mast (mean profile) and each
@@ -44,11 +46,12 @@ import math
 from typing import Literal
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field, model_validator
+from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 
 from wwcore.layout import SEED001_DIRECTIONS_DEG, FarmLayout, LayoutSpec
 from wwcore.scenario.faults import FaultKind, FaultSpec
 from wwcore.scenario.turbine import NoiseConvention, check_turbine_fault, sensor_sigma
+from wwcore.scenario.wind import check_direction_points, direction_at, unwrap_direction_points
 from wwcore.site import SiteInfo
 from wwcore.turbine_params import BENCHMARK
 
@@ -58,6 +61,7 @@ ROTOR_DIAMETER_M = 115.0  # m, 2R of the benchmark turbine (PARAMETERS.md a.1)
 FARM_DT_S = 0.1  # s, sample time of the farm controller, farm FDI and met mast [PAPER] Section 2 (10 Hz)
 TURBINE_RATED_MW = 4.8  # MW, rated power of one farm turbine (PARAMETERS.md a.1)
 ROW_TOLERANCE_D = 0.5  # D, turbines of a layout within this distance along the wind form one row
+VEER_BOUND_SIGMA = 4.0  # the random veer is held within ± this many σ (the wake tables cover the bound)
 WakeModel = Literal["rows", "gauss", "jensen"]
 
 FARM_FAULT_NAMES: dict[FaultKind, str] = {
@@ -164,6 +168,22 @@ class FarmPlant(BaseModel):
         description="deg clockwise from north, where the wind comes from; None: the wind case's on the 3 × 3 "
         "(1: 270, 2: 315)",
     )
+    wind_direction_profile: list[tuple[float, float]] | None = Field(
+        default=None,
+        description="[(t in s, deg clockwise from north)]: the wind direction piecewise linear through these points, "
+        "each joined to the previous along the shorter arc (350 then 10 is a veer of +20 deg), held before the first "
+        "and after the last; None: the constant wind_direction_deg (or the wind case's). FLORIS wakes only",
+    )
+    veer_sigma_deg: float = Field(
+        default=0.0,
+        ge=0.0,
+        le=20.0,
+        description="deg, stationary σ of the slow random veer about the direction (first-order Gauss–Markov, "
+        "bounded at ±4 σ; plant_sim.farm.direction); 0: none. FLORIS wakes only [PROPOSED]",
+    )
+    veer_time_s: float = Field(
+        default=600.0, ge=10.0, le=7200.0, description="s, correlation time of the random veer [PROPOSED]"
+    )
     noise_convention: NoiseConvention = Field(
         default="sigma", description="read the benchmark's sensor noise numbers as σ (papers) or as variances"
     )
@@ -174,8 +194,29 @@ class FarmPlant(BaseModel):
     )
     demand: FarmDemand = Field(default_factory=FarmDemand)
 
+    @field_validator("wind_direction_profile")
+    @classmethod
+    def _check_direction_profile(cls, points: list[tuple[float, float]] | None) -> list[tuple[float, float]] | None:
+        if points is not None:
+            check_direction_points(points)
+        return points
+
     @model_validator(mode="after")
     def _geometry(self) -> FarmPlant:
+        moving = self.wind_direction_profile is not None or self.veer_sigma_deg > 0.0
+        if self.wake_model == "rows" and moving:
+            field = "wind_direction_profile" if self.wind_direction_profile is not None else "veer_sigma_deg"
+            raise ValueError(
+                f"{field}: the row model (wake_model 'rows') knows the paper's two fixed wind cases only; a moving "
+                "wind direction needs wake_model 'gauss' or 'jensen'"
+            )
+        if self.wind_direction_profile is not None and self.wind_direction_deg is not None:
+            raise ValueError("wind_direction_profile: give the constant wind_direction_deg or a profile, not both")
+        if self.veer_sigma_deg > 0.0 and self.wind_direction_deg is None and self.wind_direction_profile is None:
+            raise ValueError(
+                "veer_sigma_deg: the random veer moves about a direction of the scenario's own: give "
+                "wind_direction_deg or wind_direction_profile (the wind cases are the paper's fixed directions)"
+            )
         if self.wake_model == "rows" and self.layout is not None:
             raise ValueError(
                 "layout: the row model (wake_model 'rows') is the paper's, for its 3 × 3 grid; "
@@ -192,8 +233,11 @@ class FarmPlant(BaseModel):
                 "wind_direction_deg: the row model (wake_model 'rows') knows the paper's two wind cases only; "
                 "set wind_case, or choose wake_model 'gauss' or 'jensen'"
             )
-        if self.layout is not None and self.wind_direction_deg is None:
-            raise ValueError("wind_direction_deg: a farm with a layout needs the wind direction (deg from north)")
+        if self.layout is not None and self.wind_direction_deg is None and self.wind_direction_profile is None:
+            raise ValueError(
+                "wind_direction_deg: a farm with a layout needs the wind direction (deg from north, or a "
+                "wind_direction_profile)"
+            )
         if self.layout is not None and self.spacing_m != type(self).model_fields["spacing_m"].default:
             raise ValueError("spacing_m: the layout gives the positions; spacing_m is the paper's 3 × 3 spacing")
         n = self.n_turbines  # resolves the layout (overlapping turbines, empty layouts are refused there)
@@ -236,8 +280,35 @@ class FarmPlant(BaseModel):
     # -- geometry ---------------------------------------------------------------------------------------------
     @property
     def direction_deg(self) -> float:
-        """Where the wind comes from, deg clockwise from north (wind case 1: 270, case 2: 315 on the 3 × 3)."""
+        """Where the wind comes from at t = 0 (before any random veer), deg clockwise from north, 0 … <360 (wind
+        case 1: 270, case 2: 315 on the 3 × 3); the geometry below (rows, distances) is for this direction."""
+        if self.wind_direction_profile is not None:
+            return float(direction_at(self.wind_direction_profile, 0.0)) % 360.0
         return SEED001_DIRECTIONS_DEG[self.wind_case] if self.wind_direction_deg is None else self.wind_direction_deg
+
+    @property
+    def direction_varies(self) -> bool:
+        """Whether the wind direction moves during a run (a profile through distinct directions, or random veer)."""
+        if self.veer_sigma_deg > 0.0:
+            return True
+        points = self.wind_direction_profile
+        return points is not None and bool(np.ptp(unwrap_direction_points(points)[1]) > 0.0)
+
+    def direction_profile_deg(self, t: np.ndarray | float) -> np.ndarray:
+        """The direction profile (deg, unwrapped: continuous, may leave 0 … 360) at times ``t``, without the veer."""
+        if self.wind_direction_profile is None:
+            return np.full(np.shape(t), self.direction_deg)
+        return direction_at(self.wind_direction_profile, t)
+
+    def direction_sector_deg(self) -> tuple[float, float]:
+        """(lowest, highest) direction a run can reach, deg, unwrapped: the profile's range ± the veer's bound."""
+        if self.wind_direction_profile is None:
+            lo = hi = self.direction_deg
+        else:
+            degrees = unwrap_direction_points(self.wind_direction_profile)[1]
+            lo, hi = float(degrees.min()), float(degrees.max())
+        bound = VEER_BOUND_SIGMA * self.veer_sigma_deg
+        return lo - bound, hi + bound
 
     def resolved_layout(self) -> FarmLayout:
         """The turbine positions in metres (east, north) for the benchmark rotor."""
@@ -246,9 +317,15 @@ class FarmPlant(BaseModel):
             return FarmLayout(xy[:, 0], -xy[:, 1], ROTOR_DIAMETER_M, source="3x3 grid")
         return self.layout.resolve(ROTOR_DIAMETER_M)
 
+    def _own_geometry(self) -> bool:
+        """Whether the farm is placed by a layout or a direction of its own (not the paper's wind-case geometry)."""
+        return self.layout is not None or self.wind_direction_deg is not None or self.wind_direction_profile is not None
+
     def is_paper_farm(self) -> bool:
         """Whether this is seed 001's farm (3 × 3 at spacing_m, wind along a wind case) that the supervisor knows."""
-        if self.layout is None and self.wind_direction_deg is None:
+        if self.direction_varies:
+            return False
+        if self.layout is None and self.wind_direction_deg is None and self.wind_direction_profile is None:
             return True
         mine = self.resolved_layout()
         paper = FarmPlant(spacing_m=self.spacing_m).resolved_layout()
@@ -266,7 +343,7 @@ class FarmPlant(BaseModel):
 
     def along_wind_m(self, turbine: int) -> float:
         """Distance in m of a turbine from the front row, along the wind (case 1: x; case 2: (x + y)/√2)."""
-        if self.layout is not None or self.wind_direction_deg is not None:
+        if self._own_geometry():
             return float(self.downwind_m()[turbine - 1])
         x, y = self.position(turbine)
         return x if self.wind_case == 1 else (x + y) / math.sqrt(2.0)
@@ -278,7 +355,7 @@ class FarmPlant(BaseModel):
     def rows(self) -> list[tuple[int, ...]]:
         """Turbine numbers grouped by distance along the wind, front to back (the paper's rows on its 3 × 3; for a
         layout or another direction, within ``ROW_TOLERANCE_D`` rotor diameters)."""
-        if self.layout is not None or self.wind_direction_deg is not None:
+        if self._own_geometry():
             groups = self.resolved_layout().groups_along_wind(self.direction_deg, ROW_TOLERANCE_D * ROTOR_DIAMETER_M)
             return [tuple(i + 1 for i in g) for g in groups]
         by_distance: dict[float, list[int]] = {}
@@ -296,7 +373,7 @@ class FarmPlant(BaseModel):
 
     def row_distances_m(self) -> list[float]:
         """Distance in m of each row from the front row, along the wind."""
-        if self.layout is not None or self.wind_direction_deg is not None:
+        if self._own_geometry():
             s = self.downwind_m()
             return [float(s[members[0] - 1]) for members in self.rows()]
         return [self.along_wind_m(members[0]) for members in self.rows()]

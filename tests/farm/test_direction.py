@@ -1,0 +1,317 @@
+"""A wind direction that moves (plant_sim.farm.direction): the profile, the random veer, the travel geometry along
+the actual direction, the wake tables' sector, the vane, bad input, and constant directions unchanged bit for bit.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import math
+
+import numpy as np
+import pytest
+from pydantic import ValidationError
+
+from plant_sim.farm import FarmBatch
+from plant_sim.farm.direction import (
+    DirectionSeries,
+    advected_distance,
+    downwind_distances,
+    gauss_markov,
+    lookup_times,
+)
+from plant_sim.farm.floris_wakes import floris_model
+from plant_sim.farm.plant import row_streams, vane_stream, veer_stream
+from plant_sim.farm.wakes import plant_wake_tables
+from windwarden.evaluation.farm_scoring import farm_geometry
+from wwcore.scenario.farm import VEER_BOUND_SIGMA, FarmDemand, FarmPlant
+from wwcore.scenario.loader import ScenarioError, load_scenario, parse_scenario
+from wwcore.scenario.wind import WindSpec, direction_at, unwrap_direction_points
+from wwcore.turbine_params import BENCHMARK
+
+DEMAND = FarmDemand(mode="available_fraction", fraction=0.8, update_s=10.0)
+FINGERPRINTS = {
+    "gauss283": "266d5180d10edaaca83ee7e544a207689567a583e408ddf723557df67675c721",
+    "rows2": "14e687c132e05dd02073cf279b13d3851bcdd74e1c5f9da0788e69926ee9e9b4",
+}
+"""SHA-256 of ``fingerprint()`` on the code before the direction could move (main at 201829a)."""
+
+
+@pytest.fixture(scope="module")
+def cache(tmp_path_factory):
+    return tmp_path_factory.mktemp("wake-tables")
+
+
+def moving(points, sigma: float = 0.0, time_s: float = 300.0, **kw) -> FarmPlant:
+    kw.setdefault("demand", DEMAND)
+    kw.setdefault("coherent_ti", 0.0)
+    return FarmPlant(wake_model="gauss", wind_direction_profile=points, veer_sigma_deg=sigma, veer_time_s=time_s, **kw)
+
+
+# ---- the profile ----------------------------------------------------------------------------------------------
+def test_the_profile_is_linear_on_unwrapped_angles_along_the_shorter_arc():
+    points = [(10.0, 350.0), (110.0, 10.0), (210.0, 30.0), (310.0, 300.0)]
+    times, degrees = unwrap_direction_points(points)
+    assert list(times) == [10.0, 110.0, 210.0, 310.0]
+    assert list(degrees) == [350.0, 370.0, 390.0, 300.0]  # +20, +20, then −90 the short way (30 → 300)
+    got = direction_at(points, [0.0, 10.0, 60.0, 110.0, 160.0, 260.0, 1000.0])
+    np.testing.assert_allclose(got, [350.0, 350.0, 360.0, 370.0, 380.0, 345.0, 300.0])
+    assert direction_at([(0.0, 5.0), (100.0, 355.0)], 100.0) == pytest.approx(-5.0)  # backing through north
+    plant = moving(points)
+    assert plant.direction_deg == 350.0 and plant.direction_varies
+    assert plant.direction_sector_deg() == (300.0, 390.0)
+    assert not moving([(0.0, 283.0)]).direction_varies  # one point: a constant direction
+
+
+def test_the_wake_tables_cover_the_profile_and_the_veer_bound(cache):
+    plant = moving([(0.0, 350.0), (100.0, 20.0)], sigma=2.0)
+    lo, hi = plant.direction_sector_deg()
+    assert (lo, hi) == (350.0 - VEER_BOUND_SIGMA * 2.0, 20.0 + 360.0 + VEER_BOUND_SIGMA * 2.0)
+    tables = plant_wake_tables(plant, WindSpec(), BENCHMARK, cache)
+    k = np.arange(tables.n_directions) * tables.direction_step_deg
+    step = tables.direction_step_deg  # WakeSettings.covered keeps one table step either side
+    inside = ((k - (lo - 5.0 - step)) % 360.0) <= (hi - lo + 10.0 + 2.0 * step)
+    assert np.all(tables.covered[inside]) and not tables.covered[~inside].any()
+
+
+# ---- the random veer --------------------------------------------------------------------------------------------
+def test_the_gauss_markov_veer_has_its_stationary_sigma_and_correlation_time():
+    """10⁶ samples at 0.1 s, T = 30 s (3300 correlation times): σ within 3 %, ρ(T) = e⁻¹ within 0.03, and the
+    correlation time fitted from the lag-one correlation within 5 %."""
+    dt, tau = 0.1, 30.0
+    z = gauss_markov(np.random.default_rng(2024), 1_000_000, dt, tau)
+    assert np.std(z) == pytest.approx(1.0, rel=0.03)
+    lag = round(tau / dt)
+    rho = np.dot(z[:-lag], z[lag:]) / np.dot(z, z)
+    assert rho == pytest.approx(math.exp(-1.0), abs=0.03)
+    phi = np.dot(z[:-1], z[1:]) / np.dot(z[:-1], z[:-1])
+    assert -dt / math.log(phi) == pytest.approx(tau, rel=0.05)
+
+
+def test_the_veer_is_bounded_and_has_its_own_stream():
+    plant = moving([(0.0, 270.0)], sigma=3.0, time_s=20.0)
+    rngs = [veer_stream(11, r) for r in range(4)]
+    series = DirectionSeries(plant, rngs, 4, 3000.0)
+    veer = series.deg - 270.0
+    assert np.abs(veer).max() <= VEER_BOUND_SIGMA * 3.0 + 1e-12
+    assert np.std(veer) == pytest.approx(3.0, rel=0.15)
+    # its stream is none of the mast's, the vane's or a turbine's
+    draws = {
+        "veer": veer_stream(11, 0).standard_normal(4),
+        "vane": vane_stream(11, 0).standard_normal(4),
+        "mast": row_streams(11, 0, 0)[0].standard_normal(4),
+        "mast noise": row_streams(11, 0, 0)[1].standard_normal(4),
+    }
+    values = [tuple(v) for v in draws.values()]
+    assert len(set(values)) == len(values)
+
+
+def test_switching_the_veer_on_changes_no_other_stream(cache):
+    still, veering = moving([(0.0, 283.0)]), moving([(0.0, 283.0)], sigma=2.0)
+    plants = [
+        FarmBatch(p, WindSpec(mean=[(0.0, 9.0)]), [], seed=5, duration_s=5.0, runs=(0, 3), wake_cache_dir=cache)
+        for p in (still, veering)
+    ]
+    np.testing.assert_array_equal(plants[0].mast.v, plants[1].mast.v)
+    vanes = []
+    for plant in plants:
+        readings = []
+        for _ in range(round(5.0 / plant.dt)):
+            frame = plant.measure()
+            plant.control(None)
+            plant.advance()
+            if frame.sample:
+                readings.append(frame.mast_direction)
+        vanes.append(np.array(readings))
+    j = np.arange(1, len(vanes[0]) + 1)
+    veer = plants[1].direction.deg[:, plants[1].direction.offset + j].T - 283.0  # (samples, runs)
+    np.testing.assert_allclose((vanes[1] - vanes[0] + 180.0) % 360.0 - 180.0, veer, atol=1e-9)  # same noise
+    assert np.abs(veer).max() > 0.0
+
+
+# ---- constant directions are unchanged --------------------------------------------------------------------------
+def fingerprint(plant_spec: FarmPlant, cache, seconds: float = 20.0) -> str:
+    wind = WindSpec(mean=[(0.0, 9.0), (20.0, 11.0)], turbulence_intensity=0.1)
+    plant = FarmBatch(plant_spec, wind, [], seed=41, duration_s=seconds, runs=(0, 1), wake_cache_dir=cache)
+    h = hashlib.sha256()
+    for _ in range(round(seconds / plant.dt)):
+        frame = plant.measure()
+        plant.control(None)
+        plant.advance()
+        h.update(plant.turbines.x.tobytes())
+        h.update(np.asarray(frame.mast_direction).tobytes())
+        h.update(np.asarray(frame.demand).tobytes())
+        h.update(plant.truth()["row_wind"].tobytes())
+    return h.hexdigest()
+
+
+def test_a_constant_direction_is_bit_identical_to_the_fixed_direction_code(cache):
+    assert (
+        fingerprint(FarmPlant(wake_model="gauss", wind_direction_deg=283.0, demand=DEMAND), cache)
+        == (FINGERPRINTS["gauss283"])
+    )
+    assert fingerprint(FarmPlant(wind_case=2, demand=DEMAND), cache) == FINGERPRINTS["rows2"]
+    # a one-point profile is that constant direction
+    assert fingerprint(moving([(0.0, 283.0)], coherent_ti=0.05), cache) == FINGERPRINTS["gauss283"]
+
+
+# ---- the geometry along the actual direction ----------------------------------------------------------------------
+def test_delays_are_the_projected_distances_over_the_mean_wind(cache):
+    """On a slowly moving direction, each turbine's free stream is the mast's at t − (d_mast + s_t(θ))/v̄, s_t the
+    turbine's position projected on the flow (−sin θ, −cos θ) from the most upwind turbine's."""
+    plant_spec = moving([(0.0, 300.0), (1000.0, 310.0)])
+    plant = FarmBatch(plant_spec, WindSpec(mean=[(0.0, 8.0)]), [], seed=2, duration_s=5.0, wake_cache_dir=cache)
+    for _ in range(round(3.0 / plant.dt)):
+        plant.measure()
+        plant.control(None)
+        plant.advance()
+    j = plant.field.sample_index
+    theta = plant.direction.at(np.array([0]), j)[0]
+    assert theta == pytest.approx(300.0 + 10.0 * j * 0.1 / 1000.0)
+    layout = plant_spec.resolved_layout()
+    flow = np.array([-math.sin(math.radians(theta)), -math.cos(math.radians(theta))])
+    s = layout.x * flow[0] + layout.y * flow[1]
+    s -= s.min()
+    np.testing.assert_allclose(downwind_distances(layout, theta), s, atol=1e-9)
+    vbar = plant.mast.vbar[0, plant.mast.offset + j]
+    assert np.ptp(plant.mast.vbar) < 1e-9  # a steady mean wind: the advected lookup is t − d/v̄
+    expected = j * 0.1 - (plant_spec.mast_distance_m + s) / vbar
+    np.testing.assert_allclose(plant.wakes._lookup[0], expected, atol=1e-6)
+    np.testing.assert_allclose(plant.wakes.free_wind[0], plant.mast.at(np.zeros(9, dtype=int), expected), atol=1e-9)
+
+
+def test_the_lookup_time_never_runs_backwards():
+    """v̄ = 10 m/s; a turbine 0, 5, 20, 5, 0 m from the mast at t = 0 … 4 s: the advected lookup is t − d/v̄ = 0, 0.5,
+    0 (swung away faster than the wind), 2.5, 4; the turbine holds 0.5 instead of going back."""
+    times = np.arange(-100, 100) * 0.1
+    advected = advected_distance(np.full(len(times), 10.0))
+    np.testing.assert_allclose(advected, 10.0 * (times - times[0]))
+    d = [0.0, 5.0, 20.0, 5.0, 0.0]
+    tau, previous = [], None
+    for k in range(5):
+        x_now = advected[100 + 10 * k]  # t = k s
+        previous = lookup_times(x_now, np.array([d[k]]), advected, times, previous)
+        tau.append(float(previous[0]))
+    assert tau == pytest.approx([0.0, 0.5, 0.5, 2.5, 4.0])
+
+
+def test_the_advected_lookup_carries_the_field_at_the_mean_wind():
+    """A gusting v̄: for a fixed distance the lookup only moves forward, and the field it finds was carried exactly
+    d by the mean wind since (∫ v̄ dt from τ to t = d), which eq. (3)'s t − d/v̄(t) is not."""
+    rng = np.random.default_rng(3)
+    times = np.arange(4000) * 0.1 - 200.0
+    vbar = 9.0 + np.cumsum(rng.normal(0.0, 0.05, len(times)))
+    advected = advected_distance(vbar)
+    tau = np.array([lookup_times(advected[k], np.array([1500.0]), advected, times, None)[0] for k in range(2500, 4000)])
+    assert np.all(np.diff(tau) > 0.0)
+    carried = advected[2500:4000] - np.interp(tau, times, advected)
+    np.testing.assert_allclose(carried, 1500.0, atol=1e-6)
+
+
+@pytest.mark.parametrize("direction", [271.5, 313.25])
+def test_steady_winds_between_table_directions_equal_floris(cache, direction):
+    """t = 0 is the steady state at the run's own direction, between the tables' 1° steps: FLORIS's within 0.1 m/s
+    (the existing fixed-direction test asks 0.05 on table directions; the rest is the tables' linear
+    interpolation in θ)."""
+    plant_spec = moving([(0.0, direction), (600.0, direction + 5.0)])
+    for speed in (8.0, 11.0):
+        plant = FarmBatch(
+            plant_spec, WindSpec(mean=[(0.0, speed)], turbulence_intensity=0.10), [], seed=1, duration_s=1.0,
+            wake_cache_dir=cache,
+        )  # fmt: skip
+        fm = floris_model(plant_spec.resolved_layout(), "gauss", BENCHMARK, [direction], [speed], 0.10)
+        fm.run()
+        ref = fm.turbine_average_velocities[0]
+        assert ref.min() < speed - 0.5  # waked
+        assert np.abs(plant.field.turbine_wind[0] - ref).max() < 0.1
+
+
+# ---- bad input ----------------------------------------------------------------------------------------------------
+BASE = {
+    "name": "veer-check",
+    "duration_s": 10.0,
+    "plant": {"kind": "farm", "wake_model": "gauss", "wind_direction_profile": [[0.0, 270.0], [5.0, 280.0]]},
+}
+
+
+@pytest.mark.parametrize(
+    ("change", "field", "words"),
+    [
+        ({"wind_direction_profile": []}, "plant.wind_direction_profile", "at least one"),
+        ({"wind_direction_profile": [[0.0, 360.0]]}, "plant.wind_direction_profile", "outside 0"),
+        ({"wind_direction_profile": [[5.0, 270.0], [5.0, 280.0]]}, "plant.wind_direction_profile", "increase"),
+        ({"wind_direction_profile": [[-1.0, 270.0]]}, "plant.wind_direction_profile", "≥ 0"),
+        ({"wind_direction_profile": [[0.0, 10.0], [9.0, 190.0]]}, "plant.wind_direction_profile", "ambiguous"),
+        ({"wind_direction_deg": 270.0}, "wind_direction_profile", "not both"),
+        ({"wake_model": "rows"}, "wind_direction_profile", "row model"),
+        ({"veer_sigma_deg": 25.0}, "plant.veer_sigma_deg", "less than or equal"),
+        ({"veer_sigma_deg": -1.0}, "plant.veer_sigma_deg", "greater than or equal"),
+        ({"veer_time_s": 1.0}, "plant.veer_time_s", "greater than or equal"),
+        ({"wind_direction_profile": None, "veer_sigma_deg": 2.0}, "veer_sigma_deg", "wind_direction_deg"),
+    ],
+)
+def test_bad_direction_settings_are_refused_with_a_clear_message(change, field, words):
+    raw = {**BASE, "plant": {**BASE["plant"], **change}}
+    raw["plant"] = {k: v for k, v in raw["plant"].items() if v is not None}
+    before = repr(raw)
+    with pytest.raises(ScenarioError) as err:
+        parse_scenario(raw)
+    assert field in str(err.value) and words in str(err.value)
+    assert repr(raw) == before  # nothing changed
+    with pytest.raises(ValidationError):
+        FarmPlant(**raw["plant"])
+
+
+def test_the_shipped_veer_scenario_reads_and_moves():
+    scenario = load_scenario("farm-3x3-veer")
+    plant = scenario.plant
+    assert plant.direction_varies and plant.direction_deg == 270.0
+    assert plant.direction_profile_deg(1200.0) == pytest.approx(300.0)
+    assert not plant.is_paper_farm()
+
+
+def test_the_demand_reads_the_free_streams_the_turbines_see(cache):
+    """The delta-control demand's free streams (``free_stream_series``) are the plant's, sample for sample, under a
+    veering, gusting wind."""
+    plant_spec = moving([(0.0, 280.0), (30.0, 292.0)], sigma=3.0, time_s=20.0, coherent_ti=0.08)
+    plant = FarmBatch(plant_spec, WindSpec(mean=[(0.0, 9.0)]), [], seed=8, duration_s=4.0, runs=(0, 2),
+                      wake_cache_dir=cache)  # fmt: skip
+    series = plant.wakes.free_stream_series(41)  # (runs, samples, N)
+    for k in range(round(4.0 / plant.dt)):
+        plant.measure()
+        plant.control(None)
+        plant.advance()
+        if (k + 1) % plant.ticks_per_sample == 0:
+            j = plant.field.sample_index
+            np.testing.assert_allclose(plant.wakes.free_wind, series[:, j], rtol=0, atol=1e-12)
+
+
+def test_a_moving_direction_reads_back_and_the_scorecard_names_it():
+    plant = load_scenario("farm-3x3-veer").plant
+    again = FarmPlant.model_validate(plant.model_dump())  # the live adapter's round trip
+    assert again == plant and again.direction_sector_deg() == plant.direction_sector_deg()
+    geometry = farm_geometry(load_scenario("farm-3x3-veer"))
+    assert geometry["wind_direction_deg"] == 270.0 and geometry["veer_sigma_deg"] == 2.0
+    assert geometry["wind_direction_range_deg"] == [270.0 - 8.0, 300.0 + 8.0]
+    assert "wind_direction_range_deg" not in farm_geometry(load_scenario("farm-hornsrev1"))
+
+
+@pytest.mark.slow
+def test_running_plant_between_table_directions_equals_floris(cache):
+    """The running 3 × 3 at 9 m/s, TI 0.03 (as ``test_farm_wakes``'s running test), the wind moving 0.1° over the
+    averaging window around 271.5° (between two table directions, the moving-direction code path): each turbine's
+    mean wind over the last 20 s equals FLORIS's at 271.5° within 0.1 m/s."""
+    spec = moving([(0.0, 271.4), (200.0, 271.4), (220.0, 271.6)], wake_added_turbulence=False)
+    wind = WindSpec(mean=[(0.0, 9.0)], turbulence_intensity=0.03)
+    plant = FarmBatch(spec, wind, [], seed=7, duration_s=220.0, wake_cache_dir=cache)
+    winds = []
+    for k in range(round(220.0 / plant.dt)):
+        frame = plant.measure()
+        plant.control(None)
+        if frame.sample and (k + 1) * plant.dt > 200.0:
+            winds.append(plant.truth()["row_wind"])
+        plant.advance()
+    fm = floris_model(spec.resolved_layout(), "gauss", BENCHMARK, [271.5], [9.0], 0.03)
+    fm.run()
+    ref = fm.turbine_average_velocities[0]
+    assert ref.min() < 8.0  # waked
+    assert np.abs(np.mean(winds, axis=0) - ref).max() < 0.1
