@@ -1,10 +1,12 @@
 """The farm map of the live dashboard: every turbine at its position, coloured by its state, and the wind.
 
 The plant logs what does not change during a run, once and static: the turbines' positions (east, north in m, drawn
-with north up), their labels ``T1 … Tn``, a disc of the rotor's radius each, and an arrow along the wind from the
-upwind edge of the farm. The supervisor logs only the colours, on the run's timeline and only when a turbine's
-state changes, so the map costs nothing while the farm is healthy. Rerun merges the two processes' components of
-the entity ``/farm/map/turbines`` into one picture.
+with north up), their labels ``T1 … Tn``, a disc of the rotor's radius each, and, where the scenario's direction is
+fixed, an arrow along the wind from the upwind edge of the farm. Where the direction moves (a profile or veer), the
+plant draws the arrow on the run's timeline from the met mast's vane (``WindArrow``: its readings' circular mean
+over ``VANE_AVERAGING_S``, drawn again when it has turned by ``REDRAW_DEG``). The supervisor logs only the
+colours, on the run's timeline and only when a turbine's state changes, so the map costs nothing while the farm is
+healthy. Rerun merges the two processes' components of the entity ``/farm/map/turbines`` into one picture.
 
 States, from a turbine's row of the farm supervisor's references (``wwcore.wire.FARM_REFS``):
 
@@ -36,6 +38,8 @@ STATE_COLOURS = np.array(
 )  # by index of STATES: green, red, orange, blue
 DERATED_MODES = (2, 3)
 WIND_COLOUR = (20, 20, 20, 255)
+VANE_AVERAGING_S = 60.0  # s, time constant of the vane's running circular mean (the paper detector's default)
+REDRAW_DEG = 2.0  # deg, the arrow is drawn again when the mean has turned this far
 
 
 @dataclass(frozen=True)
@@ -47,6 +51,7 @@ class FarmGeometry:
     north_m: np.ndarray
     rotor_diameter_m: float
     wind_from_deg: float
+    wind_moves: bool = False  # a direction profile or veer: the arrow follows the vane (``WindArrow``)
 
     def __post_init__(self) -> None:
         if len(self.east_m) != len(self.north_m) or len(self.east_m) == 0:
@@ -57,7 +62,8 @@ def geometry_of(plant: Any) -> FarmGeometry:
     """The map of a farm scenario's plant section (``wwcore.scenario.farm.FarmPlant``): its resolved layout and
     the wind direction."""
     layout = plant.resolved_layout()
-    return FarmGeometry(layout.x, layout.y, layout.rotor_diameter, plant.direction_deg)
+    moves = bool(getattr(plant, "direction_varies", False))
+    return FarmGeometry(layout.x, layout.y, layout.rotor_diameter, plant.direction_deg, moves)
 
 
 def screen_xy(east_m: np.ndarray, north_m: np.ndarray) -> np.ndarray:
@@ -93,19 +99,65 @@ def log_geometry(rec: rr.RecordingStream, geometry: FarmGeometry) -> None:
         ),
         static=True,  # no colours here: a static component would hide the supervisor's colours on the timeline
     )
+    if not geometry.wind_moves:
+        rec.log(WIND, _arrow(geometry), static=True)
+
+
+def _arrow(geometry: FarmGeometry) -> rr.Arrows2D:
     origin, vector = wind_arrow(geometry)
-    rec.log(
-        WIND,
-        rr.Arrows2D(
-            origins=[origin],
-            vectors=[vector],
-            colors=[WIND_COLOUR],
-            radii=geometry.rotor_diameter_m / 8.0,
-            labels=[f"wind from {geometry.wind_from_deg % 360:g}°"],
-            show_labels=True,
-        ),
-        static=True,
+    return rr.Arrows2D(
+        origins=[origin],
+        vectors=[vector],
+        colors=[WIND_COLOUR],
+        radii=geometry.rotor_diameter_m / 8.0,
+        labels=[f"wind from {geometry.wind_from_deg % 360:.0f}°"],
+        show_labels=True,
     )
+
+
+class WindArrow:
+    """The plant's side where the direction moves: the vane's running circular mean, m_k = m_{k−1} + (Δt/T)
+    (u_k − m_{k−1}) on unit vectors u_k = (sin θ_k, cos θ_k) with T = ``VANE_AVERAGING_S``, and the arrow drawn at
+    its angle on the timeline when that has turned by ``REDRAW_DEG`` since the last drawing (and at the first
+    reading)."""
+
+    def __init__(self, geometry: FarmGeometry):
+        self.geometry = geometry
+        self.mean: np.ndarray | None = None
+        self.t: float | None = None
+        self.drawn_deg: float | None = None
+        self.draws = 0
+
+    def update(self, rec: rr.RecordingStream, timeline: str, t: float, vane_deg: float) -> bool:
+        """Take one vane reading (deg from north) at simulation time ``t`` (s); True if the arrow was drawn."""
+        if not math.isfinite(vane_deg):
+            return False
+        unit = np.array([math.sin(math.radians(vane_deg)), math.cos(math.radians(vane_deg))])
+        if self.mean is None or self.t is None:
+            self.mean = unit
+        else:
+            weight = min(max(t - self.t, 0.0) / VANE_AVERAGING_S, 1.0)
+            self.mean = self.mean + weight * (unit - self.mean)
+        self.t = t
+        angle = math.degrees(math.atan2(self.mean[0], self.mean[1])) % 360.0
+        if self.drawn_deg is not None and abs((angle - self.drawn_deg + 180.0) % 360.0 - 180.0) < REDRAW_DEG:
+            return False
+        self.drawn_deg = angle
+        self.draws += 1
+        origin, vector = wind_arrow(FarmGeometry(**{**self.geometry.__dict__, "wind_from_deg": angle}))
+        rec.send_columns(
+            WIND,
+            indexes=[rr.TimeColumn(timeline, duration=[t])],
+            columns=rr.Arrows2D.columns(
+                origins=[origin],
+                vectors=[vector],
+                colors=[WIND_COLOUR],
+                radii=[self.geometry.rotor_diameter_m / 8.0],
+                labels=[f"wind from {angle:.0f}° (vane, {VANE_AVERAGING_S:.0f}-s mean)"],
+                show_labels=[True],
+            ).partition([1]),
+        )
+        return True
 
 
 def turbine_states(turbine: np.ndarray, flags: np.ndarray, mode: np.ndarray, n_turbines: int) -> np.ndarray:

@@ -20,7 +20,7 @@ import numpy as np
 import rerun as rr
 
 from dashboards.blueprints import blueprint
-from dashboards.farm_map import MapColours, log_geometry
+from dashboards.farm_map import MapColours, WindArrow, log_geometry
 from dashboards.panels import PANELS
 from wwcore.events import Event, EventType
 
@@ -80,10 +80,14 @@ class LiveRecording:
         self._order: list[str] = []
         self._next = 0
         self.map_colours: MapColours | None = None
+        self.wind_arrow: WindArrow | None = None
         if role == "plant":
             self.rec.send_blueprint(blueprint(kind, self.turbines), make_active=True, make_default=True)
             if self.panel.site_map is not None and plant_section is not None:
-                log_geometry(self.rec, self.panel.site_map(plant_section))
+                geometry = self.panel.site_map(plant_section)
+                log_geometry(self.rec, geometry)
+                if geometry.wind_moves:
+                    self.wind_arrow = WindArrow(geometry)
         elif self.panel.site_map is not None:
             self.map_colours = MapColours(max(self.turbines))
 
@@ -138,6 +142,8 @@ class LiveRecording:
             self._rows(int(row["turbine"]), float(row["t"]), self.panel.plant(row, None if truth is None else truth[i]))
         if self.panel.farm_plant is not None and len(sensors):
             self._farm_rows(float(sensors[0]["t"]), self.panel.farm_plant(sensors, truth))
+        if self.wind_arrow is not None and len(sensors) and "mast_direction" in (sensors.dtype.names or ()):
+            self.wind_arrow.update(self.rec, TIMELINE, float(sensors[0]["t"]), float(sensors[0]["mast_direction"]))
 
     def supervisor_rows(self, sensors: np.ndarray, refs: np.ndarray, status: list[dict[str, Any]]) -> None:
         for i in range(len(refs)):

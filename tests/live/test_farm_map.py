@@ -114,3 +114,40 @@ def test_a_single_turbine_or_hydro_run_has_no_map(tmp_path):
         recording = LiveRecording(kind, "supervisor", "m", path=str(tmp_path / f"{kind}.rrd"))
         assert recording.map_colours is None
         recording.close()
+
+
+def test_a_moving_wind_is_drawn_from_the_vane_on_the_timeline(tmp_path):
+    scenario = load_scenario("farm-3x3-veer")
+    assert scenario.plant.direction_varies
+    plant = LiveRecording(
+        "farm", "plant", "veer", path=str(tmp_path / "p.rrd"), n_turbines=9, plant_section=scenario.plant
+    )
+    arrow = plant.wind_arrow
+    assert arrow is not None and arrow.geometry.wind_moves
+    frames = np.zeros(9, dtype=[("t", "<f8"), ("turbine", "<i8"), ("mast_direction", "<f8")])
+    rng = np.random.default_rng(4)
+    draws = []
+    for k in range(6000):  # 600 s at 10 Hz: 270° ± 5° vane noise for 300 s, then a turn to 290°
+        frames["t"] = 0.1 * k
+        frames["mast_direction"] = (270.0 if k < 3000 else 290.0) + 5.0 * rng.standard_normal()
+        if arrow.update(plant.rec, "time", 0.1 * k, float(frames["mast_direction"][0])):
+            draws.append((0.1 * k, arrow.drawn_deg))
+    plant.close()
+    assert draws[0][0] == 0.0  # drawn at the first reading
+    steady = [d for t, d in draws if 60.0 < t < 300.0]
+    assert len(steady) <= 2  # 5° noise on a 60-s mean does not redraw it (σ of the mean ≈ 0.3°)
+    assert abs(draws[-1][1] - 290.0) < 2.5 and len(draws) >= 5  # it follows the turn, in steps of ≥ 2°
+    assert "/farm/map/wind" in recording_entities(tmp_path / "p.rrd")
+
+
+def test_a_fixed_wind_has_no_moving_arrow(tmp_path):
+    plant = LiveRecording(
+        "farm",
+        "plant",
+        "m",
+        path=str(tmp_path / "p.rrd"),
+        n_turbines=9,
+        plant_section=load_scenario("farm-case1").plant,
+    )
+    assert plant.wind_arrow is None
+    plant.close()
