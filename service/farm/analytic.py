@@ -65,7 +65,7 @@ from functools import lru_cache
 import numpy as np
 from scipy.signal import cont2discrete
 
-from service.farm.baseline import LearntLevel, LearntRayleighScale
+from service.farm.baseline import LearntLevel, LearntRateGain, LearntRayleighScale
 from service.farm.cusum import PageCusum, llr_increment, threshold_for
 from service.farm.interfaces import (
     BETA,
@@ -93,6 +93,8 @@ SPREAD_TIME_S = 600.0  # s, time constant of the learnt spreads [PROPOSED]
 MAX_NOISE_SCALE = 3.0  # –, the largest sensor noise over the design σ learnt as health (the mismatch range's top)
 WARMUP_S = 30.0  # s, no decisions before this: filters settle, levels and spreads are learnt
 SUSPICION = 0.5  # –, a statistic above this share of its threshold stops its level and spread learning
+PITCH_LAG_TOLERANCE_S = 0.01  # s, lag left unexplained between one rotor's pitch actuators [PROPOSED]
+RATE_PRIOR = 100.0  # (deg/s)² samples: the pitch-rate gain is learnt once the blades have moved that much
 LOCKIN_SETTLE_S = 10.0  # s, the lock-in's high-pass settles (its time constant) before its scale is learnt
 SAMPLES_PER_1000S = round(1000.0 / FARM_DT_S)
 
@@ -162,6 +164,10 @@ class AnalyticDetector:
         self.level1 = LearntLevel((n,), **learnt)
         self.level2 = LearntLevel((n, 3), **learnt)
         self.scale3 = LearntRayleighScale(n, self.s3, spread_time_s=spread_s, max_ratio=max_ratio)
+        self.rate_gain = LearntRateGain((n, 3), time_s=level_s, prior=RATE_PRIOR)
+        self.lag_tolerance = float(options.get("pitch_lag_tolerance_s", PITCH_LAG_TOLERANCE_S))
+        self.last_pitch: np.ndarray | None = None
+        self.last_rate = np.zeros(n)
         self.cusum1 = PageCusum((n,), self.h1, self.h1)
         self.cusum2 = PageCusum((n, 6), self.h2, self.h2)
         self.lockin = LockIn3P(n, LOCKIN_TAU_S)
@@ -192,20 +198,27 @@ class AnalyticDetector:
         self.samples += 1
         self.residuals = np.column_stack([z1, np.abs(z2).max(axis=1), amplitude])
         warming = self.samples <= self.warmup
+        collective = blades.mean(axis=1)
+        rate = (collective - (collective if self.last_pitch is None else self.last_pitch)) / FARM_DT_S  # deg/s
+        self.last_pitch = collective
         if self.learn:  # learn before judging: a sample that raises a flag is not learnt (flags of the last sample)
             g1, g2 = self.cusum1.g, self.cusum2.g.max(axis=1)
             self.level1.update(z1, np.sqrt(var1), self.cusum1.flag | (g1 >= SUSPICION * self.h1))
-            frozen2 = self.cusum2.flag.any(axis=1) | (g2 >= SUSPICION * self.h2)
-            self.level2.update(z2, math.sqrt(self.var_2), frozen2[:, None])
+            frozen2 = (self.cusum2.flag.any(axis=1) | (g2 >= SUSPICION * self.h2))[:, None]
+            self.rate_gain.update(z2 - self.level2.level, rate[:, None], frozen2)
+            z2 = z2 - self.rate_gain.gain * rate[:, None]
+            self.level2.update(z2, math.sqrt(self.var_2), frozen2)
             settling = self.samples * FARM_DT_S <= LOCKIN_SETTLE_S
             self.scale3.update(amplitude, self.flag3 | (amplitude >= SUSPICION * self.h3_now) | settling)
             z1 = z1 - self.level1.level
             z2 = z2 - self.level2.level
             var1 = var1 * self.level1.ratio
-            var2 = self.var_2 * self.level2.ratio
+            fast = np.maximum(np.abs(rate), np.abs(self.last_rate))  # deg/s, this sample's and the last one's
+            var2 = self.var_2 * self.level2.ratio + ((self.lag_tolerance * fast) ** 2)[:, None]
             self.h3_now = rayleigh_threshold(self.scale3.scale, self.p3)
         else:
             var2 = np.full((n, 3), self.var_2)
+        self.last_rate = rate
         if warming:
             diagnosis = FarmDiagnosis(np.zeros((n, N_TYPES), dtype=bool), np.zeros((n, N_TYPES)), self._h(n))
             diagnosis.extra = {"amplitude_3p": amplitude}

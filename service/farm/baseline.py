@@ -120,3 +120,33 @@ class LearntRayleighScale:
         self.samples = self.samples + live
         w = np.where(live, np.maximum(1.0 / np.maximum(self.samples, 1.0), self.alpha), 0.0)
         self.mean_square = self.mean_square + w * (amplitude * amplitude / 8.0 - self.mean_square)
+
+
+class LearntRateGain:
+    r"""The gain k of a residual on a regressor x (a rate), r ≈ k x, by exponentially weighted least squares.
+
+    .. math::  S_{xx,k} = λ S_{xx,k-1} + x_k^2,\quad S_{xr,k} = λ S_{xr,k-1} + x_k r_k,\quad
+               \hat k = \frac{S_{xr}}{S_{xx} + P_0},\qquad λ = 1 - Δt/T
+
+    P_0 (``prior``, x² × samples) pulls k̂ towards 0 until the regressor has moved: k̂ is learnt only from samples
+    where x is large enough to show it. Frozen where ``frozen``. Used for the pitch residual's part that follows the
+    blades' rate through actuators of slightly different lag (``service.farm.analytic``): a constant
+    misalignment is uncorrelated with the rate, so it stays in the residual while the lag differences leave it.
+    """
+
+    def __init__(self, shape: tuple[int, ...], *, time_s: float, prior: float, dt: float = FARM_DT_S):
+        if time_s <= 0.0 or prior <= 0.0:
+            raise ValueError("the time constant and the prior weight must be > 0")
+        self.forget = 1.0 - dt / time_s
+        self.prior = prior
+        self.sxx = np.zeros(shape)
+        self.sxr = np.zeros(shape)
+
+    @property
+    def gain(self) -> np.ndarray:
+        return self.sxr / (self.sxx + self.prior)
+
+    def update(self, r: np.ndarray, x: np.ndarray, frozen: np.ndarray | bool = False) -> None:
+        live = ~np.broadcast_to(np.asarray(frozen, dtype=bool), self.sxx.shape)
+        self.sxx = np.where(live, self.forget * self.sxx + x * x, self.sxx)
+        self.sxr = np.where(live, self.forget * self.sxr + x * r, self.sxr)

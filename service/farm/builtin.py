@@ -54,6 +54,8 @@ class AnalyticOptions:
     spread_time_s: Annotated[float, Bounds(ge=10.0, le=86400.0, unit="s")] = analytic.SPREAD_TIME_S
     # the largest sensor noise, over the design σ, learnt as health (the spreads are bounded to [1, this²])
     max_noise_scale: Annotated[float, Bounds(ge=1.0, le=10.0)] = analytic.MAX_NOISE_SCALE
+    # lag between one rotor's pitch actuators left after the learnt rate gain: widens the pitch test by (this · β̇)²
+    pitch_lag_tolerance_s: Annotated[float, Bounds(ge=0.0, le=1.0, unit="s")] = analytic.PITCH_LAG_TOLERANCE_S
 
 
 @dataclass(frozen=True)
