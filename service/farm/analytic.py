@@ -47,14 +47,27 @@ The end of a fault is decided by the reverse CUSUM (faults 1, 2; same h) or by A
 No test runs during the first ``warmup_s`` (filters settling, levels learnt).
 
 **A plant that differs from the design model** (``learn_levels``, on by default; ``service.farm.baseline``). Each
-turbine's residuals are judged against its own healthy level and spread, learnt online from the first sample:
-z_1 and z_2 enter the CUSUMs as z − m (m the turbine's learnt level: a calibration bias of the power, torque or
-pitch sensors, or a within-tolerance misalignment it causes, is there from the start and is no fault; the paper's
-faults are onsets), with the variance ρ σ², ρ ∈ [1, ``max_noise_scale``²] the learnt ratio of the residual's
-long-run variance to the design's (sensors noisier than the data sheet). Fault 3's h_3 is computed per turbine from
-its learnt I/Q scale s ∈ [s_3, ``max_noise_scale`` s_3]. Levels learn with time constant ``level_time_s``, spreads
-with ``spread_time_s``; both are frozen while the turbine's flag of that type is up or its statistic (CUSUM g, or
-A) is above h/2. The thresholds h stay those of the budget: only the noise model under them is learnt.
+turbine's residuals are judged against its own healthy level and spread, learnt online from the first sample
+(``docs/farm.md`` §1.7 says what each mismatch does without this):
+
+* z_1 and z_2 enter the CUSUMs as z − m, m the turbine's learnt level (W; deg per blade). A calibration bias of
+  the power, torque or pitch sensors, or the within-tolerance misalignment a pitch bias causes through the
+  actuator's loop, is there from the start and stays; the paper's faults are onsets of their design size.
+* The pitch residual also follows the blades' rate where one rotor's actuators differ in lag τ = 2ζ/ω_n:
+  z_2,i ≈ −(τ_i − ½ Σ_{j≠i} τ_j) β̇ with β̇ (deg/s) the rate of the collective (blade-mean) pitch over one sample.
+  Its gain k_i (s) is learnt by least squares (``LearntRateGain``) and k_i β̇ taken out; what is left is covered
+  by widening the test's variance by (τ_u β̇_max)², τ_u = ``pitch_lag_tolerance_s`` (0.01 s) and β̇_max the larger
+  of the last two samples' |β̇|. In a demand step the blades move at up to 20–70 deg/s, where lags differing by
+  0.01 s (per-blade ω_n within ±0.5 rad/s) put 0.5–0.8 deg into z_2 for a second; a misalignment stays when the
+  blades stop.
+* The variance is ρ σ², ρ ∈ [1, ``max_noise_scale``²] the learnt ratio of the residual's long-run variance to the
+  design's (sensors noisier than the data sheet). Fault 3's h_3 is computed per turbine from its learnt I/Q scale
+  s ∈ [s_3, ``max_noise_scale`` s_3].
+* Levels and rate gains learn with time constant ``level_time_s``, spreads with ``spread_time_s``; all are frozen
+  while the turbine's flag of that type is up or its statistic (CUSUM g, or A) is above h/2, so a fault never
+  teaches the detector its own level. The thresholds h stay those of the budget: only the noise model under them
+  is learnt. The price: a fault present from the first sample, or one that grows over many minutes, is learnt as
+  the turbine's health (as a calibration bias of the same size would be).
 """
 
 from __future__ import annotations
