@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from service.farm.baseline import LearntLevel, LearntRayleighScale
+from service.farm.baseline import LearntLevel, LearntRateGain, LearntRayleighScale
 from service.farm.cusum import PageCusum, llr_increment, threshold_for
 from service.farm.signals import LockIn3P, lockin_iq_std
 
@@ -126,8 +126,30 @@ def test_the_rayleigh_scale_of_a_noise_only_lockin_converges_and_is_bounded():
     np.testing.assert_array_equal(quiet.scale, design)  # bounded below by the design
 
 
+def test_the_rate_gain_is_the_lag_difference_and_leaves_a_constant_offset_alone():
+    """r = k x + offset + noise with x a zero-mean rate: k̂ → k; the offset is uncorrelated with x and stays in
+    r − k̂ x; where x has not moved, the prior holds k̂ at 0."""
+    rng = np.random.default_rng(7)
+    gain = LearntRateGain((100,), time_s=600.0, prior=100.0)
+    still = LearntRateGain((100,), time_s=600.0, prior=100.0)
+    k = 0.012  # s: lags differing by 8 ms, in z_2's combination
+    for _ in range(3000):
+        x = 3.0 * rng.standard_normal(100)  # deg/s
+        gain.update(0.25 + k * x + 0.1 * rng.standard_normal(100), x)
+        still.update(0.25 + 0.1 * rng.standard_normal(100), np.zeros(100))
+    # least squares: standard error σ/√(Σx²) with Σx² ≈ 9 · 3000 (the forgetting spans 6000 samples)
+    assert gain.gain.mean() == pytest.approx(k, abs=3 * 0.1 / math.sqrt(9 * 3000 * 100))
+    assert np.std(gain.gain) < 3 * 0.1 / math.sqrt(9 * 3000)
+    np.testing.assert_array_equal(still.gain, 0.0)
+    frozen = gain.gain.copy()
+    gain.update(np.full(100, 5.0), np.full(100, 50.0), frozen=True)
+    np.testing.assert_array_equal(gain.gain, frozen)
+
+
 def test_bad_settings_are_refused():
     with pytest.raises(ValueError, match="max_ratio"):
         LearntLevel((1,), level_time_s=10.0, spread_time_s=10.0, max_ratio=0.5)
     with pytest.raises(ValueError, match="time constants"):
         LearntLevel((1,), level_time_s=0.0, spread_time_s=10.0, max_ratio=4.0)
+    with pytest.raises(ValueError, match="prior"):
+        LearntRateGain((1,), time_s=10.0, prior=0.0)
