@@ -44,7 +44,30 @@ by Δh over the CUSUM's drift per sample (ln(80/9) = 2.2 more for Horns Rev 1 th
 exceedance probability per sample is p_3 = B/(10⁴ · N), a bound on the crossing rate (h_3 = 2s √(2 ln 1/p_3),
 growing with √(ln N)).
 The end of a fault is decided by the reverse CUSUM (faults 1, 2; same h) or by A < h_3/2 for 3 s (fault 3).
-No test runs during the first ``warmup_s`` (filters settling).
+No test runs during the first ``warmup_s`` (filters settling, levels learnt).
+
+**A plant that differs from the design model** (``learn_levels``, on by default; ``service.farm.baseline``). Each
+turbine's residuals are judged against its own healthy level and spread, learnt online from the first sample
+(``docs/farm.md`` §1.7 says what each mismatch does without this):
+
+* z_1 and z_2 enter the CUSUMs as z − m, m the turbine's learnt level (W; deg per blade). A calibration bias of
+  the power, torque or pitch sensors, or the within-tolerance misalignment a pitch bias causes through the
+  actuator's loop, is there from the start and stays; the paper's faults are onsets of their design size.
+* The pitch residual also follows the blades' rate where one rotor's actuators differ in lag τ = 2ζ/ω_n:
+  z_2,i ≈ −(τ_i − ½ Σ_{j≠i} τ_j) β̇ with β̇ (deg/s) the rate of the collective (blade-mean) pitch over one sample.
+  Its gain k_i (s) is learnt by least squares (``LearntRateGain``) and k_i β̇ taken out; what is left is covered
+  by widening the test's variance by (τ_u β̇_max)², τ_u = ``pitch_lag_tolerance_s`` (0.01 s) and β̇_max the larger
+  of the last two samples' |β̇|. In a demand step the blades move at up to 20–70 deg/s, where lags differing by
+  0.01 s (per-blade ω_n within ±0.5 rad/s) put 0.5–0.8 deg into z_2 for a second; a misalignment stays when the
+  blades stop.
+* The variance is ρ σ², ρ ∈ [1, ``max_noise_scale``²] the learnt ratio of the residual's long-run variance to the
+  design's (sensors noisier than the data sheet). Fault 3's h_3 is computed per turbine from its learnt I/Q scale
+  s ∈ [s_3, ``max_noise_scale`` s_3].
+* Levels and rate gains learn with time constant ``level_time_s``, spreads with ``spread_time_s``; all are frozen
+  while the turbine's flag of that type is up or its statistic (CUSUM g, or A) is above h/2, so a fault never
+  teaches the detector its own level. The thresholds h stay those of the budget: only the noise model under them
+  is learnt. The price: a fault present from the first sample, or one that grows over many minutes, is learnt as
+  the turbine's health (as a calibration bias of the same size would be).
 """
 
 from __future__ import annotations
@@ -55,6 +78,7 @@ from functools import lru_cache
 import numpy as np
 from scipy.signal import cont2discrete
 
+from service.farm.baseline import LearntLevel, LearntRateGain, LearntRayleighScale
 from service.farm.cusum import PageCusum, llr_increment, threshold_for
 from service.farm.interfaces import (
     BETA,
@@ -77,6 +101,14 @@ MISALIGNMENT_DEG = 0.3  # design fault 2 (PARAMETERS.md b)
 LOCKIN_TAU_S = 1.5  # s, 3P lock-in low-pass
 RELEASE_S = 3.0  # s, fault 3 ends after A < h_3/2 for this long
 TESTS_PER_TURBINE = (1, 6, 1)
+LEVEL_TIME_S = 600.0  # s, time constant of the learnt levels after the learning period [PROPOSED]
+SPREAD_TIME_S = 600.0  # s, time constant of the learnt spreads [PROPOSED]
+MAX_NOISE_SCALE = 3.0  # –, the largest sensor noise over the design σ learnt as health (the mismatch range's top)
+WARMUP_S = 10.0  # s, no decisions before this: filters settle, levels and spreads are first learnt
+SUSPICION = 0.5  # –, a statistic above this share of its threshold stops its level and spread learning
+PITCH_LAG_TOLERANCE_S = 0.01  # s, lag left unexplained between one rotor's pitch actuators [PROPOSED]
+RATE_PRIOR = 100.0  # (deg/s)² samples: the pitch-rate gain is learnt once the blades have moved that much
+LOCKIN_SETTLE_S = 10.0  # s, the lock-in's high-pass settles (its time constant) before its scale is learnt
 SAMPLES_PER_1000S = round(1000.0 / FARM_DT_S)
 
 
@@ -135,7 +167,20 @@ class AnalyticDetector:
         self.p3 = budget / (SAMPLES_PER_1000S * per_farm)
         self.s3 = float(lockin_iq_std(math.sqrt(self.var_3), LOCKIN_TAU_S))
         self.h3 = float(rayleigh_threshold(self.s3, self.p3))
-        self.warmup = round(float(options.get("warmup_s", 10.0)) / FARM_DT_S)
+        self.h3_now = np.full(n, self.h3)  # per turbine, from its learnt I/Q scale (the design's without learning)
+        self.warmup = round(float(options.get("warmup_s", WARMUP_S)) / FARM_DT_S)
+        self.learn = bool(options.get("learn_levels", True))
+        level_s = float(options.get("level_time_s", LEVEL_TIME_S))
+        spread_s = float(options.get("spread_time_s", SPREAD_TIME_S))
+        max_ratio = float(options.get("max_noise_scale", MAX_NOISE_SCALE)) ** 2
+        learnt = {"level_time_s": level_s, "spread_time_s": spread_s, "max_ratio": max_ratio}
+        self.level1 = LearntLevel((n,), **learnt)
+        self.level2 = LearntLevel((n, 3), **learnt)
+        self.scale3 = LearntRayleighScale(n, self.s3, spread_time_s=spread_s, max_ratio=max_ratio)
+        self.rate_gain = LearntRateGain((n, 3), time_s=level_s, prior=RATE_PRIOR)
+        self.lag_tolerance = float(options.get("pitch_lag_tolerance_s", PITCH_LAG_TOLERANCE_S))
+        self.last_pitch: np.ndarray | None = None
+        self.last_rate = np.zeros(n)
         self.cusum1 = PageCusum((n,), self.h1, self.h1)
         self.cusum2 = PageCusum((n, 6), self.h2, self.h2)
         self.lockin = LockIn3P(n, LOCKIN_TAU_S)
@@ -158,22 +203,46 @@ class AnalyticDetector:
         z1 = p_gen - y[:, P_G]
         var1 = self.var_p + (p.eta_gc * tau_g) ** 2 * self.var_w + (p.eta_gc * omega_g) ** 2 * self.var_t
         mu1 = (1.0 - DEBRIS_FACTOR) * np.abs(p_gen)
-        # fault 2: z2_i = β̄_i − ½ Σ_{j≠i} β̄_j, both signs
+        # fault 2: z2_i = β̄_i − ½ Σ_{j≠i} β̄_j
         blades = y[:, BETA].mean(axis=2)
         z2 = 1.5 * blades - 0.5 * blades.sum(axis=1, keepdims=True)
-        z2 = np.concatenate([z2, -z2], axis=1)  # (n, 6): +δ and −δ on each blade
         # fault 3: 3P amplitude of z3 = ω̄_g − N ω̄_r
         amplitude = self.lockin.step(omega_g - p.N_g * omega_r, omega_g / p.N_g)
         self.samples += 1
-        self.residuals = np.column_stack([z1, np.abs(z2[:, :3]).max(axis=1), amplitude])
-        if self.samples <= self.warmup:
+        self.residuals = np.column_stack([z1, np.abs(z2).max(axis=1), amplitude])
+        warming = self.samples <= self.warmup
+        collective = blades.mean(axis=1)
+        rate = (collective - (collective if self.last_pitch is None else self.last_pitch)) / FARM_DT_S  # deg/s
+        self.last_pitch = collective
+        if self.learn:  # learn before judging: a sample that raises a flag is not learnt (flags of the last sample)
+            g1, g2 = self.cusum1.g, self.cusum2.g.max(axis=1)
+            self.level1.update(z1, np.sqrt(var1), self.cusum1.flag | (g1 >= SUSPICION * self.h1))
+            frozen2 = (self.cusum2.flag.any(axis=1) | (g2 >= SUSPICION * self.h2))[:, None]
+            self.rate_gain.update(z2 - self.level2.level, rate[:, None], frozen2)
+            z2 = z2 - self.rate_gain.gain * rate[:, None]
+            self.level2.update(z2, math.sqrt(self.var_2), frozen2)
+            settling = self.samples * FARM_DT_S <= LOCKIN_SETTLE_S
+            self.scale3.update(amplitude, self.flag3 | (amplitude >= SUSPICION * self.h3_now) | settling)
+            z1 = z1 - self.level1.level
+            z2 = z2 - self.level2.level
+            var1 = var1 * self.level1.ratio
+            fast = np.maximum(np.abs(rate), np.abs(self.last_rate))  # deg/s, this sample's and the last one's
+            var2 = self.var_2 * self.level2.ratio + ((self.lag_tolerance * fast) ** 2)[:, None]
+            self.h3_now = rayleigh_threshold(self.scale3.scale, self.p3)
+        else:
+            var2 = np.full((n, 3), self.var_2)
+        self.last_rate = rate
+        if warming:
             diagnosis = FarmDiagnosis(np.zeros((n, N_TYPES), dtype=bool), np.zeros((n, N_TYPES)), self._h(n))
             diagnosis.extra = {"amplitude_3p": amplitude}
             return diagnosis
+        z2 = np.concatenate([z2, -z2], axis=1)  # (n, 6): +δ and −δ on each blade
+        var2 = np.concatenate([var2, var2], axis=1)
         f1 = self.cusum1.step(llr_increment(z1, 0.0, mu1, var1))
-        f2 = self.cusum2.step(llr_increment(z2, 0.0, MISALIGNMENT_DEG, self.var_2)).any(axis=1)
-        rise = amplitude >= self.h3
-        low = amplitude < 0.5 * self.h3
+        f2 = self.cusum2.step(llr_increment(z2, 0.0, MISALIGNMENT_DEG, var2)).any(axis=1)
+        h3 = self.h3_now
+        rise = amplitude >= h3
+        low = amplitude < 0.5 * h3
         self.quiet3 = np.where(self.flag3 & low, self.quiet3 + FARM_DT_S, 0.0)
         self.flag3 = (self.flag3 | rise) & ~(self.quiet3 >= RELEASE_S)
         self.quiet3 = np.where(self.flag3, self.quiet3, 0.0)
@@ -183,7 +252,11 @@ class AnalyticDetector:
             self._h(n),
         )
         diagnosis.extra = {"amplitude_3p": amplitude}
+        if self.learn:
+            diagnosis.extra["noise_ratio"] = np.column_stack(
+                [self.level1.ratio, self.level2.ratio.max(axis=1), (self.scale3.scale / self.s3) ** 2]
+            )
         return diagnosis
 
     def _h(self, n: int) -> np.ndarray:
-        return np.tile(np.array([self.h1, self.h2, self.h3]), (n, 1))
+        return np.column_stack([np.full(n, self.h1), np.full(n, self.h2), np.broadcast_to(self.h3_now, (n,))])

@@ -16,7 +16,7 @@ from typing import Annotated, Literal
 
 import numpy as np
 
-from service.farm import accommodation, hold, power_loop
+from service.farm import accommodation, analytic, hold, power_loop
 from service.farm.analytic import AnalyticDetector
 from service.farm.dispatch import ACCOMMODATION_RULES, PITCH_RULES, Dispatch
 from service.farm.interfaces import FarmContext, FarmDiagnosis, FarmSample, empty_diagnosis
@@ -48,7 +48,16 @@ class PaperOptions:
 class AnalyticOptions:
     # design rate of false alarms per fault type, per 1000 s of farm operation
     false_alarms_per_1000s: Annotated[float, Bounds(gt=0.0, le=1000.0, unit="1/1000 s")] = 0.01
-    warmup_s: Annotated[float, Bounds(ge=0.0, le=600.0, unit="s")] = 10.0  # no decisions before this
+    warmup_s: Annotated[float, Bounds(ge=0.0, le=600.0, unit="s")] = analytic.WARMUP_S  # no decisions before this
+    # judge each turbine against its own learnt healthy level and spread (False: the design model's, zero and σ)
+    learn_levels: bool = True
+    # time constant of the learnt levels and of the learnt spreads, after the first samples' running means
+    level_time_s: Annotated[float, Bounds(ge=10.0, le=86400.0, unit="s")] = analytic.LEVEL_TIME_S
+    spread_time_s: Annotated[float, Bounds(ge=10.0, le=86400.0, unit="s")] = analytic.SPREAD_TIME_S
+    # the largest sensor noise, over the design σ, learnt as health (the spreads are bounded to [1, this²])
+    max_noise_scale: Annotated[float, Bounds(ge=1.0, le=10.0)] = analytic.MAX_NOISE_SCALE
+    # lag between one rotor's pitch actuators left after the learnt rate gain: widens the pitch test by (this · β̇)²
+    pitch_lag_tolerance_s: Annotated[float, Bounds(ge=0.0, le=1.0, unit="s")] = analytic.PITCH_LAG_TOLERANCE_S
 
 
 @dataclass(frozen=True)

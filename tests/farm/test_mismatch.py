@@ -13,12 +13,17 @@ import pytest
 
 from plant_sim.farm import FarmBatch
 from plant_sim.turbine.dynamics import OMEGA_R, THETA
+from service.farm.analytic import AnalyticDetector
+from service.farm.interfaces import FarmContext
+from service.farm.supervisor import FarmSupervisor
 from tests.farm.conftest import farm_spec, wind
 from windwarden.evaluation import farm as farm_runs
 from windwarden.evaluation import farm_eval
 from windwarden.evaluation.kinds import EvalOptions
+from windwarden.evaluation.scoring_policy import FARM as FARM_POLICY
 from wwcore.scenario import Mismatch, ScenarioError, load_scenario, parse_scenario
 from wwcore.scenario.farm import N_TURBINES
+from wwcore.stepping import run_ticks
 from wwcore.turbine_params import BENCHMARK as P
 
 
@@ -117,3 +122,32 @@ def test_no_mismatch_value_reaches_the_batch_farm_supervisor(monkeypatch):
             farm_runs.simulate_chunk([0], lambda s: None, scenario, 3, "analytic", "dispatch", True, {}, False)
     assert seen[0] == seen[1]
     assert "0.913" not in repr(seen[1])
+
+
+def test_the_analytic_detector_keeps_quiet_on_a_plant_that_differs_from_its_model():
+    """The first 400 s of farm-case1-mismatch (its first fault starts at 400 s), one run: calibration biases,
+    actuators that differ per blade, noisy sensors and the demand's steps. The supervisor's ``analytic`` detector,
+    judging each turbine on its learnt levels and spreads, raises no flag after the farm's 60 s warm-up; the same
+    detector on the design model's levels and spreads, fed the same samples, raises several (the test can fail)."""
+    scenario = load_scenario("farm-case1-mismatch")
+    duration = 400.0
+    plant = FarmBatch(
+        scenario.plant, scenario.wind, [], seed=2611, duration_s=duration, runs=[0], mismatch=scenario.mismatch
+    )
+    site = scenario.plant.site(plant.dt)
+    sup = FarmSupervisor(site, plant.n, detector="analytic", controller="dispatch", accommodation=True, options={})
+    design = AnalyticDetector(context=FarmContext(site, plant.n), options={"learn_levels": False})
+    raised = {"learnt": 0, "design": 0}
+    last = {"learnt": np.zeros((plant.n, 3), bool), "design": np.zeros((plant.n, 3), bool)}
+
+    def count(k, frame, refs) -> None:
+        if sup.diagnosis is None or (k + 1) % plant.ticks_per_sample:  # a farm sample closes every tenth tick
+            return
+        for name, flags in (("learnt", sup.diagnosis.faulty), ("design", design.step(sup.sample).faulty)):
+            if sup.sample.t >= FARM_POLICY.warmup_s:
+                raised[name] += int((flags & ~last[name]).sum())
+            last[name] = flags.copy()
+
+    run_ticks(plant, sup, range(round(duration / plant.dt)), stepped=count)
+    assert raised["design"] >= 3, raised
+    assert raised["learnt"] == 0, raised
