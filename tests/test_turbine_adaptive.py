@@ -110,7 +110,7 @@ def _flags(faults, seconds, wind, options=None, runs=2, seed=23):
     return np.array(flagged), np.array(estimates), supervisor
 
 
-@pytest.mark.parametrize("wind", [8.0, 16.0])
+@pytest.mark.parametrize("wind", [8.0, pytest.param(16.0, marks=pytest.mark.slow)])  # region 3 again: ~30 s
 def test_no_false_alarm_under_a_model_mismatch_and_the_fixed_thresholds_do_raise_them(wind):
     spec = WindSpec(mean=[(0.0, wind)])
     flags, _, supervisor = _flags([], 150.0, spec)
