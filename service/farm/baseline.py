@@ -36,6 +36,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from service.learning import learning_weight
 from wwcore.scenario.farm import FARM_DT_S
 
 BLOCK_SAMPLES = 10  # samples per batch mean of the spread estimate (1 s at 10 Hz)
@@ -78,7 +79,7 @@ class LearntLevel:
         A frozen statistic also drops its unfinished block, so a block never spans a flag."""
         live = ~np.broadcast_to(np.asarray(frozen, dtype=bool), self.level.shape)
         self.samples = self.samples + live
-        w = np.where(live, np.maximum(1.0 / np.maximum(self.samples, 1.0), self.alpha_level), 0.0)
+        w = learning_weight(self.samples, live, self.alpha_level)
         self.level = self.level + w * (r - self.level)
         u = (r - self.level) / design_std
         self._block_sum = np.where(live, self._block_sum + u, 0.0)
@@ -87,7 +88,7 @@ class LearntLevel:
         if full.any():
             self.blocks = self.blocks + full
             mean = self._block_sum / self.block
-            v = np.where(full, np.maximum(1.0 / np.maximum(self.blocks, 1.0), self.alpha_block), 0.0)
+            v = learning_weight(self.blocks, full, self.alpha_block)
             self.raw_ratio = self.raw_ratio + v * (self.block * mean * mean - self.raw_ratio)
             self._block_sum = np.where(full, 0.0, self._block_sum)
             self._block_n = np.where(full, 0, self._block_n)
@@ -118,7 +119,7 @@ class LearntRayleighScale:
     def update(self, amplitude: np.ndarray, frozen: np.ndarray | bool = False) -> None:
         live = ~np.broadcast_to(np.asarray(frozen, dtype=bool), self.mean_square.shape)
         self.samples = self.samples + live
-        w = np.where(live, np.maximum(1.0 / np.maximum(self.samples, 1.0), self.alpha), 0.0)
+        w = learning_weight(self.samples, live, self.alpha)
         self.mean_square = self.mean_square + w * (amplitude * amplitude / 8.0 - self.mean_square)
 
 

@@ -36,6 +36,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from service.learning import learning_weight
+
 
 class HealthySpread:
     """ŝ² (and optionally b̂) of one residual statistic per element of ``shape`` (module docstring).
@@ -64,16 +66,18 @@ class HealthySpread:
         self.offset_limit = None if offset_limit is None else np.broadcast_to(offset_limit, shape).astype(float)
         self.offset = np.zeros(shape)  # clip(b̂, −b_max, b_max)
 
-    def update(self, q: np.ndarray, healthy: np.ndarray, x: np.ndarray | None = None) -> None:
-        """One sample: q the statistic of design mean 1 (with the offset already removed), healthy (bool, same
-        shape) where the sample may be learnt from, x the raw residual for the offset (needs ``offset_limit``)."""
+    def update(self, q: np.ndarray | None, healthy: np.ndarray, x: np.ndarray | None = None) -> None:
+        """One sample: q the statistic of design mean 1 (with the offset already removed; None: learn the offset
+        only), healthy (bool, same shape) where the sample may be learnt from, x the raw residual for the offset
+        (needs ``offset_limit``)."""
         if not self.enabled or not healthy.any():
             return
         self.count += healthy
-        weight = np.where(healthy, np.maximum(1.0 / np.maximum(self.count, 1.0), self.min_weight), 0.0)
-        self.estimate += weight * (q - self.estimate)
-        np.clip(self.estimate, 1.0, self.max_scale2, out=self.scale2)
-        np.sqrt(self.scale2, out=self.scale)
+        weight = learning_weight(self.count, healthy, self.min_weight)
+        if q is not None:
+            self.estimate += weight * (q - self.estimate)
+            np.clip(self.estimate, 1.0, self.max_scale2, out=self.scale2)
+            np.sqrt(self.scale2, out=self.scale)
         if x is not None and self.offset_limit is not None:
             self.mean += weight * (x - self.mean)
             np.clip(self.mean, -self.offset_limit, self.offset_limit, out=self.offset)

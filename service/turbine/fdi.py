@@ -255,7 +255,7 @@ class SpeedSensorFDI:
             self.spread.update(raw / self._rank, np.broadcast_to(healthy[:, None], raw.shape))
             generator = 0.5 * (y_raw[:, 2] + y_raw[:, 3])
             deviation = y_raw - np.column_stack([generator / self._gear_ratio] * 2 + [generator] * 2)
-            self.calibration.update(np.ones_like(y_raw), np.broadcast_to(healthy[:, None], y_raw.shape), deviation)
+            self.calibration.update(None, np.broadcast_to(healthy[:, None], y_raw.shape), deviation)  # offsets only
         if self.ticks <= self.warmup_ticks:
             return
         if not (exceeded or any_frozen or self._maybe_flagged or self._pending):
