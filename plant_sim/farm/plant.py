@@ -82,8 +82,7 @@ def demand_series(
     # delayed by d_j/v̄, eq. (3)) averaged over ``averaging_s`` (first order) and ``wakes``' static model; set every
     # ``update_s`` and held. Computed from the true wind: the demand is an exogenous signal, "below the available
     # power" by construction up to the turbines' own turbulence.
-    moving = getattr(wakes, "free_stream_series", None)
-    rows_free = None if moving is None else moving(n)  # a moving direction: along it (plant_sim.farm.direction)
+    rows_free = wakes.free_stream_series(n)  # a moving direction: along it (plant_sim.farm.direction)
     if rows_free is None:
         runs = np.arange(mast.v.shape[0])[:, None, None]
         d = wakes.mast_distances  # (rows,) or (turbines,): where the free stream is delayed to

@@ -179,6 +179,11 @@ class FarmWakes(Protocol):
 
     def available_power(self, params: TurbineParams, free: np.ndarray, held: np.ndarray) -> np.ndarray: ...
 
+    def free_stream_series(self, samples: int) -> np.ndarray | None:
+        """(runs, samples, N) m/s, each turbine's free stream along a moving direction over the first ``samples``
+        farm samples; None when the direction is fixed (the free stream is then eq. (3)'s delayed mast)."""
+        ...
+
 
 # ---- the row model's wakes -------------------------------------------------------------------------------------
 class RowWakes:
@@ -222,6 +227,10 @@ class RowWakes:
         self.initial_power = p_mech0[:, self.row_of_turbine]  # (farms, N) W, steady τ_r ω_r
         self.row_wind = v_rows0  # (farms, rows) m/s, mean wind of each row at the last farm sample
         self.row_free = free0[:, None].repeat(self.n_rows, axis=1)
+
+    def free_stream_series(self, samples: int) -> None:
+        """None: the row model knows the paper's fixed directions only (``FarmWakes.free_stream_series``)."""
+        return None
 
     @property
     def turbine_wind(self) -> np.ndarray:
