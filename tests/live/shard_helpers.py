@@ -6,19 +6,24 @@ from __future__ import annotations
 import contextlib
 import threading
 from collections.abc import Iterator
+from dataclasses import dataclass
 from pathlib import Path
 
 from service.plugins import load_plugins
+from windwarden.kinds import RunInfo, kind_for
 from windwarden.live.config import SupervisorSettings
 from windwarden.live.coordinator import CoordinatorNode
 from windwarden.live.router import free_port, open_router
 from windwarden.live.shard import ShardNode, ShardSettings
 from windwarden.live.transport import open_session, zenoh_config
+from wwcore.scenario import Scenario
 from wwcore.scenario.farm import FARM_DT_S
+from wwcore.stepping import run_ticks
+from wwcore.wire import FARM_REFS
 
 SHARDED_SHORT = """
 name = "farm-sharded-short"
-duration_s = 22.0
+duration_s = 15.0
 [plant]
 kind = "farm"
 wind_case = 2
@@ -27,7 +32,7 @@ mode = "available_fraction"
 fraction = 0.8
 update_s = 10.0
 [wind]
-mean = [[0.0, 10.0], [22.0, 11.0]]
+mean = [[0.0, 10.0], [15.0, 11.0]]
 # one fault of each type, in both shards (1-4, 5-9), just after the detector's 10 s warm-up: the flags, the
 # dispatch modes (3P cancelled, pitch trim, debris) and every field farm.refs carries cross the shards
 [[faults]]
@@ -36,25 +41,89 @@ target = "drivetrain"
 kind = "drivetrain_wear"
 value = 5.0
 turbine = 4
-start_s = 11.0
-end_s = 22.0
+start_s = 10.5
+end_s = 15.0
 [[faults]]
 name = "F2 pitch misalignment wt7"
 target = "pitch_actuator_3"
 kind = "offset"
 value = 0.3
 turbine = 7
-start_s = 11.5
-end_s = 22.0
+start_s = 10.5
+end_s = 15.0
 [[faults]]
 name = "F1 debris wt5"
 target = "rotor"
 kind = "debris"
 value = 0.97
 turbine = 5
-start_s = 12.0
-end_s = 17.0
+start_s = 11.0
+end_s = 13.5
 """
+
+
+@dataclass
+class OneSupervisor:
+    """One ``FarmSupervisor`` over the whole farm, no transport (``windwarden.live.batch``): its events, its
+    scorecard and every ``farm.refs`` message it answers with, by (tick, turbine)."""
+
+    events: list
+    scorecard: dict
+    refs: dict[tuple[int, int], bytes]
+
+
+def one_supervisor(scn: Scenario, seed: int) -> OneSupervisor:
+    kind = kind_for(scn.plant.kind)
+    plant = kind.make_plant(scn, seed)
+    turbines = kind.turbines(plant)
+    supervisor = kind.make_supervisor(RunInfo.of(scn, turbines, plant.dt))
+    n_steps = round(scn.duration_s / plant.dt)
+    score = kind.score(scn, n_steps, plant.dt)
+    events: list = []
+    refs: dict[tuple[int, int], bytes] = {}
+
+    def stepped(k: int, frame: object, new: object) -> None:
+        records = kind.refs_records(new, supervisor, turbines)
+        score.on_refs(k, records)
+        refs.update({(k, t): kind.refs.encode(records[i]) for i, t in enumerate(turbines)})
+
+    run_ticks(
+        plant,
+        supervisor,
+        range(n_steps),
+        controlled=lambda k, frame: score.on_tick(k, frame, plant),
+        stepped=stepped,
+        advanced=lambda k: events.extend(plant.drain_events() + supervisor.drain_events()),
+    )
+    metrics = score.result(list(scn.faults))
+    return OneSupervisor(events, kind.scorecard(scn, seed, list(scn.faults), events, metrics), refs)
+
+
+class RefsListener:
+    """Every ``turbine/*/refs`` message on the network, by (tick, turbine), from a session of its own."""
+
+    def __init__(self, endpoint: str):
+        self.settings = SupervisorSettings(connect=endpoint)
+        self.refs: dict[tuple[int, int], bytes] = {}
+        self.repeated = 0
+
+    def _on(self, sample) -> None:
+        payload = sample.payload.to_bytes()
+        record = FARM_REFS.decode(payload)
+        key = (int(record["tick"]), int(record["turbine"]))
+        self.repeated += key in self.refs
+        self.refs[key] = payload
+
+    def __enter__(self) -> RefsListener:
+        self.session = open_session(self.settings)
+        self.sub = self.session.declare_subscriber(self.settings.keys.refs("*"), self._on)
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.sub.undeclare()
+        self.session.close()
+
+
 assert FARM_DT_S == 0.1
 
 

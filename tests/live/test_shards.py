@@ -6,26 +6,30 @@ from __future__ import annotations
 
 import json
 
-import numpy as np
 import pytest
 
 from tests.live.helpers import LiveNodes, router, scenario
-from tests.live.shard_helpers import SHARDED_SHORT, Sharded, meshed_routers
+from tests.live.shard_helpers import SHARDED_SHORT, RefsListener, Sharded, meshed_routers, one_supervisor
 from tests.live.test_lockstep import _keys
-from windwarden.live.batch import run_batch
 from windwarden.live.finalize import finalize_scorecard
 from windwarden.live.runfolder import EVENTS, read_events
 
 SHARDS = ((1, 2, 3, 4), (5, 6, 7, 8, 9))
+SEED = 8
 
 
-def _sharded_lockstep(tmp_path, plant_endpoint, shard_endpoints, seed):
+@pytest.fixture(scope="module")
+def one():
+    return one_supervisor(scenario(SHARDED_SHORT), SEED)
+
+
+def _sharded_lockstep(tmp_path, plant_endpoint, shard_endpoints):
     scn = scenario(SHARDED_SHORT)
     run_dir = tmp_path / "run"
     specs = list(zip(shard_endpoints, SHARDS, strict=True))
-    with Sharded(plant_endpoint, specs, run_dir) as sharded:
+    with RefsListener(plant_endpoint) as listener, Sharded(plant_endpoint, specs, run_dir) as sharded:
         with LiveNodes(
-            plant_endpoint, scn, run_dir, mode="lockstep", seed=seed, supervisor=False, supervisor_wait_s=30.0
+            plant_endpoint, scn, run_dir, mode="lockstep", seed=SEED, supervisor=False, supervisor_wait_s=30.0
         ) as nodes:
             assert nodes.wait(120) == 0
             plant_status = nodes.plant.status()
@@ -33,32 +37,32 @@ def _sharded_lockstep(tmp_path, plant_endpoint, shard_endpoints, seed):
         shard_status = [s.status() for s in sharded.shards]
         coordinator_status = sharded.coordinator.status()
     card = finalize_scorecard(run_dir)
-    return scn, read_events(run_dir / EVENTS), card, plant_status, shard_status, coordinator_status
+    return scn, read_events(run_dir / EVENTS), card, listener, plant_status, shard_status, coordinator_status
 
 
 @pytest.mark.parametrize("mesh", [False, True], ids=["one-router", "two-meshed-routers"])
-def test_two_shards_and_the_coordinator_equal_one_supervisor(tmp_path, mesh):
-    seed = 8
+def test_two_shards_and_the_coordinator_equal_one_supervisor(tmp_path, one, mesh):
     if mesh:  # the plant, the coordinator and shard 1-4 on one router, shard 5-9 on another, the routers meshed
         with meshed_routers() as (first, second):
-            scn, events, card, plant, shards, coordinator = _sharded_lockstep(tmp_path, first, [first, second], seed)
+            result = _sharded_lockstep(tmp_path, first, [first, second])
     else:
         with router() as endpoint:
-            scn, events, card, plant, shards, coordinator = _sharded_lockstep(
-                tmp_path, endpoint, [endpoint, endpoint], seed
-            )
-    batch = run_batch(scn, seed)  # one FarmSupervisor over the whole farm, no transport
-    assert _keys(events) == _keys(batch.events)
+            result = _sharded_lockstep(tmp_path, endpoint, [endpoint, endpoint])
+    scn, events, card, listener, plant, shards, coordinator = result
+    assert _keys(events) == _keys(one.events)
     detected = {(e.turbine, e.target) for e in events if e.type.value == "detection"}
     assert {(4, "drivetrain"), (7, "pitch_misalignment"), (5, "debris")} <= detected
     modes = {e.detail.get("to") for e in events if e.type.value == "dispatch"}
     assert {"3P cancelled", "pitch trim", "debris"} <= modes
+    # every reference message of every tick and turbine, byte for byte (flags, statistics, modes, trims, ripple)
+    assert listener.repeated == 0 and listener.refs.keys() == one.refs.keys()
+    differing = [key for key in one.refs if listener.refs[key] != one.refs[key]]
+    assert not differing, f"{len(differing)} refs messages differ, first {min(differing)}"
     live = card.pop("live")
     assert live["completed"] and live["ticks_without_refs"] == 0 and live["dropped"] == {}
-    assert card == json.loads(json.dumps(batch.scorecard))  # the references the plant used were the same
+    assert card == json.loads(json.dumps(one.scorecard))
     assert plant["refs_refused"] == {} and plant["dropped"] == {}
-    samples = round(scn.duration_s / 0.1)
-    assert coordinator["samples"] == samples and coordinator["dropped"] == {}
+    assert coordinator["samples"] == round(scn.duration_s / 0.1) and coordinator["dropped"] == {}
     for status in shards:
         assert status["coordinator_timeouts"] == 0 and status["dropped"] == {}
         assert status["frames"] == round(scn.duration_s / 0.01)
