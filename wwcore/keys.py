@@ -94,7 +94,7 @@ class KeyTree:
 
     def shard_status(self, name: str) -> str:
         """A supervisor shard's status (``name``: one key chunk, e.g. its turbines ``1-40``)."""
-        if name != "*" and not _CHUNK.match(name):
+        if name != "*" and not name.startswith("<") and not _CHUNK.match(name):
             raise ValueError(f"shard name {name!r} must be letters, digits, '_' or '-' (one key chunk)")
         return f"{self.base}/shard/{name}/status"
 
