@@ -15,6 +15,7 @@ estimated wind direction): it is farm-wide and is refused here (``ShardingError`
 from __future__ import annotations
 
 from collections.abc import Sequence
+from itertools import pairwise
 
 import numpy as np
 
@@ -60,6 +61,14 @@ def parse_turbines(text: str) -> tuple[int, ...]:
     if len(set(numbers)) != len(numbers):
         raise ShardingError(f"turbines {text!r}: a turbine is named twice")
     return tuple(sorted(numbers))
+
+
+def shard_ranges(turbines: int, shards: int) -> list[str]:
+    """Turbines 1 … ``turbines`` in ``shards`` contiguous ranges as even as can be (``--turbines`` values)."""
+    if not 1 <= shards <= turbines:
+        raise ShardingError(f"{shards} shards for {turbines} turbines: give 1 to {turbines}")
+    edges = [round(i * turbines / shards) for i in range(shards + 1)]
+    return [f"{lo + 1}-{hi}" for lo, hi in pairwise(edges)]
 
 
 class ShardContext(FarmContext):

@@ -64,5 +64,5 @@ def test_two_shards_and_the_coordinator_equal_one_supervisor(tmp_path, one, mesh
     assert plant["refs_refused"] == {} and plant["dropped"] == {}
     assert coordinator["samples"] == round(scn.duration_s / 0.1) and coordinator["dropped"] == {}
     for status in shards:
-        assert status["coordinator_timeouts"] == 0 and status["dropped"] == {}
+        assert status["coordinator_timeouts"] == 0 and status["coordinator_late"] == 0 and status["dropped"] == {}
         assert status["frames"] == round(scn.duration_s / 0.01)

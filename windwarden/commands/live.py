@@ -400,6 +400,13 @@ def _up_flags(p: argparse.ArgumentParser, viewer: str) -> None:
         help="niceness of plant and supervisor, e.g. -10 on a busy machine (needs CAP_SYS_NICE)",
     )
     p.add_argument("--quiet", action="store_true", help="no event feed")
+    p.add_argument(
+        "--shards",
+        type=int,
+        default=0,
+        help="farm: a sharded supervisor, this many shards (supervise --turbines) and a coordinator (default 0: one "
+        "supervisor)",
+    )
     g = p.add_argument_group("access control")
     g.add_argument(
         "--credentials",
@@ -420,6 +427,8 @@ def cmd_up(args: argparse.Namespace) -> int:
     check_supervisor(scenario)
     if not args.speed > 0:
         raise BadInputError(f"--speed must be > 0, got {args.speed}")
+    if args.shards:
+        check_shards(scenario, args.shards)
     options = UpOptions(
         scenario=scenario,
         mode=args.mode,
@@ -440,8 +449,22 @@ def cmd_up(args: argparse.Namespace) -> int:
         acl=not args.no_acl,
         credentials=args.credentials,
         router_audit=not args.no_router_audit,
+        shards=args.shards,
     )
     return Up(options).run()
+
+
+def check_shards(scenario: Scenario, shards: int) -> None:
+    """``up --shards``: a farm, a per-turbine detector, 1 … N shards; ``BadInputError`` naming what is not."""
+    from service.farm.shard import ShardingError, shard_ranges, shardable
+
+    if scenario.plant.kind != "farm":
+        raise BadInputError(f"--shards: only a farm's supervisor is sharded, not a {scenario.plant.kind}'s")
+    try:
+        shard_ranges(scenario.plant.n_turbines, shards)
+        shardable(scenario.supervisor.detector or "analytic")
+    except ShardingError as error:
+        raise BadInputError(f"--shards: {error}") from None
 
 
 def _add_demo(sub: argparse._SubParsersAction) -> None:

@@ -5,9 +5,15 @@ It learns the run from the plant's ``plant/run`` queryable as the supervisor doe
 (``service.farm.shard.FarmShard``: the ``analytic`` detector on its turbines' rows, the farm's false-alarm budget),
 subscribes to its turbines' sensors only and, per complete sensor tick of its turbines:
 
-* on a 10 Hz farm sample: steps its detector, sends each turbine's ``farm.summary`` to the coordinator, waits (at
-  most ``coordinator_timeout_s``) for the coordinator's ``farm.refs`` rows of that tick on the dispatch keys;
-* publishes each turbine's refs: the newest dispatch rows, re-stamped with the tick (``sharding.held_records``).
+* on a 10 Hz farm sample: steps its detector and sends each turbine's ``farm.summary`` to the coordinator; the
+  sample's refs go out when the coordinator's ``farm.refs`` rows of that tick arrive on the dispatch keys (in
+  lockstep the plant waits for them), or with the references held so far when the next sensor frame comes first
+  (real time: counted as ``coordinator_late``, the new rows are used from the next tick) or after
+  ``coordinator_timeout_s`` (``coordinator_timeouts``);
+* between farm samples: each turbine's refs at once.
+
+The refs are the newest dispatch rows re-stamped with the tick (``sharding.held_records``), as one supervisor
+re-stamps its references between farm samples.
 
 Dispatch rows are refused and counted (``dropped``) when they do not decode, when a field the plant acts on is not
 finite or out of its range (``FARM_REFS.refusal``), when they are for another tick than the one awaited, or for a
@@ -42,6 +48,7 @@ from wwcore.wire import FARM_REFS, FARM_SENSORS, FARM_SUMMARY, DropCounter, Drop
 
 log = logging.getLogger(__name__)
 PLANT_APPEARED = None  # put in the sensor queue by the liveliness callback
+DISPATCHED = object()  # put in the sensor queue when dispatch rows arrive
 
 
 class ShardSettings(SupervisorSettings):
@@ -73,7 +80,7 @@ class ShardNode:
         self.step_time = LatencyStats()
         self.wait_time = LatencyStats()  # summary out → the coordinator's rows in
         self._stop = threading.Event()
-        self._inbox: queue.SimpleQueue[bytes | None] = queue.SimpleQueue()
+        self._inbox: queue.SimpleQueue[Any] = queue.SimpleQueue()  # sensor payloads and the two markers
         self.info: RunInfo | None = None
         self.shard: FarmShard | None = None
         self.ready = False
@@ -81,7 +88,11 @@ class ShardNode:
         self.frames = 0
         self.timeouts = 0  # farm samples the coordinator did not answer in time
         self.last_dispatch: np.ndarray | None = None
-        self._awaiting = -1  # the farm-sample tick whose dispatch rows are awaited
+        self.late = 0  # farm samples answered with the held references because the next frame came first
+        self._pending: int | None = None  # a farm-sample tick whose refs wait for the coordinator's rows
+        self._pending_since = 0.0
+        self._newest_sample = -1  # the newest farm-sample tick whose summaries went out
+        self._dispatch_tick = -1  # the farm-sample tick of ``last_dispatch``
         self._last_status = 0.0
         s = session
         self._status_pub = declare_publisher(s, self.keys.shard_status(self.name), EVENT_QOS)
@@ -113,11 +124,13 @@ class ShardNode:
             self.drops.add("dispatch", reason)
             return
         self.dispatch.put(payload)
+        self._inbox.put(DISPATCHED)
 
     def _dispatch_window(self, tick: int) -> DropReason | None:
-        if tick == self._awaiting:
-            return None
-        return DropReason.FUTURE_TICK if tick > self._awaiting else DropReason.STALE_TICK
+        """Rows are taken for a farm sample whose summaries went out, newer than the rows held."""
+        if tick > self._newest_sample:
+            return DropReason.FUTURE_TICK
+        return DropReason.STALE_TICK if tick <= self._dispatch_tick else None
 
     def _on_liveliness(self, process: str, alive: bool) -> None:
         if process == Process.PLANT and alive:
@@ -158,6 +171,7 @@ class ShardNode:
         self.mailbox = TickMailbox(FARM_SENSORS, list(self.owned), self.drops, "sensors")
         self.last_dispatch = None
         self.last_tick = None
+        self._pending, self._newest_sample, self._dispatch_tick = None, -1, -1
         self.sequencer.start(info.run_key)
         if not self._sensor_subs:  # subscribing last: the coordinator tells the plant once every shard is ready
             self._sensor_subs = [
@@ -194,6 +208,7 @@ class ShardNode:
             "tick": self.last_tick,
             "frames": self.frames,
             "coordinator_timeouts": self.timeouts,
+            "coordinator_late": self.late,
             "step": self.step_time.summary(recent=1000),
             "coordinator_wait": self.wait_time.summary(recent=1000),
             "dropped": self.drops.as_dict(),
@@ -212,17 +227,29 @@ class ShardNode:
             return 0 if self._stop.is_set() else 1
         self.start_run(info)
         while not self._stop.is_set():
+            timeout = self.settings.status_every_s
+            if self._pending is not None:
+                timeout = max(self._pending_since + self.settings.coordinator_timeout_s - time.perf_counter(), 0.0)
             try:
-                payload = self._inbox.get(timeout=self.settings.status_every_s)
+                item = self._inbox.get(timeout=timeout)
             except queue.Empty:
+                if self._pending is not None:  # the coordinator did not answer in time: hold the last references
+                    self.timeouts += 1
+                    log.warning("no references from the coordinator for tick %d in time", self._pending)
+                    self._answer(self._pending)
                 self.publish_status()
                 continue
-            if payload is PLANT_APPEARED:
+            if item is PLANT_APPEARED:
                 self._follow_plant()
-                continue
-            self.mailbox.put(payload)
-            for arrival in self.mailbox.drain():
-                self._on_frame(arrival.records)
+            elif item is DISPATCHED:
+                self._take_dispatch()
+            else:
+                self.mailbox.put(item)
+                for arrival in self.mailbox.drain():
+                    if self._pending is not None:  # real time: the next frame is here first; answer with what we have
+                        self.late += 1
+                        self._answer(self._pending)
+                    self._on_frame(arrival.records)
             self.publish_status()
         return 0
 
@@ -234,44 +261,47 @@ class ShardNode:
             self.start_run(info)
 
     def _on_frame(self, records: np.ndarray) -> None:
+        """Step a complete sensor frame of the shard's turbines: on a farm sample, the detector and the summaries
+        (its refs go out when the coordinator's rows arrive); between samples, the held references at once."""
         decision, _ = self.sequencer.decide(records)
         if decision == FrameSequencer.DROP:
             return
         if decision in (FrameSequencer.NEW_RUN, FrameSequencer.RESTART):
             self.start_run(self.sequencer.confirmed if decision == FrameSequencer.NEW_RUN else self.info)
         tick = int(records["tick"][0])
-        if bool(records["sample"][0]):
-            started = time.perf_counter()
-            frame = self.kind.frame_from_records(records)
-            diagnosis = self.shard.step(frame)
-            summaries = summary_records(records, self.shard.sample, diagnosis)
-            self.step_time.add(time.perf_counter() - started)
-            self._awaiting = tick
-            for i, turbine in enumerate(self.owned):
-                self._summary_pubs[turbine].put(FARM_SUMMARY.encode(summaries[i]))
-            self._take_dispatch(tick)
         self.last_tick = tick
         self.sequencer.stepped(tick)
         self.frames += 1
+        if not bool(records["sample"][0]):
+            self._answer(tick)
+            return
+        started = time.perf_counter()
+        frame = self.kind.frame_from_records(records)
+        diagnosis = self.shard.step(frame)
+        summaries = summary_records(records, self.shard.sample, diagnosis)
+        self.step_time.add(time.perf_counter() - started)
+        self._newest_sample = tick
+        self._pending, self._pending_since = tick, time.perf_counter()
+        for i, turbine in enumerate(self.owned):
+            self._summary_pubs[turbine].put(FARM_SUMMARY.encode(summaries[i]))
+
+    def _take_dispatch(self) -> None:
+        """The coordinator's rows that arrived: the newest become the references; those of the pending farm sample
+        answer it."""
+        for arrival in self.dispatch.drain():
+            if arrival.tick <= self._dispatch_tick:
+                continue  # an older sample's rows after a newer one's (real time)
+            self._dispatch_tick = arrival.tick
+            self.last_dispatch = arrival.records
+            self.shard.pitch_trim = pitch_trim_of(arrival.records)
+            if arrival.tick == self._pending:
+                self.wait_time.add(arrival.at - self._pending_since)
+                self._answer(arrival.tick)
+
+    def _answer(self, tick: int) -> None:
+        """Publish the refs of sensor tick ``tick``: the newest dispatch rows, re-stamped."""
+        if tick == self._pending:
+            self._pending = None
         out = held_records(self.last_dispatch, tick, list(self.owned))
         for i, turbine in enumerate(self.owned):
             self._refs_pubs[turbine].put(FARM_REFS.encode(out[i]))
-
-    def _take_dispatch(self, tick: int) -> None:
-        """Wait for the coordinator's rows of farm sample ``tick``; without them in time the last ones are held."""
-        sent = time.perf_counter()
-        got = self.dispatch.wait_for(
-            lambda: self.dispatch.arrived(tick) or self._stop.is_set(), self.settings.coordinator_timeout_s
-        )
-        for arrival in self.dispatch.drain():
-            if arrival.tick == tick:
-                self.last_dispatch = arrival.records
-                self.shard.pitch_trim = pitch_trim_of(arrival.records)
-                self.wait_time.add(arrival.at - sent)
-        if not got or self._stop.is_set():
-            self.timeouts += 1
-            log.warning(
-                "no references from the coordinator for tick %d within %.1f s",
-                tick,
-                self.settings.coordinator_timeout_s,
-            )
