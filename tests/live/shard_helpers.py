@@ -9,6 +9,8 @@ from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
 
+import zenoh
+
 from service.plugins import load_plugins
 from windwarden.kinds import RunInfo, kind_for
 from windwarden.live.config import SupervisorSettings
@@ -137,9 +139,7 @@ def meshed_routers() -> Iterator[tuple[str, str]]:
 
 
 @contextlib.contextmanager
-def zenoh_open(settings: SupervisorSettings) -> Iterator[object]:
-    import zenoh
-
+def zenoh_open(settings: SupervisorSettings) -> Iterator[zenoh.Session]:
     session = zenoh.open(zenoh_config(settings))
     try:
         yield session
