@@ -47,7 +47,7 @@ PUTS = {  # key → the only role that may put on it
 }
 QUERIES = {  # queryable key → roles that may ask it
     K.faults: {"api"},
-    K.plant_status: {"api"},
+    K.plant_status: {"api", "supervisor"},  # the supervisor confirms a tick after a gap (guard.FrameSequencer)
     K.run: {"api", "supervisor"},
     K.supervisor_status: {"api"},
 }

@@ -11,6 +11,7 @@ import zenoh
 from service.farm.shard import FarmShard, ShardingError, coordinator_supervisor, parse_turbines
 from tests.live.helpers import LiveNodes, router, scenario, wait_for
 from tests.live.shard_helpers import SHARDED_SHORT, Sharded
+from windwarden.cli import main
 from windwarden.kinds import RunInfo
 from windwarden.live.config import ZenohSettings
 from windwarden.live.runfolder import EVENTS, read_events
@@ -145,3 +146,18 @@ def test_a_farm_wide_detector_and_bad_turbine_ranges_are_refused():
     ]:
         with pytest.raises(ShardingError, match=message):
             parse_turbines(text)
+
+
+def test_the_command_line_refuses_what_a_sharded_supervisor_cannot_run(tmp_path, capsys):
+    paper = tmp_path / "paper.toml"
+    paper.write_text(SHARDED_SHORT + '[supervisor]\ndetector = "paper"\n')
+    refused = {
+        ("up", "hydro-fig9", "--shards", "2"): "only a farm's supervisor is sharded",
+        ("up", str(paper), "--shards", "2"): "run one supervisor for 'paper'",
+        ("up", "farm-case1", "--shards", "10"): "10 shards for 9 turbines",
+        ("supervise", "--turbines", "0-3"): "from 1",
+        ("supervise", "--turbines", "1-4,4"): "twice",
+    }
+    for argv, message in refused.items():
+        assert main(list(argv)) == 2, argv  # refused before anything starts (no router, no session)
+        assert message in " ".join(capsys.readouterr().err.split()), argv
