@@ -245,6 +245,7 @@ class ShardNode:
                 self._take_dispatch()
             else:
                 self.mailbox.put(item)
+                self._skip_backlog()
                 for arrival in self.mailbox.drain():
                     if self._pending is not None:  # real time: the next frame is here first; answer with what we have
                         self.late += 1
@@ -252,6 +253,23 @@ class ShardNode:
                     self._on_frame(arrival.records)
             self.publish_status()
         return 0
+
+    def _skip_backlog(self) -> None:
+        """Far behind (more than ``max_backlog_ticks`` of its turbines' frames queued): drop what is queued and go
+        on from the next frame (the sequencer then confirms the tick with the plant and restarts the detector)."""
+        if self._inbox.qsize() <= self.settings.max_backlog_ticks * len(self.owned):
+            return
+        self.drops.add("sensors", "backlog")
+        while True:
+            try:
+                item = self._inbox.get_nowait()
+            except queue.Empty:
+                return
+            if item is DISPATCHED:
+                self._take_dispatch()
+            elif item is PLANT_APPEARED:
+                self._inbox.put(item)
+                return
 
     def _follow_plant(self) -> None:
         if self._stop.is_set():
