@@ -5,6 +5,9 @@ coordinator cannot trust are refused and counted."""
 from __future__ import annotations
 
 import json
+import os
+import subprocess
+import sys
 
 import pytest
 
@@ -12,6 +15,7 @@ from tests.live.helpers import LiveNodes, router, scenario
 from tests.live.shard_helpers import SHARDED_SHORT, RefsListener, Sharded, meshed_routers, one_supervisor
 from tests.live.test_lockstep import _keys
 from windwarden.live.finalize import finalize_scorecard
+from windwarden.live.router import free_port
 from windwarden.live.runfolder import EVENTS, read_events
 
 SHARDS = ((1, 2, 3, 4), (5, 6, 7, 8, 9))
@@ -66,3 +70,22 @@ def test_two_shards_and_the_coordinator_equal_one_supervisor(tmp_path, one, mesh
     for status in shards:
         assert status["coordinator_timeouts"] == 0 and status["coordinator_late"] == 0 and status["dropped"] == {}
         assert status["frames"] == round(scn.duration_s / 0.01)
+
+
+@pytest.mark.slow  # processes: the router with access control, the plant, the coordinator, two shards (~40 s)
+def test_up_with_shards_in_lockstep_equals_one_supervisor(tmp_path, one):
+    (tmp_path / "s.toml").write_text(SHARDED_SHORT)
+    env = {k: v for k, v in os.environ.items() if not k.startswith("WINDWARDEN_")} | {"RERUN_ANALYTICS": "0"}
+    argv = [sys.executable, "-m", "windwarden.cli", "up", str(tmp_path / "s.toml"), "--shards", "2"]
+    argv += ["--mode", "lockstep", "--seed", str(SEED), "--no-api", "--quiet", "--no-restart"]
+    argv += ["--runs-root", str(tmp_path / "runs"), "--run-id", "sharded", "--listen", f"tcp/127.0.0.1:{free_port()}"]
+    done = subprocess.run(argv, env=env, capture_output=True, text=True, timeout=300)
+    run_dir = tmp_path / "runs" / "sharded"
+    assert done.returncode == 0, done.stdout[-2000:] + done.stderr[-2000:]
+    assert {"coordinator.log", "shard-1-4.log", "shard-5-9.log"} <= {p.name for p in (run_dir / "logs").iterdir()}
+    assert _keys(read_events(run_dir / EVENTS)) == _keys(one.events)
+    card = json.loads((run_dir / "scorecard.json").read_text())
+    live = card.pop("live")
+    assert live["completed"] and live["ticks_without_refs"] == 0
+    assert card == json.loads(json.dumps(one.scorecard))
+    assert json.loads((run_dir / "router.json").read_text())["denied_total"] == 0  # access control let it all through
