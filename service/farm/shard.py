@@ -85,6 +85,8 @@ class ShardContext(FarmContext):
             raise ShardingError(
                 f"the farm has turbines 1-{self.turbines}; a shard cannot own {outside or 'no turbine'}"
             )
+        if len(set(owned)) != len(owned):
+            raise ShardingError(f"a shard owns each of its turbines once, not {list(owned)}")
         self.shard_turbines = owned
         self.n = len(owned)
 

@@ -136,6 +136,8 @@ def test_a_farm_wide_detector_and_bad_turbine_ranges_are_refused():
         coordinator_supervisor(info.site, 9, detector="paper")
     with pytest.raises(ShardingError, match="cannot own"):
         FarmShard(info.site, (8, 9, 10))
+    with pytest.raises(ShardingError, match="each of its turbines once"):
+        FarmShard(info.site, (2, 3, 2))
     assert parse_turbines("1-4, 7,9-10") == (1, 2, 3, 4, 7, 9, 10)
     for text, message in [
         ("", "not a number"),
