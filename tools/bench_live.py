@@ -10,6 +10,11 @@ to its detection in the status route (measured from outside, over HTTP).
     .venv/bin/python tools/bench_live.py --kind farm --seconds 300 --offset 1450   # a drive-train hold in it
     .venv/bin/python tools/bench_live.py --kind farm --scenario farm-hornsrev1 --seconds 300   # 80 turbines
 
+A sharded supervisor (two shards and a coordinator, ``up --shards 2``) beside one supervisor, on Horns Rev 1's 80
+turbines, interleaved:
+
+    .venv/bin/python tools/bench_live.py --kind farm --scenario farm-hornsrev1 --seconds 120 --compare-shards
+
 What access control costs: ``--compare-acl`` runs the same benchmark back to back with an open router
 (``up --no-acl``) and with the router ``up`` runs by default (access control, user/password per role, and the audit
 that counts refusals from Zenoh's trace log), and prints both with the ratios of their loop latencies; add
@@ -92,6 +97,17 @@ def main() -> int:
     parser.add_argument("--inject-at", type=float, default=None, help="turbine: s of simulation time (default: half)")
     parser.add_argument("--offset", type=float, default=0.0, help="start this far into the shipped scenario (s)")
     parser.add_argument("--scenario", default=None, help="a shipped scenario of --kind (default: the kind's own)")
+    parser.add_argument(
+        "--shards",
+        type=int,
+        default=0,
+        help="farm: a sharded supervisor (up --shards N: N shards and a coordinator); 0: one supervisor",
+    )
+    parser.add_argument(
+        "--compare-shards",
+        action="store_true",
+        help="farm: run with one supervisor, then with --shards N (default 2), and compare their loop latencies",
+    )
     parser.add_argument("--compare-acl", action="store_true", help="run without and with access control, compare")
     parser.add_argument(
         "--acl-modes",
@@ -99,11 +115,17 @@ def main() -> int:
         help=f"with --compare-acl: configurations to run in order, from {', '.join(ACL_MODES)} (default open,acl)",
     )
     parser.add_argument(
-        "--repeat", type=int, default=1, help="with --compare-acl: run the configurations this many times, interleaved"
+        "--repeat",
+        type=int,
+        default=1,
+        help="with --compare-acl or --compare-shards: run the configurations this many times, interleaved",
     )
     args = parser.parse_args()
+    if args.compare_shards:
+        return compare_shards(args)
     if not args.compare_acl:
-        return 0 if run_once(args, [], "")[0] == 0 else 1
+        sharded = ["--shards", str(args.shards)] if args.shards else []
+        return 0 if run_once(args, sharded, f"-shards{args.shards}" if args.shards else "")[0] == 0 else 1
     modes = [m.strip() for m in args.acl_modes.split(",") if m.strip()]
     unknown = [m for m in modes if m not in ACL_MODES]
     if unknown or not modes:
@@ -115,6 +137,24 @@ def main() -> int:
             results[mode].append(figures)
             if code != 0:
                 print(f"{mode}: up exited with {code}", flush=True)
+    print(json.dumps(compare(results), indent=2))
+    return 0
+
+
+def compare_shards(args: argparse.Namespace) -> int:
+    """One supervisor, then ``--shards`` N (default 2) and a coordinator, interleaved ``--repeat`` times; the
+    medians of their loop latencies and the ratios to one supervisor's (``compare``)."""
+    if args.kind != "farm":
+        raise SystemExit("--compare-shards: a farm's supervisor is sharded; give --kind farm")
+    shards = args.shards or 2
+    configurations = {"one-supervisor": [], f"{shards}-shards": ["--shards", str(shards)]}
+    results: dict[str, list[dict]] = {name: [] for name in configurations}
+    for _ in range(max(args.repeat, 1)):
+        for name, extra in configurations.items():
+            code, figures = run_once(args, extra, f"-{name}")
+            results[name].append(figures)
+            if code != 0:
+                print(f"{name}: up exited with {code}", flush=True)
     print(json.dumps(compare(results), indent=2))
     return 0
 

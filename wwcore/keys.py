@@ -84,6 +84,20 @@ class KeyTree:
     def truth(self, turbine: int | str) -> str:
         return f"{self.base}/turbine/{turbine}/truth"
 
+    def summary(self, turbine: int | str) -> str:
+        """A supervisor shard's 10 Hz summary of one turbine, for the farm coordinator."""
+        return f"{self.base}/turbine/{turbine}/summary"
+
+    def dispatch(self, turbine: int | str) -> str:
+        """The farm coordinator's references for one turbine, for the shard that owns it."""
+        return f"{self.base}/turbine/{turbine}/dispatch"
+
+    def shard_status(self, name: str) -> str:
+        """A supervisor shard's status (``name``: one key chunk, e.g. its turbines ``1-40``)."""
+        if name != "*" and not name.startswith("<") and not _CHUNK.match(name):
+            raise ValueError(f"shard name {name!r} must be letters, digits, '_' or '-' (one key chunk)")
+        return f"{self.base}/shard/{name}/status"
+
     @property
     def metmast(self) -> str:
         return f"{self.base}/metmast"
@@ -151,4 +165,7 @@ class KeyTree:
             KeySpec(self.plant_events, "plant", "JSON events", EVENT_QOS, "the plant's events, append-only"),
             KeySpec(self.supervisor_events, "supervisor", "JSON events", EVENT_QOS, "the supervisor's events"),
             KeySpec(self.alive("<process>"), "every process", "liveliness token", None, "plant, supervisor, api"),
+            KeySpec(self.summary(t), "supervisor shard", "farm.summary", COMMAND_QOS, "10 Hz; sharded farm only"),
+            KeySpec(self.dispatch(t), "farm coordinator", "farm.refs", COMMAND_QOS, "10 Hz; sharded farm only"),
+            KeySpec(self.shard_status("<name>"), "supervisor shard", "JSON shard.status", EVENT_QOS, "2 Hz"),
         ]

@@ -19,6 +19,12 @@ Key-expression tree (``<farm>`` is one chunk, ``<id>`` the 1-based turbine numbe
     windwarden/<farm>/supervisor/events      supervisor → all      JSON    the supervisor's events; reliable, blocking
     windwarden/<farm>/alive/<process>        liveliness tokens (plant, supervisor, api)
 
+A sharded supervisor (``windwarden supervise --turbines``, ``windwarden coordinate``) adds::
+
+    windwarden/<farm>/turbine/<id>/summary   shard → coordinator   binary  10 Hz farm samples   reliable, blocking
+    windwarden/<farm>/turbine/<id>/dispatch  coordinator → shard   binary  10 Hz (farm.refs)    reliable, blocking
+    windwarden/<farm>/shard/<name>/status    shard → coordinator   JSON    2 Hz (run, turbines, ready)
+
 Each stream has one publishing process, so the router's access control (``windwarden.live.access``) can say who
 may put where: plant and supervisor events have a key each, and readers subscribe to ``windwarden/<farm>/*/events``.
 
@@ -38,6 +44,7 @@ so the supervisor can tell a new run from an old or replayed frame.
 from __future__ import annotations
 
 import json
+import sys
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from enum import StrEnum
@@ -51,13 +58,15 @@ from wwcore.farm_frames import FARM_REFS_LIMITS
 from wwcore.hydro_frames import HYDRO_REFS_LIMITS
 from wwcore.hydro_params import FAULT_TARGETS, U_NAMES, X_NAMES, Y_NAMES, Y_UNITS
 from wwcore.scenario.farm import FARM_FAULT_TYPES
-from wwcore.turbine_frames import TURBINE_REFS_LIMITS
+from wwcore.turbine_frames import POWER_MAX, TURBINE_REFS_LIMITS
 from wwcore.wire_check import DropCounter as DropCounter  # exported with the codec: every receiver counts its drops
 from wwcore.wire_check import RangeCheck, with_limits
 
 MAGIC = b"WW"
 HEADER = np.dtype([("magic", "S2"), ("code", "u1"), ("version", "u1")])
 MAX_JSON_BYTES = 256 * 1024  # a control-plane message larger than this is refused unparsed
+MAST_WIND_MAX = 100.0  # m/s: beyond any wind a met mast reads
+FARM_DEMAND_MAX = 1e10  # W: a farm's demand (150 turbines of 4.8 MW are 0.72 GW)
 
 
 class WireError(ValueError):
@@ -384,6 +393,46 @@ FARM_REFS = MessageSchema(
 )
 FARM_REFS = with_limits(FARM_REFS, FARM_REFS_LIMITS)
 
+FARM_SUMMARY = MessageSchema(
+    "farm.summary",
+    11,
+    1,
+    "A supervisor shard's summary of one of its turbines at a 10 Hz farm sample, for the farm coordinator: the "
+    "sample as the plant sent it (farm.sensors) and the shard's detector's verdict on the turbine "
+    "(``windwarden.live.shard``).",
+    (
+        *_frame_fields(),
+        WireField("sample_index", "<i8", "–", "farm sample index j (sample time j·0.1 s)"),
+        WireField("sample_t", "<f8", "s", "farm sample time j·0.1 s"),
+        WireField("scada", "<f8", "per column", "means of the last ten readings", (N_SENSORS,), SENSOR_NAMES),
+        WireField("zone", "i1", "–", "controller zone at tick k−1 (0 region 2, 1 region 3 / derated)"),
+        WireField("power_ref_used", "<f8", "W", "mean power reference of the last ten ticks"),
+        WireField("mast", "<f8", "m/s", "met-mast wind reading (10 Hz, held)"),
+        WireField("demand", "<f8", "W", "farm power demand P_ref,farm"),
+        WireField("mast_direction", "<f8", "deg", "met-mast vane reading, from north, clockwise (10 Hz, held)"),
+        WireField("flags", "?", "–", "the shard's detector flags, per fault type", (3,), FARM_FAULT_TYPES),
+        WireField("statistic", "<f8", "–", "test statistic per fault type", (3,), FARM_FAULT_TYPES),
+        WireField("threshold", "<f8", "–", "its alarm threshold (NaN: no test)", (3,), FARM_FAULT_TYPES),
+    ),
+)
+FINITE = (-sys.float_info.max, sys.float_info.max)
+FARM_SUMMARY = with_limits(
+    FARM_SUMMARY,
+    {
+        "sample_index": (0, 2**62, None),
+        "sample_t": (0.0, FINITE[1], None),
+        "scada": (*FINITE, None),  # the plant's readings: any finite value (a faulty sensor reads what it reads)
+        "zone": (0, 1, None),
+        "power_ref_used": (0.0, POWER_MAX, None),  # W
+        "mast": (0.0, MAST_WIND_MAX, None),  # m/s
+        "demand": (0.0, FARM_DEMAND_MAX, None),  # W
+        "mast_direction": (0.0, 360.0, None),  # deg
+        "statistic": (0.0, FINITE[1], None),  # a CUSUM g or a 3P amplitude: never negative
+    },
+)
+"""What the coordinator takes from a shard: every field it computes with is finite and in its range (the
+thresholds are display only and may be NaN)."""
+
 FARM_TRUTH = MessageSchema(
     "farm.truth",
     10,
@@ -417,6 +466,7 @@ SCHEMAS: dict[str, MessageSchema] = {
         FARM_SENSORS,
         FARM_REFS,
         FARM_TRUTH,
+        FARM_SUMMARY,
     )
 }
 if len({s.code for s in SCHEMAS.values()}) != len(SCHEMAS):  # pragma: no cover - a declaration error
@@ -430,6 +480,7 @@ JSON_SCHEMAS: dict[str, int] = {
     "plant.run": 2,  # body: RunInfo, what the supervisor may know (its SiteInfo: no faults, no wind, no truth)
     "plant.faults": 1,  # query body: {"op": "inject"|"clear"|"list", ...}; reply body: {"ok": …}
     "supervisor.status": 1,  # body: {"t", "tick", "turbines": [per-turbine status]}
+    "shard.status": 1,  # body: a supervisor shard's run, turbines and readiness (windwarden.live.shard)
 }
 """Name → current version of each JSON message."""
 

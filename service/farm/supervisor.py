@@ -67,15 +67,30 @@ class FarmSupervisor:
             if self.refs is None:
                 return None
             return replace(self.refs, tick=frame.k, computed_tick=self.refs.source_tick)
-        sample = FarmSample.from_frame(frame, self.dt)
+        sample = self.sample_of(frame)
+        return self.decide(frame.k, sample, self.detector.step(sample))
+
+    def sample_of(self, frame: FarmFrame) -> FarmSample:
+        """The farm sample of ``frame`` as detector and controller are given it: a pitch trim this supervisor
+        commanded is taken off the pitch readings."""
+        return self.untrimmed(FarmSample.from_frame(frame, self.dt))
+
+    def untrimmed(self, sample: FarmSample) -> FarmSample:
+        """``sample`` with the pitch trim of this supervisor's last references taken off its pitch readings."""
         if self.refs is not None and self.refs.pitch_trim is not None:
-            sample = sample.untrimmed(self.refs.pitch_trim)
-        diagnosis = self.detector.step(sample)
+            return sample.untrimmed(self.refs.pitch_trim)
+        return sample
+
+    def decide(self, tick: int, sample: FarmSample, diagnosis: FarmDiagnosis) -> FarmRefs:
+        """The farm-wide part of a farm sample's step: the controller on the detector's ``diagnosis`` of
+        ``sample``, the events, the references answering ``tick``. A sharded supervisor's coordinator calls it with
+        the diagnosis its shards sent (``windwarden.live.coordinator``)."""
+        self.last_tick = tick
         faulty = diagnosis.faulty if self.accommodation else np.zeros_like(diagnosis.faulty)
         power_ref = self.controller.step(sample, faulty)
         self._record(sample.t, diagnosis)
         self.diagnosis, self.sample = diagnosis, sample
-        self.refs = self._refs(frame.k, power_ref)
+        self.refs = self._refs(tick, power_ref)
         return self.refs
 
     def _refs(self, tick: int, power_ref: np.ndarray) -> FarmRefs:

@@ -40,11 +40,14 @@ PUTS = {  # key → the only role that may put on it
     K.refs(1): "supervisor",
     K.supervisor_status: "supervisor",
     K.supervisor_events: "supervisor",
+    K.summary(1): "supervisor",  # a sharded supervisor: shard → coordinator
+    K.dispatch(1): "supervisor",  # coordinator → shard
+    K.shard_status("1-4"): "supervisor",
     f"{K.base}/elsewhere": None,
 }
 QUERIES = {  # queryable key → roles that may ask it
     K.faults: {"api"},
-    K.plant_status: {"api"},
+    K.plant_status: {"api", "supervisor"},  # the supervisor confirms a tick after a gap (guard.FrameSequencer)
     K.run: {"api", "supervisor"},
     K.supervisor_status: {"api"},
 }
@@ -54,6 +57,9 @@ SUBSCRIPTIONS = {  # key → roles that receive what is put on it
     K.plant_events: {"supervisor", "api", "viewer"},
     K.supervisor_events: {"api", "viewer"},
     K.truth(1): {"viewer"},
+    K.summary(1): {"supervisor", "viewer"},
+    K.dispatch(1): {"supervisor", "viewer"},
+    K.shard_status("1-4"): {"supervisor", "viewer"},
 }
 TOKENS = {K.alive("plant"): "plant", K.alive("supervisor"): "supervisor"}
 

@@ -161,6 +161,19 @@ def _add_supervise(sub: argparse._SubParsersAction) -> None:
         help="s to wait for a plant; 0 (default) waits for ever",
     )
     p.add_argument("--exit-with-run", action="store_true", default=None, help="exit when the plant's run ends")
+    p.add_argument(
+        "--turbines",
+        default=None,
+        help="farm only: run a supervisor shard that owns these turbines (1-40, 1,3,5-9) beside `windwarden "
+        "coordinate` (docs/live.md, 'Sharded farm supervisor')",
+    )
+    p.add_argument(
+        "--coordinator-timeout",
+        dest="coordinator_timeout_s",
+        type=float,
+        default=None,
+        help="shard: s to wait for the coordinator's references of a farm sample (default 2)",
+    )
     _zenoh_flags(p)
     _run_flags(p)
     p.set_defaults(func=cmd_supervise)
@@ -172,6 +185,8 @@ def cmd_supervise(args: argparse.Namespace) -> int:
     from windwarden.live.config import SupervisorSettings, settings_from_flags
     from windwarden.live.supervisor_node import SupervisorNode
 
+    if args.turbines is not None or args.coordinator_timeout_s is not None:
+        return _supervise_shard(args)
     setup_logging("supervisor")
     try:
         settings = settings_from_flags(
@@ -208,6 +223,99 @@ def cmd_supervise(args: argparse.Namespace) -> int:
                 status["frames"],
                 status["gaps"],
                 status["observer_restarts"],
+                status["dropped"],
+                status["step"],
+            )
+            node.close()
+
+
+def _supervise_shard(args: argparse.Namespace) -> int:
+    """``supervise --turbines``: a supervisor shard (``windwarden.live.shard``)."""
+    from service.farm.shard import ShardingError, parse_turbines
+    from service.plugins import AlgorithmOptionError, UnknownAlgorithmError
+    from windwarden.live.config import settings_from_flags
+    from windwarden.live.shard import ShardNode, ShardSettings
+
+    setup_logging("shard")
+    flags = ["plant_wait_s", "turbines", "coordinator_timeout_s", *ZENOH_FLAGS, *RUN_FLAGS]
+    try:
+        settings = settings_from_flags(ShardSettings, _flags(args, flags))
+        turbines = parse_turbines(settings.turbines)
+    except ValueError as error:  # ShardingError is one
+        raise BadInputError(f"--turbines: {error}" if "turbines" in str(error) else str(error)) from None
+    apply_nice(settings)
+    with zenoh_session(settings) as session:
+        node = ShardNode(session, settings, turbines)
+        on_signals(node.stop)
+        exit_with_parent(node.stop)
+        log.info("supervisor shard %s: turbines %s", node.name, ", ".join(map(str, turbines)))
+        try:
+            return node.run()
+        except (AlgorithmOptionError, UnknownAlgorithmError, ShardingError) as error:
+            raise BadInputError(f"the run's supervisor: {error}") from None
+        except ValueError as error:  # not a farm
+            raise BadInputError(str(error)) from None
+        finally:
+            status = node.status()
+            log.info(
+                "shard %s stops: %d frames, %d coordinator timeouts, dropped %s, step %s, coordinator wait %s",
+                node.name,
+                status["frames"],
+                status["coordinator_timeouts"],
+                status["dropped"],
+                status["step"],
+                status["coordinator_wait"],
+            )
+            node.close()
+
+
+# -- coordinate ----------------------------------------------------------------------------------------------------
+def _add_coordinate(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser(
+        "coordinate",
+        help="run the farm coordinator of a sharded supervisor (dispatch and farm decisions; shards: supervise "
+        "--turbines)",
+    )
+    p.add_argument(
+        "--plant-wait",
+        dest="plant_wait_s",
+        type=float,
+        default=None,
+        help="s to wait for a plant; 0 (default) waits for ever",
+    )
+    _zenoh_flags(p)
+    _run_flags(p)
+    p.set_defaults(func=cmd_coordinate)
+
+
+@service_errors
+def cmd_coordinate(args: argparse.Namespace) -> int:
+    from service.farm.shard import ShardingError
+    from service.plugins import AlgorithmOptionError, UnknownAlgorithmError
+    from windwarden.live.config import SupervisorSettings, settings_from_flags
+    from windwarden.live.coordinator import CoordinatorNode
+
+    setup_logging("coordinator")
+    try:
+        settings = settings_from_flags(SupervisorSettings, _flags(args, ["plant_wait_s", *ZENOH_FLAGS, *RUN_FLAGS]))
+    except ValueError as error:
+        raise BadInputError(str(error)) from None
+    apply_nice(settings)
+    with zenoh_session(settings) as session:
+        node = CoordinatorNode(session, settings)
+        on_signals(node.stop)
+        exit_with_parent(node.stop)
+        try:
+            return node.run()
+        except (AlgorithmOptionError, UnknownAlgorithmError, ShardingError) as error:
+            raise BadInputError(f"the run's supervisor: {error}") from None
+        except ValueError as error:  # not a farm
+            raise BadInputError(str(error)) from None
+        finally:
+            status = node.status()
+            log.info(
+                "coordinator stops: %d farm samples, dropped %s, step %s",
+                status["samples"],
                 status["dropped"],
                 status["step"],
             )
@@ -292,6 +400,13 @@ def _up_flags(p: argparse.ArgumentParser, viewer: str) -> None:
         help="niceness of plant and supervisor, e.g. -10 on a busy machine (needs CAP_SYS_NICE)",
     )
     p.add_argument("--quiet", action="store_true", help="no event feed")
+    p.add_argument(
+        "--shards",
+        type=int,
+        default=0,
+        help="farm: a sharded supervisor, this many shards (supervise --turbines) and a coordinator (default 0: one "
+        "supervisor)",
+    )
     g = p.add_argument_group("access control")
     g.add_argument(
         "--credentials",
@@ -312,6 +427,8 @@ def cmd_up(args: argparse.Namespace) -> int:
     check_supervisor(scenario)
     if not args.speed > 0:
         raise BadInputError(f"--speed must be > 0, got {args.speed}")
+    if args.shards:
+        check_shards(scenario, args.shards)
     options = UpOptions(
         scenario=scenario,
         mode=args.mode,
@@ -332,8 +449,22 @@ def cmd_up(args: argparse.Namespace) -> int:
         acl=not args.no_acl,
         credentials=args.credentials,
         router_audit=not args.no_router_audit,
+        shards=args.shards,
     )
     return Up(options).run()
+
+
+def check_shards(scenario: Scenario, shards: int) -> None:
+    """``up --shards``: a farm, a per-turbine detector, 1 … N shards; ``BadInputError`` naming what is not."""
+    from service.farm.shard import ShardingError, shard_ranges, shardable
+
+    if scenario.plant.kind != "farm":
+        raise BadInputError(f"--shards: only a farm's supervisor is sharded, not a {scenario.plant.kind}'s")
+    try:
+        shard_ranges(scenario.plant.n_turbines, shards)
+        shardable(scenario.supervisor.detector or "analytic")
+    except ShardingError as error:
+        raise BadInputError(f"--shards: {error}") from None
 
 
 def _add_demo(sub: argparse._SubParsersAction) -> None:
@@ -435,6 +566,7 @@ def cmd_probe(args: argparse.Namespace) -> int:
 LIVE_SUBCOMMANDS: list[Callable[[argparse._SubParsersAction], None]] = [
     _add_plant,
     _add_supervise,
+    _add_coordinate,
     _add_api,
     _add_up,
     _add_probe,

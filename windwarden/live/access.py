@@ -7,7 +7,9 @@ certificate whose common name is the role. The grants follow from what each proc
 * **plant**: puts sensors, truth, the met mast, its status and its events; serves ``plant/run``, ``plant/faults``
   and ``plant/status``; receives refs and the supervisor's status;
 * **supervisor**: puts refs, its status and its events; receives sensors, the met mast and the plant's events; asks
-  ``plant/run``; serves ``supervisor/status``;
+  ``plant/run`` and ``plant/status`` (the plant's tick, to confirm a frame after a long gap); serves
+  ``supervisor/status``; the shards and the coordinator of a sharded farm supervisor log in with this role and put
+  and receive the turbines' summaries, the dispatch rows and the shards' status besides;
 * **api**: receives both event streams; asks ``plant/status``, ``plant/run``, ``plant/faults`` and
   ``supervisor/status``;
 * **viewer** (dashboards, recorders, ``windwarden up``'s event feed, health probes): receives everything of the
@@ -95,6 +97,7 @@ def role_grants(keys: KeyTree | None = None) -> dict[str, list[Grant]]:
     """Every role's allow rules on the key tree ``keys`` (default: every farm, ``windwarden/*/…``)."""
     k = keys or KeyTree.every_farm()
     t = "*"
+    sharded = (k.summary(t), k.dispatch(t), k.shard_status(t))  # a sharded farm supervisor's own keys
     return {
         "plant": [
             *_publish(k.sensors(t), k.truth(t), k.metmast, k.plant_status, k.plant_events),
@@ -103,10 +106,10 @@ def role_grants(keys: KeyTree | None = None) -> dict[str, list[Grant]]:
             *_liveliness(k, Process.PLANT),
             *_discover(k),
         ],
-        "supervisor": [
-            *_publish(k.refs(t), k.supervisor_status, k.supervisor_events),
-            *_subscribe(k.sensors(t), k.metmast, k.plant_events),
-            *_ask(k.run),
+        "supervisor": [  # and the shards and the coordinator of a sharded farm supervisor, their keys besides
+            *_publish(k.refs(t), k.supervisor_status, k.supervisor_events, *sharded),
+            *_subscribe(k.sensors(t), k.metmast, k.plant_events, *sharded),
+            *_ask(k.run, k.plant_status),  # plant/status: a gap's tick confirmed (guard.FrameSequencer)
             *_serve(k.supervisor_status),
             *_liveliness(k, Process.SUPERVISOR),
             *_discover(k),

@@ -35,6 +35,7 @@ from typing import Any
 
 from rich.console import Console
 
+from service.farm.shard import shard_ranges
 from windwarden.kinds import kind_for
 from windwarden.live.access import USERS_FILE, new_passwords, password_file, write_credentials
 from windwarden.live.config import ZenohSettings, new_run_id
@@ -88,6 +89,7 @@ class UpOptions:
     acl: bool = True  # the router enforces access control (a new password per role for this run)
     credentials: Path | None = None  # a folder of <role>.password (and zenoh-users.txt) to use instead
     router_audit: bool = True  # the router counts what it refuses (runs/<id>/router.json)
+    shards: int = 0  # farm: a sharded supervisor, this many shards and a coordinator (0: one supervisor)
 
 
 @dataclass
@@ -290,7 +292,14 @@ class Up:
                 self._child("api", ["api", "--host", o.api_host, "--port", str(api_port)], api_env, True, nice=5)
             )
         rt_env = env | ({"WINDWARDEN_NICE": str(o.nice)} if o.nice is not None else {})
-        self.children.append(self._child("supervisor", ["supervise"], rt_env | self._role_env("supervisor"), True))
+        supervisor_env = rt_env | self._role_env("supervisor")
+        if o.shards:  # the coordinator and the shards log in as the supervisor role (docs/live.md)
+            self.children.append(self._child("coordinator", ["coordinate"], supervisor_env, True))
+            for turbines in shard_ranges(o.scenario.plant.n_turbines, o.shards):
+                args = ["supervise", "--turbines", turbines]
+                self.children.append(self._child(f"shard-{turbines}", args, supervisor_env, True))
+        else:
+            self.children.append(self._child("supervisor", ["supervise"], supervisor_env, True))
         plant_args = ["plant", scenario_file, "--mode", o.mode, "--speed", str(o.speed), "--seed", str(o.seed)]
         self.children.append(self._child("plant", plant_args, rt_env | self._role_env("plant"), False))
         self.info = {
@@ -427,7 +436,7 @@ class Up:
     def _shutdown(self) -> None:
         for name in ("plant", "supervisor", "api"):
             for child in self.children:
-                if child.name == name and child.proc is not None:
+                if _group(child.name) == name and child.proc is not None:
                     child.stop()
         time.sleep(0.3)  # the recorder receives the last rows in flight
         for proc in reversed(self.rerun):
@@ -494,3 +503,8 @@ class Up:
             )
         if failed:
             console.print(f"[red]failed: {', '.join(failed)} (logs in {self.logs})[/red]")
+
+
+def _group(child: str) -> str:
+    """The shutdown group of a child: a sharded supervisor's coordinator and shards stop with the supervisors."""
+    return "supervisor" if child == "coordinator" or child.startswith("shard-") else child
