@@ -16,6 +16,7 @@ import pytest
 
 from tests.live.helpers import HYDRO_SHORT, scenario
 from windwarden.live.batch import random_drops, run_batch
+from windwarden.live.supervisor_node import backlog_ticks
 
 AROUND_RATED = """
 name = "gaps-turbine"
@@ -68,3 +69,10 @@ def test_hydro_drops_raise_no_false_alarm(seed):
     bridged = run_batch(scn, 1, drop).scorecard
     assert bridged["false_alarms_per_1000s"] == lockstep["false_alarms_per_1000s"] == 0.0
     assert [f["detected_pct"] for f in bridged["faults"]] == [f["detected_pct"] for f in lockstep["faults"]]
+
+
+def test_the_backlog_is_counted_in_farm_ticks_not_in_sensor_messages():
+    """An 80-turbine farm queues 80 sensor messages per tick: 299 ticks behind is within a 300-tick allowance."""
+    assert backlog_ticks(80 * 299, 80) == 299.0
+    assert backlog_ticks(80 * 301, 80) > 300
+    assert backlog_ticks(7, 1) == 7.0

@@ -42,6 +42,11 @@ log = logging.getLogger(__name__)
 PLANT_APPEARED = None  # put in the sensor queue by the liveliness callback: the main loop handles it in turn
 
 
+def backlog_ticks(queued_messages: int, turbines: int) -> float:
+    """Ticks queued behind the one being stepped: every tick brings one sensor message per turbine."""
+    return queued_messages / max(turbines, 1)
+
+
 class SupervisorNode:
     """Serves one plant (and the next one, if the plant restarts) until ``stop()``."""
 
@@ -305,8 +310,8 @@ class SupervisorNode:
         elif missing:
             self.gaps += 1
             self._bridge_gap(records)
-        backlog = self._inbox.qsize()
-        if backlog > self.settings.max_backlog_ticks:  # far behind: skip to the newest, start afresh on the next
+        if backlog_ticks(self._inbox.qsize(), len(self.turbines)) > self.settings.max_backlog_ticks:
+            # far behind: skip to the newest, start afresh on the next
             self.drops.add("sensors", "backlog")
             while not self._inbox.empty():
                 self._inbox.get_nowait()
