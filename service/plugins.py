@@ -30,6 +30,7 @@ import difflib
 import importlib
 import importlib.util
 import sys
+import threading
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from importlib.metadata import entry_points
@@ -191,28 +192,30 @@ def choose(kind: str, params: Mapping[str, Any] | None = None, **names: str | No
 
 _BUILTIN_MODULES = ("service.turbine.builtin", "service.farm.builtin", "service.hydro.builtin")
 _loaded = False
+_loading = threading.RLock()
 
 
 def load_plugins(extra_modules: tuple[str, ...] = ()) -> None:
     """Import the built-in algorithms, installed ``windwarden.plugins`` entry points and ``extra_modules``
     (module names, or paths of ``.py`` files)."""
     global _loaded
-    if not _loaded:
-        _loaded = True
-        for module in _BUILTIN_MODULES:
-            try:
+    with _loading:  # a second thread waits until the registries are full instead of seeing them half-filled
+        if not _loaded:
+            for module in _BUILTIN_MODULES:
+                try:
+                    importlib.import_module(module)
+                except ModuleNotFoundError as error:
+                    missing = error.name or ""
+                    if not module.startswith(missing):  # a plant kind not installed is fine; a broken import is not
+                        raise
+            for entry in entry_points(group="windwarden.plugins"):
+                entry.load()
+            _loaded = True
+        for module in extra_modules:
+            if module.endswith(".py"):
+                _import_file(Path(module))
+            else:
                 importlib.import_module(module)
-            except ModuleNotFoundError as error:
-                missing = error.name or ""
-                if not module.startswith(missing):  # a plant kind not installed is fine; a broken import is not
-                    raise
-        for entry in entry_points(group="windwarden.plugins"):
-            entry.load()
-    for module in extra_modules:
-        if module.endswith(".py"):
-            _import_file(Path(module))
-        else:
-            importlib.import_module(module)
 
 
 def _import_file(path: Path) -> None:
