@@ -176,7 +176,9 @@ class AnalyticDetector:
         learnt = {"level_time_s": level_s, "spread_time_s": spread_s, "max_ratio": max_ratio}
         self.level1 = LearntLevel((n,), **learnt)
         self.level2 = LearntLevel((n, 3), **learnt)
-        self.scale3 = LearntRayleighScale(n, self.s3, spread_time_s=spread_s, max_ratio=max_ratio)
+        withheld = SUSPICION**2 * math.log(1.0 / self.p3)  # u = A²/(8s²) above which A is not learnt from
+        self.scale3 = LearntRayleighScale(n, self.s3, spread_time_s=spread_s, max_ratio=max_ratio, truncation=withheld)
+        self.whiten = bool(options.get("whiten_lockin", True))
         self.rate_gain = LearntRateGain((n, 3), time_s=level_s, prior=RATE_PRIOR)
         self.lag_tolerance = float(options.get("pitch_lag_tolerance_s", PITCH_LAG_TOLERANCE_S))
         self.last_pitch: np.ndarray | None = None
@@ -208,6 +210,8 @@ class AnalyticDetector:
         z2 = 1.5 * blades - 0.5 * blades.sum(axis=1, keepdims=True)
         # fault 3: 3P amplitude of z3 = ω̄_g − N ω̄_r
         amplitude = self.lockin.step(omega_g - p.N_g * omega_r, omega_g / p.N_g)
+        if self.whiten:
+            amplitude = self.lockin.whitened
         self.samples += 1
         self.residuals = np.column_stack([z1, np.abs(z2).max(axis=1), amplitude])
         warming = self.samples <= self.warmup
