@@ -14,11 +14,11 @@ e^{jφ_{k−m}} is a zero-mean Gaussian with E|Z|² = σ² V_k and E[Z²] = σ²
 .. math::  V_k = a^2 V_{k-1} + (1-a)^2,\qquad W_k = a^2 W_{k-1} + (1-a)^2 e^{2jφ_k}
 
 (V → (1−a)/(1+a) = 2s²/σ²). W is the demodulation's image at 2·3P that one first-order low-pass does not remove:
-in steady rotation |W|/V = κ = (1−a²)/|1 − a² e^{2j·3ω_rΔt}|, 0.18 at rated speed (ω_r = 1.27 rad/s) and 0.35 at
+in steady rotation |W|/V = κ = (1−a²)/|1 − a² e^{2j·3ω_rΔt}|, 0.13 at rated speed (ω_r = 1.7 rad/s) and 0.26 at
 the half speed of a derated turbine (τ = 1.5 s). I and Q then have variances σ²(V ± Re W)/2 and covariance
 σ² Im W/2: they are not independent with equal variances, A/(2s) is not Rayleigh but Hoyt distributed, and its
-tail is heavier: at the farm detector's per-sample probability 10⁻⁷ the Rayleigh threshold is exceeded 3× (rated
-speed) to 14× (half speed) as often as designed.
+tail is heavier: at the farm detector's per-sample probability 10⁻⁷ the Rayleigh threshold is exceeded 2.5× (rated
+speed) to 6.5× (half speed) as often as designed.
 
 **Whitened amplitude.** With ρ_k = W_k/V_k, the quadratic form of Z in the inverse of its covariance gives
 
@@ -27,8 +27,8 @@ speed) to 14× (half speed) as often as designed.
 
 exactly for Gaussian white x (any rotor-speed history), so Ã/(2s) is Rayleigh: P(Ã > h) = exp(−h²/(8s²))
 (``rayleigh_threshold``); Ã = A where ρ = 0. A 3P tone of amplitude a puts its own image into Z as well; the
-quadratic form removes it with the noise's, so Ã ≈ a steadily where A swings by about ±κ/2 around a at 2·3P: the
-whitening lowers the tone's peaks as it lowers the noise's tail.
+quadratic form removes most of it with the noise's: at half speed A swings between 0.85 a and 1.14 a at 2·3P, Ã
+between 0.98 a and 1.04 a, both a on average. The whitening lowers the tone's peaks as it lowers the noise's tail.
 
 **Met mast** (seed 001 eq. (3)). v̄ = H(s) v_mast with H(s) = 1/(s + 1), discretised exactly at 10 Hz; the wind
 at row j is the mast reading d_j/v̄ earlier (``MastDelays``).
