@@ -31,8 +31,10 @@ frequency): the torsion-rate residual
 .. math::  z_3 = \bar ω_g - N_g\,\bar ω_r,\qquad σ_3^2 = \frac{σ_{ω_g}^2}{20} + N_g^2 \frac{σ_{ω_r}^2}{20}
 
 is free of the wind (the rotor and the generator turn together below the 4.5 Hz torsion mode) and of the
-controller. Its 3P lock-in amplitude A (``signals.LockIn3P``, τ = 1.5 s) is Rayleigh-distributed without the
-fault (A/(2s) with s from σ_3), so the alarm is A ≥ h_3 with P(A > h_3) = p_3.
+controller. Its whitened 3P lock-in amplitude Ã (``signals.LockIn3P``, τ = 1.5 s: the quadratic form of the
+demodulated I, Q in their exact covariance, which the 2·3P image of one low-pass makes unequal and correlated) is
+Rayleigh-distributed without the fault (Ã/(2s) with s from σ_3), so the alarm is Ã ≥ h_3 with P(Ã > h_3) = p_3.
+The plain amplitude A = 2|I + jQ| (``whiten_lockin = false``) has a heavier (Hoyt) tail: 2.5–6.5 × p_3.
 
 **Thresholds from the budget.** The budget is per *farm*: B false alarms per 1000 s of farm operation per fault
 type (``false_alarms_per_1000s``, default 0.01: ten times below the target 0.1, for the model's imperfections),
@@ -62,7 +64,8 @@ turbine's residuals are judged against its own healthy level and spread, learnt 
   blades stop.
 * The variance is ρ σ², ρ ∈ [1, ``max_noise_scale``²] the learnt ratio of the residual's long-run variance to the
   design's (sensors noisier than the data sheet). Fault 3's h_3 is computed per turbine from its learnt I/Q scale
-  s ∈ [s_3, ``max_noise_scale`` s_3].
+  s ∈ [s_3, ``max_noise_scale`` s_3]; as the scale learns only from Ã < h_3/2, its mean is corrected for that
+  truncation (``baseline.LearntRayleighScale``: s² 7.5 % low otherwise).
 * Levels and rate gains learn with time constant ``level_time_s``, spreads with ``spread_time_s``; all are frozen
   while the turbine's flag of that type is up or its statistic (CUSUM g, or A) is above h/2, so a fault never
   teaches the detector its own level. The thresholds h stay those of the budget: only the noise model under them
@@ -176,7 +179,9 @@ class AnalyticDetector:
         learnt = {"level_time_s": level_s, "spread_time_s": spread_s, "max_ratio": max_ratio}
         self.level1 = LearntLevel((n,), **learnt)
         self.level2 = LearntLevel((n, 3), **learnt)
-        self.scale3 = LearntRayleighScale(n, self.s3, spread_time_s=spread_s, max_ratio=max_ratio)
+        withheld = SUSPICION**2 * math.log(1.0 / self.p3)  # u = A²/(8s²) above which A is not learnt from
+        self.scale3 = LearntRayleighScale(n, self.s3, spread_time_s=spread_s, max_ratio=max_ratio, truncation=withheld)
+        self.whiten = bool(options.get("whiten_lockin", True))
         self.rate_gain = LearntRateGain((n, 3), time_s=level_s, prior=RATE_PRIOR)
         self.lag_tolerance = float(options.get("pitch_lag_tolerance_s", PITCH_LAG_TOLERANCE_S))
         self.last_pitch: np.ndarray | None = None
@@ -208,6 +213,8 @@ class AnalyticDetector:
         z2 = 1.5 * blades - 0.5 * blades.sum(axis=1, keepdims=True)
         # fault 3: 3P amplitude of z3 = ω̄_g − N ω̄_r
         amplitude = self.lockin.step(omega_g - p.N_g * omega_r, omega_g / p.N_g)
+        if self.whiten:
+            amplitude = self.lockin.whitened
         self.samples += 1
         self.residuals = np.column_stack([z1, np.abs(z2).max(axis=1), amplitude])
         warming = self.samples <= self.warmup

@@ -34,6 +34,8 @@ health; the paper's faults are abrupt.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from service.learning import learning_weight
@@ -97,23 +99,43 @@ class LearntLevel:
 class LearntRayleighScale:
     r"""The I/Q standard deviation s of a lock-in amplitude A learnt from its healthy samples.
 
-    Without a tone, A = 2√(I² + Q²) with I, Q ~ N(0, s²), so E[A²] = 8 s². The estimate is the running (then
-    exponentially weighted, time constant T_s) mean of A²/8, s_eff = clip(√mean, s_d, √ρ_max s_d) with s_d the design
-    value; frozen where ``frozen``. A steady 3P tone of the turbine's own (a rotor that was always so) raises E[A²]
-    and so the threshold, which is conservative: the Rice distribution of A with a tone is narrower than a Rayleigh
-    of the same E[A²].
+    Without a tone, A = 2√(I² + Q²) with I, Q ~ N(0, s²) (the whitened amplitude of ``service.farm.signals``), so
+    u = A²/(8 s²) ~ Exp(1) and E[A²] = 8 s². The estimate is the running (then exponentially weighted, time constant
+    T_s) mean m of A²/8 over the samples learnt from. The caller withholds the samples whose A has climbed to a share
+    k of the threshold h = 2s√(2 ln 1/p) (so a fault's onset never teaches the scale): that truncates u at
+    c = k² ln(1/p), and the mean of the kept samples is s² g(c) with
+
+    .. math::  g(c) = E[u \mid u < c] = 1 - \frac{c\,e^{-c}}{1 - e^{-c}}
+
+    (0.925 for k = ½ and the 3 × 3's p = 1.1·10⁻⁷: s² learnt 7.5 % low, which makes a Rayleigh threshold exceeded
+    3× as often as designed at that p). So s² = m/g(c) (``truncation`` = c; ``None`` for no truncation), and
+    s_eff = clip(s, s_d, √ρ_max s_d) with s_d the design value; frozen where ``frozen``. A steady 3P tone of the
+    turbine's own (a rotor that was always so) raises E[A²] and so the threshold, which is conservative: the Rice
+    distribution of A with a tone is narrower than a Rayleigh of the same E[A²].
     """
 
-    def __init__(self, n: int, design_s: float, *, spread_time_s: float, max_ratio: float, dt: float = FARM_DT_S):
+    def __init__(
+        self,
+        n: int,
+        design_s: float,
+        *,
+        spread_time_s: float,
+        max_ratio: float,
+        truncation: float | None = None,
+        dt: float = FARM_DT_S,
+    ):
+        if truncation is not None and truncation <= 0.0:
+            raise ValueError("the truncation of A²/(8s²) must be > 0")
         self.design_s = design_s
         self.max_ratio = max_ratio
         self.alpha = dt / spread_time_s
-        self.mean_square = np.full(n, design_s * design_s)  # (A²/8), –²
+        self.kept_share = 1.0 if truncation is None else truncated_exponential_mean(truncation)
+        self.mean_square = np.full(n, design_s * design_s * self.kept_share)  # (A²/8) of the kept samples, –²
         self.samples = np.zeros(n)
 
     @property
     def scale(self) -> np.ndarray:
-        s = np.sqrt(self.mean_square)
+        s = np.sqrt(self.mean_square / self.kept_share)
         return np.clip(s, self.design_s, self.design_s * np.sqrt(self.max_ratio))
 
     def update(self, amplitude: np.ndarray, frozen: np.ndarray | bool = False) -> None:
@@ -121,6 +143,11 @@ class LearntRayleighScale:
         self.samples = self.samples + live
         w = learning_weight(self.samples, live, self.alpha)
         self.mean_square = self.mean_square + w * (amplitude * amplitude / 8.0 - self.mean_square)
+
+
+def truncated_exponential_mean(c: float) -> float:
+    """g(c) = E[u | u < c] for u ~ Exp(1) (``LearntRayleighScale``)."""
+    return 1.0 - c * math.exp(-c) / -math.expm1(-c)
 
 
 class LearntRateGain:

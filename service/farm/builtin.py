@@ -58,6 +58,9 @@ class AnalyticOptions:
     max_noise_scale: Annotated[float, Bounds(ge=1.0, le=10.0)] = analytic.MAX_NOISE_SCALE
     # lag between one rotor's pitch actuators left after the learnt rate gain: widens the pitch test by (this · β̇)²
     pitch_lag_tolerance_s: Annotated[float, Bounds(ge=0.0, le=1.0, unit="s")] = analytic.PITCH_LAG_TOLERANCE_S
+    # judge the drive train on the 3P lock-in's whitened amplitude (False: the plain amplitude 2|I + jQ|, whose
+    # image at 2·3P makes its tail heavier than the Rayleigh threshold assumes; ``service.farm.signals``)
+    whiten_lockin: bool = True
 
 
 @dataclass(frozen=True)
