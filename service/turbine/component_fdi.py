@@ -6,8 +6,12 @@ when the turbine is healthy, so each test's threshold follows from the false-ala
 
 * **Pitch sensors** (faults 1–3). Parity of blade i's two sensors, p_i = (β_i,m1 − β_i,m2)/(√2 σ_β). Flagged
   when |p_i| or the window mean of p_i is too large. Isolation within the pair: a frozen reading, else the
-  sensor farther from the other two blades' four sensors (the blades share the collective reference; with the
-  benchmark's pitch loop a faulty sensor drags its own blade only part of the way, so it stays the outlier).
+  sensor farther from the other two blades' four sensors over the parity window (the blades share the collective
+  reference; with the benchmark's pitch loop a faulty sensor drags its own blade only part of the way, so it stays
+  the outlier). The flag drops when the speed sensors' clearing test (``clearing``), Page's CUSUM of "the pair
+  agrees again" against "the fault persists at the size seen so far", reaches h = ln(1/α) from a false-clear
+  budget, and the window mean is back under its clearing level: a gain fault's parity follows the pitch, and near
+  the detection limit a plain clearing level drops and raises the flag as the pitch moves.
 * **Pitch actuators** (faults 6–7). With the benchmark's pitch loop, actuator i is driven by β_ref + n̄_i,
   n̄_i the mean noise of its two sensors, so its pair mean is m̄_i = G β_ref + (1 + G) n̄_i for the nominal
   actuator G. The cross-blade residual e_i = m̄_i − ½(m̄_j + m̄_k) cancels G β_ref, and (1 + G)⁻¹ e_i is white

@@ -21,6 +21,12 @@ evidence that its sensor is healthy again.
   with probability about α_iso per isolation; its flag then clears on its own (below). Where no such set
   passes, the detection level is used, and where no superset of the flags passes either, the whole bank is
   searched (an isolation that went wrong may be replaced).
+* **Doubt.** A fault on a rotor-speed sensor shows in the UIOs only as their states drift from it, over several
+  ticks, so at the deadline a rotor-speed gain beside a generator-speed fault may not yet reject the explanation
+  that names the generator-speed sensor alone. When a witness of the chosen explanation fails the laxer level
+  ``isolation_confirm_alpha`` (default 0.05), the decision waits one more tick, up to ``isolation_patience``
+  ticks beyond the deadline, with the explanations considered suspected (so the estimate already leaves them
+  out): a first flag that names only part of the faulty set is a wrong isolation, and one more tick is cheaper.
 * **Fault end.** A flag drops only when its sensor's CUSUM (``clearing``) has gathered enough evidence that the
   exclusion residual (the sensor against the selected observer's prediction, which never uses it) is back at
   zero mean, with a false-clear budget like the false-alarm one, and the observer that uses the sensor again
@@ -28,7 +34,10 @@ evidence that its sensor is healthy again.
   does not trip detection again while that observer still carries the fault).
 * **Frozen signals.** A reading that does not change at all for ``frozen_ticks`` ticks is flagged at once
   (fixed-value and stuck faults carry no noise; this also catches a fixed value that happens to equal the
-  truth, which no residual can see), and its flag cannot drop while it stays frozen.
+  truth, which no residual can see), and its flag cannot drop while it stays frozen. Its isolation is decided
+  on the tick the frozen test fires (the test has seen ``frozen_ticks`` of the fault already) and never waits for
+  the generator-speed arbitration (``arbitration``), which a reading frozen near the truth would keep open for
+  seconds.
 
 Thresholds come from the false-alarm budget (PARAMETERS.md d), not from fault data. A design rate of false
 alarms per 1000 s (default 0.01: the requirement is 1, the aim none) gives α = rate·Ts/1000 per tick, split
@@ -406,8 +415,10 @@ class SpeedSensorFDI:
                 self.ambiguous[row] = False
                 return int(self.masks[pool[np.lexsort((own[pool], self.sizes[pool]))[0]]])
         self.ambiguous[row] = True
-        candidates = np.flatnonzero(supersets if supersets.any() else with_frozen)
-        if len(candidates) == 0:  # more sensors frozen than any observer can leave out
+        # nothing explains the data: the flags grow (the smallest superset, least inconsistent), and where none is
+        # left they stay; a flag drops only by its clearing test, never because no explanation fits a gust
+        candidates = np.flatnonzero(supersets)
+        if len(candidates) == 0:  # every sensor an observer can leave out is flagged or frozen already
             return keep
         return int(self.masks[candidates[np.lexsort((ratio[candidates], self.sizes[candidates]))[0]]])
 
