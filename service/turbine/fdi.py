@@ -20,7 +20,8 @@ evidence that its sensor is healthy again.
   pair is flagged together from the first tick. The price is a healthy sensor flagged with the faulty one
   with probability about α_iso per isolation; its flag then clears on its own (below). Where no such set
   passes, the detection level is used, and where no superset of the flags passes either, the whole bank is
-  searched (an isolation that went wrong may be replaced).
+  searched (an isolation that went wrong may be replaced). Where nothing passes at all, the flags grow to the
+  least inconsistent superset, or stay where none is left: a flag drops only by its clearing test.
 * **Doubt.** A fault on a rotor-speed sensor shows in the UIOs only as their states drift from it, over several
   ticks, so at the deadline a rotor-speed gain beside a generator-speed fault may not yet reject the explanation
   that names the generator-speed sensor alone. When a witness of the chosen explanation fails the laxer level
