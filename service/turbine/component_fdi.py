@@ -6,8 +6,12 @@ when the turbine is healthy, so each test's threshold follows from the false-ala
 
 * **Pitch sensors** (faults 1–3). Parity of blade i's two sensors, p_i = (β_i,m1 − β_i,m2)/(√2 σ_β). Flagged
   when |p_i| or the window mean of p_i is too large. Isolation within the pair: a frozen reading, else the
-  sensor farther from the other two blades' four sensors (the blades share the collective reference; with the
-  benchmark's pitch loop a faulty sensor drags its own blade only part of the way, so it stays the outlier).
+  sensor farther from the other two blades' four sensors over the parity window (the blades share the collective
+  reference; with the benchmark's pitch loop a faulty sensor drags its own blade only part of the way, so it stays
+  the outlier). The flag drops when the speed sensors' clearing test (``clearing``), Page's CUSUM of "the pair
+  agrees again" against "the fault persists at the size seen so far", reaches h = ln(1/α) from a false-clear
+  budget, and the window mean is back under its clearing level: a gain fault's parity follows the pitch, and near
+  the detection limit a plain clearing level drops and raises the flag as the pitch moves.
 * **Pitch actuators** (faults 6–7). With the benchmark's pitch loop, actuator i is driven by β_ref + n̄_i,
   n̄_i the mean noise of its two sensors, so its pair mean is m̄_i = G β_ref + (1 + G) n̄_i for the nominal
   actuator G. The cross-blade residual e_i = m̄_i − ½(m̄_j + m̄_k) cancels G β_ref, and (1 + G)⁻¹ e_i is white
@@ -64,6 +68,12 @@ class ComponentSettings:
     # design rate of each family of tests
     false_alarms_per_1000s: Annotated[float, Bounds(gt=0.0, le=1000.0, unit="1/1000 s")] = 0.01
     clear_alpha: Annotated[float, Bounds(gt=0.0, lt=1.0)] = 0.01
+    # design rate of pitch-sensor flags dropping while their fault persists (the clearing CUSUM's h)
+    false_clears_per_1000s: Annotated[float, Bounds(ge=1e-6, le=10.0, unit="1/1000 s")] = 0.01
+    # smallest fault size the pitch-sensor clearing CUSUM assumes, in σ of the parity
+    clear_floor: Annotated[float, Bounds(ge=0.25, le=10.0, unit="σ")] = 1.0
+    # memory of the pitch-sensor clearing CUSUM's fault-size estimate
+    fault_memory_s: Annotated[float, Bounds(ge=0.01, le=60.0, unit="s")] = 0.5
     # ticks averaged by the pitch-sensor window test
     parity_window: Annotated[int, Bounds(ge=1, le=10_000, unit="ticks")] = 10
     # ticks summed by the pitch-actuator χ² test (2 s)
@@ -155,6 +165,16 @@ class ComponentFDI:
         self._actuator_rest = np.zeros(n, dtype=np.int64)  # blocks until the actuator test may flag again
         self._actuator_quiet = np.zeros((n, 3), dtype=np.int64)  # consecutive blocks below the clearing threshold
         self.readings = FrozenReadings((n, 6), settings.frozen_ticks, fast=fast)  # [β_i,m1 | β_i,m2]
+        # each pitch sensor's distance from the other two blades' sensors, summed over the parity window: which
+        # sensor of a pair is the outlier, on the window's evidence rather than one tick's
+        self.outlier = _Window(settings.parity_window, (n, 6))
+        # the pitch-sensor flags' clearing CUSUM (``clearing``'s test on the parity): ticks since the flag, the
+        # fault size μ̂ seen so far (parity σ), and the statistic S
+        self._clear_h = float(np.log(1000.0 / (settings.false_clears_per_1000s * p.dt)))
+        self._clear_weight = min(1.0, p.dt / settings.fault_memory_s)
+        self._clear_count = np.zeros((n, 3))
+        self._clear_mean = np.zeros((n, 3))
+        self._clear_statistic = np.zeros((n, 3))
         self.flags = np.zeros((n, len(TARGET_INDEX)), dtype=bool)
         self.ticks = 0
         self.warmup_ticks = round(settings.warmup_s / p.dt)
@@ -233,6 +253,8 @@ class ComponentFDI:
     ) -> None:
         """Raise and clear the pitch-sensor flags from the parity and its window mean (``any_suspicious``: whether
         any exceeds the single-tick level, None when not known)."""
+        others = 0.25 * (m1[:, OTHERS].sum(axis=2) + m2[:, OTHERS].sum(axis=2))
+        self.outlier.push(np.abs(np.concatenate([m1, m2], axis=1) - np.concatenate([others, others], axis=1)))
         maybe_frozen = self.readings.counting or self.s.frozen_ticks < 2  # else nothing can be frozen
         if any_suspicious is False and not (maybe_frozen or self._pitch_flagged):
             return  # the healthy fast path, known without the array of suspicious blades
@@ -245,17 +267,36 @@ class ComponentFDI:
             return
         flagged_1, flagged_2 = self.flags[:, M1_TARGET], self.flags[:, M2_TARGET]
         fault = suspicious | pair_frozen
-        healthy = (np.abs(window) < self.z_clear) & ~pair_frozen
         new = fault & ~(flagged_1 | flagged_2)
         if new.any():
-            # the sensor farther from the other two blades' sensors (or a frozen one) is the faulty one
-            others = 0.25 * (m1[:, OTHERS].sum(axis=2) + m2[:, OTHERS].sum(axis=2))
-            first = ((np.abs(m1 - others) >= np.abs(m2 - others)) | frozen[:, :3]) & ~frozen[:, 3:]
+            # the sensor farther from the other two blades' sensors over the window (or a frozen one) is the
+            # faulty one
+            distance = self.outlier.total
+            first = ((distance[:, :3] >= distance[:, 3:]) | frozen[:, :3]) & ~frozen[:, 3:]
             flagged_1 = flagged_1 | (new & first)
             flagged_2 = flagged_2 | (new & ~first)
+        healthy = self._pitch_clearing(parity, flagged_1 | flagged_2, new) & (np.abs(window) < self.z_clear)
+        healthy &= ~pair_frozen
         self.flags[:, M1_TARGET] = flagged_1 & ~healthy
         self.flags[:, M2_TARGET] = flagged_2 & ~healthy
         self._pitch_flagged = bool(self.flags[:, M1_TARGET].any() or self.flags[:, M2_TARGET].any())
+
+    def _pitch_clearing(self, parity: np.ndarray, flagged: np.ndarray, raised: np.ndarray) -> np.ndarray:
+        """Page's CUSUM of "the pair agrees again" against "the fault persists at the size seen so far" on the
+        parity of each flagged pair (the speed sensors' test, ``clearing``): S ← max(0, S + m(m/2 − sgn(μ̂) p)),
+        m = max(|μ̂|, ``clear_floor``), μ̂ the parity's running mean since the flag (exponentially weighted over
+        ``fault_memory_s``); healthy once S ≥ h = ln(1/α) from ``false_clears_per_1000s``. While a gain fault's
+        parity μ̂ ∝ β stays above the floor, S drifts down whatever the noise does, so a parity wandering about
+        the clearing level no longer drops and raises the flag; (n, 3) bool where S ≥ h."""
+        count, mean, statistic = self._clear_count, self._clear_mean, self._clear_statistic
+        count[raised], mean[raised], statistic[raised] = 0.0, 0.0, 0.0
+        count += flagged
+        weight = np.where(flagged, np.maximum(1.0 / np.maximum(count, 1.0), self._clear_weight), 0.0)
+        mean += weight * (parity - mean)
+        m = np.maximum(np.abs(mean), self.s.clear_floor)
+        llr = m * (0.5 * m - np.where(mean < 0.0, -parity, parity))
+        statistic[:] = np.where(flagged, np.maximum(0.0, statistic + llr), 0.0)
+        return flagged & (statistic >= self._clear_h)
 
     # -- pitch actuators (once per block) -----------------------------------------------------------------------
     def _actuators(self) -> None:

@@ -20,7 +20,14 @@ evidence that its sensor is healthy again.
   pair is flagged together from the first tick. The price is a healthy sensor flagged with the faulty one
   with probability about α_iso per isolation; its flag then clears on its own (below). Where no such set
   passes, the detection level is used, and where no superset of the flags passes either, the whole bank is
-  searched (an isolation that went wrong may be replaced).
+  searched (an isolation that went wrong may be replaced). Where nothing passes at all, the flags grow to the
+  least inconsistent superset, or stay where none is left: a flag drops only by its clearing test.
+* **Doubt.** A fault on a rotor-speed sensor shows in the UIOs only as their states drift from it, over several
+  ticks, so at the deadline a rotor-speed gain beside a generator-speed fault may not yet reject the explanation
+  that names the generator-speed sensor alone. When a witness of the chosen explanation fails the laxer level
+  ``isolation_confirm_alpha`` (default 0.05), the decision waits one more tick, up to ``isolation_patience``
+  ticks beyond the deadline, with the explanations considered suspected (so the estimate already leaves them
+  out): a first flag that names only part of the faulty set is a wrong isolation, and one more tick is cheaper.
 * **Fault end.** A flag drops only when its sensor's CUSUM (``clearing``) has gathered enough evidence that the
   exclusion residual (the sensor against the selected observer's prediction, which never uses it) is back at
   zero mean, with a false-clear budget like the false-alarm one, and the observer that uses the sensor again
@@ -28,7 +35,10 @@ evidence that its sensor is healthy again.
   does not trip detection again while that observer still carries the fault).
 * **Frozen signals.** A reading that does not change at all for ``frozen_ticks`` ticks is flagged at once
   (fixed-value and stuck faults carry no noise; this also catches a fixed value that happens to equal the
-  truth, which no residual can see), and its flag cannot drop while it stays frozen.
+  truth, which no residual can see), and its flag cannot drop while it stays frozen. Its isolation is decided
+  on the tick the frozen test fires (the test has seen ``frozen_ticks`` of the fault already) and never waits for
+  the generator-speed arbitration (``arbitration``), which a reading frozen near the truth would keep open for
+  seconds.
 
 Thresholds come from the false-alarm budget (PARAMETERS.md d), not from fault data. A design rate of false
 alarms per 1000 s (default 0.01: the requirement is 1, the aim none) gives α = rate·Ts/1000 per tick, split
@@ -94,6 +104,10 @@ class FDISettings:
     window: Annotated[int, Bounds(ge=1, le=LAGS, unit="ticks")] = 4  # ticks summed by the window test
     # ticks of evidence gathered after a detection before isolating (< window)
     isolation_delay: Annotated[int, Bounds(ge=0, le=LAGS - 1, unit="ticks")] = 2
+    # level at which a witness of the chosen explanation casts doubt on it: the decision then waits a tick
+    isolation_confirm_alpha: Annotated[float, Bounds(ge=1e-9, le=0.5)] = 0.05
+    # most ticks a doubtful isolation may wait beyond ``isolation_delay`` (0: decide at the deadline)
+    isolation_patience: Annotated[int, Bounds(ge=0, le=100, unit="ticks")] = 5
     # ticks summed by the re-admission test (≤ window)
     clear_window: Annotated[int, Bounds(ge=1, le=LAGS, unit="ticks")] = 3
     # identical consecutive readings that mark a sensor frozen
@@ -109,6 +123,11 @@ class FDISettings:
         if self.isolation_delay >= self.window:
             raise AlgorithmOptionError(
                 f"isolation_delay must be 0 … window − 1 ({self.window - 1}), not {self.isolation_delay}"
+            )
+        if self.isolation_confirm_alpha < self.isolation_alpha:
+            raise AlgorithmOptionError(
+                f"isolation_confirm_alpha ({self.isolation_confirm_alpha}) must be at least isolation_alpha "
+                f"({self.isolation_alpha}): doubt is a laxer test than rejection"
             )
         if self.clear_window > self.window:
             raise AlgorithmOptionError(f"clear_window must be 1 … window ({self.window}), not {self.clear_window}")
@@ -148,6 +167,11 @@ class SpeedSensorFDI:
         iso = max(settings.isolation_alpha, alpha)
         self.h_isolate = chi2_isf(iso / 2.0, ranks)
         self.h_isolate_window = np.array([window_threshold(o.autocov, settings.window, iso / 2.0) for o in observers])
+        confirm = max(settings.isolation_confirm_alpha, iso)
+        self.h_confirm = chi2_isf(confirm / 2.0, ranks)
+        self.h_confirm_window = np.array(
+            [window_threshold(o.autocov, settings.window, confirm / 2.0) for o in observers]
+        )
         self.h_clear = np.array(
             [window_threshold(o.autocov, settings.clear_window, settings.clear_alpha) for o in observers]
         )
@@ -268,7 +292,7 @@ class SpeedSensorFDI:
             inconsistent = ratio[:, self._all_healthy] > 1.0
         trouble = inconsistent | ((frozen_mask & ~self.flagged) != 0) if any_frozen else inconsistent
         if self._pending or trouble.any():
-            self._isolate(trouble, chi2_stat, ratio, frozen_mask, y, torque_band, power_speed)
+            self._isolate(trouble, inconsistent, chi2_stat, ratio, frozen_mask, y, torque_band, power_speed)
         if self._maybe_flagged:
             if self.flagged.any():
                 self._clear(y, x_hat, frozen_mask, trouble | (self.deadline >= 0), torque_band)
@@ -277,6 +301,7 @@ class SpeedSensorFDI:
     def _isolate(
         self,
         trouble: np.ndarray,
+        inconsistent: np.ndarray,
         chi2_stat: np.ndarray,
         ratio: np.ndarray,
         frozen_mask: np.ndarray,
@@ -285,9 +310,11 @@ class SpeedSensorFDI:
         power_speed: np.ndarray | None,
     ) -> None:
         """Start an isolation where trouble begins; decide those whose ``isolation_delay`` has run out, unless
-        the choice between the two generator-speed sensors is still open (``arbitration``)."""
+        the chosen explanation is in doubt (``isolation_patience``) or the choice between the two generator-speed
+        sensors is still open (``arbitration``)."""
         start = trouble & (self.deadline < 0)
-        self.deadline[start] = self.ticks + self.s.isolation_delay
+        # a reading frozen for ``frozen_ticks`` has already shown its fault for that long: no delay to wait out
+        self.deadline[start] = self.ticks + np.where(inconsistent[start], self.s.isolation_delay, 0)
         self.started[start] = self.ticks
         self.arbiter.reset(start)
         suspected = _SENSORS_OF_MASK[self.flagged | self.provisional]
@@ -302,15 +329,24 @@ class SpeedSensorFDI:
         decided = self.arbiter.decided()
         rows = np.flatnonzero(self.deadline >= 0)
         isolate = np.maximum(chi2_stat[rows] / self.h_isolate, self._window_sum[rows] / self.h_isolate_window)
+        confirm = np.maximum(chi2_stat[rows] / self.h_confirm, self._window_sum[rows] / self.h_confirm_window)
+        patience = self.s.isolation_delay + self.s.isolation_patience
         before = self.flagged.copy()
         for i, row in enumerate(rows):
+            frozen = int(frozen_mask[row])
             explanation = self._explain(
-                row, self._explained(ratio[row]), self._explained(isolate[i]), int(frozen_mask[row]), isolate[i]
+                row, self._explained(ratio[row]), self._explained(isolate[i]), frozen, isolate[i]
             )
             if self.ticks >= self.deadline[row]:
-                other = self._generator_alternative(explanation, self._explained(ratio[row]))
+                waited = self.ticks - self.started[row]
+                if waited < patience and self._doubtful(row, explanation, confirm[i]):
+                    self.deadline[row] = self.ticks + 1  # one more tick of evidence, distrusting what is suspected
+                    if self._estimable[self.provisional[row] | explanation]:
+                        self.provisional[row] |= explanation
+                    continue
+                other = self._generator_alternative(explanation, self._explained(ratio[row]), frozen)
                 if other is not None:
-                    if not decided[row] and self.ticks - self.started[row] < self.arbitration_ticks:
+                    if not decided[row] and waited < self.arbitration_ticks:
                         self.deadline[row] = self.ticks + 1  # wait for the arbitration, trusting neither
                         both = self.provisional[row] | explanation | other
                         if self._estimable[both]:
@@ -333,15 +369,26 @@ class SpeedSensorFDI:
         self._pending = bool((self.deadline >= 0).any())
         self._maybe_flagged = True
 
+    def _doubtful(self, row: int, explanation: int, confirm: np.ndarray) -> bool:
+        """Whether a witness of the explanation chosen at the isolation level fails the laxer confirmation level
+        ``isolation_confirm_alpha``: evidence of a further fault that has not yet grown enough to reject it (a
+        rotor-speed gain beside a generator-speed fault shows in the UIOs only as their states drift from it over
+        several ticks), so that flagging it now would name a part of the faulty set first."""
+        j = self.observer_of_mask[explanation]
+        if j < 0 or self.ambiguous[row]:
+            return False
+        return bool((self.witnesses[j] * confirm).max() > 1.0)
+
     def _explained(self, ratio: np.ndarray) -> np.ndarray:
         """For each explanation (observer index), the largest ratio among its witnesses (n_isolating,)."""
         return (self.witnesses * ratio).max(axis=1)
 
-    def _generator_alternative(self, explanation: int, isolate: np.ndarray) -> int | None:
+    def _generator_alternative(self, explanation: int, isolate: np.ndarray, frozen: int = 0) -> int | None:
         """The same explanation with the other generator-speed sensor, if the residuals do not rule it out
-        (consistent at the detection level: only the arbitration can tell a small fault's sensor)."""
+        (consistent at the detection level: only the arbitration can tell a small fault's sensor) and the
+        explanation's own generator-speed sensor is not frozen (a frozen reading is a fault whatever its value)."""
         generator = explanation & _GENERATOR_BITS
-        if generator not in (_BITS[2], _BITS[3]):
+        if generator not in (_BITS[2], _BITS[3]) or generator & frozen:
             return None
         other = explanation ^ _GENERATOR_BITS
         j = self.observer_of_mask[other]
@@ -369,8 +416,10 @@ class SpeedSensorFDI:
                 self.ambiguous[row] = False
                 return int(self.masks[pool[np.lexsort((own[pool], self.sizes[pool]))[0]]])
         self.ambiguous[row] = True
-        candidates = np.flatnonzero(supersets if supersets.any() else with_frozen)
-        if len(candidates) == 0:  # more sensors frozen than any observer can leave out
+        # nothing explains the data: the flags grow (the smallest superset, least inconsistent), and where none is
+        # left they stay; a flag drops only by its clearing test, never because no explanation fits a gust
+        candidates = np.flatnonzero(supersets)
+        if len(candidates) == 0:  # every sensor an observer can leave out is flagged or frozen already
             return keep
         return int(self.masks[candidates[np.lexsort((ratio[candidates], self.sizes[candidates]))[0]]])
 
