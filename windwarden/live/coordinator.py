@@ -36,10 +36,11 @@ from service.farm.supervisor import FarmSupervisor
 from windwarden.kinds import RunInfo, kind_for
 from windwarden.live.config import SupervisorSettings
 from windwarden.live.mailbox import TickMailbox
+from windwarden.live.run_query import query_run, wait_for_run
 from windwarden.live.runfolder import EVENTS, EventLog
 from windwarden.live.sharding import checked, farm_sample, mismatch
 from windwarden.live.timing import LatencyStats
-from windwarden.live.transport import JsonQueryable, LivenessWatch, QueryFailedError, declare_publisher, query_json
+from windwarden.live.transport import JsonQueryable, LivenessWatch, declare_publisher
 from wwcore.events import Event
 from wwcore.keys import COMMAND_QOS, EVENT_QOS, Process
 from wwcore.wire import FARM_REFS, FARM_SUMMARY, DropCounter, DropReason, WireError, decode_json, encode_json
@@ -135,26 +136,6 @@ class CoordinatorNode:
             self._inbox.put(WAKE)
 
     # -- run set-up ------------------------------------------------------------------------------------------------
-    def _query_run(self, timeout: float) -> RunInfo | None:
-        try:
-            return RunInfo.from_json(query_json(self.session, self.keys.run, "plant.run", timeout=timeout))
-        except (QueryFailedError, KeyError, TypeError, ValueError) as error:
-            log.info("no run description from the plant: %s", error)
-            return None
-
-    def _fetch_info(self) -> RunInfo | None:
-        wait = self.settings.plant_wait_s
-        deadline = None if wait == 0 else time.monotonic() + wait
-        while not self._stop.is_set():
-            if self.watch.is_alive(Process.PLANT):
-                info = self._query_run(2.0)
-                if info is not None:
-                    return info
-            if deadline is not None and time.monotonic() > deadline:
-                return None
-            self.watch.wait_for(Process.PLANT, True, timeout=0.5)
-        return None
-
     def start_run(self, info: RunInfo) -> None:
         """(Re)build the farm-wide part for the run ``info``; ``ShardingError`` (a ``ValueError``) if it cannot be
         sharded (not a farm; a farm-wide detector)."""
@@ -246,7 +227,7 @@ class CoordinatorNode:
 
     # -- the loop --------------------------------------------------------------------------------------------------
     def run(self) -> int:
-        info = self._fetch_info()
+        info = wait_for_run(self.session, self.keys, self.watch, self.settings.plant_wait_s, self._stop)
         if info is None:
             return 0 if self._stop.is_set() else 1
         self._plant_appeared.clear()
@@ -272,7 +253,7 @@ class CoordinatorNode:
         return 0
 
     def _follow_plant(self) -> None:
-        info = self._query_run(2.0)
+        info = query_run(self.session, self.keys, 2.0)
         if info is not None and self.info is not None and info.run_key != self.info.run_key:
             self.start_run(info)
 

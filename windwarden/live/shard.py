@@ -40,6 +40,7 @@ from windwarden.kinds import RunInfo, kind_for
 from windwarden.live.config import SupervisorSettings
 from windwarden.live.guard import FrameSequencer
 from windwarden.live.mailbox import TickMailbox
+from windwarden.live.run_query import query_run, wait_for_run
 from windwarden.live.sharding import checked, held_records, pitch_trim_of, summary_records
 from windwarden.live.timing import LatencyStats
 from windwarden.live.transport import LivenessWatch, QueryFailedError, declare_publisher, query_json
@@ -137,26 +138,6 @@ class ShardNode:
             self._inbox.put(PLANT_APPEARED)
 
     # -- run set-up ------------------------------------------------------------------------------------------------
-    def _query_run(self, timeout: float) -> RunInfo | None:
-        try:
-            return RunInfo.from_json(query_json(self.session, self.keys.run, "plant.run", timeout=timeout))
-        except (QueryFailedError, KeyError, TypeError, ValueError) as error:
-            log.info("no run description from the plant: %s", error)
-            return None
-
-    def _fetch_info(self) -> RunInfo | None:
-        wait = self.settings.plant_wait_s
-        deadline = None if wait == 0 else time.monotonic() + wait
-        while not self._stop.is_set():
-            if self.watch.is_alive(Process.PLANT):
-                info = self._query_run(2.0)
-                if info is not None:
-                    return info
-            if deadline is not None and time.monotonic() > deadline:
-                return None
-            self.watch.wait_for(Process.PLANT, True, timeout=0.5)
-        return None
-
     def start_run(self, info: RunInfo) -> None:
         """(Re)build the per-turbine part for the run ``info``; ``ShardingError`` (a ``ValueError``) if this shard
         cannot serve it (not a farm, a farm-wide detector, turbines the farm does not have)."""
@@ -184,7 +165,7 @@ class ShardNode:
         self._inbox.put(sample.payload.to_bytes())
 
     def _confirm_run(self, run: int) -> RunInfo | None:
-        info = self._query_run(1.0)
+        info = query_run(self.session, self.keys, 1.0)
         return info if info is not None and info.run_key == run else None
 
     def _confirm_tick(self, tick: int) -> bool:
@@ -222,7 +203,7 @@ class ShardNode:
 
     # -- the loop --------------------------------------------------------------------------------------------------
     def run(self) -> int:
-        info = self._fetch_info()
+        info = wait_for_run(self.session, self.keys, self.watch, self.settings.plant_wait_s, self._stop)
         if info is None:
             return 0 if self._stop.is_set() else 1
         self.start_run(info)
@@ -274,7 +255,7 @@ class ShardNode:
     def _follow_plant(self) -> None:
         if self._stop.is_set():
             return
-        info = self._query_run(2.0)
+        info = query_run(self.session, self.keys, 2.0)
         if info is not None and self.info is not None and info.run_key != self.info.run_key:
             self.start_run(info)
 

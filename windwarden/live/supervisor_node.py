@@ -31,6 +31,7 @@ from windwarden.kinds import PlantKind, RunInfo, kind_for
 from windwarden.live.config import SupervisorSettings
 from windwarden.live.guard import FrameSequencer, RefusalLog, bridge_gap
 from windwarden.live.mailbox import TickMailbox
+from windwarden.live.run_query import query_run, wait_for_run
 from windwarden.live.runfolder import EVENTS, EventLog
 from windwarden.live.timing import LatencyStats
 from windwarden.live.transport import JsonQueryable, LivenessWatch, QueryFailedError, declare_publisher, query_json
@@ -155,22 +156,6 @@ class SupervisorNode:
         self.fresh = fresh
 
     # -- run set-up -------------------------------------------------------------------------------------------------
-    def _fetch_info(self) -> RunInfo | None:
-        """The run description from the plant; waits for a plant (for ever if ``plant_wait_s`` is 0)."""
-        wait = self.settings.plant_wait_s
-        deadline = None if wait == 0 else time.monotonic() + wait
-        while not self._stop.is_set():
-            if self.watch.is_alive(Process.PLANT):
-                try:
-                    return RunInfo.from_json(query_json(self.session, self.keys.run, "plant.run", timeout=2.0))
-                except (QueryFailedError, KeyError, TypeError, ValueError) as error:
-                    log.info("waiting for the plant's run description: %s", error)
-            if deadline is not None and time.monotonic() > deadline:
-                return None
-            self.watch.wait_for(Process.PLANT, True, timeout=0.5)
-            self._stop.wait(0.1)
-        return None
-
     def _start_run(self, info: RunInfo) -> None:
         """(Re)build the supervisor, its event log and its display for the run ``info``."""
         new_run = self.info is None or info.run_id != self.info.run_id
@@ -242,7 +227,7 @@ class SupervisorNode:
 
     # -- the loop ---------------------------------------------------------------------------------------------------
     def run(self) -> int:
-        info = self._fetch_info()
+        info = wait_for_run(self.session, self.keys, self.watch, self.settings.plant_wait_s, self._stop)
         if info is None:
             return 0 if self._stop.is_set() else 1
         self._start_run(info)
@@ -267,9 +252,8 @@ class SupervisorNode:
     def _follow_plant(self) -> None:
         """A plant has appeared: if it runs a new run (its run identity is not the current one), build for it now,
         so a plant that waits for a ready supervisor before its first tick (lockstep) need not wait."""
-        try:
-            info = RunInfo.from_json(query_json(self.session, self.keys.run, "plant.run", timeout=2.0))
-        except (QueryFailedError, KeyError, TypeError, ValueError):
+        info = query_run(self.session, self.keys, 2.0)
+        if info is None:
             return  # its frames will tell (``FrameSequencer``)
         if self.info is not None and info.run_key != self.info.run_key:
             self._start_run(info)
@@ -277,11 +261,8 @@ class SupervisorNode:
 
     def _confirm_run(self, run: int) -> RunInfo | None:
         """The plant's run description if the plant says ``run`` is its run identity, else None."""
-        try:
-            info = RunInfo.from_json(query_json(self.session, self.keys.run, "plant.run", timeout=1.0))
-        except (QueryFailedError, KeyError, TypeError, ValueError):
-            return None
-        return info if info.run_key == run else None
+        info = query_run(self.session, self.keys, 1.0)
+        return info if info is not None and info.run_key == run else None
 
     def _confirm_tick(self, tick: int) -> bool:
         """The plant has measured tick ``tick`` of the current run (its status says so)."""
