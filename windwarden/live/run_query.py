@@ -40,3 +40,18 @@ def wait_for_run(
         watch.wait_for(Process.PLANT, True, timeout=0.5)
         stop.wait(0.1)
     return None
+
+
+def confirm_run(session: zenoh.Session, keys: KeyTree, run_key: int) -> RunInfo | None:
+    """The plant's run description if the plant says ``run_key`` is its run identity, else None."""
+    info = query_run(session, keys, 1.0)
+    return info if info is not None and info.run_key == run_key else None
+
+
+def plant_has_measured(session: zenoh.Session, keys: KeyTree, run_key: int, tick: int) -> bool:
+    """The plant's status says it has measured tick ``tick`` of run ``run_key``."""
+    try:
+        status = query_json(session, keys.plant_status, "plant.status", timeout=1.0)
+    except QueryFailedError:
+        return False
+    return status.get("run_key") == run_key and isinstance(status.get("tick"), int) and tick <= status["tick"]

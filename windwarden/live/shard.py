@@ -40,10 +40,10 @@ from windwarden.kinds import RunInfo, kind_for
 from windwarden.live.config import SupervisorSettings
 from windwarden.live.guard import FrameSequencer
 from windwarden.live.mailbox import TickMailbox
-from windwarden.live.run_query import query_run, wait_for_run
+from windwarden.live.run_query import confirm_run, plant_has_measured, query_run, wait_for_run
 from windwarden.live.sharding import checked, held_records, pitch_trim_of, summary_records
 from windwarden.live.timing import LatencyStats
-from windwarden.live.transport import LivenessWatch, QueryFailedError, declare_publisher, query_json
+from windwarden.live.transport import LivenessWatch, declare_publisher
 from wwcore.keys import COMMAND_QOS, EVENT_QOS, Process
 from wwcore.wire import FARM_REFS, FARM_SENSORS, FARM_SUMMARY, DropCounter, DropReason, encode_json
 
@@ -165,19 +165,10 @@ class ShardNode:
         self._inbox.put(sample.payload.to_bytes())
 
     def _confirm_run(self, run: int) -> RunInfo | None:
-        info = query_run(self.session, self.keys, 1.0)
-        return info if info is not None and info.run_key == run else None
+        return confirm_run(self.session, self.keys, run)
 
     def _confirm_tick(self, tick: int) -> bool:
-        try:
-            status = query_json(self.session, self.keys.plant_status, "plant.status", timeout=1.0)
-        except QueryFailedError:
-            return False
-        return (
-            status.get("run_key") == self.info.run_key
-            and isinstance(status.get("tick"), int)
-            and tick <= status["tick"]
-        )
+        return plant_has_measured(self.session, self.keys, self.info.run_key, tick)
 
     # -- status ----------------------------------------------------------------------------------------------------
     def status(self) -> dict[str, Any]:

@@ -31,10 +31,10 @@ from windwarden.kinds import PlantKind, RunInfo, kind_for
 from windwarden.live.config import SupervisorSettings
 from windwarden.live.guard import FrameSequencer, RefusalLog, bridge_gap
 from windwarden.live.mailbox import TickMailbox
-from windwarden.live.run_query import query_run, wait_for_run
+from windwarden.live.run_query import confirm_run, plant_has_measured, query_run, wait_for_run
 from windwarden.live.runfolder import EVENTS, EventLog
 from windwarden.live.timing import LatencyStats
-from windwarden.live.transport import JsonQueryable, LivenessWatch, QueryFailedError, declare_publisher, query_json
+from windwarden.live.transport import JsonQueryable, LivenessWatch, declare_publisher
 from wwcore.events import Event, EventType
 from wwcore.keys import COMMAND_QOS, EVENT_QOS, Process
 from wwcore.wire import DropCounter, WireError, decode_json, encode_json
@@ -260,21 +260,10 @@ class SupervisorNode:
             self.resets += 1
 
     def _confirm_run(self, run: int) -> RunInfo | None:
-        """The plant's run description if the plant says ``run`` is its run identity, else None."""
-        info = query_run(self.session, self.keys, 1.0)
-        return info if info is not None and info.run_key == run else None
+        return confirm_run(self.session, self.keys, run)
 
     def _confirm_tick(self, tick: int) -> bool:
-        """The plant has measured tick ``tick`` of the current run (its status says so)."""
-        try:
-            status = query_json(self.session, self.keys.plant_status, "plant.status", timeout=1.0)
-        except QueryFailedError:
-            return False
-        return (
-            status.get("run_key") == self.info.run_key
-            and isinstance(status.get("tick"), int)
-            and tick <= status["tick"]
-        )
+        return plant_has_measured(self.session, self.keys, self.info.run_key, tick)
 
     def _on_frame(self, records: np.ndarray) -> None:
         kind = self.kind
