@@ -16,7 +16,7 @@ import pytest
 
 from tests.live.helpers import HYDRO_SHORT, scenario
 from windwarden.live.batch import random_drops, run_batch
-from windwarden.live.supervisor_node import backlog_ticks
+from windwarden.live.mailbox import backlog_ticks
 
 AROUND_RATED = """
 name = "gaps-turbine"

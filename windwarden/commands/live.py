@@ -151,8 +151,7 @@ def check_kind(kind: str) -> None:
 
 
 # -- supervise -----------------------------------------------------------------------------------------------------
-def _add_supervise(sub: argparse._SubParsersAction) -> None:
-    p = sub.add_parser("supervise", help="run the supervisor as a Zenoh service (serves whatever plant runs)")
+def _plant_wait_flag(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--plant-wait",
         dest="plant_wait_s",
@@ -160,6 +159,11 @@ def _add_supervise(sub: argparse._SubParsersAction) -> None:
         default=None,
         help="s to wait for a plant; 0 (default) waits for ever",
     )
+
+
+def _add_supervise(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser("supervise", help="run the supervisor as a Zenoh service (serves whatever plant runs)")
+    _plant_wait_flag(p)
     p.add_argument("--exit-with-run", action="store_true", default=None, help="exit when the plant's run ends")
     p.add_argument(
         "--turbines",
@@ -276,13 +280,7 @@ def _add_coordinate(sub: argparse._SubParsersAction) -> None:
         help="run the farm coordinator of a sharded supervisor (dispatch and farm decisions; shards: supervise "
         "--turbines)",
     )
-    p.add_argument(
-        "--plant-wait",
-        dest="plant_wait_s",
-        type=float,
-        default=None,
-        help="s to wait for a plant; 0 (default) waits for ever",
-    )
+    _plant_wait_flag(p)
     _zenoh_flags(p)
     _run_flags(p)
     p.set_defaults(func=cmd_coordinate)

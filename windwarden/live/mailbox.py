@@ -21,6 +21,12 @@ import numpy as np
 
 from wwcore.wire import DropCounter, DropReason, MessageSchema, WireError, stack_records
 
+
+def backlog_ticks(queued_messages: int, turbines: int) -> float:
+    """Ticks queued behind the one being stepped: every tick brings one sensor message per turbine."""
+    return queued_messages / max(turbines, 1)
+
+
 TickWindow = Callable[[int], "DropReason | None"]
 """A node's check of a tick before a row of it is kept: None to keep it, else the reason to refuse it."""
 

@@ -39,7 +39,7 @@ from service.farm.shard import FarmShard
 from windwarden.kinds import RunInfo, kind_for
 from windwarden.live.config import SupervisorSettings
 from windwarden.live.guard import FrameSequencer
-from windwarden.live.mailbox import TickMailbox
+from windwarden.live.mailbox import TickMailbox, backlog_ticks
 from windwarden.live.run_query import confirm_run, plant_has_measured, query_run, wait_for_run
 from windwarden.live.sharding import checked, held_records, pitch_trim_of, summary_records
 from windwarden.live.timing import LatencyStats
@@ -229,7 +229,7 @@ class ShardNode:
     def _skip_backlog(self) -> None:
         """Far behind (more than ``max_backlog_ticks`` of its turbines' frames queued): drop what is queued and go
         on from the next frame (the sequencer then confirms the tick with the plant and restarts the detector)."""
-        if self._inbox.qsize() <= self.settings.max_backlog_ticks * len(self.owned):
+        if backlog_ticks(self._inbox.qsize(), len(self.owned)) <= self.settings.max_backlog_ticks:
             return
         self.drops.add("sensors", "backlog")
         while True:

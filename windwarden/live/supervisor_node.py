@@ -30,7 +30,7 @@ import zenoh
 from windwarden.kinds import PlantKind, RunInfo, kind_for
 from windwarden.live.config import SupervisorSettings
 from windwarden.live.guard import FrameSequencer, RefusalLog, bridge_gap
-from windwarden.live.mailbox import TickMailbox
+from windwarden.live.mailbox import TickMailbox, backlog_ticks
 from windwarden.live.run_query import confirm_run, plant_has_measured, query_run, wait_for_run
 from windwarden.live.runfolder import EVENTS, EventLog
 from windwarden.live.timing import LatencyStats
@@ -41,11 +41,6 @@ from wwcore.wire import DropCounter, WireError, decode_json, encode_json
 
 log = logging.getLogger(__name__)
 PLANT_APPEARED = None  # put in the sensor queue by the liveliness callback: the main loop handles it in turn
-
-
-def backlog_ticks(queued_messages: int, turbines: int) -> float:
-    """Ticks queued behind the one being stepped: every tick brings one sensor message per turbine."""
-    return queued_messages / max(turbines, 1)
 
 
 class SupervisorNode:
