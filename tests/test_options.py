@@ -16,6 +16,7 @@ from service.hydro.builtin import HydroContext
 from service.plugins import ROLES, TURBINE_DETECTORS, AlgorithmOptionError, Registry, UnknownAlgorithmError, choose
 from service.turbine.interfaces import TurbineContext
 from windwarden.cli import main
+from windwarden.commands.common import with_wake_model
 from windwarden.kinds import RunInfo, kind_for
 from wwcore.hydro_params import NOMINAL
 from wwcore.options import Bounds, OptionSchema
@@ -215,9 +216,15 @@ BAD_PARAMS = {
     "hydro": (("tau_filtr = [0.05, 0.05]", "tau_filtr"), ("tau_filter = [0.05, -1.0]", "tau_filter[1]")),
 }
 UNUSED_FLAGS = {
-    "turbine": (["--no-compensation"], ["--controller", "pi"], ["--compare"], ["--no-accommodation"]),
+    "turbine": (
+        ["--no-compensation"],
+        ["--controller", "pi"],
+        ["--compare"],
+        ["--no-accommodation"],
+        ["--wake-model", "rows"],
+    ),
     "farm": (["--no-compensation"], ["--estimator", "uio-bank"]),
-    "hydro": (["--controller", "pi"], ["--no-accommodation"], ["--no-twins"], ["--compare"]),
+    "hydro": (["--controller", "pi"], ["--no-accommodation"], ["--no-twins"], ["--compare"], ["--wake-model", "gauss"]),
 }
 
 
@@ -250,6 +257,31 @@ def test_eval_refuses_a_flag_the_kind_does_not_use(tmp_path, capsys, kind):
     path = _scenario(tmp_path, kind)
     for flags in UNUSED_FLAGS[kind]:
         _refused(capsys, ["eval", str(path), "--runs", "1", "--quiet", "--out", str(out), *flags], flags[0])
+    assert not out.exists()
+
+
+def test_wake_model_swaps_the_farms_wakes_and_nothing_else():
+    shipped = load_scenario("farm-case1")
+    rows = with_wake_model(shipped, "rows")
+    assert shipped.plant.wake_model == "gauss" and rows.plant.wake_model == "rows"
+    assert rows.plant.model_copy(update={"wake_model": "gauss"}) == shipped.plant
+    assert (rows.wind, rows.faults, rows.supervisor, rows.duration_s) == (
+        shipped.wind,
+        shipped.faults,
+        shipped.supervisor,
+        shipped.duration_s,
+    )
+
+
+def test_eval_refuses_a_wake_model_the_farm_cannot_have(tmp_path, capsys):
+    """The row model knows the paper's 3 × 3 only: Horns Rev 1 with --wake-model rows is refused before it runs."""
+    out = tmp_path / "out"
+    argv = ["eval", "farm-hornsrev1", "--runs", "1", "--quiet", "--out", str(out), "--wake-model", "rows"]
+    _refused(capsys, argv, "--wake-model", "layout", "row model")
+    _refused(capsys, ["eval", "random:farm", "--runs", "1", "--quiet", "--wake-model", "rows"], "--wake-model")
+    with pytest.raises(SystemExit) as refused:
+        main(["eval", "farm-case1", "--runs", "1", "--quiet", "--out", str(out), "--wake-model", "park"])
+    assert refused.value.code == 2 and "park" in capsys.readouterr().err
     assert not out.exists()
 
 

@@ -20,6 +20,7 @@ from windwarden.commands.common import (
     console,
     err_console,
     positive_int,
+    with_wake_model,
 )
 from windwarden.commands.live import LIVE_SUBCOMMANDS
 from windwarden.commands.scenario_list import scenarios_listing
@@ -38,6 +39,12 @@ def _add_eval(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--estimator", default=None, help="registered estimator/observer name")
     p.add_argument("--controller", default=None, help="farm controller: dispatch or pi")
     p.add_argument("--no-accommodation", action="store_true", help="farm: dispatch without fault accommodation")
+    p.add_argument(
+        "--wake-model",
+        choices=("gauss", "jensen", "rows"),
+        default=None,
+        help="farm: FLORIS's Gauss or Jensen wakes, or the paper's row model (default: the scenario's)",
+    )
     p.add_argument("--no-compensation", action="store_true", help="hydro: do not apply the virtual actuator")
     p.add_argument("--compare", action="store_true", help="also write the paper-comparison tables and plots")
     p.add_argument(
@@ -88,11 +95,15 @@ def cmd_eval(args: argparse.Namespace) -> int:
         progress=not args.quiet,
     )
     if args.scenario.startswith("random:"):
+        if args.wake_model is not None:
+            raise BadInputError("--wake-model: a random set's farms have the default wakes (FLORIS Gauss)")
         with process_backend(args.step_backend):
             return eval_random(args, options)
     if args.scenarios is not None:
         raise BadInputError("--scenarios: only a random set (random:KIND) is drawn from scenarios")
     scenario = load_scenario(args.scenario)
+    if args.wake_model is not None:
+        scenario = with_wake_model(scenario, args.wake_model)
     refused = [f"{flag}: {message}" for flag, message in unused_switches(scenario.plant.kind, options)]
     try:
         check_supervisor(scenario, detector=args.detector, estimator=args.estimator, controller=args.controller)

@@ -10,7 +10,6 @@ turbulence intensity.
 from __future__ import annotations
 
 import hashlib
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -213,10 +212,10 @@ def _farm_scenario(**plant) -> dict:
     "plant, field, words",
     [
         ({"wake_model": "floris"}, "plant.wake_model", "'rows', 'gauss' or 'jensen'"),
-        ({"layout": {"kind": "file", "name": "hornsrev1"}}, "plant", "row model"),
+        ({"wake_model": "rows", "layout": {"kind": "file", "name": "hornsrev1"}}, "plant", "row model"),
         ({"wake_model": "gauss", "layout": {"kind": "file", "name": "hornsrev1"}}, "plant", "wind_direction_deg"),
-        ({"wind_direction_deg": 300.0}, "plant", "two wind cases"),
-        ({"wake_added_turbulence": False}, "plant", "no wake-added turbulence"),
+        ({"wake_model": "rows", "wind_direction_deg": 300.0}, "plant", "two wind cases"),
+        ({"wake_model": "rows", "wake_added_turbulence": False}, "plant", "no wake-added turbulence"),
         (
             {
                 "wake_model": "gauss",
@@ -266,15 +265,9 @@ def test_the_papers_farm_given_as_a_layout_is_the_papers_farm():
     scenario = parse_scenario(_farm_scenario(wake_model="gauss", layout=seed001, wind_direction_deg=315.0, wind_case=2))
     assert scenario.plant.rows() == FarmPlant(wind_case=2).rows()
     assert parse_scenario(_farm_scenario(wake_model="jensen")).plant.wake_model == "jensen"
-    assert parse_scenario(_farm_scenario()).plant.wake_model == "rows"  # the default keeps the paper's figures
-
-
-def test_the_gauss_example_is_farm_case2_with_floris_wakes():
-    example = load_scenario(Path(__file__).resolve().parents[2] / "docs" / "examples" / "farm-case2-gauss.toml")
-    shipped = load_scenario("farm-case2")
-    assert example.plant.wake_model == "gauss" and example.plant.is_paper_farm()
-    assert example.plant.model_copy(update={"wake_model": "rows"}) == shipped.plant
-    assert example.faults == shipped.faults and example.wind == shipped.wind
+    assert parse_scenario(_farm_scenario()).plant.wake_model == "gauss"  # FLORIS's Gauss wakes unless told
+    for name in ("farm-case1", "farm-case2", "farm-case1-mismatch", "farm-fault-free-case2"):
+        assert load_scenario(name).plant.wake_model == "gauss", name
 
 
 # ---- the row model is unchanged ----------------------------------------------------------------------------------
@@ -283,13 +276,18 @@ def rows_fingerprint(seconds: float = 20.0) -> str:
     coherence, a wind ramp and a demand profile (every 10 Hz sample's power, winds, mast, demand and SCADA)."""
     debris = FaultSpec(target="rotor", kind="debris", value=0.97, turbine=5, start_s=3.0)
     a = FarmBatch(
-        FarmPlant(wind_case=1, demand=FarmDemand(mode="available_fraction", fraction=0.8, update_s=10.0)),
+        FarmPlant(
+            wind_case=1, wake_model="rows", demand=FarmDemand(mode="available_fraction", fraction=0.8, update_s=10.0)
+        ),
         WindSpec(mean=[(0.0, 9.0)], turbulence_intensity=0.1), [debris], seed=11, duration_s=20.0, runs=(0, 1),
         fault_free_twins=True,
     )  # fmt: skip
     b = FarmBatch(
         FarmPlant(
-            wind_case=2, row_coherence=0.4, demand=FarmDemand(mode="profile", points=[(0.0, 20.0), (10.0, 30.0)])
+            wind_case=2,
+            wake_model="rows",
+            row_coherence=0.4,
+            demand=FarmDemand(mode="profile", points=[(0.0, 20.0), (10.0, 30.0)]),
         ),
         WindSpec(mean=[(0.0, 8.0), (20.0, 14.0)], turbulence_intensity=0.12), [], seed=12, duration_s=20.0,
     )  # fmt: skip

@@ -8,7 +8,7 @@ import argparse
 from rich.console import Console
 
 from service.plugins import AlgorithmOptionError, UnknownAlgorithmError, choose
-from wwcore.scenario import Scenario
+from wwcore.scenario import Scenario, ScenarioError, parse_scenario
 
 EXIT_BAD_INPUT = 2
 console = Console()
@@ -24,6 +24,19 @@ def positive_int(text: str) -> int:
     if value < 1:
         raise argparse.ArgumentTypeError(f"must be ≥ 1, got {value}")
     return value
+
+
+def with_wake_model(scenario: Scenario, model: str) -> Scenario:
+    """The scenario with its farm's wakes from ``model`` (``--wake-model``), validated again as a whole: a
+    combination the plant refuses (the row model with a layout or a moving direction) is bad input (exit 2)."""
+    if scenario.plant.kind != "farm":
+        raise BadInputError(f"--wake-model: scenario {scenario.name} is a {scenario.plant.kind}; only a farm has wakes")
+    data = scenario.model_dump(mode="json", exclude_none=True)
+    data["plant"]["wake_model"] = model
+    try:
+        return parse_scenario(data, f"{scenario.name} with --wake-model {model}")
+    except ScenarioError as error:
+        raise BadInputError(f"--wake-model: {error}") from None
 
 
 def check_supervisor(scenario: Scenario, **flags: str | None) -> None:

@@ -9,11 +9,11 @@ The farm is nine benchmark turbines on a 3 × 3 grid numbered row by row (1 2 3 
 A row is a set of turbines at the same distance along the wind. The met mast stands ``mast_distance_m`` upwind
 of the front row, on the wind axis, in both cases.
 
-``wake_model`` picks the wakes: ``rows`` (the paper's row model, the default) or FLORIS's ``gauss`` / ``jensen``
-(``plant_sim.farm.wakes``). With a FLORIS model the farm may also have any ``layout`` (``wwcore.layout``: a grid,
-coordinates or a shipped file, 1 to 250 turbines) and any constant ``wind_direction_deg``, or a direction that
-moves: ``wind_direction_profile`` plus a slow random veer (``veer_sigma_deg``, ``veer_time_s``;
-``plant_sim.farm.direction``). The supervisor
+``wake_model`` picks the wakes: FLORIS's ``gauss`` (the default) or ``jensen`` between every pair of turbines
+(``plant_sim.farm.wakes``), or ``rows``, the paper's row model (3 × 3, its two wind cases only). With a FLORIS model
+the farm may also have any ``layout`` (``wwcore.layout``: a grid, coordinates or a shipped file, 1 to 250
+turbines) and any constant ``wind_direction_deg``, or a direction that moves: ``wind_direction_profile`` plus a
+slow random veer (``veer_sigma_deg``, ``veer_time_s``; ``plant_sim.farm.direction``). The supervisor
 (``service.farm``) learns the layout from ``site()`` (turbine numbers and positions) and handles any of them.
 
 The scenario's top-level ``[wind]`` section describes the free stream at the mast (mean profile) and each
@@ -144,9 +144,9 @@ class FarmPlant(BaseModel):
     )
     wakes: bool = Field(default=True, description="wake deficits on downstream turbines (false: free stream)")
     wake_model: WakeModel = Field(
-        default="rows",
-        description="'rows': the paper's row model (Jensen between rows, 3 × 3 only); 'gauss' / 'jensen': FLORIS's "
-        "Gauss / Jensen wakes between every pair of turbines, tabulated at start (docs/farm.md, Wakes and layouts)",
+        default="gauss",
+        description="'gauss' / 'jensen': FLORIS's Gauss / Jensen wakes between every pair of turbines, tabulated at "
+        "start (docs/farm.md, Wakes and layouts); 'rows': the paper's row model (Jensen between rows, 3 × 3 only)",
     )
     wake_expansion: float = Field(
         default=0.05, ge=0.0, le=0.2, description="–, Jensen wake decay k of the row model [PROPOSED]"
