@@ -17,6 +17,7 @@ from service.plugins import ROLES, TURBINE_DETECTORS, AlgorithmOptionError, Regi
 from service.turbine.interfaces import TurbineContext
 from windwarden.cli import main
 from windwarden.commands.common import with_wake_model
+from windwarden.evaluation.random_scenarios import generate
 from windwarden.kinds import RunInfo, kind_for
 from wwcore.hydro_params import NOMINAL
 from wwcore.options import Bounds, OptionSchema
@@ -271,6 +272,9 @@ def test_wake_model_swaps_the_farms_wakes_and_nothing_else():
         shipped.supervisor,
         shipped.duration_s,
     )
+    # a random farm set draws its farms on the base with those wakes (eval random:farm --wake-model rows)
+    drawn = generate("farm", 3, base=with_wake_model(load_scenario("farm-fault-free-case1"), "rows"))
+    assert drawn.plant.wake_model == "rows" and generate("farm", 3).plant.wake_model == "gauss"
 
 
 def test_eval_refuses_a_wake_model_the_farm_cannot_have(tmp_path, capsys):
@@ -278,7 +282,7 @@ def test_eval_refuses_a_wake_model_the_farm_cannot_have(tmp_path, capsys):
     out = tmp_path / "out"
     argv = ["eval", "farm-hornsrev1", "--runs", "1", "--quiet", "--out", str(out), "--wake-model", "rows"]
     _refused(capsys, argv, "--wake-model", "layout", "row model")
-    _refused(capsys, ["eval", "random:farm", "--runs", "1", "--quiet", "--wake-model", "rows"], "--wake-model")
+    _refused(capsys, ["eval", "random:hydro", "--runs", "1", "--quiet", "--wake-model", "rows"], "--wake-model")
     with pytest.raises(SystemExit) as refused:
         main(["eval", "farm-case1", "--runs", "1", "--quiet", "--out", str(out), "--wake-model", "park"])
     assert refused.value.code == 2 and "park" in capsys.readouterr().err

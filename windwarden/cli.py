@@ -95,8 +95,6 @@ def cmd_eval(args: argparse.Namespace) -> int:
         progress=not args.quiet,
     )
     if args.scenario.startswith("random:"):
-        if args.wake_model is not None:
-            raise BadInputError("--wake-model: a random set's farms have the default wakes (FLORIS Gauss)")
         with process_backend(args.step_backend):
             return eval_random(args, options)
     if args.scenarios is not None:

@@ -17,7 +17,7 @@ import math
 import sys
 from pathlib import Path
 
-from windwarden.commands.common import EXIT_BAD_INPUT, console, err_console, positive_int
+from windwarden.commands.common import EXIT_BAD_INPUT, console, err_console, positive_int, with_wake_model
 from windwarden.evaluation.kinds import EvalOptions
 
 KINDS = ("turbine", "farm", "hydro")
@@ -146,9 +146,10 @@ def eval_random(args: argparse.Namespace, options: EvalOptions) -> int:
     """``windwarden eval random:KIND``: ``--scenarios K`` random scenarios (default one per run), scored together
     with the scenario's algorithms or those ``--detector``/``--estimator``/``--controller`` name."""
     from service.plugins import AlgorithmOptionError, UnknownAlgorithmError
+    from windwarden.evaluation.detectability import BASES
     from windwarden.evaluation.random_scenarios import evaluate_set
     from windwarden.evaluation.random_summary import console_table, markdown
-    from wwcore.scenario import dump_scenario
+    from wwcore.scenario import dump_scenario, load_scenario
 
     kind = args.scenario.split(":", 1)[1]
     if kind not in KINDS:
@@ -162,8 +163,10 @@ def eval_random(args: argparse.Namespace, options: EvalOptions) -> int:
     scenarios = args.scenarios or args.runs
     if scenarios > args.runs:
         return _refuse(f"--scenarios ({scenarios}) cannot exceed --runs ({args.runs}): each scenario needs a run")
+    # --wake-model: the farms are drawn on the base scenario with those wakes (refused for other kinds)
+    base = None if args.wake_model is None else with_wake_model(load_scenario(BASES[kind]), args.wake_model)
     try:
-        result = evaluate_set(kind, args.runs, args.seed, scenarios, options)
+        result = evaluate_set(kind, args.runs, args.seed, scenarios, options, base=base)
     except (UnknownAlgorithmError, AlgorithmOptionError) as error:
         return _refuse(str(error))
     console.print(console_table(result.card))
