@@ -83,6 +83,8 @@ def test_the_runs_digest_ignores_defaults_written_out():
     for change in ({"wind_case": 2}, {"wake_model": "rows"}):
         other = explicit.model_copy(update={"plant": explicit.plant.model_copy(update=change)})
         assert runs_digest(other) != runs_digest(explicit), change
+    # farm-case1's digest while the row model was the default: a Gauss scorecard must not pair with one of those
+    assert runs_digest(explicit) != "d7387c54f17d2784"
 
 
 def _write(tmp_path, name: str, content) -> str:

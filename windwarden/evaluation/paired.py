@@ -48,6 +48,10 @@ def runs_digest(scenario: Scenario) -> str:
     ``[mismatch]`` section is the design plant, the same runs as none."""
     body = scenario.model_dump(mode="json", exclude={"name", "description", "supervisor"}, exclude_defaults=True)
     body.setdefault("plant", {})["kind"] = scenario.plant.kind
+    if scenario.plant.kind == "farm":
+        # The farm's default wakes changed from the row model to FLORIS's Gauss: always named, so a row-model
+        # scorecard written before that change never pairs with a Gauss one.
+        body["plant"]["wake_model"] = scenario.plant.wake_model
     if scenario.mismatch is None or scenario.mismatch == Mismatch():
         body["mismatch"] = None
     return hashlib.sha256(json.dumps(body, sort_keys=True).encode()).hexdigest()[:16]
