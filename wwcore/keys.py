@@ -96,10 +96,11 @@ class KeyTree:
             raise ValueError(f"shard name {shard!r} must be letters, digits, '_' or '-' (one key chunk)")
         return f"{self.base}/summary/{shard}"
 
-    @property
-    def dispatch(self) -> str:
-        """The farm coordinator's references frame of a farm sample, a row per turbine, for every shard."""
-        return f"{self.base}/dispatch"
+    def dispatch(self, shard: str) -> str:
+        """The farm coordinator's references frame of a farm sample for one shard, a row per turbine it owns."""
+        if shard != "*" and not shard.startswith("<") and not _CHUNK.match(shard):
+            raise ValueError(f"shard name {shard!r} must be letters, digits, '_' or '-' (one key chunk)")
+        return f"{self.base}/dispatch/{shard}"
 
     def shard_status(self, name: str) -> str:
         """A supervisor shard's status (``name``: one key chunk, e.g. its turbines ``1-40``)."""
@@ -195,6 +196,12 @@ class KeyTree:
                 COMMAND_QOS,
                 "10 Hz; sharded farm only",
             ),
-            KeySpec(self.dispatch, "farm coordinator", frames + "farm.refs", COMMAND_QOS, "10 Hz; sharded farm only"),
+            KeySpec(
+                self.dispatch("<name>"),
+                "farm coordinator",
+                frames + "farm.refs",
+                COMMAND_QOS,
+                "10 Hz; sharded farm only",
+            ),
             KeySpec(self.shard_status("<name>"), "supervisor shard", "JSON shard.status", EVENT_QOS, "2 Hz"),
         ]

@@ -22,7 +22,7 @@ Key-expression tree (``<farm>`` is one chunk, ``<sender>`` the supervisor's name
 A sharded supervisor (``windwarden supervise --turbines``, ``windwarden coordinate``) adds::
 
     windwarden/<farm>/summary/<name>         shard → coordinator   frame   10 Hz farm samples   reliable, blocking
-    windwarden/<farm>/dispatch               coordinator → shards  frame   10 Hz (farm.refs)    reliable, blocking
+    windwarden/<farm>/dispatch/<name>        coordinator → shard   frame   10 Hz (farm.refs)    reliable, blocking
     windwarden/<farm>/shard/<name>/status    shard → coordinator   JSON    2 Hz (run, turbines, ready)
 
 Each stream has one publishing process, so the router's access control (``windwarden.live.access``) can say who

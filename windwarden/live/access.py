@@ -97,7 +97,7 @@ def role_grants(keys: KeyTree | None = None) -> dict[str, list[Grant]]:
     """Every role's allow rules on the key tree ``keys`` (default: every farm, ``windwarden/*/…``)."""
     k = keys or KeyTree.every_farm()
     t = "*"
-    sharded = (k.summary(t), k.dispatch, k.shard_status(t))  # a sharded farm supervisor's own keys
+    sharded = (k.summary(t), k.dispatch(t), k.shard_status(t))  # a sharded farm supervisor's own keys
     return {
         "plant": [
             *_publish(k.sensors, k.truth, k.metmast, k.plant_status, k.plant_events),

@@ -9,15 +9,16 @@ shard's status says it owns):
 
 ``FarmSample`` and ``FarmDiagnosis`` from the rows (``sharding.farm_sample``) → the commanded pitch trim taken off
 (``FarmSupervisor.untrimmed``) → ``FarmSupervisor.decide`` → its events appended to ``events.jsonl`` and published →
-one ``farm.refs`` frame of every turbine's row on the ``dispatch`` key. Events go out before the rows, so when the
-plant holds refs of tick k every event up to tick k is in the log, as with one supervisor.
+to each ready shard one ``farm.refs`` frame of its turbines' rows on ``dispatch/<name>``. Events go out before the
+rows, so when the plant holds refs of tick k every event up to tick k is in the log, as with one supervisor.
 
 To the plant it is the supervisor: it holds the ``alive/supervisor`` token, publishes ``supervisor/status`` and
 ``supervisor/events``, and says ``ready`` only once the shards that report ready for the run (``shard/*/status``)
 own every turbine of it, each turbine once. Summary frames are refused whole and counted (``dropped``) when they do
 not decode, when a field the coordinator computes with is not finite or out of its range (``FARM_SUMMARY.refusal``),
 for a turbine the run does not have or the sending shard does not own, for a tick already decided, or when the rows
-of one tick are not of one sample and run."""
+of one tick are not of one sample and run.
+"""
 
 from __future__ import annotations
 
@@ -75,7 +76,7 @@ class CoordinatorNode:
         s = session
         self._events_pub = declare_publisher(s, self.keys.supervisor_events, EVENT_QOS)
         self._status_pub = declare_publisher(s, self.keys.supervisor_status, EVENT_QOS)
-        self._dispatch_pub = declare_publisher(s, self.keys.dispatch, COMMAND_QOS)
+        self._dispatch_pubs: dict[str, zenoh.Publisher] = {}  # a shard's name → its dispatch publisher
         self.summaries: TickMailbox | None = None
         self._summary_sub = s.declare_subscriber(self.keys.summary("*"), self._on_summary)
         self._shard_sub = s.declare_subscriber(self.keys.shard_status("*"), self._on_shard_status)
@@ -278,4 +279,18 @@ class CoordinatorNode:
         self.last_tick, self.last_t, self.samples = tick, float(records["t"][0]), self.samples + 1
         if events and self.events is not None:
             self.events.write(events)  # before the references, as one supervisor does
-        self._dispatch_pub.put(FARM_REFS.encode_frame(out))
+        for name, rows in self._plan():
+            if name not in self._dispatch_pubs:
+                self._dispatch_pubs[name] = declare_publisher(self.session, self.keys.dispatch(name), COMMAND_QOS)
+            self._dispatch_pubs[name].put(FARM_REFS.encode_frame(out[rows]))
+
+    def _plan(self) -> list[tuple[str, np.ndarray]]:
+        """Each shard ready for the run, with the rows of its turbines in the run's turbine order."""
+        position = {t: i for i, t in enumerate(self.turbines)}
+        with self._lock:
+            shards = sorted(self.shards.items())
+        return [
+            (name, np.array([position[t] for t in shard["turbines"] if t in position], dtype=np.intp))
+            for name, shard in shards
+            if shard["ready"] and shard["run_id"] == self.info.run_id
+        ]

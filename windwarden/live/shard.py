@@ -8,7 +8,7 @@ sensor frame:
 
 * on a 10 Hz farm sample: steps its detector and sends one ``farm.summary`` frame of its turbines to the coordinator
   (``summary/<name>``); the sample's refs go out when the coordinator's ``farm.refs`` frame of that tick arrives on
-  ``dispatch`` (in lockstep the plant waits for them), or with the references held so far when the next sensor
+  ``dispatch/<name>`` (in lockstep the plant waits for them), or with the references held so far when the next sensor
   frame comes first (real time: counted as ``coordinator_late``, the new rows are used from the next tick) or after
   ``coordinator_timeout_s`` (``coordinator_timeouts``);
 * between farm samples: its refs at once.
@@ -19,7 +19,7 @@ farm samples. The plant takes a shard's rows only for the turbines the coordinat
 
 Dispatch frames are refused whole and counted (``dropped``) when they do not decode, when a field the plant acts on
 is not finite or out of its range (``FARM_REFS.refusal``), when they are for another tick than the one awaited, or
-name a turbine the run does not have or name one twice (``TickMailbox``). Sensor frames are sequenced as the
+name a turbine the shard does not own or name one twice (``TickMailbox``). Sensor frames are sequenced as the
 supervisor sequences them (``guard.FrameSequencer``); the farm holds over gaps. The shard publishes its readiness on
 ``shard/<name>/status``; the coordinator tells the plant the supervisor is ready once every turbine of the run has a
 ready shard. The events (detections, dispatch modes) are the coordinator's.
@@ -101,9 +101,9 @@ class ShardNode:
         self._status_pub = declare_publisher(s, self.keys.shard_status(self.name), EVENT_QOS)
         self._refs_pub = declare_publisher(s, self.keys.refs(self.name), COMMAND_QOS)
         self._summary_pub = declare_publisher(s, self.keys.summary(self.name), COMMAND_QOS)
-        self.dispatch: TickMailbox | None = None  # the coordinator's frames, every turbine of the run (start_run)
-        self._rows = np.arange(len(self.owned))  # the shard's turbines' rows in a frame of the run's turbines
-        self._dispatch_sub = s.declare_subscriber(self.keys.dispatch, self._on_dispatch)
+        self.dispatch = TickMailbox(FARM_REFS, list(self.owned), self.drops, "dispatch", self._dispatch_window)
+        self._rows = np.arange(len(self.owned))  # the shard's turbines' rows in a sensor frame of the run's turbines
+        self._dispatch_sub = s.declare_subscriber(self.keys.dispatch(self.name), self._on_dispatch)
         self._sensor_sub: zenoh.Subscriber | None = None
         self.sequencer = FrameSequencer(settings.max_gap_ticks, self.drops, self._confirm_run, self._confirm_tick)
         self.watch = LivenessWatch(s, self.keys.alive_all, self._on_liveliness)
@@ -111,8 +111,7 @@ class ShardNode:
     def stop(self) -> None:
         self._stop.set()
         self._inbox.put(PLANT_APPEARED)
-        if self.dispatch is not None:
-            self.dispatch.wake()
+        self.dispatch.wake()
 
     def close(self) -> None:
         self.ready = False
@@ -126,13 +125,10 @@ class ShardNode:
     def _on_dispatch(self, sample: zenoh.Sample) -> None:
         payload = sample.payload.to_bytes()
         reason = checked(FARM_REFS, payload)
-        mailbox = self.dispatch
-        if reason is None and mailbox is None:
-            reason = "no_run"
         if reason is not None:
             self.drops.add("dispatch", reason)
             return
-        mailbox.put(payload)
+        self.dispatch.put(payload)
         self._inbox.put(DISPATCHED)
 
     def _dispatch_window(self, tick: int) -> DropReason | None:
@@ -163,7 +159,6 @@ class ShardNode:
             raise ValueError(f"the farm of run {info.run_id} has no turbines {missing}")
         self._rows = np.array([turbines.index(t) for t in self.owned])
         self.mailbox = TickMailbox(FARM_SENSORS, turbines, self.drops, "sensors")
-        self.dispatch = TickMailbox(FARM_REFS, turbines, self.drops, "dispatch", self._dispatch_window)
         self.last_dispatch = None
         self.last_tick = None
         self._pending, self._newest_sample, self._dispatch_tick = None, -1, -1
@@ -289,12 +284,12 @@ class ShardNode:
     def _take_dispatch(self) -> None:
         """The coordinator's rows that arrived: the newest become the references; those of the pending farm sample
         answer it."""
-        for arrival in self.dispatch.drain() if self.dispatch is not None else []:
+        for arrival in self.dispatch.drain():
             if arrival.tick <= self._dispatch_tick:
                 continue  # an older sample's rows after a newer one's (real time)
             self._dispatch_tick = arrival.tick
-            self.last_dispatch = arrival.records[self._rows]
-            self.shard.pitch_trim = pitch_trim_of(self.last_dispatch)
+            self.last_dispatch = arrival.records
+            self.shard.pitch_trim = pitch_trim_of(arrival.records)
             if arrival.tick == self._pending:
                 self.wait_time.add(arrival.at - self._pending_since)
                 self._answer(arrival.tick)
