@@ -11,6 +11,12 @@ from enum import StrEnum
 _CHUNK = re.compile(r"^[A-Za-z0-9_\-]+$")
 
 
+def _check_chunk(name: str, what: str) -> None:
+    """``name`` is one key chunk (``*`` and ``<placeholder>`` for patterns and docs); ``ValueError`` otherwise."""
+    if name != "*" and not name.startswith("<") and not _CHUNK.match(name):
+        raise ValueError(f"{what} {name!r} must be letters, digits, '_' or '-' (one key chunk)")
+
+
 class Process(StrEnum):
     """The processes that declare liveliness tokens."""
 
@@ -81,8 +87,7 @@ class KeyTree:
     def refs(self, sender: str) -> str:
         """A supervisor's refs frame of tick k: a row per turbine it owns. ``sender``: ``supervisor`` (one
         supervisor, every turbine) or a shard's name (its turbines); ``*`` for subscribers and access rules."""
-        if sender != "*" and not sender.startswith("<") and not _CHUNK.match(sender):
-            raise ValueError(f"refs sender {sender!r} must be letters, digits, '_' or '-' (one key chunk)")
+        _check_chunk(sender, "refs sender")
         return f"{self.base}/refs/{sender}"
 
     @property
@@ -92,20 +97,17 @@ class KeyTree:
 
     def summary(self, shard: str) -> str:
         """A supervisor shard's 10 Hz summary frame of its turbines, for the farm coordinator."""
-        if shard != "*" and not shard.startswith("<") and not _CHUNK.match(shard):
-            raise ValueError(f"shard name {shard!r} must be letters, digits, '_' or '-' (one key chunk)")
+        _check_chunk(shard, "shard name")
         return f"{self.base}/summary/{shard}"
 
     def dispatch(self, shard: str) -> str:
         """The farm coordinator's references frame of a farm sample for one shard, a row per turbine it owns."""
-        if shard != "*" and not shard.startswith("<") and not _CHUNK.match(shard):
-            raise ValueError(f"shard name {shard!r} must be letters, digits, '_' or '-' (one key chunk)")
+        _check_chunk(shard, "shard name")
         return f"{self.base}/dispatch/{shard}"
 
     def shard_status(self, name: str) -> str:
         """A supervisor shard's status (``name``: one key chunk, e.g. its turbines ``1-40``)."""
-        if name != "*" and not name.startswith("<") and not _CHUNK.match(name):
-            raise ValueError(f"shard name {name!r} must be letters, digits, '_' or '-' (one key chunk)")
+        _check_chunk(name, "shard name")
         return f"{self.base}/shard/{name}/status"
 
     @property

@@ -110,7 +110,7 @@ class CoordinatorNode:
         if mailbox is None:
             self.drops.add("summary", "no_run")
             return
-        name = str(sample.key_expr).rsplit("/", 1)[-1]
+        name = self.keys.sender_of(str(sample.key_expr))
         with self._lock:
             shard = self.shards.get(name)
             run_id = None if self.info is None else self.info.run_id

@@ -162,7 +162,7 @@ class PlantNode:
 
     def _on_refs(self, sample: zenoh.Sample) -> None:
         """A refs frame: its rows are assembled into their tick as far as its sender owns them (``RefsSenders``)."""
-        sender = str(sample.key_expr).rsplit("/", 1)[-1]
+        sender = self.keys.sender_of(str(sample.key_expr))
         self.mailbox.put(sample.payload.to_bytes(), self.senders.owned(sender))
 
     def _on_supervisor_status(self, sample: zenoh.Sample) -> None:
