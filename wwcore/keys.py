@@ -8,9 +8,13 @@ import re
 from dataclasses import dataclass, field
 from enum import StrEnum
 
-from wwcore.wire import DropReason, WireError
-
 _CHUNK = re.compile(r"^[A-Za-z0-9_\-]+$")
+
+
+def _check_chunk(name: str, what: str) -> None:
+    """``name`` is one key chunk (``*`` and ``<placeholder>`` for patterns and docs); ``ValueError`` otherwise."""
+    if name != "*" and not name.startswith("<") and not _CHUNK.match(name):
+        raise ValueError(f"{what} {name!r} must be letters, digits, '_' or '-' (one key chunk)")
 
 
 class Process(StrEnum):
@@ -75,27 +79,35 @@ class KeyTree:
     def base(self) -> str:
         return f"{self.root}/{self.farm}"
 
-    def sensors(self, turbine: int | str) -> str:
-        return f"{self.base}/turbine/{turbine}/sensors"
+    @property
+    def sensors(self) -> str:
+        """The plant's sensor frame of tick k: one message per tick, a row per turbine."""
+        return f"{self.base}/sensors"
 
-    def refs(self, turbine: int | str) -> str:
-        return f"{self.base}/turbine/{turbine}/refs"
+    def refs(self, sender: str) -> str:
+        """A supervisor's refs frame of tick k: a row per turbine it owns. ``sender``: ``supervisor`` (one
+        supervisor, every turbine) or a shard's name (its turbines); ``*`` for subscribers and access rules."""
+        _check_chunk(sender, "refs sender")
+        return f"{self.base}/refs/{sender}"
 
-    def truth(self, turbine: int | str) -> str:
-        return f"{self.base}/turbine/{turbine}/truth"
+    @property
+    def truth(self) -> str:
+        """The plant's ground truth, a row per turbine (decimated; display and scoring only)."""
+        return f"{self.base}/truth"
 
-    def summary(self, turbine: int | str) -> str:
-        """A supervisor shard's 10 Hz summary of one turbine, for the farm coordinator."""
-        return f"{self.base}/turbine/{turbine}/summary"
+    def summary(self, shard: str) -> str:
+        """A supervisor shard's 10 Hz summary frame of its turbines, for the farm coordinator."""
+        _check_chunk(shard, "shard name")
+        return f"{self.base}/summary/{shard}"
 
-    def dispatch(self, turbine: int | str) -> str:
-        """The farm coordinator's references for one turbine, for the shard that owns it."""
-        return f"{self.base}/turbine/{turbine}/dispatch"
+    def dispatch(self, shard: str) -> str:
+        """The farm coordinator's references frame of a farm sample for one shard, a row per turbine it owns."""
+        _check_chunk(shard, "shard name")
+        return f"{self.base}/dispatch/{shard}"
 
     def shard_status(self, name: str) -> str:
         """A supervisor shard's status (``name``: one key chunk, e.g. its turbines ``1-40``)."""
-        if name != "*" and not name.startswith("<") and not _CHUNK.match(name):
-            raise ValueError(f"shard name {name!r} must be letters, digits, '_' or '-' (one key chunk)")
+        _check_chunk(name, "shard name")
         return f"{self.base}/shard/{name}/status"
 
     @property
@@ -142,21 +154,35 @@ class KeyTree:
         """The process named by a liveliness key (``…/alive/<process>``)."""
         return key.rsplit("/", 1)[-1]
 
-    def turbine_of(self, key: str) -> int:
-        """The turbine number in a ``…/turbine/<id>/…`` key; ``WireError`` when there is none."""
-        parts = key.split("/")
-        try:
-            return int(parts[parts.index("turbine") + 1])
-        except (ValueError, IndexError):
-            raise WireError(DropReason.BAD_BODY, f"no turbine number in {key!r}") from None
+    def sender_of(self, key: str) -> str:
+        """The sender named by a ``…/refs/<sender>`` or ``…/summary/<shard>`` key (its last chunk)."""
+        return key.rsplit("/", 1)[-1]
 
     def registry(self) -> list[KeySpec]:
         """The whole tree as data: what is published where, how, with which payload."""
-        t = "<id>"
+        frames = "frame of "
         return [
-            KeySpec(self.sensors(t), "plant", "turbine.sensors | hydro.sensors", SENSORS_QOS, "per tick"),
-            KeySpec(self.refs(t), "supervisor", "turbine.refs | hydro.refs", COMMAND_QOS, "per received tick"),
-            KeySpec(self.truth(t), "plant", "turbine.truth | hydro.truth", DISPLAY_QOS, "decimated; display only"),
+            KeySpec(
+                self.sensors,
+                "plant",
+                frames + "turbine.sensors | hydro.sensors | farm.sensors",
+                SENSORS_QOS,
+                "per tick",
+            ),
+            KeySpec(
+                self.refs("<sender>"),
+                "supervisor",
+                frames + "turbine.refs | hydro.refs | farm.refs",
+                COMMAND_QOS,
+                "per received tick; <sender>: supervisor, or a shard's name",
+            ),
+            KeySpec(
+                self.truth,
+                "plant",
+                frames + "turbine.truth | hydro.truth | farm.truth",
+                DISPLAY_QOS,
+                "decimated; display only",
+            ),
             KeySpec(self.metmast, "plant (farm)", "farm.metmast", SENSORS_QOS, "per tick"),
             KeySpec(self.plant_status, "plant", "JSON plant.status", DISPLAY_QOS, "2 Hz; also a queryable"),
             KeySpec(self.run, "plant (queryable)", "JSON plant.run", None, "what the supervisor may know"),
@@ -165,7 +191,19 @@ class KeyTree:
             KeySpec(self.plant_events, "plant", "JSON events", EVENT_QOS, "the plant's events, append-only"),
             KeySpec(self.supervisor_events, "supervisor", "JSON events", EVENT_QOS, "the supervisor's events"),
             KeySpec(self.alive("<process>"), "every process", "liveliness token", None, "plant, supervisor, api"),
-            KeySpec(self.summary(t), "supervisor shard", "farm.summary", COMMAND_QOS, "10 Hz; sharded farm only"),
-            KeySpec(self.dispatch(t), "farm coordinator", "farm.refs", COMMAND_QOS, "10 Hz; sharded farm only"),
+            KeySpec(
+                self.summary("<name>"),
+                "supervisor shard",
+                frames + "farm.summary",
+                COMMAND_QOS,
+                "10 Hz; sharded farm only",
+            ),
+            KeySpec(
+                self.dispatch("<name>"),
+                "farm coordinator",
+                frames + "farm.refs",
+                COMMAND_QOS,
+                "10 Hz; sharded farm only",
+            ),
             KeySpec(self.shard_status("<name>"), "supervisor shard", "JSON shard.status", EVENT_QOS, "2 Hz"),
         ]

@@ -4,11 +4,11 @@ they travel on are in ``wwcore.keys``.
 Pure (numpy and the standard library only): the Zenoh edges in ``windwarden.live`` and ``api`` put on the wire
 what this module encodes and refuse what it cannot decode. Nothing here opens a socket.
 
-Key-expression tree (``<farm>`` is one chunk, ``<id>`` the 1-based turbine number)::
+Key-expression tree (``<farm>`` is one chunk, ``<sender>`` the supervisor's name: ``supervisor``, or a shard's)::
 
-    windwarden/<farm>/turbine/<id>/sensors   plant → supervisor    binary  per tick     may drop (realtime)
-    windwarden/<farm>/turbine/<id>/refs      supervisor → plant    binary  per tick     reliable, blocking
-    windwarden/<farm>/turbine/<id>/truth     plant → display       binary  decimated    may drop; never read by
+    windwarden/<farm>/sensors                plant → supervisor    frame   per tick     may drop (realtime)
+    windwarden/<farm>/refs/<sender>          supervisor → plant    frame   per tick     reliable, blocking
+    windwarden/<farm>/truth                  plant → display       frame   decimated    may drop; never read by
                                                                                          the supervisor
     windwarden/<farm>/metmast                plant → supervisor    binary  per tick     may drop (farm kind)
     windwarden/<farm>/plant/status           plant → anyone        JSON    2 Hz + queryable (run status)
@@ -21,15 +21,19 @@ Key-expression tree (``<farm>`` is one chunk, ``<id>`` the 1-based turbine numbe
 
 A sharded supervisor (``windwarden supervise --turbines``, ``windwarden coordinate``) adds::
 
-    windwarden/<farm>/turbine/<id>/summary   shard → coordinator   binary  10 Hz farm samples   reliable, blocking
-    windwarden/<farm>/turbine/<id>/dispatch  coordinator → shard   binary  10 Hz (farm.refs)    reliable, blocking
+    windwarden/<farm>/summary/<name>         shard → coordinator   frame   10 Hz farm samples   reliable, blocking
+    windwarden/<farm>/dispatch/<name>        coordinator → shard   frame   10 Hz (farm.refs)    reliable, blocking
     windwarden/<farm>/shard/<name>/status    shard → coordinator   JSON    2 Hz (run, turbines, ready)
 
 Each stream has one publishing process, so the router's access control (``windwarden.live.access``) can say who
 may put where: plant and supervisor events have a key each, and readers subscribe to ``windwarden/<farm>/*/events``.
 
-Binary messages (the per-tick streams): a 4-byte header ``b"WW"``, schema code (u8), schema version (u8), then
-one packed little-endian record whose layout is the schema's fields in order. Floats travel as float64, so a
+Binary messages (the per-tick streams) are frames: a 4-byte header ``b"WW"``, schema code (u8), schema version (u8),
+then 1 to ``MAX_FRAME_ROWS`` packed little-endian records (one per turbine, each carrying its turbine number and
+tick) whose layout is the schema's fields in order; the row count is the length over the record size. One frame per
+tick per sender: the plant's sensors of all its turbines, a supervisor's refs of all the turbines it owns (a single
+turbine is a frame of one row, byte for byte what a one-record message is). ``frame_problem`` says why the rows of a
+frame cannot be one tick's (two ticks, a turbine twice). Floats travel as float64, so a
 lockstep run sees bit for bit what the batch loop sees. JSON messages (the control plane, a few per second) are
 ``{"schema": name, "v": version, "body": {...}}``. A message with an unknown schema or version, a bad length or a
 bad body raises ``WireError``; receivers drop it and count it (``DropCounter``), never crash.
@@ -63,6 +67,7 @@ from wwcore.wire_check import DropCounter as DropCounter  # exported with the co
 from wwcore.wire_check import RangeCheck, with_limits
 
 MAGIC = b"WW"
+MAX_FRAME_ROWS = 1024  # rows of one frame: more turbines than any farm has; a longer message is refused unread
 HEADER = np.dtype([("magic", "S2"), ("code", "u1"), ("version", "u1")])
 MAX_JSON_BYTES = 256 * 1024  # a control-plane message larger than this is refused unparsed
 MAST_WIND_MAX = 100.0  # m/s: beyond any wind a met mast reads
@@ -84,6 +89,7 @@ class DropReason(StrEnum):
     BAD_LENGTH = "bad_length"
     BAD_BODY = "bad_body"
     INCOMPLETE = "incomplete"  # a tick whose rows never all arrived (multi-turbine plants)
+    MIXED_TICKS = "mixed_ticks"  # a frame whose rows are of two ticks
     # Messages that decode but are refused (``MessageSchema.refusal`` and the nodes' tick and run checks):
     NON_FINITE = "non_finite"  # a field the plant acts on is NaN or infinite
     OUT_OF_RANGE = "out_of_range"  # a field the plant acts on is outside its physical range
@@ -93,6 +99,9 @@ class DropReason(StrEnum):
     OLD_TICK = "old_tick"  # a sensor frame older than the last one stepped, same run
     FOREIGN_RUN = "foreign_run"  # a sensor frame whose run identity the plant does not confirm
     UNCONFIRMED_TICK = "unconfirmed_tick"  # a sensor frame far ahead of the last, beyond the plant's own tick
+    DUPLICATE_TURBINE = "duplicate_turbine"  # a frame naming one turbine twice
+    UNKNOWN_TURBINE = "unknown_turbine"  # a row for a turbine the run does not have
+    NOT_OWNED = "not_owned"  # a row for a turbine its sender does not own (another shard's, or an unknown sender)
 
 
 # -- binary schemas ------------------------------------------------------------------------------------------------
@@ -141,17 +150,37 @@ class MessageSchema:
         """One record (a 0-d or 1-element structured array of ``dtype``) as bytes with the header."""
         return self.header + np.asarray(record, dtype=self.dtype).reshape(1).tobytes()
 
-    def encode_rows(self, records: np.ndarray) -> list[bytes]:
-        """Each record of a structured array as its own message."""
-        return [self.encode(records[i]) for i in range(len(records))]
+    def encode_frame(self, records: np.ndarray) -> bytes:
+        """A frame: the header and every record of a structured array of ``dtype`` (1 to ``MAX_FRAME_ROWS``)."""
+        rows = np.ascontiguousarray(records, dtype=self.dtype).reshape(-1)
+        if not 1 <= len(rows) <= MAX_FRAME_ROWS:
+            raise ValueError(f"{self.name}: a frame holds 1 to {MAX_FRAME_ROWS} rows, not {len(rows)}")
+        return self.header + rows.tobytes()
 
-    def decode(self, payload: bytes) -> np.void:
-        """The record in ``payload``; ``WireError`` when the header or the length does not match this schema."""
+    def decode_frame(self, payload: bytes) -> np.ndarray:
+        """The rows of a frame (a read-only structured array); ``WireError`` when the header does not match this
+        schema or the length is not a whole number of 1 to ``MAX_FRAME_ROWS`` records."""
+        self._check(payload)
+        body = len(payload) - HEADER.itemsize
+        n, rest = divmod(body, self.dtype.itemsize)
+        if rest or not 1 <= n <= MAX_FRAME_ROWS:
+            raise WireError(
+                DropReason.BAD_LENGTH,
+                f"{self.name}: {len(payload)} bytes is not a frame of 1 to {MAX_FRAME_ROWS} records of "
+                f"{self.dtype.itemsize} bytes",
+            )
+        return np.frombuffer(payload, dtype=self.dtype, count=n, offset=HEADER.itemsize)
+
+    def _check(self, payload: bytes) -> None:
         code, version = check_header(payload)
         if code != self.code:
             raise WireError(DropReason.UNKNOWN_SCHEMA, f"expected {self.name} (code {self.code}), got code {code}")
         if version != self.version:
             raise WireError(DropReason.BAD_VERSION, f"{self.name}: version {version} is not {self.version}")
+
+    def decode(self, payload: bytes) -> np.void:
+        """The record in a frame of one row; ``WireError`` when the header or the length does not match."""
+        self._check(payload)
         if len(payload) != self.size:
             raise WireError(DropReason.BAD_LENGTH, f"{self.name}: {len(payload)} bytes, expected {self.size}")
         return np.frombuffer(payload, dtype=self.dtype, count=1, offset=HEADER.itemsize)[0]
@@ -189,6 +218,18 @@ def check_header(payload: bytes) -> tuple[int, int]:
     if payload[:2] != MAGIC:
         raise WireError(DropReason.BAD_MAGIC, "not a windwarden message")
     return payload[2], payload[3]
+
+
+def frame_problem(rows: np.ndarray) -> DropReason | None:
+    """Why the rows of one frame cannot be one tick's records of distinct turbines (``MIXED_TICKS``,
+    ``DUPLICATE_TURBINE``), or None."""
+    ticks = rows["tick"]
+    if (ticks != ticks[0]).any():
+        return DropReason.MIXED_TICKS
+    turbines = rows["turbine"]
+    if len(turbines) > 1 and len(np.unique(turbines)) != len(turbines):
+        return DropReason.DUPLICATE_TURBINE
+    return None
 
 
 def stack_records(records: Sequence[np.void]) -> np.ndarray:

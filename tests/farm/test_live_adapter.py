@@ -110,3 +110,21 @@ def test_the_live_plant_is_run_0_of_the_batch():
     live = kind.make_plant(scenario, seed=3)
     batch = FarmBatch(scenario.plant, scenario.wind, [], seed=3, duration_s=3.0, runs=[0, 1], fault_free_twins=True)
     assert np.array_equal(live.measure().turbines.sensors, batch.measure().turbines.sensors[:9])
+
+
+def test_rows_of_two_farm_samples_in_one_tick_leave_every_turbine_on_its_reference():
+    """A sharded supervisor in real time: one shard answered tick k with the coordinator's new rows, the other
+    (late) with the rows it held, or with no reference yet (computed_tick −1, power NaN). The plant keeps every
+    turbine's reference until the rows agree: no NaN reference, no phasor referred to another sample's time."""
+    kind = kind_for("farm")
+    scenario = parse_scenario(SCENARIO)
+    plant = kind.make_plant(scenario, seed=3)
+    turbines = kind.turbines(plant)
+    sup = kind.make_supervisor(RunInfo.of(scenario, turbines, plant.dt))
+    records = kind.refs_records(FarmRefs(tick=21, power_ref=np.full(9, 1e6), computed_tick=19), sup, turbines)
+    assert kind.refs_from_records(records).source_tick == 19
+    late = records.copy()
+    late["computed_tick"][4:], late["power_ref"][4:] = -1, np.nan  # shard 5-9 before its first rows
+    assert kind.refs_from_records(late) is None
+    late["computed_tick"][4:], late["power_ref"][4:] = 9, 2e6  # shard 5-9 on the previous sample's rows
+    assert kind.refs_from_records(late) is None

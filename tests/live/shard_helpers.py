@@ -102,7 +102,7 @@ def one_supervisor(scn: Scenario, seed: int) -> OneSupervisor:
 
 
 class RefsListener:
-    """Every ``turbine/*/refs`` message on the network, by (tick, turbine), from a session of its own."""
+    """Every row of every ``refs/*`` frame on the network, by (tick, turbine), from a session of its own."""
 
     def __init__(self, endpoint: str):
         self.settings = SupervisorSettings(connect=endpoint)
@@ -110,11 +110,10 @@ class RefsListener:
         self.repeated = 0
 
     def _on(self, sample) -> None:
-        payload = sample.payload.to_bytes()
-        record = FARM_REFS.decode(payload)
-        key = (int(record["tick"]), int(record["turbine"]))
-        self.repeated += key in self.refs
-        self.refs[key] = payload
+        for record in FARM_REFS.decode_frame(sample.payload.to_bytes()):
+            key = (int(record["tick"]), int(record["turbine"]))
+            self.repeated += key in self.refs
+            self.refs[key] = FARM_REFS.encode(record)  # the row as a frame of one, as ``one_supervisor`` keeps it
 
     def __enter__(self) -> RefsListener:
         self.session = open_session(self.settings)

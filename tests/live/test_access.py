@@ -33,15 +33,15 @@ K = KeyTree("default")
 SETTLE_S = 1.0  # after which a message that has not arrived will not arrive (loopback, idle router)
 
 PUTS = {  # key → the only role that may put on it
-    K.sensors(1): "plant",
-    K.truth(1): "plant",
+    K.sensors: "plant",
+    K.truth: "plant",
     K.plant_status: "plant",
     K.plant_events: "plant",
-    K.refs(1): "supervisor",
+    K.refs("supervisor"): "supervisor",
     K.supervisor_status: "supervisor",
     K.supervisor_events: "supervisor",
-    K.summary(1): "supervisor",  # a sharded supervisor: shard → coordinator
-    K.dispatch(1): "supervisor",  # coordinator → shard
+    K.summary("1-40"): "supervisor",  # a sharded supervisor: shard → coordinator
+    K.dispatch("1-40"): "supervisor",  # coordinator → shard
     K.shard_status("1-4"): "supervisor",
     f"{K.base}/elsewhere": None,
 }
@@ -52,13 +52,13 @@ QUERIES = {  # queryable key → roles that may ask it
     K.supervisor_status: {"api"},
 }
 SUBSCRIPTIONS = {  # key → roles that receive what is put on it
-    K.sensors(1): {"supervisor", "viewer"},
-    K.refs(1): {"plant", "viewer"},
+    K.sensors: {"supervisor", "viewer"},
+    K.refs("supervisor"): {"plant", "viewer"},
     K.plant_events: {"supervisor", "api", "viewer"},
     K.supervisor_events: {"api", "viewer"},
-    K.truth(1): {"viewer"},
-    K.summary(1): {"supervisor", "viewer"},
-    K.dispatch(1): {"supervisor", "viewer"},
+    K.truth: {"viewer"},
+    K.summary("1-40"): {"supervisor", "viewer"},
+    K.dispatch("1-40"): {"supervisor", "viewer"},
     K.shard_status("1-4"): {"supervisor", "viewer"},
 }
 TOKENS = {K.alive("plant"): "plant", K.alive("supervisor"): "supervisor"}
@@ -282,12 +282,12 @@ def test_tls_client_certificates_identify_the_roles(tmp_path):
         seen: list[bytes] = []
         witness.declare_subscriber(f"{K.base}/**", lambda s: seen.append(s.payload.to_bytes()))
         time.sleep(0.3)
-        plant.put(K.sensors(1), b"from plant")
-        viewer.put(K.refs(1), b"forged by viewer")
+        plant.put(K.sensors, b"from plant")
+        viewer.put(K.refs("supervisor"), b"forged by viewer")
         assert wait_for(lambda: b"from plant" in seen, 5.0)
         time.sleep(SETTLE_S)
         assert b"forged by viewer" not in seen
         for s in (plant, viewer, witness):
             s.close()
         counts = router.stop()
-    assert any(d["role"] == "viewer" and d["key"] == K.refs(1) for d in counts["denied"]), json.dumps(counts)
+    assert any(d["role"] == "viewer" and d["key"] == K.refs("supervisor") for d in counts["denied"]), json.dumps(counts)

@@ -120,7 +120,7 @@ def test_compose_up_inject_detect_refuse_down(tmp_path):
             rec["tick"], rec["turbine"], rec["valid"], rec["omega_g"] = 10**15, 1, True, 200.0
             forged = TURBINE_REFS.encode(rec)
             for _ in range(50):
-                intruder.put(K.refs(1), forged)
+                intruder.put(K.refs("supervisor"), forged)
                 time.sleep(0.01)
             time.sleep(1.0)
             with lock:
@@ -133,7 +133,7 @@ def test_compose_up_inject_detect_refuse_down(tmp_path):
         )
         if audit.returncode == 0:  # the override's router counts; zenohd does not
             counts = json.loads(audit.stdout)
-            assert any(d["role"] == "viewer" and d["key"] == K.refs(1) for d in counts["denied"]), counts
+            assert any(d["role"] == "viewer" and d["key"] == K.refs("supervisor") for d in counts["denied"]), counts
             assert counts["logins_refused"].get("no credentials", 0) >= 1, counts
     finally:
         logs = subprocess.run([*compose, "logs", "--no-color"], env=env, capture_output=True, text=True, timeout=60)

@@ -140,5 +140,5 @@ def _send_garbage(session, keys):
     refs = TURBINE_REFS.encode(TURBINE_REFS.empty()[0])
     sensors = bytearray(TURBINE_SENSORS.encode(TURBINE_SENSORS.empty()[0]))
     sensors[3] = 99
-    session.put(keys.refs(1), refs[:-3])
-    session.put(keys.sensors(1), bytes(sensors))
+    session.put(keys.refs("supervisor"), refs[:-3])
+    session.put(keys.sensors, bytes(sensors))

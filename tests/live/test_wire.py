@@ -76,6 +76,8 @@ def test_random_bytes_never_raise_anything_but_wire_error(payload):
     for schema in SCHEMAS.values():
         with contextlib.suppress(WireError):
             schema.decode(payload)
+        with contextlib.suppress(WireError):
+            schema.decode_frame(payload)
     for name in JSON_SCHEMAS:
         with contextlib.suppress(WireError):
             decode_json(name, payload)
@@ -106,15 +108,21 @@ def test_records_stack_by_field():
 
 def test_key_tree():
     keys = KeyTree("farm_1")
-    assert keys.sensors(3) == "windwarden/farm_1/turbine/3/sensors"
-    assert keys.turbine_of(keys.refs(12)) == 12
+    assert keys.sensors == "windwarden/farm_1/sensors"
+    assert keys.refs("supervisor") == "windwarden/farm_1/refs/supervisor"
+    assert keys.sender_of(keys.refs("1-40")) == "1-40"
+    assert keys.summary("41-80") == "windwarden/farm_1/summary/41-80"
+    assert keys.dispatch("41-80") == "windwarden/farm_1/dispatch/41-80"
     assert keys.process_of(keys.alive("supervisor")) == "supervisor"
     assert {spec.pattern for spec in keys.registry()} >= {keys.plant_events, keys.supervisor_events, keys.faults}
     assert keys.events_all == "windwarden/farm_1/*/events"
-    assert KeyTree.every_farm().refs(1) == "windwarden/*/turbine/1/refs"
+    assert KeyTree.every_farm().refs("*") == "windwarden/*/refs/*"
     for bad in ("a/b", "*", "", "x y"):
         with pytest.raises(ValueError):
             KeyTree(bad)
+    for bad in ("a/b", "", "x y", "**"):
+        with pytest.raises(ValueError):
+            keys.refs(bad)
 
 
 def test_drop_counter():

@@ -1,7 +1,7 @@
 """A hostile client for the probes: a Zenoh session on the router, as any program on the network could open one.
 
 It reads the sensor stream (so it learns the tick the plant is at and the run identity, as a real attacker would)
-and puts whatever it likes on the refs and sensors keys. The probes check the defences at the two ends (plant and
+and puts whatever frames it likes on the refs and sensors keys. The probes check the defences at the two ends (plant and
 supervisor), so they run on a router without access control (``tests.live.helpers.router``), or with the
 supervisor's own credentials where the router enforces it: the question is what the plant and the supervisor do
 with what gets through.
@@ -30,14 +30,18 @@ class HostileClient:
         self._lock = threading.Lock()
         self.latest: np.void | None = None  # the newest genuine sensor record seen
         self._sub = self.session.declare_subscriber(  # the plant's frames, not its own forgeries
-            self.keys.sensors(turbine), self._on_sensors, allowed_origin=zenoh.Locality.REMOTE
+            self.keys.sensors, self._on_sensors, allowed_origin=zenoh.Locality.REMOTE
         )
 
     def _on_sensors(self, sample) -> None:
         try:
-            record = self.schema.decode(sample.payload.to_bytes())
+            rows = self.schema.decode_frame(sample.payload.to_bytes())
         except WireError:
             return
+        mine = rows[rows["turbine"] == self.turbine]
+        if len(mine) != 1:
+            return
+        record = mine[0]
         with self._lock:
             if self.latest is None or record["tick"] > self.latest["tick"]:
                 self.latest = record.copy()
@@ -52,7 +56,8 @@ class HostileClient:
             return self.latest.copy()
 
     def put(self, key: str, schema: MessageSchema, record: np.ndarray) -> None:
-        self.session.put(key, schema.encode(record))
+        """Put ``record`` (one row or several) as a frame."""
+        self.session.put(key, schema.encode_frame(record))
 
     def flood(self, key: str, schema: MessageSchema, make, seconds: float, every_s: float = 0.005) -> int:
         """Put ``make(latest sensor record)`` every ``every_s`` for ``seconds``; returns how many were put."""

@@ -144,8 +144,8 @@ def test_hostile_clients_are_refused_and_counted(live_system):
     witness.declare_subscriber(f"{K.base}/**", record)
     hostile = {role: session(role) for role in ("plant", "supervisor", "api", "viewer")}
     probes = {
-        K.refs(1): (forged_refs(), ("plant", "api", "viewer")),
-        K.sensors(1): (stale_sensors(), ("supervisor", "api", "viewer")),
+        K.refs("supervisor"): (forged_refs(), ("plant", "api", "viewer")),
+        K.sensors: (stale_sensors(), ("supervisor", "api", "viewer")),
         K.plant_events: (None, ("supervisor", "api", "viewer")),
         K.supervisor_events: (None, ("plant", "api", "viewer")),
     }

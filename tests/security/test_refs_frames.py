@@ -26,6 +26,7 @@ import pytest
 from tests.live.helpers import LiveNodes, router, scenario, wait_for
 from tests.security.hostile import HostileClient
 from windwarden.live.runfolder import EVENTS, read_events
+from wwcore.keys import KeyTree
 from wwcore.wire import TURBINE_REFS, TURBINE_SENSORS, TURBINE_TRUTH
 
 REGION_3 = """
@@ -46,6 +47,7 @@ end_s = 600.0
 """
 
 
+SUPERVISOR_REFS = KeyTree().refs("supervisor")  # the hostile client puts on the supervisor's own refs key
 FIGURES: dict[str, str] = {}  # what each probe sent and what came of it, printed at the end (pytest -s)
 
 
@@ -55,10 +57,10 @@ class Truth:
     def __init__(self, session, keys):
         self.rows: list[tuple[float, float, float]] = []
         self._lock = threading.Lock()
-        self._sub = session.declare_subscriber(keys.truth(1), self._on)
+        self._sub = session.declare_subscriber(keys.truth, self._on)
 
     def _on(self, sample):
-        r = TURBINE_TRUTH.decode(sample.payload.to_bytes())
+        r = TURBINE_TRUTH.decode_frame(sample.payload.to_bytes())[0]
         with self._lock:
             self.rows.append((float(r["t"]), float(r["omega_r"]), float(np.mean(r["pitch"]))))
 
@@ -117,7 +119,7 @@ def assert_running_on_real_refs(hostile, truth, t0, probe=""):
 def test_forged_refs_out_of_range_are_refused(system):
     _, hostile, truth, _ = system
     t0, before = hostile.plant_status()["t"], refused(hostile).get("out_of_range", 0)
-    sent = hostile.flood(hostile.keys.refs(1), TURBINE_REFS, lambda r: refs_for(r, omega_g=200.0), seconds=1.5)
+    sent = hostile.flood(SUPERVISOR_REFS, TURBINE_REFS, lambda r: refs_for(r, omega_g=200.0), seconds=1.5)
     assert wait_for(lambda: refused(hostile).get("out_of_range", 0) - before >= 0.9 * sent, 5)
     FIGURES["ω_g = 200"] = f"{sent} sent, {refused(hostile)['out_of_range'] - before} refused out_of_range"
     time.sleep(1.0)  # what the attack would have done shows within a second
@@ -127,7 +129,7 @@ def test_forged_refs_out_of_range_are_refused(system):
 def test_nan_refs_are_refused(system):
     nodes, hostile, truth, _ = system
     t0, before = hostile.plant_status()["t"], refused(hostile).get("non_finite", 0)
-    sent = hostile.flood(hostile.keys.refs(1), TURBINE_REFS, lambda r: refs_for(r, omega_g=np.nan), seconds=1.0)
+    sent = hostile.flood(SUPERVISOR_REFS, TURBINE_REFS, lambda r: refs_for(r, omega_g=np.nan), seconds=1.0)
     assert wait_for(lambda: refused(hostile).get("non_finite", 0) - before >= 0.9 * sent, 5)
     FIGURES["NaN"] = f"{sent} sent, {refused(hostile)['non_finite'] - before} refused non_finite"
     assert nodes.error is None and not nodes.done.is_set()
@@ -137,10 +139,8 @@ def test_nan_refs_are_refused(system):
 def test_future_tick_refs_are_refused(system):
     _, hostile, truth, _ = system
     t0, before = hostile.plant_status()["t"], refused(hostile).get("future_tick", 0)
-    hostile.put(hostile.keys.refs(1), TURBINE_REFS, refs_for(hostile.sensed(), tick=10**15))
-    sent = 1 + hostile.flood(
-        hostile.keys.refs(1), TURBINE_REFS, lambda r: refs_for(r, tick=r["tick"] + 1000), seconds=1.0
-    )
+    hostile.put(SUPERVISOR_REFS, TURBINE_REFS, refs_for(hostile.sensed(), tick=10**15))
+    sent = 1 + hostile.flood(SUPERVISOR_REFS, TURBINE_REFS, lambda r: refs_for(r, tick=r["tick"] + 1000), seconds=1.0)
     assert wait_for(lambda: refused(hostile).get("future_tick", 0) - before >= 0.9 * sent, 5)
     FIGURES["future ticks"] = f"{sent} sent, {refused(hostile)['future_tick'] - before} refused future_tick"
     received = hostile.plant_status()["refs_received"]
@@ -160,7 +160,7 @@ def test_forged_sensor_frames_are_dropped(system):
             rec["run"] = run
         return rec
 
-    key, schema = hostile.keys.sensors(1), TURBINE_SENSORS
+    key, schema = hostile.keys.sensors, TURBINE_SENSORS
     rng = np.random.default_rng(5)
     sent = {
         "old_tick": hostile.flood(key, schema, lambda r: frame(r, r["tick"] - 100), seconds=0.5),

@@ -147,9 +147,14 @@ class FarmKind:
         return records_from_batch(FARM_REFS, values, turbines)
 
     def refs_from_records(self, records: np.ndarray) -> FarmRefs | None:
-        computed = int(records["computed_tick"][0])
-        if computed < 0:
-            return None  # no farm sample yet: the turbines keep their own reference
+        computed_ticks = records["computed_tick"]
+        computed = int(computed_ticks[0])
+        if computed < 0 or (computed_ticks != computed).any():
+            # No farm sample yet, or (a sharded supervisor in real time) rows of two farm samples in one tick, one
+            # shard having answered before the coordinator's new rows reached it: every turbine keeps the
+            # reference it has until the rows agree (a tick or so later), so no turbine takes another sample's
+            # phasor time or a row that has no reference (NaN power, computed_tick −1).
+            return None
         mode = np.array(records["mode"])
         ripple = records["ripple_power"]
         return FarmRefs(

@@ -100,7 +100,7 @@ def role_grants(keys: KeyTree | None = None) -> dict[str, list[Grant]]:
     sharded = (k.summary(t), k.dispatch(t), k.shard_status(t))  # a sharded farm supervisor's own keys
     return {
         "plant": [
-            *_publish(k.sensors(t), k.truth(t), k.metmast, k.plant_status, k.plant_events),
+            *_publish(k.sensors, k.truth, k.metmast, k.plant_status, k.plant_events),
             *_serve(k.run, k.faults, k.plant_status),
             *_subscribe(k.refs(t), k.supervisor_status),
             *_liveliness(k, Process.PLANT),
@@ -108,7 +108,7 @@ def role_grants(keys: KeyTree | None = None) -> dict[str, list[Grant]]:
         ],
         "supervisor": [  # and the shards and the coordinator of a sharded farm supervisor, their keys besides
             *_publish(k.refs(t), k.supervisor_status, k.supervisor_events, *sharded),
-            *_subscribe(k.sensors(t), k.metmast, k.plant_events, *sharded),
+            *_subscribe(k.sensors, k.metmast, k.plant_events, *sharded),
             *_ask(k.run, k.plant_status),  # plant/status: a gap's tick confirmed (guard.FrameSequencer)
             *_serve(k.supervisor_status),
             *_liveliness(k, Process.SUPERVISOR),

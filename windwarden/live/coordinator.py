@@ -4,19 +4,20 @@ supervisor, fed by the shards' per-turbine summaries.
 It learns the run from the plant's ``plant/run`` queryable, builds the farm-wide part one supervisor would run
 (``service.farm.shard.coordinator_supervisor``: the dispatch, eqs. (18)–(26), the accommodation and the events, with
 the run's controller and options; a farm-wide detector such as ``paper`` is refused) and, per farm sample whose
-``farm.summary`` rows have arrived for every turbine of the run:
+``farm.summary`` rows have arrived for every turbine of the run (one frame per shard, each row of a turbine the
+shard's status says it owns):
 
 ``FarmSample`` and ``FarmDiagnosis`` from the rows (``sharding.farm_sample``) → the commanded pitch trim taken off
-(``FarmSupervisor.untrimmed``) → ``FarmSupervisor.decide`` → its events appended to ``events.jsonl`` and published
-→ each turbine's ``farm.refs`` row on its dispatch key. Events go out before the rows, so when the plant holds refs
-of tick k every event up to tick k is in the log, as with one supervisor.
+(``FarmSupervisor.untrimmed``) → ``FarmSupervisor.decide`` → its events appended to ``events.jsonl`` and published →
+to each ready shard one ``farm.refs`` frame of its turbines' rows on ``dispatch/<name>``. Events go out before the
+rows, so when the plant holds refs of tick k every event up to tick k is in the log, as with one supervisor.
 
 To the plant it is the supervisor: it holds the ``alive/supervisor`` token, publishes ``supervisor/status`` and
 ``supervisor/events``, and says ``ready`` only once the shards that report ready for the run (``shard/*/status``)
-own every turbine of it, each turbine once. Summaries are refused and counted (``dropped``) when they do not decode,
-when a field the coordinator computes with is not finite or out of its range (``FARM_SUMMARY.refusal``), for a
-turbine the run does not have, for a tick already decided, or when the rows of one tick are not of one sample and
-run.
+own every turbine of it, each turbine once. Summary frames are refused whole and counted (``dropped``) when they do
+not decode, when a field the coordinator computes with is not finite or out of its range (``FARM_SUMMARY.refusal``),
+for a turbine the run does not have or the sending shard does not own, for a tick already decided, or when the rows
+of one tick are not of one sample and run.
 """
 
 from __future__ import annotations
@@ -75,7 +76,7 @@ class CoordinatorNode:
         s = session
         self._events_pub = declare_publisher(s, self.keys.supervisor_events, EVENT_QOS)
         self._status_pub = declare_publisher(s, self.keys.supervisor_status, EVENT_QOS)
-        self._dispatch_pubs: dict[int, zenoh.Publisher] = {}
+        self._dispatch_pubs: dict[str, zenoh.Publisher] = {}  # a shard's name → its dispatch publisher
         self.summaries: TickMailbox | None = None
         self._summary_sub = s.declare_subscriber(self.keys.summary("*"), self._on_summary)
         self._shard_sub = s.declare_subscriber(self.keys.shard_status("*"), self._on_shard_status)
@@ -109,7 +110,12 @@ class CoordinatorNode:
         if mailbox is None:
             self.drops.add("summary", "no_run")
             return
-        mailbox.put(payload)
+        name = self.keys.sender_of(str(sample.key_expr))
+        with self._lock:
+            shard = self.shards.get(name)
+            run_id = None if self.info is None else self.info.run_id
+        turbines = shard["turbines"] if shard is not None and shard["run_id"] == run_id else []
+        mailbox.put(payload, mailbox.owned_mask(turbines))  # a shard summarises its own turbines only
         self._inbox.put(b"")  # the main loop drains the mailbox
 
     def _summary_window(self, tick: int) -> DropReason | None:
@@ -152,9 +158,6 @@ class CoordinatorNode:
             self.turbines = list(info.turbines)
             self.last_tick = -1
             self.summaries = TickMailbox(FARM_SUMMARY, self.turbines, self.drops, "summary", self._summary_window)
-        for turbine in self.turbines:
-            if turbine not in self._dispatch_pubs:
-                self._dispatch_pubs[turbine] = declare_publisher(self.session, self.keys.dispatch(turbine), COMMAND_QOS)
         if new_run:
             if self.events is not None:
                 self.events.close()
@@ -276,5 +279,18 @@ class CoordinatorNode:
         self.last_tick, self.last_t, self.samples = tick, float(records["t"][0]), self.samples + 1
         if events and self.events is not None:
             self.events.write(events)  # before the references, as one supervisor does
-        for i, turbine in enumerate(self.turbines):
-            self._dispatch_pubs[turbine].put(FARM_REFS.encode(out[i]))
+        for name, rows in self._plan():
+            if name not in self._dispatch_pubs:
+                self._dispatch_pubs[name] = declare_publisher(self.session, self.keys.dispatch(name), COMMAND_QOS)
+            self._dispatch_pubs[name].put(FARM_REFS.encode_frame(out[rows]))
+
+    def _plan(self) -> list[tuple[str, np.ndarray]]:
+        """Each shard ready for the run, with the rows of its turbines in the run's turbine order."""
+        position = {t: i for i, t in enumerate(self.turbines)}
+        with self._lock:
+            shards = sorted(self.shards.items())
+        return [
+            (name, np.array([position[t] for t in shard["turbines"] if t in position], dtype=np.intp))
+            for name, shard in shards
+            if shard["ready"] and shard["run_id"] == self.info.run_id
+        ]

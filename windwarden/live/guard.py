@@ -3,14 +3,17 @@
 Access control at the router decides who may publish; these checks are the second line, at the two ends that act
 on the messages, and they hold whoever got through.
 
-**Plant, references** (``RefsGuard``). A refs message is taken only if it is for a tick the plant has measured and
-not older than its window (k − ``max_ref_age`` ≤ tick ≤ k − 1 when tick k starts), every field the plant acts on
-is finite and inside its physical range (``wwcore.wire.WireField.limits``), and no refs for that tick were taken
-before. A refused message is counted by reason, changes nothing and leaves the controller on what it had: the
-last taken refs while they are in the window, then its fallback (the refs are then reported stale). A future tick
-is refused as it arrives (``TickMailbox`` window), so it can neither become "the newest refs" nor end a lockstep
-wait. Refs that are only late (older than the window, else good) still count for the loop latency and the score,
-as before; they never reach the controller.
+**Plant, references** (``RefsGuard``, ``RefsSenders``). A refs frame is assembled into its tick only if its sender
+(the last chunk of its key) is the one supervisor, or a shard of the sharded supervisor's plan (the coordinator's
+status: which shard owns which turbines) and every row is for a turbine the sender owns (``not_owned``), each once
+(``duplicate_turbine``), all of one tick (``mixed_ticks``): ``TickMailbox``. A tick's refs are taken only if it is
+for a tick the plant has measured and not older than its window (k − ``max_ref_age`` ≤ tick ≤ k − 1 when tick k
+starts), every field the plant acts on is finite and inside its physical range (``wwcore.wire.WireField.limits``),
+and no refs for that tick were taken before. A refused message is counted by reason, changes nothing and leaves the
+controller on what it had: the last taken refs while they are in the window, then its fallback (the refs are then
+reported stale). A future tick is refused as it arrives (``TickMailbox`` window), so it can neither become "the
+newest refs" nor end a lockstep wait. Refs that are only late (older than the window, else good) still count for the
+loop latency and the score, as before; they never reach the controller.
 
 **Supervisor, sensor frames** (``FrameSequencer``). Every frame carries the plant's run identity (``run``, drawn at
 random by the plant when it starts a run, served on ``plant/run``). The observers restart only when that identity
@@ -55,6 +58,10 @@ REFUSALS = frozenset(
         DropReason.OLD_TICK,
         DropReason.FOREIGN_RUN,
         DropReason.UNCONFIRMED_TICK,
+        DropReason.MIXED_TICKS,
+        DropReason.DUPLICATE_TURBINE,
+        DropReason.UNKNOWN_TURBINE,
+        DropReason.NOT_OWNED,
     }
 )
 """Messages that decoded but were refused (the other drop reasons are messages that do not decode)."""
@@ -157,6 +164,46 @@ class RefsGuard:
             self.drops.add(self.stream, DropReason.STALE_TICK)
             return Verdict.LATE
         return Verdict.TAKE
+
+
+class RefsSenders:
+    """Who may send refs for which turbines (the plant's side of the shard plan): the one supervisor (sender
+    ``supervisor``) every turbine; once the status of a sharded supervisor's coordinator names the shards ready for
+    the run, each of them its own turbines and nobody else anything. ``owned(sender)`` is the mask ``TickMailbox.put``
+    takes (None: every turbine); an unknown sender owns no turbine, so its frames are refused as ``not_owned``."""
+
+    SUPERVISOR = "supervisor"
+
+    def __init__(self, mask_of: Callable[[Iterable[int]], np.ndarray], n_turbines: int, run_id: str):
+        self.mask_of = mask_of
+        self.run_id = run_id
+        self._nobody = np.zeros(n_turbines, dtype=bool)
+        self._plan: dict[str, np.ndarray | None] = {self.SUPERVISOR: None}
+        self.sharded = False
+
+    def update(self, status: dict[str, Any]) -> None:
+        """Take the plan from a ``supervisor.status`` body of this run (others are ignored)."""
+        if status.get("run_id") != self.run_id:
+            return
+        if status.get("sharded") is not True:
+            self._plan, self.sharded = {self.SUPERVISOR: None}, False
+            return
+        plan: dict[str, np.ndarray | None] = {}
+        shards = status.get("shards")
+        for name, shard in (shards if isinstance(shards, dict) else {}).items():
+            if not isinstance(shard, dict) or shard.get("ready") is not True or shard.get("run_id") != self.run_id:
+                continue
+            turbines = shard.get("turbines")
+            if isinstance(turbines, list):
+                plan[str(name)] = self.mask_of(t for t in turbines if isinstance(t, int) and not isinstance(t, bool))
+        self._plan, self.sharded = plan, True
+
+    def owned(self, sender: str) -> np.ndarray | None:
+        return self._plan.get(sender, self._nobody)
+
+    def plan(self) -> dict[str, int | None]:
+        """Sender → turbines it may send refs for (None: all), for the status."""
+        return {name: None if mask is None else int(mask.sum()) for name, mask in self._plan.items()}
 
 
 class RefsFreshness:

@@ -1,12 +1,16 @@
-"""Per-tick assembly of per-turbine wire records: a tick is complete when every turbine's record has arrived.
+"""Per-tick assembly of wire frames: a tick is complete when a row has arrived for every turbine of the node's list.
 
-Used on both sides: the plant collects the supervisor's refs, the supervisor collects the plant's sensors. The
-producer side runs on Zenoh threads (``put``), the consumer in the node's main loop (``drain``/``wait_for``).
+Used on both sides: the plant collects the supervisor's refs frames (one per tick from one supervisor, one per shard
+from a sharded one: the tick is the union of their rows), the supervisor collects the plant's sensor frames (one
+per tick, every turbine), the coordinator the shards' summary frames. The producer side runs on Zenoh threads
+(``put``), the consumer in the node's main loop (``drain``/``wait_for``).
 
-A second row for a (tick, turbine) that is still being assembled is refused (``repeated_tick``: the first one
-stays), and a node may pass ``window``, a check of the tick run before a row is kept: the plant refuses refs for
-ticks it has not measured yet there, so a flood of forged ticks can neither evict real rows nor end a lockstep
-wait.
+A frame is taken whole or refused whole (counted, changing nothing): it does not decode; its rows are of two ticks
+or name a turbine twice (``wwcore.wire.frame_problem``); a row is for a turbine the node's list does not have
+(``unknown_turbine``) or that the sender may not speak for (``owned``: ``not_owned``); a row is for a (tick,
+turbine) already being assembled (``repeated_tick``: the first one stays); or ``window``, a node's check of the
+tick, refuses it (the plant refuses refs for ticks it has not measured yet there, so a flood of forged ticks can
+neither evict real rows nor end a lockstep wait).
 """
 
 from __future__ import annotations
@@ -14,21 +18,22 @@ from __future__ import annotations
 import threading
 import time
 from collections import deque
-from collections.abc import Callable
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 
 import numpy as np
 
-from wwcore.wire import DropCounter, DropReason, MessageSchema, WireError, stack_records
+from wwcore.wire import DropCounter, DropReason, MessageSchema, WireError, frame_problem
 
 
-def backlog_ticks(queued_messages: int, turbines: int) -> float:
-    """Ticks queued behind the one being stepped: every tick brings one sensor message per turbine."""
-    return queued_messages / max(turbines, 1)
+def backlog_ticks(queued_frames: int, frames_per_tick: int = 1) -> float:
+    """Ticks queued behind the one being stepped: every tick brings ``frames_per_tick`` frames (the plant's sensor
+    frame: one)."""
+    return queued_frames / max(frames_per_tick, 1)
 
 
 TickWindow = Callable[[int], "DropReason | None"]
-"""A node's check of a tick before a row of it is kept: None to keep it, else the reason to refuse it."""
+"""A node's check of a tick before a frame of it is kept: None to keep it, else the reason to refuse it."""
 
 KEEP_PARTIAL = 200  # ticks an incomplete tick may wait for its missing rows
 
@@ -51,42 +56,76 @@ class TickMailbox:
     ):
         self.schema = schema
         self.window = window
-        self.order = {t: i for i, t in enumerate(dict.fromkeys(turbines))}
-        self.n = len(self.order)
+        self.turbines = list(dict.fromkeys(turbines))
+        self.n = len(self.turbines)
+        top = max(self.turbines, default=0)
+        self._position = np.full(top + 1, -1, dtype=np.intp)  # turbine number → its row in a complete tick
+        self._position[self.turbines] = np.arange(self.n)
         self.drops = drops
         self.stream = stream
         self.cond = threading.Condition()
-        self._partial: dict[int, dict[int, np.void]] = {}
+        self._partial: dict[int, tuple[np.ndarray, np.ndarray]] = {}  # tick → (rows, filled)
         self._complete: deque[Arrival] = deque()
         self.received = 0
 
-    def put(self, payload: bytes) -> None:
-        """Decode one message (any thread); bad ones are dropped and counted."""
+    def owned_mask(self, turbines: Iterable[int]) -> np.ndarray:
+        """The ``owned`` argument of ``put`` for a sender that may speak for ``turbines`` (others of the list are
+        not its)."""
+        mask = np.zeros(self.n, dtype=bool)
+        positions = [self._position[t] for t in turbines if 0 <= t < len(self._position)]
+        mask[[p for p in positions if p >= 0]] = True
+        return mask
+
+    def _refusal(self, rows: np.ndarray, owned: np.ndarray | None) -> tuple[DropReason | None, np.ndarray]:
+        problem = frame_problem(rows)
+        if problem is not None:
+            return problem, rows
+        turbines = rows["turbine"].astype(np.intp)
+        if int(turbines.max()) >= len(self._position):
+            return DropReason.UNKNOWN_TURBINE, turbines
+        positions = self._position[turbines]
+        if (positions < 0).any():
+            return DropReason.UNKNOWN_TURBINE, positions
+        if owned is not None and not owned[positions].all():
+            return DropReason.NOT_OWNED, positions
+        refused = None if self.window is None else self.window(int(rows["tick"][0]))
+        return refused, positions
+
+    def put(self, payload: bytes, owned: np.ndarray | None = None) -> None:
+        """Decode one frame (any thread) and take its rows, or refuse and count it (module docstring). ``owned``:
+        a mask over the node's turbines (``owned_mask``), the rows the sender may send; None: any."""
         now = time.perf_counter()
         try:
-            record = self.schema.decode(payload)
+            rows = self.schema.decode_frame(payload)
         except WireError as error:
             self.drops.add(self.stream, error.reason)
             return
-        turbine, tick = int(record["turbine"]), int(record["tick"])
-        if turbine not in self.order:
-            self.drops.add(self.stream, "unknown_turbine")
-            return
-        refused = None if self.window is None else self.window(tick)
+        refused, positions = self._refusal(rows, owned)
         if refused is not None:
             self.drops.add(self.stream, refused)
             return
+        tick = int(rows["tick"][0])
         with self.cond:
-            self.received += 1
-            rows = self._partial.setdefault(tick, {})
-            if turbine in rows:
+            partial = self._partial.get(tick)
+            if partial is None and len(positions) == self.n:  # a whole tick in one frame
+                self.received += 1
+                out = np.empty(self.n, dtype=self.schema.dtype)
+                out[positions] = rows
+                self._complete.append(Arrival(tick, out, now))
+                self.cond.notify_all()
+                return
+            if partial is None:
+                partial = self._partial[tick] = (np.zeros(self.n, dtype=self.schema.dtype), np.zeros(self.n, bool))
+            out, filled = partial
+            if filled[positions].any():
                 self.drops.add(self.stream, DropReason.REPEATED_TICK)
                 return
-            rows[turbine] = record
-            if len(rows) == self.n:
+            self.received += 1
+            out[positions] = rows
+            filled[positions] = True
+            if filled.all():
                 del self._partial[tick]
-                ordered = sorted(rows.items(), key=lambda item: self.order[item[0]])
-                self._complete.append(Arrival(tick, stack_records([r for _, r in ordered]), now))
+                self._complete.append(Arrival(tick, out, now))
                 self.cond.notify_all()
             if len(self._partial) > KEEP_PARTIAL:
                 for old in sorted(self._partial)[: len(self._partial) - KEEP_PARTIAL]:

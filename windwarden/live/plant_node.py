@@ -7,12 +7,14 @@ Tick k (the step contract of ``wwcore.stepping``, the same calls as batch mode):
    as in batch mode), each checked by ``guard.RefsGuard`` (finite, in range, for a tick in the window, not a
    repeat; refused ones counted and logged); the newest taken is used if computed from tick ≥ k − ``max_ref_age``,
    else the turbine controller falls back to its own sensors and its last good reference;
-3. ``frame = plant.measure()``; publish ``sensors_k`` (with the run identity); ``plant.control(refs)``;
+3. ``frame = plant.measure()``; publish ``sensors_k``, one frame of every turbine's row (with the run identity);
+   ``plant.control(refs)``;
 4. ``plant.advance()``; append and publish the plant's events;
 5. lockstep: wait for ``refs_k`` (unless the supervisor is gone or has gone mute: then fall back, log, go on);
    realtime: sleep until the deadline t₀ + (k+1)·dt/speed; a tick whose work ends after it is an overrun.
 
-The sensor→refs latency of tick k is the time from publishing ``sensors_k`` to the arrival of ``refs_k``.
+The sensor→refs latency of tick k is the time from publishing ``sensors_k`` to the arrival of ``refs_k`` (every
+turbine's row: the supervisor's one frame, or the last of the shards' frames).
 """
 
 from __future__ import annotations
@@ -33,7 +35,7 @@ import zenoh
 from windwarden.kinds import RunInfo, kind_for
 from windwarden.live.config import PlantSettings
 from windwarden.live.faults import FaultBook, InjectionRefusedError
-from windwarden.live.guard import RefsFreshness, RefsGuard, RefusalLog, Verdict
+from windwarden.live.guard import RefsFreshness, RefsGuard, RefsSenders, RefusalLog, Verdict
 from windwarden.live.mailbox import TickMailbox
 from windwarden.live.runfolder import EVENTS, FAULTS, LIVE, EventLog, write_json, write_run_start
 from windwarden.live.timing import LatencyStats, Pacer
@@ -110,13 +112,11 @@ class PlantNode:
         self._events_pub = declare_publisher(s, keys.plant_events, EVENT_QOS)
         self._status_pub = declare_publisher(s, keys.plant_status, DISPLAY_QOS)
         sensors_qos = COMMAND_QOS if self.settings.mode == "lockstep" else SENSORS_QOS
-        unique = list(dict.fromkeys(self.turbines))
-        self._sensor_pubs = {t: declare_publisher(s, keys.sensors(t), sensors_qos) for t in unique}
-        self._truth_pubs = {t: declare_publisher(s, keys.truth(t), DISPLAY_QOS) for t in unique}
+        self._sensor_pub = declare_publisher(s, keys.sensors, sensors_qos)
+        self._truth_pub = declare_publisher(s, keys.truth, DISPLAY_QOS)
         self.mailbox = TickMailbox(self.kind.refs, self.turbines, self.drops, "refs", self.guard.window)
-        self._refs_sub = s.declare_subscriber(
-            keys.refs("*"), lambda sample: self.mailbox.put(sample.payload.to_bytes())
-        )
+        self.senders = RefsSenders(self.mailbox.owned_mask, self.mailbox.n, self.run_id)
+        self._refs_sub = s.declare_subscriber(keys.refs("*"), self._on_refs)
         self._queryables = [
             JsonQueryable(s, keys.run, "plant.run", lambda body: self.info.to_json(), self.drops),
             JsonQueryable(s, keys.faults, "plant.faults", self._on_fault_query, self.drops),
@@ -160,13 +160,19 @@ class PlantNode:
                 self._supervisor_ready_flag = False
             self.mailbox.wake()
 
+    def _on_refs(self, sample: zenoh.Sample) -> None:
+        """A refs frame: its rows are assembled into their tick as far as its sender owns them (``RefsSenders``)."""
+        sender = self.keys.sender_of(str(sample.key_expr))
+        self.mailbox.put(sample.payload.to_bytes(), self.senders.owned(sender))
+
     def _on_supervisor_status(self, sample: zenoh.Sample) -> None:
-        """The supervisor's handshake: ready for this run (subscribed and built)."""
+        """The supervisor's handshake: ready for this run (subscribed and built); a sharded one's plan."""
         try:
             body = decode_json("supervisor.status", sample.payload.to_bytes())
         except WireError as error:
             self.drops.add("supervisor.status", error.reason)
             return
+        self.senders.update(body)
         ready = bool(body.get("ready")) and body.get("run_id") == self.run_id
         if ready != self._supervisor_ready_flag:
             self._supervisor_ready_flag = ready
@@ -264,6 +270,7 @@ class PlantNode:
             "refs_stale_episodes": self.freshness.stale_episodes,
             "refs_received": self.refs_received,
             "refs_refused": self.refusals.counts(),
+            "refs_senders": self.senders.plan(),
             "run_key": self.run_key,
             "supervisor_alive": self.watch.is_alive(Process.SUPERVISOR),
             "dropped": self.drops.as_dict(),
@@ -405,14 +412,12 @@ class PlantNode:
             records = kind.frame_records(frame, self.turbines)
             records["run"] = self.run_key
             self._sent_at[k] = time.perf_counter()
-            for i, turbine in enumerate(self.turbines):
-                self._sensor_pubs[turbine].put(kind.sensors.encode(records[i]))
+            self._sensor_pub.put(kind.sensors.encode_frame(records))
             plant.control(refs)
             score.on_tick(k, frame, plant)
             if k % every == 0:
                 truth = kind.truth_records(plant, frame, self.turbines)
-                for i, turbine in enumerate(self.turbines):
-                    self._truth_pubs[turbine].put(kind.truth.encode(truth[i]))
+                self._truth_pub.put(kind.truth.encode_frame(truth))
                 if self.display is not None:
                     self.display.plant_rows(records, truth)
             plant.advance()

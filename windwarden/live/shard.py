@@ -3,24 +3,26 @@
 
 It learns the run from the plant's ``plant/run`` queryable as the supervisor does, builds the per-turbine part
 (``service.farm.shard.FarmShard``: the ``analytic`` detector on its turbines' rows, the farm's false-alarm budget),
-subscribes to its turbines' sensors only and, per complete sensor tick of its turbines:
+subscribes to the plant's sensor frames (one per tick, every turbine's row; it steps its own turbines' rows) and, per
+sensor frame:
 
-* on a 10 Hz farm sample: steps its detector and sends each turbine's ``farm.summary`` to the coordinator; the
-  sample's refs go out when the coordinator's ``farm.refs`` rows of that tick arrive on the dispatch keys (in
-  lockstep the plant waits for them), or with the references held so far when the next sensor frame comes first
-  (real time: counted as ``coordinator_late``, the new rows are used from the next tick) or after
+* on a 10 Hz farm sample: steps its detector and sends one ``farm.summary`` frame of its turbines to the coordinator
+  (``summary/<name>``); the sample's refs go out when the coordinator's ``farm.refs`` frame of that tick arrives on
+  ``dispatch/<name>`` (in lockstep the plant waits for them), or with the references held so far when the next sensor
+  frame comes first (real time: counted as ``coordinator_late``, the new rows are used from the next tick) or after
   ``coordinator_timeout_s`` (``coordinator_timeouts``);
-* between farm samples: each turbine's refs at once.
+* between farm samples: its refs at once.
 
-The refs are the newest dispatch rows re-stamped with the tick (``sharding.held_records``), as one supervisor
-re-stamps its references between farm samples.
+The refs, one frame per tick of the shard's turbines on ``refs/<name>``, are the newest dispatch rows of its
+turbines re-stamped with the tick (``sharding.held_records``), as one supervisor re-stamps its references between
+farm samples. The plant takes a shard's rows only for the turbines the coordinator's plan gives it.
 
-Dispatch rows are refused and counted (``dropped``) when they do not decode, when a field the plant acts on is not
-finite or out of its range (``FARM_REFS.refusal``), when they are for another tick than the one awaited, or for a
-turbine the shard does not own. Frames are sequenced as the supervisor sequences them (``guard.FrameSequencer``);
-the farm holds over gaps. The shard publishes its readiness on ``shard/<name>/status``; the coordinator tells the
-plant the supervisor is ready once every turbine of the run has a ready shard. The events (detections, dispatch
-modes) are the coordinator's.
+Dispatch frames are refused whole and counted (``dropped``) when they do not decode, when a field the plant acts on
+is not finite or out of its range (``FARM_REFS.refusal``), when they are for another tick than the one awaited, or
+name a turbine the shard does not own or name one twice (``TickMailbox``). Sensor frames are sequenced as the
+supervisor sequences them (``guard.FrameSequencer``); the farm holds over gaps. The shard publishes its readiness on
+``shard/<name>/status``; the coordinator tells the plant the supervisor is ready once every turbine of the run has a
+ready shard. The events (detections, dispatch modes) are the coordinator's.
 """
 
 from __future__ import annotations
@@ -97,11 +99,12 @@ class ShardNode:
         self._last_status = 0.0
         s = session
         self._status_pub = declare_publisher(s, self.keys.shard_status(self.name), EVENT_QOS)
-        self._refs_pubs = {t: declare_publisher(s, self.keys.refs(t), COMMAND_QOS) for t in self.owned}
-        self._summary_pubs = {t: declare_publisher(s, self.keys.summary(t), COMMAND_QOS) for t in self.owned}
+        self._refs_pub = declare_publisher(s, self.keys.refs(self.name), COMMAND_QOS)
+        self._summary_pub = declare_publisher(s, self.keys.summary(self.name), COMMAND_QOS)
         self.dispatch = TickMailbox(FARM_REFS, list(self.owned), self.drops, "dispatch", self._dispatch_window)
-        self._dispatch_subs = [s.declare_subscriber(self.keys.dispatch(t), self._on_dispatch) for t in self.owned]
-        self._sensor_subs: list[zenoh.Subscriber] = []
+        self._rows = np.arange(len(self.owned))  # the shard's turbines' rows in a sensor frame of the run's turbines
+        self._dispatch_sub = s.declare_subscriber(self.keys.dispatch(self.name), self._on_dispatch)
+        self._sensor_sub: zenoh.Subscriber | None = None
         self.sequencer = FrameSequencer(settings.max_gap_ticks, self.drops, self._confirm_run, self._confirm_tick)
         self.watch = LivenessWatch(s, self.keys.alive_all, self._on_liveliness)
 
@@ -114,8 +117,9 @@ class ShardNode:
         self.ready = False
         self.publish_status(force=True)
         self.watch.undeclare()
-        for sub in self._sensor_subs + self._dispatch_subs:
-            sub.undeclare()
+        self._dispatch_sub.undeclare()
+        if self._sensor_sub is not None:
+            self._sensor_sub.undeclare()
 
     # -- inputs (Zenoh threads) ------------------------------------------------------------------------------------
     def _on_dispatch(self, sample: zenoh.Sample) -> None:
@@ -149,15 +153,18 @@ class ShardNode:
         )
         self.info = info
         self.kind = kind_for(info.kind)
-        self.mailbox = TickMailbox(FARM_SENSORS, list(self.owned), self.drops, "sensors")
+        turbines = list(info.turbines)
+        missing = sorted(set(self.owned) - set(turbines))
+        if missing:
+            raise ValueError(f"the farm of run {info.run_id} has no turbines {missing}")
+        self._rows = np.array([turbines.index(t) for t in self.owned])
+        self.mailbox = TickMailbox(FARM_SENSORS, turbines, self.drops, "sensors")
         self.last_dispatch = None
         self.last_tick = None
         self._pending, self._newest_sample, self._dispatch_tick = None, -1, -1
         self.sequencer.start(info.run_key)
-        if not self._sensor_subs:  # subscribing last: the coordinator tells the plant once every shard is ready
-            self._sensor_subs = [
-                self.session.declare_subscriber(self.keys.sensors(t), self._on_sensors) for t in self.owned
-            ]
+        if self._sensor_sub is None:  # subscribing last: the coordinator tells the plant once every shard is ready
+            self._sensor_sub = self.session.declare_subscriber(self.keys.sensors, self._on_sensors)
         self.ready = True
         self.publish_status(force=True)
 
@@ -222,14 +229,14 @@ class ShardNode:
                     if self._pending is not None:  # real time: the next frame is here first; answer with what we have
                         self.late += 1
                         self._answer(self._pending)
-                    self._on_frame(arrival.records)
+                    self._on_frame(arrival.records[self._rows])
             self.publish_status()
         return 0
 
     def _skip_backlog(self) -> None:
         """Far behind (more than ``max_backlog_ticks`` of its turbines' frames queued): drop what is queued and go
         on from the next frame (the sequencer then confirms the tick with the plant and restarts the detector)."""
-        if backlog_ticks(self._inbox.qsize(), len(self.owned)) <= self.settings.max_backlog_ticks:
+        if backlog_ticks(self._inbox.qsize()) <= self.settings.max_backlog_ticks:
             return
         self.drops.add("sensors", "backlog")
         while True:
@@ -272,8 +279,7 @@ class ShardNode:
         self.step_time.add(time.perf_counter() - started)
         self._newest_sample = tick
         self._pending, self._pending_since = tick, time.perf_counter()
-        for i, turbine in enumerate(self.owned):
-            self._summary_pubs[turbine].put(FARM_SUMMARY.encode(summaries[i]))
+        self._summary_pub.put(FARM_SUMMARY.encode_frame(summaries))
 
     def _take_dispatch(self) -> None:
         """The coordinator's rows that arrived: the newest become the references; those of the pending farm sample
@@ -293,5 +299,4 @@ class ShardNode:
         if tick == self._pending:
             self._pending = None
         out = held_records(self.last_dispatch, tick, list(self.owned))
-        for i, turbine in enumerate(self.owned):
-            self._refs_pubs[turbine].put(FARM_REFS.encode(out[i]))
+        self._refs_pub.put(FARM_REFS.encode_frame(out))

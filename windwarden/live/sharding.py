@@ -1,11 +1,11 @@
 """What a supervisor shard and the farm coordinator put on the wire, and what they make of it (no transport here).
 
 A shard (``windwarden.live.shard``) steps the per-turbine part of the farm supervisor on its turbines
-(``service.farm.shard.FarmShard``) and, on each 10 Hz farm sample, sends one ``farm.summary`` per turbine: the
-sample as the plant sent it and its detector's verdict (``summary_records``). The coordinator
+(``service.farm.shard.FarmShard``) and, on each 10 Hz farm sample, sends one ``farm.summary`` frame, a row per
+turbine: the sample as the plant sent it and its detector's verdict (``summary_records``). The coordinator
 (``windwarden.live.coordinator``) assembles the farm's sample and diagnosis from every turbine's summary
 (``farm_sample``), runs the farm-wide part (``FarmSupervisor.decide``: the dispatch, eqs. (18)–(26), the
-accommodation, the events) and sends each turbine's references back as ``farm.refs`` records on the dispatch key;
+accommodation, the events) and sends every turbine's references back as one ``farm.refs`` frame on the dispatch key;
 the shard answers each sensor tick with the newest of them, re-stamped (``held_records``), as one supervisor does.
 """
 
@@ -89,10 +89,10 @@ def pitch_trim_of(dispatch: np.ndarray) -> np.ndarray | None:
 
 
 def checked(schema: MessageSchema, payload: bytes) -> DropReason | None:
-    """Why a receiver must refuse ``payload`` before it is assembled (undecodable, or a field the receiver computes
-    with not finite or out of its range: ``MessageSchema.refusal``), or None."""
+    """Why a receiver must refuse the frame ``payload`` before it is assembled (undecodable, or a field the receiver
+    computes with not finite or out of its range on any row: ``MessageSchema.refusal``), or None."""
     try:
-        record = schema.decode(payload)
+        rows = schema.decode_frame(payload)
     except WireError as error:
         return DropReason(error.reason)
-    return schema.refusal(np.asarray(record).reshape(1))
+    return schema.refusal(rows)

@@ -3,7 +3,8 @@
 It learns the run from the plant's ``plant/run`` queryable (kind, turbines, published parameters, algorithms;
 never faults or truth), builds the supervisor with the constructor batch mode uses, and then, per tick:
 ``frame`` from the sensor records → ``refs = supervisor.step(frame)`` → the supervisor's events appended to
-``events.jsonl`` and published → ``refs`` published (reliable, blocking). Events go out before refs, so when the
+``events.jsonl`` and published → ``refs`` published, one frame of every turbine's row on ``refs/supervisor``
+(reliable, blocking). Events go out before refs, so when the
 plant holds ``refs_k`` every event up to tick k is in the log.
 
 Degradation (DESIGN.md): when no sensors arrive for ``stale_after_s`` or the plant's liveliness token goes, the
@@ -77,7 +78,7 @@ class SupervisorNode:
         s = session
         self._events_pub = declare_publisher(s, self.keys.supervisor_events, EVENT_QOS)
         self._status_pub = declare_publisher(s, self.keys.supervisor_status, EVENT_QOS)  # carries the handshake
-        self._refs_pubs: dict[int, zenoh.Publisher] = {}
+        self._refs_pub = declare_publisher(s, self.keys.refs(Process.SUPERVISOR), COMMAND_QOS)
         self._sensors_sub: zenoh.Subscriber | None = None  # declared once the supervisor is built (see _start_run)
         self._events_sub = s.declare_subscriber(self.keys.plant_events, self._on_event_sample)
         self._status_q = JsonQueryable(
@@ -171,9 +172,6 @@ class SupervisorNode:
                 if self.display is not None:
                     self.display.close()
                 self.display = self.display_factory(info)
-        for turbine in dict.fromkeys(self.turbines):
-            if turbine not in self._refs_pubs:
-                self._refs_pubs[turbine] = declare_publisher(self.session, self.keys.refs(turbine), COMMAND_QOS)
         self.last_tick = None
         self.last_records = None
         self.sequencer.start(info.run_key)
@@ -183,7 +181,7 @@ class SupervisorNode:
         if self._sensors_sub is None:
             # Subscribing last tells the plant (its publishers match) that this supervisor is ready for tick 0.
             self._sensors_sub = self.session.declare_subscriber(
-                self.keys.sensors("*"), lambda sample: self._inbox.put(sample.payload.to_bytes())
+                self.keys.sensors, lambda sample: self._inbox.put(sample.payload.to_bytes())
             )
         # The handshake: this status (sent after the subscription, on the same link) tells the plant that
         # its next sensor sample reaches a built supervisor. Zenoh's matching status alone does not
@@ -275,7 +273,7 @@ class SupervisorNode:
         elif missing:
             self.gaps += 1
             self._bridge_gap(records)
-        if backlog_ticks(self._inbox.qsize(), len(self.turbines)) > self.settings.max_backlog_ticks:
+        if backlog_ticks(self._inbox.qsize()) > self.settings.max_backlog_ticks:
             # far behind: skip to the newest, start afresh on the next
             self.drops.add("sensors", "backlog")
             while not self._inbox.empty():
@@ -294,8 +292,7 @@ class SupervisorNode:
         self.sequencer.stepped(tick)
         self.frames += 1
         self._write(events)  # before the refs: holding refs_k means the log has every event up to tick k
-        for i, turbine in enumerate(self.turbines):
-            self._refs_pubs[turbine].put(kind.refs.encode(out[i]))
+        self._refs_pub.put(kind.refs.encode_frame(out))
         if self.display is not None:
             if tick % self.settings.display_every == 0:
                 self.display.supervisor_rows(records, out, self.status_rows())
