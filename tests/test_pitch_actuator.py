@@ -24,9 +24,10 @@ SIGMA_W2 = 0.75 * 0.2**2  # σ_w² = ¾ σ_β², deg²
 ACTUATOR_COLUMNS = [DIAGNOSIS_TARGETS.index(f"pitch_actuator_{i}") for i in (1, 2, 3)]
 
 
-def _reference(rng, ticks: int, rows: int) -> np.ndarray:
-    """A pitch reference that moves like region 3's (deg): low-passed white noise about 8 deg, 2 deg rms."""
-    x = lfilter([0.02], [1.0, -0.98], rng.standard_normal((ticks, rows)), axis=0)
+def _reference(rng, ticks: int, rows: int, time_constant_s: float = 0.5) -> np.ndarray:
+    """A moving pitch reference (deg): white noise low-passed with ``time_constant_s``, about 8 deg, 2 deg rms."""
+    pole = np.exp(-P.dt / time_constant_s)
+    x = lfilter([1.0 - pole], [1.0, -pole], rng.standard_normal((ticks, rows)), axis=0)
     return 8.0 + 2.0 * x / x.std()
 
 
@@ -61,15 +62,38 @@ def test_the_signatures_equal_an_independent_filter_of_the_reference():
     assert np.max(np.abs(s[:, :, -1])) < 1e-12, "the design actuator (11.11, 0.6) has no signature"
 
 
-def _window_glr(w: np.ndarray, s: np.ndarray, window: int, n_faults: int) -> np.ndarray:
-    """Λ (windows, rows, 3) over consecutive, non-overlapping windows; w (ticks, rows, 3), s (ticks, rows, K)."""
+def _window_glr(w: np.ndarray, s: np.ndarray, window: int, n_faults: int, centred: bool = True) -> np.ndarray:
+    """Λ (windows, rows, 3) over consecutive, non-overlapping windows; w (ticks, rows, 3), s (ticks, rows, K);
+    ``centred``: the window's offset of w maximised out (eq. 5), as ``ComponentFDI`` does."""
     ticks, rows = w.shape[:2]
     m = ticks // window
     ws, ss = w[: m * window].reshape(m, window, rows, 3), s[: m * window].reshape(m, window, rows, -1)
     correlation = np.einsum("mknb,mknc->mnbc", ws, ss)
     energy = np.einsum("mknc,mknc->mnc", ss, ss)
+    sum_w, sum_s = ws.sum(axis=1), ss.sum(axis=1)
     variance = np.full((rows, 3), SIGMA_W2)
-    return np.array([glr(correlation[i], energy[i], variance, n_faults) for i in range(m)])
+    return np.array(
+        [
+            glr(correlation[i], energy[i], variance, n_faults, (sum_w[i], sum_s[i], window) if centred else None)
+            for i in range(m)
+        ]
+    )
+
+
+def test_a_calibration_bias_is_no_evidence_once_the_offset_is_maximised_out():
+    """w = b + white noise, b = 0.1 deg (a quarter of the cross-blade bias tolerance), the pitch ramping 0.4 deg/s
+    up and down: on a ramp a slower actuator's signature is a constant lag, −Δτ × rate / 2, which a bias mimics;
+    without the nuisance offset the test takes the bias for a slow actuator."""
+    rng = np.random.default_rng(5)
+    window, rows = 500, 6
+    t = np.arange(60 * window)[:, None] * P.dt + rng.uniform(0.0, 20.0, rows)
+    reference = 8.0 + 4.0 * np.abs((t / 10.0) % 2.0 - 1.0)  # a triangle: 4 deg in 10 s, then back
+    s = _bank_signatures(reference)
+    w = 0.1 + np.sqrt(SIGMA_W2) * rng.standard_normal((*reference.shape, 3))
+    h = glr_threshold(1e-6, 3 * len(FAULTS))
+    biased = _window_glr(w, s, window, len(FAULTS), centred=False).max(axis=2)
+    assert (biased > h).mean() > 0.05, np.percentile(biased, [50, 90, 99])
+    assert (_window_glr(w, s, window, len(FAULTS)).max(axis=2) > h).mean() == 0.0
 
 
 def test_one_candidate_against_the_truth_is_normal_with_the_closed_form_mean_and_variance():

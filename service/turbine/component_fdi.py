@@ -159,6 +159,7 @@ class ComponentFDI:
         n_candidates = len(self.signatures.candidates)
         self.actuator = _Window(settings.actuator_window // settings.block, (n, 3, n_candidates))  # Σ w_i s_θ
         self.actuator_energy = _Window(settings.actuator_window // settings.block, (n, n_candidates))  # Σ s_θ²
+        self.actuator_sums = _Window(settings.actuator_window // settings.block, (n, 3 + n_candidates))  # Σw, Σs
         self.actuator_glr = np.zeros((n, 3))  # Λ_i of the last decision (``pitch_actuator``, eq. 3)
         self.converter = _Window(settings.converter_window // settings.block, (n,))
         self.whiten_b, self.whiten_a = actuator_whitener(p)
@@ -193,7 +194,9 @@ class ComponentFDI:
         parity_limit = 2.0 * SENSOR_BIAS_TOLERANCE["beta_1_m1"] * self._parity_scale
         self.parity_spread = HealthySpread((n, 3), p.dt, adapt, top, parity_limit)
         block_s = p.dt * settings.block
-        self.actuator_spread = HealthySpread((n, 3), block_s, adapt, top)
+        # w's offset is at most the cross-blade combination of the pair means' biases, twice one sensor's tolerance
+        actuator_limit = 2.0 * SENSOR_BIAS_TOLERANCE["beta_1_m1"]
+        self.actuator_spread = HealthySpread((n, 3), block_s, adapt, top, actuator_limit)
         self.converter_spread = HealthySpread((n,), block_s, adapt, top, SENSOR_BIAS_TOLERANCE["tau_g_m"])
         self._root_parity_window = float(np.sqrt(settings.parity_window))
 
@@ -324,21 +327,28 @@ class ComponentFDI:
                 s1, s2 = b1e[k] - a1 * wk + s2, b2e[k] - a2 * wk
             self._w_state = (s1, s2)
             z2 = np.add.accumulate(w * w, axis=0)[-1]  # Σ_k w_k², added in tick order
-        z2 = z2 * (1.0 / (0.75 * self.sigma_beta**2))  # Σ over the block of w², in units of its design variance
+        z1 = w.sum(axis=0)  # Σ over the block of w (n, 3)
+        b = self.actuator_spread.offset  # w's learnt offset b̂ (``adaptive``), deg
+        # Σ over the block of (w − b̂)², in units of its design variance
+        z2 = (z2 - 2.0 * b * z1 + self.s.block * b * b) * (1.0 / (0.75 * self.sigma_beta**2))
         s = self.signatures.block(self._ref_block)  # s_θ[k] (ticks, n, K), eq. 1
         correlation = self.actuator.push(np.einsum("knb,knc->nbc", w, s))  # Σ_window w_i s_θ
         energy = self.actuator_energy.push(np.einsum("knc,knc->nc", s, s))  # Σ_window s_θ²
+        sums = self.actuator_sums.push(np.concatenate([z1, s.sum(axis=0)], axis=1))  # Σ w_i, Σ s_θ
+        count = self.s.block * min(self.actuator_sums.count, self.actuator_sums.size)
         sensor_flagged = self.flags[:, M1_TARGET].any(axis=1) | self.flags[:, M2_TARGET].any(axis=1)
         rest = self.actuator.size
         self._actuator_rest = np.where(sensor_flagged, rest, np.maximum(self._actuator_rest - 1, 0))
         spread = self.actuator_spread
         variance = (0.75 * self.sigma_beta**2) * spread.scale2  # σ_w² per blade (n, 3)
-        glr = actuator_glr(correlation, energy, variance, self.signatures.n_faults)  # Λ_i (``pitch_actuator``)
+        centring = (sums[:, :3], sums[:, 3:], count)  # the window's offset of w maximised out (eq. 5)
+        glr = actuator_glr(correlation, energy, variance, self.signatures.n_faults, centring)  # Λ_i
         self.actuator_glr = glr
         if spread.enabled:  # w²'s healthy scale ŝ² (``adaptive``), learnt while no blade is suspected
             quiet = ~self.flags[:, ACTUATOR_TARGET].any(axis=1) & (self._actuator_rest == 0)
             healthy = quiet & (glr <= self.h_actuator).all(axis=1) if self.actuator.full else quiet
-            spread.update(z2 * (1.0 / self.s.block), np.broadcast_to(healthy[:, None], z2.shape))
+            healthy = np.broadcast_to(healthy[:, None], z2.shape)
+            spread.update(z2 * (1.0 / self.s.block), healthy, z1 * (1.0 / self.s.block))
         if not self.actuator.full:
             return
         worst = np.argmax(glr, axis=1)

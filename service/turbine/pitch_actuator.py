@@ -36,6 +36,17 @@ whatever the excitation: with the pitch at rest every s_θ is 0 and Λ is 0, and
 tolerance is, by construction, never evidence of a fault. The bound holds for θ_0 on the grid of T; between
 grid points the misfit of the nearest one is small against h (the grid's spacing: a few % of d² at the edge).
 
+**Offset.** The pair means carry the sensors' calibration biases, so w_i carries a constant b_i (within twice
+the pitch sensors' tolerance). The signatures are not orthogonal to a constant: on a pitch ramp of rate ρ a
+slower actuator lags, and its signature is the constant −½ Δτ ρ (Δτ = 2ζ_θ/ω_θ − 2ζ/ω_n the lag difference, ½ the
+whitener's DC gain), which a bias mimics: b = 0.1 deg against the −0.01 deg of a 7.5-rad/s actuator on a
+0.4 deg/s ramp is worth ≈ 16 in L over 5 s, the threshold. The offset is therefore a nuisance parameter of every
+hypothesis, maximised out of (2): with w̃, s̃ the window-centred residual and signature,
+
+    L_i(θ) = (Σ_k w̃_i s̃_θ − ½ Σ_k s̃_θ²) / σ_w²,  Σ w̃ s̃ = Σ w s − Σw Σs / N,  Σ s̃² = Σ s² − (Σs)² / N        (5)
+
+and (4) holds unchanged with the centred signatures (the centring is a projection of white noise).
+
 **Clearing** follows the same evidence the other way: the flag of blade i drops when the window favours the
 tolerance over every fault, max_T L − max_F L ≥ h_c, h_c = ½ [Q⁻¹(α_c/|T|)]² from the false-clear budget α_c per
 decision (a fault θ_f that persists clears the flag with P ≤ |T| Q(√(2h_c)), by (4) with the roles swapped).
@@ -135,8 +146,19 @@ class SignatureBank:
         return s
 
 
-def glr(correlation: np.ndarray, energy: np.ndarray, variance: np.ndarray, n_faults: int) -> np.ndarray:
+def glr(
+    correlation: np.ndarray,
+    energy: np.ndarray,
+    variance: np.ndarray,
+    n_faults: int,
+    sums: tuple[np.ndarray, np.ndarray, int] | None = None,
+) -> np.ndarray:
     """Λ (n, 3) of eq. 3 from Σ w_i s_θ (n, 3, K), Σ s_θ² (n, K) and σ_w² (n, 3); the first ``n_faults`` of the K
-    candidates are F, the others T (``SignatureBank.candidates``)."""
+    candidates are F, the others T (``SignatureBank.candidates``). With ``sums`` = (Σ w_i (n, 3), Σ s_θ (n, K), N)
+    the window's constant offset of w is a nuisance parameter maximised out (eq. 5): both sums are centred."""
+    if sums is not None:
+        sum_w, sum_s, count = sums
+        correlation = correlation - sum_w[:, :, None] * sum_s[:, None, :] / count
+        energy = energy - sum_s * sum_s / count
     likelihood = (correlation - 0.5 * energy[:, None, :]) / variance[:, :, None]  # L_i(θ), eq. 2
     return likelihood[:, :, :n_faults].max(axis=2) - likelihood[:, :, n_faults:].max(axis=2)
