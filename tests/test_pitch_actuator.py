@@ -103,7 +103,7 @@ def test_one_candidate_against_the_truth_is_normal_with_the_closed_form_mean_and
     reference = _reference(rng, 400 * window, rows)
     s0, s1 = _signature(reference, 9.0, 0.7), _signature(reference, 5.0, 0.6)
     w = s0[:, :, None] + np.sqrt(SIGMA_W2) * rng.standard_normal((*reference.shape, 3))
-    lam = _window_glr(w, np.stack([s1, s0], axis=2), window, 1)  # F = {θ}, T = {θ_0}
+    lam = _window_glr(w, np.stack([s1, s0], axis=2), window, 1, centred=False)  # F = {θ}, T = {θ_0}
     d2 = ((s1 - s0) ** 2).reshape(-1, window, rows).sum(axis=1) / SIGMA_W2  # (windows, rows)
     z = (lam + 0.5 * d2[:, :, None]) / np.sqrt(d2[:, :, None])  # standard normal if the closed form holds
     assert abs(z.mean()) < 0.05 and abs(z.std() - 1.0) < 0.05, (z.mean(), z.std())
