@@ -24,9 +24,10 @@ when the turbine is healthy, so each test's threshold follows from the false-ala
   reference: white with σ_τ. An offset shows in the window mean of r.
 
 Adaptive thresholds (``adaptive``, ``adapt_time_s``): each test uses its residual's healthy spread ŝ learnt online
-(the parity, the actuator residual's w² per blade, the converter's block sums) and, for the two mean tests, its offset b̂
-(a calibration bias: within ±2 × 0.2 deg on a parity, ±90 N m on τ_g,m): (p − b̂)/ŝ, (Σp/√W − b̂√W)/ŝ, Σw²/ŝ²
-the actuator GLR with σ_w² = ¾ σ_β² ŝ², and (Σr − W b̂)/(ŝ σ_τ √W) against the design thresholds.
+(the parity, the actuator residual's w² per blade, the converter's block sums) and its offset b̂ (a calibration
+bias: within ±2 × 0.2 deg on a parity and on w, ±90 N m on τ_g,m): (p − b̂)/ŝ, (Σp/√W − b̂√W)/ŝ, the actuator GLR
+with σ_w² = ¾ σ_β² ŝ² (ŝ² learnt about b̂; the GLR itself maximises the offset out), and (Σr − W b̂)/(ŝ σ_τ √W)
+against the design thresholds.
 
 Fault 9 (drive-train efficiency) has no test: a gearbox that loses more torque looks, to an observer that
 treats the rotor torque as unknown, exactly like a different aerodynamic torque (docs/turbine.md).
