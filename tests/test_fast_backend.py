@@ -157,6 +157,7 @@ def turbine_trace(scenario, backend: str, runs: list[int], ticks: int, every: in
             "ratio": fdi.ratio,
             "cusum": fdi.clearing.statistic,
             "actuator_test": supervisor.detector.components.actuator.total,
+            "actuator_glr": supervisor.detector.components.actuator_glr,
             "converter_test": supervisor.detector.components.converter.total,
             "parity_window": supervisor.detector.components.parity.total,
             "residual": fdi.clearing.residual,

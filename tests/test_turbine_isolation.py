@@ -167,7 +167,7 @@ def _pitch_run(seconds: float, gain_from_s: float, gain_to_s: float, seed: int =
         if gain_from_s <= t < gain_to_s:
             y[0, SENSOR_INDEX["beta_2_m2"]] *= 1.2
         y[0, SENSOR_INDEX["tau_g_m"]] = 2.0e4 + sigma["tau_g_m"] * rng.standard_normal()
-        frame = SimpleNamespace(sensors=y, tau_g_ref=np.array([2.0e4]))
+        frame = SimpleNamespace(sensors=y, tau_g_ref=np.array([2.0e4]), beta_ref=np.array([beta]))
         flags.append(components.step(frame)[0].copy())
     return np.array(flags)
 

@@ -12,20 +12,22 @@ when the turbine is healthy, so each test's threshold follows from the false-ala
   agrees again" against "the fault persists at the size seen so far", reaches h = ln(1/α) from a false-clear
   budget, and the window mean is back under its clearing level: a gain fault's parity follows the pitch, and near
   the detection limit a plain clearing level drops and raises the flag as the pitch moves.
-* **Pitch actuators** (faults 6–7). With the benchmark's pitch loop, actuator i is driven by β_ref + n̄_i,
-  n̄_i the mean noise of its two sensors, so its pair mean is m̄_i = G β_ref + (1 + G) n̄_i for the nominal
-  actuator G. The cross-blade residual e_i = m̄_i − ½(m̄_j + m̄_k) cancels G β_ref, and (1 + G)⁻¹ e_i is white
-  with variance (1 + ¼ + ¼)·σ_β²/2 = ¾ σ_β² when all actuators are nominal. An actuator with other dynamics leaves
-  (G_i − G) β_ref in it, visible whenever the pitch moves; the test is a window χ² sum, the isolation the blade
-  with the largest sum. The residual assumes healthy pitch sensors (a sensor fault moves its blade through the
-  pitch loop), so the test rests while any pitch sensor is flagged and for one window after.
+* **Pitch actuators** (faults 6–7; ``pitch_actuator``). With the benchmark's pitch loop, actuator i is driven by
+  β_ref + n̄_i, n̄_i the mean noise of its two sensors, so its pair mean is m̄_i = G_i β_ref + (1 + G_i) n̄_i. The
+  cross-blade residual e_i = m̄_i − ½(m̄_j + m̄_k) cancels what the three actuators share, and w_i = (1 + G)⁻¹ e_i is
+  white (¾ σ_β²) plus the signature s_θ = (1 + G)⁻¹ (G_θ − G) β_ref of blade i's actuator θ. The test is the GLR
+  between actuators within tolerance and actuators that lost bandwidth over a window of ``actuator_window`` ticks,
+  its threshold from the false-alarm budget in closed form; the flag clears on the same evidence the other way.
+  The residual assumes healthy pitch sensors (a sensor fault moves its blade through the pitch loop), so the test
+  rests while any pitch sensor is flagged and for one window after.
 * **Converter** (fault 8). r = τ_g,m − τ̂_g, with τ̂_g the first-order converter (α_gc) driven by the torque
   reference: white with σ_τ. An offset shows in the window mean of r.
 
 Adaptive thresholds (``adaptive``, ``adapt_time_s``): each test uses its residual's healthy spread ŝ learnt online
-(the parity, the actuator sum per blade, the converter's block sums) and, for the two mean tests, its offset b̂
-(a calibration bias: within ±2 × 0.2 deg on a parity, ±90 N m on τ_g,m): (p − b̂)/ŝ, (Σp/√W − b̂√W)/ŝ, Σw²/ŝ²
-and (Σr − W b̂)/(ŝ σ_τ √W) against the design thresholds.
+(the parity, the actuator residual's w² per blade, the converter's block sums) and its offset b̂ (a calibration
+bias: within ±2 × 0.2 deg on a parity and on w, ±90 N m on τ_g,m): (p − b̂)/ŝ, (Σp/√W − b̂√W)/ŝ, the actuator GLR
+with σ_w² = ¾ σ_β² ŝ² (ŝ² learnt about b̂; the GLR itself maximises the offset out), and (Σr − W b̂)/(ŝ σ_τ √W)
+against the design thresholds.
 
 Fault 9 (drive-train efficiency) has no test: a gearbox that loses more torque looks, to an observer that
 treats the rotor torque as unknown, exactly like a different aerodynamic torque (docs/turbine.md).
@@ -41,10 +43,12 @@ import numpy as np
 from service.plugins import AlgorithmOptionError
 from service.turbine.adaptive import HealthySpread
 from service.turbine.frozen import FrozenReadings
+from service.turbine.pitch_actuator import FAULTS, TOLERANCE, SignatureBank, glr_threshold
+from service.turbine.pitch_actuator import glr as actuator_glr
 from wwcore.channels import SENSOR_INDEX, TARGET_INDEX, Component
 from wwcore.lti import second_order_tf, zoh
 from wwcore.options import Bounds
-from wwcore.quantiles import chi2_isf, norm_isf
+from wwcore.quantiles import norm_isf
 from wwcore.scenario.mismatch import SENSOR_BIAS_TOLERANCE
 from wwcore.turbine_frames import TurbineFrame
 from wwcore.turbine_params import TurbineParams
@@ -76,8 +80,8 @@ class ComponentSettings:
     fault_memory_s: Annotated[float, Bounds(ge=0.01, le=60.0, unit="s")] = 0.5
     # ticks averaged by the pitch-sensor window test
     parity_window: Annotated[int, Bounds(ge=1, le=10_000, unit="ticks")] = 10
-    # ticks summed by the pitch-actuator χ² test (2 s)
-    actuator_window: Annotated[int, Bounds(ge=1, le=10_000, unit="ticks")] = 200
+    # ticks of evidence the pitch-actuator GLR weighs (5 s: a few of the turbulence's pitch excursions)
+    actuator_window: Annotated[int, Bounds(ge=1, le=10_000, unit="ticks")] = 500
     # ticks averaged by the converter test (1 s)
     converter_window: Annotated[int, Bounds(ge=1, le=10_000, unit="ticks")] = 100
     # the actuator and converter tests decide every this many ticks, on every tick's residual
@@ -143,14 +147,21 @@ class ComponentFDI:
         self.z_clear = norm_isf(settings.clear_alpha / 2.0)
         # the block tests decide once per block: their per-decision budget is a block's worth of ticks
         block_alpha = alpha * settings.block
-        self.h_actuator = chi2_isf(block_alpha / 3.0, settings.actuator_window)
-        self.h_actuator_clear = chi2_isf(settings.clear_alpha, settings.actuator_window)
+        # the actuator GLR (``pitch_actuator``, eq. 4): raise against 3 blades × |F| candidates, clear against |T|
+        self.h_actuator = glr_threshold(block_alpha, 3 * len(FAULTS))
+        clear_block_alpha = settings.false_clears_per_1000s * p.dt * settings.block / 1000.0
+        self.h_actuator_clear = glr_threshold(clear_block_alpha, len(TOLERANCE))
         self.z_converter = norm_isf(block_alpha / 2.0)
         self._parity_scale = 1.0 / (np.sqrt(2.0) * self.sigma_beta)
         self._window_scale = 1.0 / np.sqrt(settings.parity_window)
         self._pitch_flagged = False  # whether any pitch-sensor flag is set (the healthy fast path needs none)
         self.parity = _Window(settings.parity_window, (n, 3))
-        self.actuator = _Window(settings.actuator_window // settings.block, (n, 3))
+        self.signatures = SignatureBank(p, *actuator_whitener(p), n)
+        n_candidates = len(self.signatures.candidates)
+        self.actuator = _Window(settings.actuator_window // settings.block, (n, 3, n_candidates))  # Σ w_i s_θ
+        self.actuator_energy = _Window(settings.actuator_window // settings.block, (n, n_candidates))  # Σ s_θ²
+        self.actuator_sums = _Window(settings.actuator_window // settings.block, (n, 3 + n_candidates))  # Σw, Σs
+        self.actuator_glr = np.zeros((n, 3))  # Λ_i of the last decision (``pitch_actuator``, eq. 3)
         self.converter = _Window(settings.converter_window // settings.block, (n,))
         self.whiten_b, self.whiten_a = actuator_whitener(p)
         if len(self.whiten_b) != 3 or len(self.whiten_a) != 3:
@@ -158,12 +169,12 @@ class ComponentFDI:
         self._w_state = (np.zeros((n, 3)), np.zeros((n, 3)))  # transposed direct form II
         self._e_block = np.zeros((settings.block, n, 3))
         self._w_block = np.empty((settings.block, n, 3))  # the whitened e of the block's ticks
+        self._ref_block = np.zeros((settings.block, n))  # the frames' pitch references β_ref
         self._tau_block = np.zeros((settings.block, 2, n))  # τ_g,m[k], τ_g,r[k−1]
         self._tau_hat_block = np.empty((settings.block, n))  # τ̂_g of the block's ticks
         self._tau_hat: np.ndarray | None = None
         self._converter_gain = float(np.exp(-p.alpha_gc * p.dt))
         self._actuator_rest = np.zeros(n, dtype=np.int64)  # blocks until the actuator test may flag again
-        self._actuator_quiet = np.zeros((n, 3), dtype=np.int64)  # consecutive blocks below the clearing threshold
         self.readings = FrozenReadings((n, 6), settings.frozen_ticks, fast=fast)  # [β_i,m1 | β_i,m2]
         # each pitch sensor's distance from the other two blades' sensors, summed over the parity window: which
         # sensor of a pair is the outlier, on the window's evidence rather than one tick's
@@ -184,13 +195,16 @@ class ComponentFDI:
         parity_limit = 2.0 * SENSOR_BIAS_TOLERANCE["beta_1_m1"] * self._parity_scale
         self.parity_spread = HealthySpread((n, 3), p.dt, adapt, top, parity_limit)
         block_s = p.dt * settings.block
-        self.actuator_spread = HealthySpread((n, 3), block_s, adapt, top)
+        # w's offset is at most the cross-blade combination of the pair means' biases, twice one sensor's tolerance
+        actuator_limit = 2.0 * SENSOR_BIAS_TOLERANCE["beta_1_m1"]
+        self.actuator_spread = HealthySpread((n, 3), block_s, adapt, top, actuator_limit)
         self.converter_spread = HealthySpread((n,), block_s, adapt, top, SENSOR_BIAS_TOLERANCE["tau_g_m"])
         self._root_parity_window = float(np.sqrt(settings.parity_window))
 
     def step(self, frame: TurbineFrame) -> np.ndarray:
         y = frame.sensors
         j = self.ticks % self.s.block
+        self._ref_block[j] = frame.beta_ref
         if self._fast is not None:
             self._fast_tick(frame, j)
         else:
@@ -303,40 +317,48 @@ class ComponentFDI:
         # w = (1 + G)⁻¹ e, a normalised (a0 = 1) second-order section in transposed direct form II, tick by tick
         # The input products b_i e of all the block's ticks are taken at once; only the recursion runs per tick.
         (b0, b1, b2), (_, a1, a2) = self.whiten_b, self.whiten_a
-        e = self._e_block
+        e, w = self._e_block, self._w_block
         if self._fast is not None:
-            z2 = self._fast.whiten_block(e, b0, b1, b2, a1, a2, *self._w_state)  # the same, states in place
+            z2 = self._fast.whiten_block(e, b0, b1, b2, a1, a2, *self._w_state, w)  # the same, states in place
         else:
             b0e, b1e, b2e = b0 * e, b1 * e, b2 * e
-            w = self._w_block
             s1, s2 = self._w_state
             for k in range(len(e)):
                 wk = np.add(b0e[k], s1, out=w[k])
                 s1, s2 = b1e[k] - a1 * wk + s2, b2e[k] - a2 * wk
             self._w_state = (s1, s2)
-            w *= w
-            z2 = np.add.accumulate(w, axis=0)[-1]  # Σ_k w_k², added in tick order
-        z2 = z2 * (1.0 / (0.75 * self.sigma_beta**2))  # Σ over the block of w², in units of its design variance
-        total = self.actuator.push(z2)
+            z2 = np.add.accumulate(w * w, axis=0)[-1]  # Σ_k w_k², added in tick order
+        z1 = w.sum(axis=0)  # Σ over the block of w (n, 3)
+        b = self.actuator_spread.offset  # w's learnt offset b̂ (``adaptive``), deg
+        # Σ over the block of (w − b̂)², in units of its design variance
+        z2 = (z2 - 2.0 * b * z1 + self.s.block * b * b) * (1.0 / (0.75 * self.sigma_beta**2))
+        s = self.signatures.block(self._ref_block)  # s_θ[k] (ticks, n, K), eq. 1
+        correlation = self.actuator.push(np.einsum("knb,knc->nbc", w, s))  # Σ_window w_i s_θ
+        energy = self.actuator_energy.push(np.einsum("knc,knc->nc", s, s))  # Σ_window s_θ²
+        sums = self.actuator_sums.push(np.concatenate([z1, s.sum(axis=0)], axis=1))  # Σ w_i, Σ s_θ
+        count = self.s.block * min(self.actuator_sums.count, self.actuator_sums.size)
         sensor_flagged = self.flags[:, M1_TARGET].any(axis=1) | self.flags[:, M2_TARGET].any(axis=1)
         rest = self.actuator.size
         self._actuator_rest = np.where(sensor_flagged, rest, np.maximum(self._actuator_rest - 1, 0))
         spread = self.actuator_spread
-        if spread.enabled:  # the window χ² over its healthy scale ŝ² (``adaptive``)
-            total = total / spread.scale2
+        variance = (0.75 * self.sigma_beta**2) * spread.scale2  # σ_w² per blade (n, 3)
+        centring = (sums[:, :3], sums[:, 3:], count)  # the window's offset of w maximised out (eq. 5)
+        glr = actuator_glr(correlation, energy, variance, self.signatures.n_faults, centring)  # Λ_i
+        self.actuator_glr = glr
+        if spread.enabled:  # w²'s healthy scale ŝ² (``adaptive``), learnt while no blade is suspected
             quiet = ~self.flags[:, ACTUATOR_TARGET].any(axis=1) & (self._actuator_rest == 0)
-            healthy = quiet & (total <= self.h_actuator).all(axis=1) if self.actuator.full else quiet
-            spread.update(z2 * (1.0 / self.s.block), np.broadcast_to(healthy[:, None], z2.shape))
+            healthy = quiet & (glr <= self.h_actuator).all(axis=1) if self.actuator.full else quiet
+            healthy = np.broadcast_to(healthy[:, None], z2.shape)
+            spread.update(z2 * (1.0 / self.s.block), healthy, z1 * (1.0 / self.s.block))
         if not self.actuator.full:
             return
-        worst = np.argmax(total, axis=1)
-        fault = (total[np.arange(self.n), worst] > self.h_actuator) & (self._actuator_rest == 0)
+        worst = np.argmax(glr, axis=1)
+        fault = (glr[np.arange(self.n), worst] > self.h_actuator) & (self._actuator_rest == 0)
         flagged = self.flags[:, ACTUATOR_TARGET]
         flagged[np.flatnonzero(fault), worst[fault]] = True
-        # An actuator shows its dynamics only while the pitch moves, so health needs a whole window of evidence:
-        # the flag clears after a window's worth of consecutive blocks below the clearing threshold.
-        self._actuator_quiet = np.where(total <= self.h_actuator_clear, self._actuator_quiet + 1, 0)
-        flagged &= (self._actuator_quiet < self.actuator.size) & (self._actuator_rest == 0)[:, None]
+        # the flag drops on the window's evidence for the tolerance against every fault (``pitch_actuator``):
+        # with the pitch at rest there is none either way, and the flag stays
+        flagged &= (glr > -self.h_actuator_clear) & (self._actuator_rest == 0)[:, None]
         self.flags[:, ACTUATOR_TARGET] = flagged
 
     # -- converter (once per block) -----------------------------------------------------------------------------

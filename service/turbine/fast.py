@@ -172,9 +172,10 @@ def power_speed_test(sensors, power_col, torque_col, threshold, eta_gc, tau_g_re
 
 
 @kernel
-def whiten_block(e, b0, b1, b2, a1, a2, s1, s2):
-    """Σ_k w_k² over the block's ticks (n, 3), w = (1 + G)⁻¹ e by the second-order section in transposed direct
-    form II, states ``s1``, ``s2`` in place (``ComponentFDI._actuators``)."""
+def whiten_block(e, b0, b1, b2, a1, a2, s1, s2, w):
+    """w = (1 + G)⁻¹ e over the block's ticks (ticks, n, 3), written into ``w``, by the second-order section in
+    transposed direct form II, states ``s1``, ``s2`` in place; returns Σ_k w_k² (n, 3) added in tick order
+    (``ComponentFDI._actuators``)."""
     n = e.shape[1]
     z2 = np.zeros((n, 3))
     for k in range(e.shape[0]):
@@ -184,6 +185,7 @@ def whiten_block(e, b0, b1, b2, a1, a2, s1, s2):
                 wk = b0 * ek + s1[r, b]
                 s1[r, b] = b1 * ek - a1 * wk + s2[r, b]
                 s2[r, b] = b2 * ek - a2 * wk
+                w[k, r, b] = wk
                 z2[r, b] += wk * wk
     return z2
 
