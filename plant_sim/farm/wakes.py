@@ -215,7 +215,7 @@ class TableWakes:
         advected = advected_distance(mast.vbar)  # (runs, S) X of each run's mast series
         return np.stack(
             [
-                arrival_lookup(mast.t, advected[r], direction.deg[r], self._layout, mast_distance_m, query)
+                arrival_lookup(mast.t, advected[r], direction.path_deg, self._layout, mast_distance_m, query)
                 for r in range(mast.v.shape[0])
             ]
         )

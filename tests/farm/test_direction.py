@@ -230,6 +230,23 @@ def test_free_streams_and_directions_follow_the_air_each_turbine_sees(cache):
     np.testing.assert_allclose(plant.truth()["wind_direction"], 300.0, atol=1e-12)  # all air from before t = 0
 
 
+def test_the_veer_is_carried_but_the_air_travels_along_the_profile(cache):
+    """A random veer about a fixed 283° and a steady wind: every turbine's lookup is eq. (3)'s t − d_t(283°)/v̄
+    (the veer does not bend the air's path, ``plant_sim.farm.direction``), and the direction it sees is the
+    mast's of that time, veer included: the back row turns later than the front row."""
+    spec = moving([(0.0, 283.0)], sigma=3.0, time_s=20.0)
+    plant = FarmBatch(spec, WindSpec(mean=[(0.0, 9.0)]), [], seed=4, duration_s=100.0, wake_cache_dir=cache)
+    assert np.ptp(plant.mast.vbar) < 1e-9
+    d = spec.mast_distance_m + downwind_distances(spec.resolved_layout(), 283.0)
+    t = np.arange(plant.wakes._tau.shape[1]) * 0.1
+    np.testing.assert_allclose(plant.wakes._tau[0], t[:, None] - d[None, :] / plant.mast.vbar[0, 0], atol=1e-6)
+    runs = np.zeros(plant.wakes._tau.shape, dtype=np.intp)[0]
+    seen = plant.direction.at_time(runs, plant.wakes._tau[0])
+    np.testing.assert_allclose(seen, np.interp(plant.wakes._tau[0], plant.direction.t, plant.direction.deg[0]))
+    front, back = np.argmin(d), np.argmax(d)
+    assert np.abs(seen[:, front] - seen[:, back]).max() > 1.0  # the veer reaches them at different times
+
+
 def one_turbine() -> FarmLayout:
     return FarmLayout(x=np.array([0.0]), y=np.array([0.0]), rotor_diameter=115.0)
 
