@@ -221,7 +221,8 @@ class TableWakes:
         )
 
     def _directions_at(self, j: int) -> np.ndarray:
-        """θ_t (farms, N) deg, unwrapped: the direction the air each turbine sees at farm sample j carries."""
+        """θ_t (farms, N) deg, unwrapped: the direction the air each turbine sees at farm sample j carries; j becomes
+        the sample ``lookup`` reads."""
         self.sample = j
         runs = self.run_of_farm
         return self.direction.at_time(np.broadcast_to(runs[:, None], (self.farms, self.n_turbines)), self._tau[runs, j])
