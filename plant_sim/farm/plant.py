@@ -310,6 +310,8 @@ class FarmBatch:
         out["shaft_torque"] = self.turbines.shaft_torque()
         out["row_wind"] = self.field.turbine_wind.reshape(-1)  # the turbine's mean wind (its row's, row model)
         out["free_wind"] = self.field.free_wind.reshape(-1)
+        # the direction (deg, 0 … <360) of the air each turbine sees; the mast's θ reaches it with the wind
+        out["wind_direction"] = np.mod(self.wakes.turbine_direction, 360.0).reshape(-1)
         out["power_ref"] = self.controller.power_ref.copy()
         return out
 

@@ -52,6 +52,7 @@ class WakeTables:
     covered: np.ndarray  # (K,) bool, the table directions that were computed (a sector, or all)
     settings_json: str = "{}"
     _cache: dict = field(init=False, repr=False, compare=False, default_factory=dict)
+    _by_downstream: list = field(init=False, repr=False, compare=False, default_factory=list)
 
     def __post_init__(self) -> None:
         k = len(self.bin_start) - 1
@@ -202,6 +203,91 @@ class WakeTables:
             high = d[base + n_ti] + (d[base + n_ti + 1] - d[base + n_ti]) * h
             delta = low + (high - low) * f
         deficit = np.bincount(scatter, weights=(weight * delta).reshape(-1), minlength=size).reshape(g_farms, n, n)
+        return free * (1.0 - np.sqrt(np.einsum("gij,gij->gj", deficit, deficit))), ti
+
+    def _pair_index(self) -> tuple[np.ndarray, np.ndarray]:
+        """The entries sorted by (table direction, downstream turbine) and where each (k, j) starts (cached)."""
+        if not self._by_downstream:
+            k = np.repeat(np.arange(self.n_directions), np.diff(self.bin_start))
+            key = k * self.n_turbines + self.downstream
+            order = np.argsort(key, kind="stable")
+            start = np.searchsorted(key[order], np.arange(self.n_directions * self.n_turbines + 1))
+            self._by_downstream.extend((order, start))
+        return self._by_downstream[0], self._by_downstream[1]
+
+    def waked_per_turbine(
+        self, direction_deg: np.ndarray, thrust: np.ndarray, free_speed: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray]:
+        r"""(waked speed m/s, turbulence intensity), each (F, N), of F farms whose turbines each see their own wind
+        direction: ``direction_deg`` (F, N), θ_j the direction of the air at turbine j.
+
+        The pairs (i, j) reaching j are looked up at θ_j (the direction the air carrying i's wake to j carries,
+        ``plant_sim.farm.direction``), so column j is combined as ``waked`` combines it for a farm at θ_j:
+
+        .. math::  \mathrm{TI}_j = \sqrt{\mathrm{TI}_0^2 + \max_i τ_{ij}(θ_j, C_{T,ij})^2},\qquad
+                   v_j = U_j \Bigl(1 - \sqrt{\textstyle\sum_i δ_{ij}(θ_j, C_{T,ij}, \mathrm{TI}_i)^2}\Bigr)
+
+        with TI_i i's own (at θ_i). ``thrust`` (F, N) or (F, N, N) and ``free_speed`` (F, N) as for ``waked``. With
+        every θ_j equal it is ``waked`` at that direction. One ragged gather of each (farm, turbine)'s entries from
+        the two table directions around its θ_j; no Python loop over farms, turbines or pairs.
+        """
+        n = self.n_turbines
+        directions = np.asarray(direction_deg, dtype=float)
+        if directions.ndim != 2 or directions.shape[1] != n:
+            raise ValueError(f"direction_deg must have shape (farms, {n}), got {directions.shape}")
+        farms = directions.shape[0]
+        thrust = np.asarray(thrust, dtype=float)
+        if thrust.shape not in ((farms, n), (farms, n, n)):
+            raise ValueError(f"thrust must have shape ({farms}, {n}) or ({farms}, {n}, {n}), got {thrust.shape}")
+        free = np.broadcast_to(np.asarray(free_speed, dtype=float), (farms, n))
+        x = (directions % 360.0) / self.direction_step_deg
+        k0 = np.floor(x).astype(np.intp) % self.n_directions
+        k1 = (k0 + 1) % self.n_directions
+        w = x - np.floor(x)
+        outside = ~(self.covered[k0] & self.covered[k1])
+        if outside.any():
+            k = int(k0[outside][0])
+            raise ValueError(
+                f"wind direction {k * self.direction_step_deg:g}–{(k + 1) * self.direction_step_deg:g} "
+                "deg is outside the sector the wake tables cover"
+            )
+        order, start = self._pair_index()
+        column = np.arange(n)
+        segments = np.stack([k0 * n + column, k1 * n + column])  # (2, F, N): the (direction, downstream) cells
+        first, length = start[segments].reshape(-1), (start[segments + 1] - start[segments]).reshape(-1)
+        total = int(length.sum())
+        owner = np.repeat(np.arange(len(length)), length)  # which (bin, farm, turbine) segment each entry is of
+        position = np.arange(total) - np.repeat(np.cumsum(length) - length, length) + first[owner]
+        entry = order[position]
+        farm = (owner // n) % farms
+        down = owner % n
+        up = self.upstream[entry]
+        w_cell = w.reshape(-1)[owner % (farms * n)]
+        weight = np.where(owner < farms * n, 1.0 - w_cell, w_cell)  # k0's entries 1 − w, k1's w
+        ct = thrust[farm, up] if thrust.ndim == 2 else thrust[farm, up, down]
+        s = (1.0 - np.sqrt(1.0 - np.minimum(np.maximum(ct, 0.0), self._ct_max))) * self._inv_s_step
+        m = np.minimum(s.astype(np.intp), self._m_last)
+        f = s - m
+        n_thrust, n_ti = len(self.thrust_grid), len(self.ti_grid)
+        lin = entry * n_thrust + m
+        a = self.added_ti.reshape(-1)
+        tau = a[lin] + (a[lin + 1] - a[lin]) * f
+        scatter = (farm * n + up) * n + down
+        size = farms * n * n
+        added = np.bincount(scatter, weights=weight * tau, minlength=size).reshape(farms, n, n)
+        ti = np.sqrt(self.ambient_ti**2 + added.max(axis=1) ** 2)  # (F, N)
+        d = self.deficit.reshape(-1)
+        if n_ti == 1:
+            delta = d[lin] + (d[lin + 1] - d[lin]) * f
+        else:
+            y = np.minimum((ti[farm, up] - self.ti_grid[0]) * self._inv_ti_step, n_ti - 1.0)
+            t = np.minimum(y.astype(np.intp), n_ti - 2)
+            h = y - t
+            base = entry * (n_thrust * n_ti) + m * n_ti + t
+            low = d[base] + (d[base + 1] - d[base]) * h
+            high = d[base + n_ti] + (d[base + n_ti + 1] - d[base + n_ti]) * h
+            delta = low + (high - low) * f
+        deficit = np.bincount(scatter, weights=weight * delta, minlength=size).reshape(farms, n, n)
         return free * (1.0 - np.sqrt(np.einsum("gij,gij->gj", deficit, deficit))), ti
 
     def waked_speeds(self, direction_deg: float, thrust: np.ndarray, free_speed: float | np.ndarray) -> np.ndarray:

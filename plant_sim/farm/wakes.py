@@ -30,9 +30,11 @@ tables until the winds stop changing. The ambient turbulence intensity of the ta
 of the directions a run can reach (``FarmPlant.direction_sector_deg``: the constant direction, or a moving one's
 range with its veer bound).
 
-**A moving direction** (``plant_sim.farm.direction``): the free streams, the pair distances and the tables'
-direction are those of the run's direction at each sample, and the steady states (t = 0, the demand's updates)
-are taken at the direction of their sample.
+**A moving direction** (``plant_sim.farm.direction``): the direction is carried across the farm with the wind.
+Each turbine sees the newest air that has reached it, τ_t, computed once per run: its free stream is v_mast(τ_t)
+and its direction θ_t = θ(τ_t); the pairs reaching j are looked up at θ_j with x_ij along θ_j
+(``WakeTables.waked_per_turbine``); the steady states (t = 0, the demand's updates) are taken with each turbine's
+direction of their sample.
 """
 
 from __future__ import annotations
@@ -43,7 +45,7 @@ from pathlib import Path
 
 import numpy as np
 
-from plant_sim.farm.direction import DirectionSeries, advected_distance, downwind_distances, lookup_times
+from plant_sim.farm.direction import DirectionSeries, advected_distance, arrival_lookup
 from plant_sim.farm.operating_curve import rated_curve
 from plant_sim.farm.wake_tables import WakeTables
 from plant_sim.farm.wind import CT_FILTER_S, HISTORY_S, MIN_MEAN_WIND, MastSeries
@@ -83,7 +85,7 @@ def steady_winds(
     tables: WakeTables | None, direction_deg: float | np.ndarray, free: np.ndarray, params: TurbineParams
 ) -> tuple[np.ndarray, np.ndarray]:
     """(speed, C_T), each (B, N), of B farms in steady state on the rated curve, for free streams ``free`` (B, N)
-    and wind from ``direction_deg`` (one for all, or (B,) each farm's).
+    and wind from ``direction_deg`` (one for all, (B,) each farm's, or (B, N) each turbine's).
 
     Wakes run downstream only, so the sweeps reach the fixed point after the longest chain of turbines in each
     other's wake (at most N + 1 sweeps).
@@ -92,9 +94,13 @@ def steady_winds(
     free = np.asarray(free, dtype=float)
     speed = free.copy()
     if tables is not None:
-        directions = np.broadcast_to(np.asarray(direction_deg, dtype=float), free.shape[:1])
+        per_turbine = np.ndim(direction_deg) == 2
+        directions = np.asarray(direction_deg, dtype=float)
+        waked = tables.waked_per_turbine if per_turbine else tables.waked
+        if not per_turbine:
+            directions = np.broadcast_to(directions, free.shape[:1])
         for _ in range(free.shape[1] + 1):
-            new = tables.waked(directions, np.interp(speed, winds, ct_curve), free)[0]
+            new = waked(directions, np.interp(speed, winds, ct_curve), free)[0]
             if np.array_equal(new, speed):
                 break
             speed = new
@@ -137,24 +143,24 @@ class TableWakes:
         self._farm = np.arange(self.farms)[:, None, None]
         self._source = np.arange(n)[None, :, None]
         self._directions = np.full(self.farms, self.direction_deg)
+        self.turbine_direction = np.full((self.farms, n), self.direction_deg)  # (farms, N) deg, θ_t of each
         self.direction = direction if direction is not None and direction.varies else None
-        if self.direction is not None:  # a moving direction: the geometry at every sample (plant_sim.farm.direction)
+        if self.direction is not None:  # carried with the wind (plant_sim.farm.direction)
             self._layout = layout
-            self._directions = self.direction.at(self.run_of_farm, 0)
-            s0 = downwind_distances(layout, self._directions)  # (farms, N)
-            self._advected = advected_distance(mast.vbar)  # (runs, samples) X of each run's mast series
-            self._lookup = self._lookup_times(0, plant.mast_distance_m + s0, None)
+            self._tau = self._arrival_times(plant.mast_distance_m)  # (runs, samples, N) s, τ_t at each sample
+            self.turbine_direction = self._directions_at(0)
+            self._directions = self.turbine_direction
+            free0 = self.mast.at(np.broadcast_to(self.run_of_farm[:, None], (self.farms, n)), self.lookup)
             v0, ct0 = steady_winds(self.tables, self._directions, free0, params)
             self.initial_power = np.interp(v0, winds, power) / (params.eta_gc * params.eta_dt)
             self._ct[:] = ct0[:, :, None].astype(np.float32)
             self._ct_filtered = ct0
-        self._mast_distance = plant.mast_distance_m
         self.turbine_wind = v0
         self.free_wind = free0
         self.turbulence_ratio: np.ndarray | None = None  # (farms, N) TI_t / TI_0; None: ambient everywhere
         self._added_turbulence = plant.wake_added_turbulence and self.tables is not None
         if self._added_turbulence:
-            self._set_turbulence(self.tables.waked(self._directions, ct0, free0)[1])
+            self._set_turbulence(self._waked(ct0, free0)[1])
 
     def advance(
         self, j: int, p_aero: np.ndarray, area_power: float | np.ndarray, tsr: np.ndarray, pitch_deg: np.ndarray
@@ -171,12 +177,10 @@ class TableWakes:
             delays = np.minimum(self.mast_distances[None, :] / vbar[:, None], HISTORY_S)  # d_t / v̄, eq. (3)
             free = self.mast.at(np.broadcast_to(runs[:, None], delays.shape), nxt * FARM_DT_S - delays)
             x = self._x[None, :, :]
-        else:  # along the direction of this sample (plant_sim.farm.direction)
-            self._directions = self.direction.at(runs, nxt)
-            s = downwind_distances(self._layout, self._directions)  # (farms, N)
-            self._lookup = self._lookup_times(nxt, self._mast_distance + s, self._lookup)
-            free = self.mast.at(np.broadcast_to(runs[:, None], s.shape), self._lookup)
-            x = np.maximum(s[:, None, :] - s[:, :, None], 0.0)  # (farms, N, N) x_ij
+        else:  # the direction each turbine sees, carried with the wind (plant_sim.farm.direction)
+            self._directions = self.turbine_direction = self._directions_at(nxt)
+            free = self.mast.at(np.broadcast_to(runs[:, None], self._directions.shape), self._tau[runs, nxt])
+            x = self._pair_distances(self._directions)
         if self.tables is None:
             self.free_wind, self.turbine_wind = free, free
             return
@@ -184,31 +188,57 @@ class TableWakes:
         lag = np.clip(lag, 1, self._history - 1)  # the newest C_T is sample j's
         slot = (nxt - lag) % self._history  # (farms, N, N): when the wake now at j left i
         pair_thrust = self._ct[self._farm, self._source, slot]
-        self.turbine_wind, turbulence = self.tables.waked(self._directions, pair_thrust, free)
+        self.turbine_wind, turbulence = self._waked(pair_thrust, free)
         self.free_wind = free
         if self._added_turbulence:
             self._set_turbulence(turbulence)
 
     def free_stream_series(self, samples: int) -> np.ndarray | None:
         """The free stream (m/s) each turbine of each run sees at farm samples 0 … samples − 1, (runs, samples, N),
-        along the moving direction with the same lookup times as ``advance``; None when the direction is fixed."""
+        with the same τ_t as ``advance``; None when the direction is fixed."""
         if self.direction is None:
             return None
-        runs = self.mast.v.shape[0]
-        span = slice(self.direction.offset, self.direction.offset + samples)
-        d = self._mast_distance + downwind_distances(self._layout, self.direction.deg[:, span])  # (runs, samples, N)
-        x_now = self._advected[:, self.mast.offset : self.mast.offset + samples, None]
-        tau = np.stack([np.interp(x_now[r] - d[r], self._advected[r], self.mast.t) for r in range(runs)])
-        tau = np.maximum.accumulate(tau, axis=1)
-        return self.mast.at(np.broadcast_to(np.arange(runs)[:, None, None], tau.shape), tau)
+        tau = self._tau[:, :samples]
+        return self.mast.at(np.broadcast_to(np.arange(tau.shape[0])[:, None, None], tau.shape), tau)
 
-    def _lookup_times(self, j: int, distances: np.ndarray, previous: np.ndarray | None) -> np.ndarray:
-        """τ (farms, N) at farm sample j for points ``distances`` (farms, N) m from the mast (``lookup_times``)."""
-        out = np.empty_like(distances)
-        for f, r in enumerate(self.run_of_farm):
-            x = self._advected[r]
-            out[f] = lookup_times(x[self.mast.offset + j], distances[f], x, self.mast.t, None)
-        return out if previous is None else np.maximum(out, previous)
+    @property
+    def lookup(self) -> np.ndarray | None:
+        """τ_t (farms, N) s of the last farm sample: when the air each turbine sees passed the mast; None when the
+        direction is fixed (eq. (3)'s t − d_t/v̄)."""
+        return None if self.direction is None else self._tau[self.run_of_farm, self.sample]
+
+    def _arrival_times(self, mast_distance_m: float) -> np.ndarray:
+        """τ_t (runs, samples, N) at farm samples 0, 1, … of every run (``direction.arrival_lookup``)."""
+        mast, direction = self.mast, self.direction
+        samples = direction.deg.shape[1] - direction.offset
+        query = np.arange(samples) * FARM_DT_S
+        advected = advected_distance(mast.vbar)  # (runs, S) X of each run's mast series
+        return np.stack(
+            [
+                arrival_lookup(mast.t, advected[r], direction.path_deg, self._layout, mast_distance_m, query)
+                for r in range(mast.v.shape[0])
+            ]
+        )
+
+    def _directions_at(self, j: int) -> np.ndarray:
+        """θ_t (farms, N) deg, unwrapped: the direction the air each turbine sees at farm sample j carries; j becomes
+        the sample ``lookup`` reads."""
+        self.sample = j
+        runs = self.run_of_farm
+        return self.direction.at_time(np.broadcast_to(runs[:, None], (self.farms, self.n_turbines)), self._tau[runs, j])
+
+    def _pair_distances(self, directions: np.ndarray) -> np.ndarray:
+        """x_ij (farms, N, N) m ≥ 0: j's distance downstream of i along θ_j, the direction of the air at j."""
+        th = np.radians(directions)[:, None, :]  # (farms, 1, N): column j's direction
+        layout = self._layout
+        along = -layout.x[None, :, None] * np.sin(th) - layout.y[None, :, None] * np.cos(th)  # [f, i, j]: i along θ_j
+        return np.maximum(np.diagonal(along, axis1=1, axis2=2)[:, None, :] - along, 0.0)
+
+    def _waked(self, thrust: np.ndarray, free: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """``WakeTables.waked`` at each farm's direction, or ``waked_per_turbine`` at each turbine's."""
+        if self.direction is None:
+            return self.tables.waked(self._directions, thrust, free)
+        return self.tables.waked_per_turbine(self._directions, thrust, free)
 
     def _set_turbulence(self, turbulence: np.ndarray) -> None:
         """Each turbine's turbulence intensity over the ambient, the factor on its own turbulence."""
@@ -222,8 +252,10 @@ class TableWakes:
         distinct, which = np.unique(held, return_inverse=True)
         runs, _, n = free.shape
         direction: float | np.ndarray = self.direction_deg
-        if self.direction is not None:  # each run's direction at each update
-            direction = self.direction.deg[:runs, self.direction.offset + distinct].reshape(-1)
+        if self.direction is not None:  # each turbine's direction at each update
+            tau = self._tau[:runs, distinct]  # (runs, updates, N)
+            direction = self.direction.at_time(np.broadcast_to(np.arange(runs)[:, None, None], tau.shape), tau)
+            direction = direction.reshape(-1, n)
         speed, _ = steady_winds(self.tables, direction, free[:, distinct, :].reshape(-1, n), params)
         winds, power, _ = rated_curve(params)
         total = np.interp(speed, winds, power).sum(axis=1).reshape(runs, len(distinct))

@@ -179,6 +179,9 @@ class FarmWakes(Protocol):
 
     def available_power(self, params: TurbineParams, free: np.ndarray, held: np.ndarray) -> np.ndarray: ...
 
+    @property
+    def turbine_direction(self) -> np.ndarray: ...  # (farms, N) deg, unwrapped: the direction each turbine sees
+
     def free_stream_series(self, samples: int) -> np.ndarray | None:
         """(runs, samples, N) m/s, each turbine's free stream along a moving direction over the first ``samples``
         farm samples; None when the direction is fixed (the free stream is then eq. (3)'s delayed mast)."""
@@ -227,6 +230,11 @@ class RowWakes:
         self.initial_power = p_mech0[:, self.row_of_turbine]  # (farms, N) W, steady τ_r ω_r
         self.row_wind = v_rows0  # (farms, rows) m/s, mean wind of each row at the last farm sample
         self.row_free = free0[:, None].repeat(self.n_rows, axis=1)
+
+    @property
+    def turbine_direction(self) -> np.ndarray:
+        """(farms, N) deg: the farm's fixed direction at every turbine (the row model's directions do not move)."""
+        return np.full((self.farms, self.n_turbines), self.plant.direction_deg)
 
     def free_stream_series(self, samples: int) -> None:
         """None: the row model knows the paper's fixed directions only (``FarmWakes.free_stream_series``)."""

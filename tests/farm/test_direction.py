@@ -15,14 +15,15 @@ from plant_sim.farm import FarmBatch
 from plant_sim.farm.direction import (
     DirectionSeries,
     advected_distance,
+    arrival_lookup,
     downwind_distances,
     gauss_markov,
-    lookup_times,
 )
 from plant_sim.farm.floris_wakes import floris_model
 from plant_sim.farm.plant import row_streams, vane_stream, veer_stream
 from plant_sim.farm.wakes import plant_wake_tables
 from windwarden.evaluation.farm_scoring import farm_geometry
+from wwcore.layout import FarmLayout
 from wwcore.scenario.farm import VEER_BOUND_SIGMA, FarmDemand, FarmPlant
 from wwcore.scenario.loader import ScenarioError, load_scenario, parse_scenario
 from wwcore.scenario.wind import WindSpec, direction_at, unwrap_direction_points
@@ -154,57 +155,138 @@ def test_a_constant_direction_is_bit_identical_to_the_fixed_direction_code(cache
     assert fingerprint(moving([(0.0, 283.0)], coherent_ti=0.05), cache) == FINGERPRINTS["gauss283"]
 
 
-# ---- the geometry along the actual direction ----------------------------------------------------------------------
-def test_delays_are_the_projected_distances_over_the_mean_wind(cache):
-    """On a slowly moving direction, each turbine's free stream is the mast's at t − (d_mast + s_t(θ))/v̄, s_t the
-    turbine's position projected on the flow (−sin θ, −cos θ) from the most upwind turbine's."""
+# ---- the direction carried with the wind --------------------------------------------------------------------------
+def step(plant_spec: FarmPlant, seconds: float):
+    """Run ``plant_spec`` (9 m/s, no turbulence) for ``seconds``; each farm sample's (t, vane, truth directions)."""
+    wind = WindSpec(mean=[(0.0, 9.0)], turbulence_intensity=0.0)
+    plant = FarmBatch(plant_spec, wind, [], seed=2, duration_s=seconds, wake_cache_dir=CACHE[0])
+    out = []
+    for _ in range(round(seconds / plant.dt)):
+        frame = plant.measure()
+        plant.control(None)
+        if frame.sample:
+            out.append((frame.t + plant.dt, float(frame.mast_direction[0]), plant.truth()["wind_direction"]))
+        plant.advance()
+    return plant, out
+
+
+CACHE: list = []
+
+
+def test_a_direction_step_reaches_each_turbine_at_its_own_delay(cache):
+    """A step of the mast's direction 270° → 280° at t₀ = 5 s (over one farm sample), steady 9 m/s, no slow
+    turbulence: turbine t sees 270° until the last old air reaches it, t₀ + d_t(270°)/v̄, and 280° once the first
+    new air has, t₀ + 0.1 + d_t(280°)/v̄, d_t = d_mast + s_t its distance downwind of the mast along that direction
+    (closed form, within one farm sample); the front row first; the vane reads the mast's 280° from t₀ + 0.1."""
+    CACHE[:] = [cache]
+    t0, seconds = 5.0, 260.0
+    spec = moving([(0.0, 270.0), (t0, 270.0), (t0 + 0.1, 280.0)], mast_direction_noise_deg=0.0)
+    plant, samples = step(spec, seconds)
+    times = np.array([t for t, _, _ in samples])
+    vane = np.array([v for _, v, _ in samples])
+    seen = np.array([d for _, _, d in samples])  # (samples, N)
+    np.testing.assert_allclose(vane, np.where(times >= t0 + 0.1 - 1e-9, 280.0, np.where(times <= t0, 270.0, vane)))
+    layout = spec.resolved_layout()
+    vbar = plant.mast.vbar[0, plant.mast.offset]
+    assert np.ptp(plant.mast.vbar) < 1e-9
+    old = t0 + (spec.mast_distance_m + downwind_distances(layout, 270.0)) / vbar  # last old air arrives
+    new = t0 + 0.1 + (spec.mast_distance_m + downwind_distances(layout, 280.0)) / vbar  # first new air arrives
+    assert new.max() < seconds - 10.0 and np.ptp(new) > 100.0  # every turbine reached, far apart
+    for t in range(9):
+        last_old = times[seen[:, t] <= 270.0 + 1e-9].max()
+        first_new = times[seen[:, t] >= 280.0 - 1e-9].min()
+        assert first_new == pytest.approx(new[t], abs=0.1 + 1e-9)
+        assert last_old == pytest.approx(min(old[t], new[t]), abs=0.1 + 1e-9)
+        assert np.all(np.diff(seen[:, t]) >= -1e-9)  # turns once, no going back
+    front = np.argsort(downwind_distances(layout, 280.0))
+    arrival = np.array([times[seen[:, t] >= 280.0 - 1e-9].min() for t in range(9)])
+    assert np.all(np.diff(arrival[front]) >= 0.0) and arrival[front[0]] < arrival[front[-1]] - 150.0
+
+
+def test_free_streams_and_directions_follow_the_air_each_turbine_sees(cache):
+    """On a slowly moving direction and a steady wind, the free stream at sample j is the mast's at τ_t with
+    τ_t + d_t(θ(τ_t))/v̄ = t (the air's own path), and the direction θ_t = θ(τ_t), not θ(t)."""
     plant_spec = moving([(0.0, 300.0), (1000.0, 310.0)])
-    plant = FarmBatch(plant_spec, WindSpec(mean=[(0.0, 8.0)]), [], seed=2, duration_s=5.0, wake_cache_dir=cache)
+    wind = WindSpec(mean=[(0.0, 8.0)])
+    plant = FarmBatch(plant_spec, wind, [], seed=2, duration_s=400.0, wake_cache_dir=cache)
+    assert np.ptp(plant.mast.vbar) < 1e-9  # a steady mean wind
+    tau_all = plant.wakes._tau[0]  # (samples, N)
+    layout = plant_spec.resolved_layout()
+    for j in (30, 2500, 3900):
+        t = j * 0.1
+        tau = tau_all[j]
+        theta = plant.direction.at_time(np.zeros(9, dtype=np.intp), tau)
+        np.testing.assert_allclose(theta, 300.0 + 10.0 * np.maximum(tau, 0.0) / 1000.0, atol=1e-9)
+        path = np.array([plant_spec.mast_distance_m + downwind_distances(layout, theta[k])[k] for k in range(9)])
+        vbar = plant.mast.vbar[0, plant.mast.offset]
+        np.testing.assert_allclose(tau + path / vbar, t, atol=1e-6)
     for _ in range(round(3.0 / plant.dt)):
         plant.measure()
         plant.control(None)
         plant.advance()
     j = plant.field.sample_index
-    theta = plant.direction.at(np.array([0]), j)[0]
-    assert theta == pytest.approx(300.0 + 10.0 * j * 0.1 / 1000.0)
-    layout = plant_spec.resolved_layout()
-    flow = np.array([-math.sin(math.radians(theta)), -math.cos(math.radians(theta))])
-    s = layout.x * flow[0] + layout.y * flow[1]
-    s -= s.min()
-    np.testing.assert_allclose(downwind_distances(layout, theta), s, atol=1e-9)
-    vbar = plant.mast.vbar[0, plant.mast.offset + j]
-    assert np.ptp(plant.mast.vbar) < 1e-9  # a steady mean wind: the advected lookup is t − d/v̄
-    expected = j * 0.1 - (plant_spec.mast_distance_m + s) / vbar
-    np.testing.assert_allclose(plant.wakes._lookup[0], expected, atol=1e-6)
-    np.testing.assert_allclose(plant.wakes.free_wind[0], plant.mast.at(np.zeros(9, dtype=int), expected), atol=1e-9)
+    np.testing.assert_allclose(plant.wakes.lookup[0], tau_all[j], atol=0)
+    np.testing.assert_allclose(plant.wakes.free_wind[0], plant.mast.at(np.zeros(9, dtype=int), tau_all[j]), atol=1e-12)
+    np.testing.assert_allclose(plant.truth()["wind_direction"], 300.0, atol=1e-12)  # all air from before t = 0
 
 
-def test_the_lookup_time_never_runs_backwards():
-    """v̄ = 10 m/s; a turbine 0, 5, 20, 5, 0 m from the mast at t = 0 … 4 s: the advected lookup is t − d/v̄ = 0, 0.5,
-    0 (swung away faster than the wind), 2.5, 4; the turbine holds 0.5 instead of going back."""
-    times = np.arange(-100, 100) * 0.1
-    advected = advected_distance(np.full(len(times), 10.0))
-    np.testing.assert_allclose(advected, 10.0 * (times - times[0]))
-    d = [0.0, 5.0, 20.0, 5.0, 0.0]
-    tau, previous = [], None
-    for k in range(5):
-        x_now = advected[100 + 10 * k]  # t = k s
-        previous = lookup_times(x_now, np.array([d[k]]), advected, times, previous)
-        tau.append(float(previous[0]))
-    assert tau == pytest.approx([0.0, 0.5, 0.5, 2.5, 4.0])
+def test_the_veer_is_carried_but_the_air_travels_along_the_profile(cache):
+    """A random veer about a fixed 283° and a steady wind: every turbine's lookup is eq. (3)'s t − d_t(283°)/v̄
+    (the veer does not bend the air's path, ``plant_sim.farm.direction``), and the direction it sees is the
+    mast's of that time, veer included: the back row turns later than the front row."""
+    spec = moving([(0.0, 283.0)], sigma=3.0, time_s=20.0)
+    plant = FarmBatch(spec, WindSpec(mean=[(0.0, 9.0)]), [], seed=4, duration_s=100.0, wake_cache_dir=cache)
+    assert np.ptp(plant.mast.vbar) < 1e-9
+    d = spec.mast_distance_m + downwind_distances(spec.resolved_layout(), 283.0)
+    t = np.arange(plant.wakes._tau.shape[1]) * 0.1
+    np.testing.assert_allclose(plant.wakes._tau[0], t[:, None] - d[None, :] / plant.mast.vbar[0, 0], atol=1e-6)
+    runs = np.zeros(plant.wakes._tau.shape, dtype=np.intp)[0]
+    seen = plant.direction.at_time(runs, plant.wakes._tau[0])
+    np.testing.assert_allclose(seen, np.interp(plant.wakes._tau[0], plant.direction.t, plant.direction.deg[0]))
+    front, back = np.argmin(d), np.argmax(d)
+    assert np.abs(seen[:, front] - seen[:, back]).max() > 1.0  # the veer reaches them at different times
+
+
+def one_turbine() -> FarmLayout:
+    return FarmLayout(x=np.array([0.0]), y=np.array([0.0]), rotor_diameter=115.0)
 
 
 def test_the_advected_lookup_carries_the_field_at_the_mean_wind():
-    """A gusting v̄: for a fixed distance the lookup only moves forward, and the field it finds was carried exactly
-    d by the mean wind since (∫ v̄ dt from τ to t = d), which eq. (3)'s t − d/v̄(t) is not."""
+    """A gusting v̄, one direction: the lookup only moves forward, and the field it finds was carried d by the mean
+    wind since (∫ v̄ dt from τ to t = d, within 1 cm), which eq. (3)'s t − d/v̄(t) is not (by over 1 m)."""
     rng = np.random.default_rng(3)
     times = np.arange(4000) * 0.1 - 200.0
     vbar = 9.0 + np.cumsum(rng.normal(0.0, 0.05, len(times)))
     advected = advected_distance(vbar)
-    tau = np.array([lookup_times(advected[k], np.array([1500.0]), advected, times, None)[0] for k in range(2500, 4000)])
+    query = times[2500:3900]
+    tau = arrival_lookup(times, advected, np.full(len(times), 270.0), one_turbine(), 1500.0, query)[:, 0]
     assert np.all(np.diff(tau) > 0.0)
-    carried = advected[2500:4000] - np.interp(tau, times, advected)
-    np.testing.assert_allclose(carried, 1500.0, atol=1e-6)
+    carried = advected[2500:3900] - np.interp(tau, times, advected)
+    np.testing.assert_allclose(carried, 1500.0, atol=0.01)  # the arrival times are interpolated between samples
+    naive = query - 1500.0 / vbar[2500:3900]
+    assert np.abs(advected[2500:3900] - np.interp(naive, times, advected) - 1500.0).max() > 1.0
+
+
+def test_newer_air_overtakes_and_the_turbine_holds_across_a_gap():
+    """Two turbines 1000 m apart north–south, v̄ = 10 m/s, the mast 100 m upwind of the farm's edge. From the north
+    (0°) turbine 2 (south) is 1100 m from the mast; from the west (270°) both are 100 m. The direction swings 0° →
+    270° at 10 s: the new air reaches turbine 2 at 10 + 100/10 = 20 s, while old air still arrives until
+    10 + 1100/10 = 120 s: the newer wins (overtaking), τ jumps to 10 s. Then back to 0° at 50 s: the last west air
+    reaches it at 50 + 10 = 60 s, the first north air at 50 + 110 = 160 s; in between it holds (τ moves through
+    one sample only)."""
+    layout = FarmLayout(x=np.array([0.0, 0.0]), y=np.array([0.0, -1000.0]), rotor_diameter=115.0)
+    times = np.arange(-2000, 3000) * 0.1
+    direction = np.where((times > 10.0) & (times <= 50.0), 270.0, 360.0)
+    advected = advected_distance(np.full(len(times), 10.0))
+    query = np.arange(0, 2500) * 0.1
+    tau = arrival_lookup(times, advected, direction, layout, 100.0, query)[:, 1]
+    at = dict(zip(np.round(query, 1), tau, strict=True))
+    assert at[19.0] == pytest.approx(19.0 - 110.0)  # old north air
+    assert at[20.5] == pytest.approx(10.5, abs=1e-9)  # new west air, 10 s after it passed the mast
+    assert at[59.5] == pytest.approx(49.5, abs=1e-9)
+    assert 50.0 <= at[100.0] <= 50.1 and 50.0 <= at[159.0] <= 50.1  # held between the last west and first north air
+    assert at[170.0] == pytest.approx(170.0 - 110.0, abs=1e-9)
+    assert np.all(np.diff(tau) >= 0.0)
 
 
 @pytest.mark.parametrize("direction", [271.5, 313.25])
@@ -296,20 +378,28 @@ def test_a_moving_direction_reads_back_and_the_scorecard_names_it():
 
 
 @pytest.mark.slow
-def test_running_plant_between_table_directions_equals_floris(cache):
-    """The running 3 × 3 at 9 m/s, TI 0.03 (as ``test_farm_wakes``'s running test), the wind moving 0.1° over the
-    averaging window around 271.5° (between two table directions, the moving-direction code path): each turbine's
-    mean wind over the last 20 s equals FLORIS's at 271.5° within 0.1 m/s."""
-    spec = moving([(0.0, 271.4), (200.0, 271.4), (220.0, 271.6)], wake_added_turbulence=False)
+def test_running_plant_equals_floris_once_a_veer_has_crossed_the_farm(cache):
+    """The running 3 × 3 at 9 m/s, TI 0.03 (as ``test_farm_wakes``'s running test), the mast's direction turning
+    from 266.5° to 271.5° over the first 10 s (between two table directions): at 100 s the front row sees 271.5°
+    and the back row still 266.5°; once the new air has crossed the farm (≈ 211 s) and the wakes have settled, each
+    turbine's mean wind over the last 20 s equals FLORIS's at 271.5° within 0.1 m/s."""
+    spec = moving([(0.0, 266.5), (10.0, 271.5)], wake_added_turbulence=False)
     wind = WindSpec(mean=[(0.0, 9.0)], turbulence_intensity=0.03)
-    plant = FarmBatch(spec, wind, [], seed=7, duration_s=220.0, wake_cache_dir=cache)
-    winds = []
-    for k in range(round(220.0 / plant.dt)):
+    seconds = 300.0
+    plant = FarmBatch(spec, wind, [], seed=7, duration_s=seconds, wake_cache_dir=cache)
+    winds, at_100 = [], None
+    for k in range(round(seconds / plant.dt)):
         frame = plant.measure()
         plant.control(None)
-        if frame.sample and (k + 1) * plant.dt > 200.0:
+        if frame.sample and (k + 1) * plant.dt > seconds - 20.0:
             winds.append(plant.truth()["row_wind"])
+        if frame.sample and k + 1 == round(100.0 / plant.dt):
+            at_100 = plant.truth()["wind_direction"]
         plant.advance()
+    s = downwind_distances(spec.resolved_layout(), 271.5)
+    np.testing.assert_allclose(at_100[s < 1.0], 271.5)
+    np.testing.assert_allclose(at_100[s > s.max() - 1.0], 266.5)
+    np.testing.assert_allclose(plant.truth()["wind_direction"], 271.5)
     fm = floris_model(spec.resolved_layout(), "gauss", BENCHMARK, [271.5], [9.0], 0.03)
     fm.run()
     ref = fm.turbine_average_velocities[0]
