@@ -16,8 +16,8 @@ from wwcore.turbine_params import BENCHMARK as P
 REGION3 = WindSpec(mean=[(0.0, 16.0)])  # turbulent, pitching
 
 
-def flags_over_time(faults, seconds, wind=REGION3, seed=11, runs=2):
-    plant = TurbineBatch(TurbinePlant(), wind, faults, seed=seed, runs=list(range(runs)))
+def flags_over_time(faults, seconds, wind=REGION3, seed=11, runs=2, mismatch=None):
+    plant = TurbineBatch(TurbinePlant(), wind, faults, seed=seed, runs=list(range(runs)), mismatch=mismatch)
     supervisor = TurbineSupervisor(plant.n)
     refs, flagged = None, []
     for _ in range(round(seconds / plant.dt)):

@@ -9,15 +9,13 @@ import pytest
 from scipy.signal import cont2discrete, lfilter
 from scipy.stats import norm
 
-from plant_sim.turbine import TurbineBatch
 from service.turbine import fast
 from service.turbine.component_fdi import actuator_whitener
 from service.turbine.pitch_actuator import FAULTS, TOLERANCE, SignatureBank, glr, glr_threshold
-from service.turbine.supervisor import TurbineSupervisor
+from tests.test_component_fdi import flags_over_time
 from wwcore.channels import DIAGNOSIS_TARGETS
 from wwcore.scenario import FaultSpec, WindSpec
 from wwcore.scenario.mismatch import Mismatch, MismatchSpread
-from wwcore.scenario.turbine import TurbinePlant
 from wwcore.turbine_params import BENCHMARK as P
 
 SIGMA_W2 = 0.75 * 0.2**2  # σ_w² = ¾ σ_β², deg²
@@ -146,18 +144,8 @@ def test_the_numba_whitener_equals_the_numpy_reference_bit_for_bit():
 
 
 def _actuator_flags(faults, seconds, mismatch=None, seed=5, runs=2, wind=16.0) -> np.ndarray:
-    plant = TurbineBatch(
-        TurbinePlant(), WindSpec(mean=[(0.0, wind)]), faults, seed=seed, runs=list(range(runs)), mismatch=mismatch
-    )
-    supervisor = TurbineSupervisor(plant.n)
-    refs, flags = None, []
-    for _ in range(round(seconds / plant.dt)):
-        frame = plant.measure()
-        plant.control(refs)
-        refs = supervisor.step(frame)
-        flags.append(supervisor.diagnosis.faulty[:, ACTUATOR_COLUMNS].copy())
-        plant.advance()
-    return np.array(flags)  # (ticks, rows, 3)
+    flags = flags_over_time(faults, seconds, WindSpec(mean=[(0.0, wind)]), seed, runs, mismatch)
+    return flags[:, :, ACTUATOR_COLUMNS]  # (ticks, rows, 3)
 
 
 def test_actuators_anywhere_in_their_tolerance_are_not_flagged():
