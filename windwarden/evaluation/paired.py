@@ -49,8 +49,8 @@ def runs_digest(scenario: Scenario) -> str:
     body = scenario.model_dump(mode="json", exclude={"name", "description", "supervisor"}, exclude_defaults=True)
     body.setdefault("plant", {})["kind"] = scenario.plant.kind
     if scenario.plant.kind == "farm":
-        # The farm's default wakes changed from the row model to FLORIS's Gauss: always named, so a row-model
-        # scorecard written before that change never pairs with a Gauss one.
+        # The wake model is named even at its default: a scorecard whose digest leaves it out (one written while
+        # the row model was the default) must never pair with a Gauss one.
         body["plant"]["wake_model"] = scenario.plant.wake_model
     if scenario.mismatch is None or scenario.mismatch == Mismatch():
         body["mismatch"] = None
