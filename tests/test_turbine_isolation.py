@@ -37,15 +37,21 @@ def _healthy_chi2(fdi: SpeedSensorFDI) -> np.ndarray:
     return stat
 
 
+def _healthy_history(fdi: SpeedSensorFDI, seed: int) -> tuple[np.random.Generator, np.ndarray]:
+    """20 healthy ticks (the window sums at their mean); the readings' generator and x̂ for the ticks that follow."""
+    rng = np.random.default_rng(seed)
+    x_hat = np.zeros((1, DESIGN.F_blk.shape[0]))
+    for _ in range(20):
+        fdi.step(_readings(rng), _healthy_chi2(fdi), x_hat)
+    return rng, x_hat
+
+
 def _double_fault_run(fdi: SpeedSensorFDI, growing_after: int) -> list[int]:
     """A generator-speed fault on ω_g,m1 at tick 0 with a rotor-speed fault on ω_r,m2 that the UIOs see only as it
     grows (module docstring of ``fdi``): the observers using ω_g,m1 are far off at once; those using ω_r,m2 but
     not ω_g,m1 sit between the confirmation and the isolation levels for ``growing_after`` ticks, then beyond the
     isolation level. Returns the flagged bitmask of every tick."""
-    rng = np.random.default_rng(2)
-    x_hat = np.zeros((1, DESIGN.F_blk.shape[0]))
-    for _ in range(20):  # healthy history: the window sums at their mean
-        fdi.step(_readings(rng), _healthy_chi2(fdi), x_hat)
+    rng, x_hat = _healthy_history(fdi, 2)
     assert fdi.flagged[0] == 0
     w = fdi.s.window
     masks = []
@@ -89,10 +95,7 @@ def test_patience_is_bounded():
 def test_a_clear_single_fault_is_not_delayed():
     """With every witness of the chosen explanation at its mean, there is no doubt: flagged at the deadline."""
     fdi = _fdi()
-    rng = np.random.default_rng(4)
-    x_hat = np.zeros((1, DESIGN.F_blk.shape[0]))
-    for _ in range(20):
-        fdi.step(_readings(rng), _healthy_chi2(fdi), x_hat)
+    rng, x_hat = _healthy_history(fdi, 4)
     masks = []
     for _ in range(6):
         stat = _healthy_chi2(fdi)
@@ -109,10 +112,7 @@ def test_a_reading_frozen_near_the_truth_is_flagged_without_arbitration():
     arbitration between the two generator-speed sensors could take seconds; a frozen reading is a fault whatever
     its value, and it is flagged on the tick the frozen test fires."""
     fdi = _fdi()
-    rng = np.random.default_rng(6)
-    x_hat = np.zeros((1, DESIGN.F_blk.shape[0]))
-    for _ in range(20):
-        fdi.step(_readings(rng), _healthy_chi2(fdi), x_hat)
+    rng, x_hat = _healthy_history(fdi, 6)
     frozen_value = 1.2 * P.N_g
     flagged_at = None
     for k in range(200):
@@ -189,10 +189,7 @@ def test_flags_are_kept_when_no_explanation_fits():
     observer 5 does not follow): no explanation is consistent and no larger one exists, so the flags stay; they
     drop only by their clearing test."""
     fdi = _fdi()
-    rng = np.random.default_rng(9)
-    x_hat = np.zeros((1, DESIGN.F_blk.shape[0]))
-    for _ in range(20):
-        fdi.step(_readings(rng), _healthy_chi2(fdi), x_hat)
+    rng, x_hat = _healthy_history(fdi, 9)
     both = BIT["omega_g_m1"] | BIT["omega_g_m2"]
     fdi.flagged[0] = both
     fdi._maybe_flagged = True
