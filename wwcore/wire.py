@@ -147,8 +147,8 @@ class MessageSchema:
         return np.zeros(n, dtype=self.dtype)
 
     def encode(self, record: np.ndarray | np.void) -> bytes:
-        """One record (a 0-d or 1-element structured array of ``dtype``) as bytes with the header."""
-        return self.header + np.asarray(record, dtype=self.dtype).reshape(1).tobytes()
+        """One record (a 0-d or 1-element structured array of ``dtype``) as bytes with the header: a frame of one."""
+        return self.encode_frame(np.asarray(record, dtype=self.dtype).reshape(1))
 
     def encode_frame(self, records: np.ndarray) -> bytes:
         """A frame: the header and every record of a structured array of ``dtype`` (1 to ``MAX_FRAME_ROWS``)."""
