@@ -123,6 +123,11 @@ class PlantKind(Protocol):
     def refs_from_records(self, records: np.ndarray) -> Any:
         """Refs records back into what ``plant.control`` takes."""
 
+    def hold_unserved(self, records: np.ndarray, served: np.ndarray, last: np.ndarray | None) -> np.ndarray:
+        """A tick's refs completed without the rows not ``served`` (no sender of the plan owns them: a sharded
+        supervisor's lost shard), those rows filled so that their turbines keep their last reference (``last``:
+        the refs the plant took last). Only a farm is ever sharded."""
+
     def truth_records(self, plant: Plant, frame: Any, turbines: list[int]) -> np.ndarray:
         """Ground truth at the current tick as truth records (display only)."""
 

@@ -169,6 +169,27 @@ class FarmKind:
             ripple_rate=np.array(records["ripple_rate"]),
         )
 
+    def hold_unserved(self, records: np.ndarray, served: np.ndarray, last: np.ndarray | None) -> np.ndarray:
+        """A tick's refs in which the rows not ``served`` (turbines of a sharded supervisor's lost shard: no sender
+        of the plan owns them) keep the turbine's last reference: its row of ``last`` (the refs the plant took
+        last) with this tick's ``tick`` and ``computed_tick``, so the tick's rows agree (``refs_from_records``) and
+        the controller sees the same power reference, mode, held torque and pitch trim again (no change). The 3P
+        ripple a held row asked for is dropped: its phasor needs the coordinator's closed loop, and run open it
+        would drift out of phase. Without a reference to keep (none taken yet, or the served rows carry none),
+        the rows say "no reference" (computed_tick −1) and the whole tick keeps what it has."""
+        out = records.copy()
+        held = ~served
+        computed = int(records["computed_tick"][served][0]) if served.any() else -1
+        keep = held & (last["computed_tick"] >= 0) if last is not None and computed >= 0 else np.zeros_like(held)
+        if keep.any():
+            for name in ("power_ref", "flags", "statistic", "threshold", "mode", "held_torque", "pitch_trim"):
+                out[name][keep] = last[name][keep]
+            out["computed_tick"][keep] = computed
+            out["ripple_power"][keep], out["ripple_rate"][keep] = 0.0, 0.0
+        empty = held & ~keep
+        out["computed_tick"][empty], out["power_ref"][empty], out["held_torque"][empty] = -1, np.nan, np.nan
+        return out
+
     def truth_records(self, plant: FarmBatch, frame: FarmFrame, turbines: list[int]) -> np.ndarray:
         truth = plant.truth()
         per_farm = len(turbines) // frame.farms

@@ -100,6 +100,9 @@ class HydroKind:
         }
         return records_from_batch(HYDRO_REFS, values, turbines)
 
+    def hold_unserved(self, records: np.ndarray, served: np.ndarray, last: np.ndarray | None) -> np.ndarray:
+        return records  # one supervisor serves the one turbine: a tick never arrives without it
+
     def refs_from_records(self, records: np.ndarray) -> HydroRefs:
         return HydroRefs(
             t=float(records["t"][0]),

@@ -118,6 +118,9 @@ class TurbineKind:
             values |= {"nfte_set": True, "wind_nfte": est.wind_reference}
         return records_from_batch(TURBINE_REFS, values, turbines)
 
+    def hold_unserved(self, records: np.ndarray, served: np.ndarray, last: np.ndarray | None) -> np.ndarray:
+        return records  # one supervisor serves the one turbine: a tick never arrives without it
+
     def refs_from_records(self, records: np.ndarray) -> TurbineRefs:
         power_set = np.asarray(records["power_ref_set"])
         return TurbineRefs(

@@ -201,6 +201,16 @@ class RefsSenders:
     def owned(self, sender: str) -> np.ndarray | None:
         return self._plan.get(sender, self._nobody)
 
+    def served(self) -> np.ndarray:
+        """The turbines some sender of the plan owns (``TickMailbox.expect``): all with one supervisor; with a
+        sharded one, those of the shards still in the coordinator's plan (a lost shard's turbines are not)."""
+        served = self._nobody.copy()
+        for mask in self._plan.values():
+            if mask is None:
+                return ~served
+            served |= mask
+        return served
+
     def plan(self) -> dict[str, int | None]:
         """Sender → turbines it may send refs for (None: all), for the status."""
         return {name: None if mask is None else int(mask.sum()) for name, mask in self._plan.items()}

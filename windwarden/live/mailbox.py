@@ -11,6 +11,12 @@ or name a turbine twice (``wwcore.wire.frame_problem``); a row is for a turbine 
 turbine) already being assembled (``repeated_tick``: the first one stays); or ``window``, a node's check of the
 tick, refuses it (the plant refuses refs for ticks it has not measured yet there, so a flood of forged ticks can
 neither evict real rows nor end a lockstep wait).
+
+Which turbines a tick needs (``expect``): every turbine of the list, unless a sharded supervisor has lost a shard.
+Then the plant expects the turbines of the shards still in the plan, and the coordinator the summaries of the shards
+still alive; a tick is complete once those rows are in, and its ``Arrival.served`` says which rows arrived (the
+others are the turbine number and tick only, for the consumer to fill: ``FarmKind.hold_unserved``,
+``sharding.held_summaries``).
 """
 
 from __future__ import annotations
@@ -43,6 +49,7 @@ class Arrival:
     tick: int
     records: np.ndarray  # one record per turbine, in the order of the node's turbine list
     at: float  # time.perf_counter() when the last row arrived
+    served: np.ndarray | None = None  # rows that arrived, when a tick completed without some (``expect``)
 
 
 class TickMailbox:
@@ -66,7 +73,26 @@ class TickMailbox:
         self.cond = threading.Condition()
         self._partial: dict[int, tuple[np.ndarray, np.ndarray]] = {}  # tick → (rows, filled)
         self._complete: deque[Arrival] = deque()
+        self._expected = np.ones(self.n, dtype=bool)  # the rows a tick needs to be complete
         self.received = 0
+
+    def expect(self, mask: np.ndarray) -> None:
+        """Ticks are complete once the rows of ``mask`` (over the node's turbines) are in; ticks waiting only for
+        rows outside it complete now, oldest first. A mask of no row is ignored: nobody sends, nothing completes."""
+        mask = np.asarray(mask, dtype=bool)
+        if not mask.any():
+            return
+        with self.cond:
+            self._expected = mask.copy()
+            for tick in sorted(self._partial):
+                out, filled = self._partial[tick]
+                if filled[mask].all():
+                    del self._partial[tick]
+                    self._complete.append(self._arrival(tick, out, filled, time.perf_counter()))
+                    self.cond.notify_all()
+
+    def _arrival(self, tick: int, out: np.ndarray, filled: np.ndarray, at: float) -> Arrival:
+        return Arrival(tick, out, at, None if filled.all() else filled.copy())
 
     def owned_mask(self, turbines: Iterable[int]) -> np.ndarray:
         """The ``owned`` argument of ``put`` for a sender that may speak for ``turbines`` (others of the list are
@@ -115,7 +141,9 @@ class TickMailbox:
                 self.cond.notify_all()
                 return
             if partial is None:
-                partial = self._partial[tick] = (np.zeros(self.n, dtype=self.schema.dtype), np.zeros(self.n, bool))
+                out = np.zeros(self.n, dtype=self.schema.dtype)
+                out["turbine"], out["tick"] = self.turbines, tick  # what a row that never arrives still says
+                partial = self._partial[tick] = (out, np.zeros(self.n, bool))
             out, filled = partial
             if filled[positions].any():
                 self.drops.add(self.stream, DropReason.REPEATED_TICK)
@@ -123,9 +151,9 @@ class TickMailbox:
             self.received += 1
             out[positions] = rows
             filled[positions] = True
-            if filled.all():
+            if filled[self._expected].all():
                 del self._partial[tick]
-                self._complete.append(Arrival(tick, out, now))
+                self._complete.append(self._arrival(tick, out, filled, now))
                 self.cond.notify_all()
             if len(self._partial) > KEEP_PARTIAL:
                 for old in sorted(self._partial)[: len(self._partial) - KEEP_PARTIAL]:

@@ -173,6 +173,7 @@ class PlantNode:
             self.drops.add("supervisor.status", error.reason)
             return
         self.senders.update(body)
+        self.mailbox.expect(self.senders.served())  # a lost shard's turbines: the tick completes without them
         ready = bool(body.get("ready")) and body.get("run_id") == self.run_id
         if ready != self._supervisor_ready_flag:
             self._supervisor_ready_flag = ready
@@ -271,6 +272,7 @@ class PlantNode:
             "refs_received": self.refs_received,
             "refs_refused": self.refusals.counts(),
             "refs_senders": self.senders.plan(),
+            "refs_unserved": [t for t, s in zip(self.mailbox.turbines, self.senders.served(), strict=True) if not s],
             "run_key": self.run_key,
             "supervisor_alive": self.watch.is_alive(Process.SUPERVISOR),
             "dropped": self.drops.as_dict(),
@@ -308,7 +310,10 @@ class PlantNode:
         """Fold arrived refs into the latest refs, the latency figures and the score, as ``guard`` allows."""
         k = self.plant.k
         for arrival in self.mailbox.drain():
-            verdict = self.guard.judge(arrival.tick, arrival.records, k)
+            records = arrival.records
+            if arrival.served is not None:  # turbines no sender serves keep their last reference
+                records = self.kind.hold_unserved(records, arrival.served, self.latest_refs)
+            verdict = self.guard.judge(arrival.tick, records, k)
             if verdict == Verdict.REFUSED:
                 continue
             self.refs_received += 1
@@ -316,10 +321,10 @@ class PlantNode:
             sent = self._sent_at.pop(arrival.tick, None)
             if sent is not None:
                 self.latency.add(arrival.at - sent)
-            self.score.on_refs(arrival.tick, arrival.records)
+            self.score.on_refs(arrival.tick, records)
             if verdict == Verdict.TAKE and arrival.tick > self.latest_refs_tick:
                 self.latest_refs_tick = arrival.tick
-                self.latest_refs = arrival.records
+                self.latest_refs = records
         if len(self._sent_at) > 4000:
             cutoff = self.plant.k - 2000
             self._sent_at = {k: v for k, v in self._sent_at.items() if k >= cutoff}
