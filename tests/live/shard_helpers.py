@@ -14,7 +14,7 @@ import zenoh
 from service.plugins import load_plugins
 from windwarden.kinds import RunInfo, kind_for
 from windwarden.live.config import SupervisorSettings
-from windwarden.live.coordinator import CoordinatorNode
+from windwarden.live.coordinator import CoordinatorNode, CoordinatorSettings
 from windwarden.live.router import free_port, open_router
 from windwarden.live.shard import ShardNode, ShardSettings
 from windwarden.live.transport import open_session, zenoh_config
@@ -151,9 +151,10 @@ class Sharded:
 
     def __init__(self, coordinator_endpoint: str, shards: list[tuple[str, tuple[int, ...]]], run_dir: Path):
         self.run_dir = run_dir
-        self.coordinator_settings = SupervisorSettings(connect=coordinator_endpoint, run_dir=run_dir)
+        self.coordinator_settings = CoordinatorSettings(connect=coordinator_endpoint, run_dir=run_dir)
         self.shard_specs = shards
         self.errors: list[BaseException] = []
+        self.killed: list[ShardNode] = []
 
     def _run(self, node: object) -> None:
         try:
@@ -180,12 +181,34 @@ class Sharded:
             self._threads.append(thread)
         return self
 
+    def kill(self, i: int) -> None:
+        """Shard ``i`` gone as a killed process is, to the network: its loop stops without a last status (it never
+        says it is not ready) and its session closes (its links drop, its subscriptions vanish)."""
+        node = self.shards[i]
+        node.stop()
+        self._threads[1 + i].join(10)
+        self._sessions[1 + i].close()
+        self.killed.append(node)
+        self._sessions[1 + i] = None
+
+    def restart(self, i: int) -> ShardNode:
+        """A new shard ``i``, the same turbines, its own new session: a restarted process."""
+        endpoint, turbines = self.shard_specs[i]
+        settings = ShardSettings(connect=endpoint, run_dir=self.run_dir)
+        session = self._sessions[1 + i] = open_session(settings)
+        node = self.shards[i] = ShardNode(session, settings, turbines)
+        thread = self._threads[1 + i] = threading.Thread(target=self._run, args=(node,), daemon=True)
+        thread.start()
+        return node
+
     def __exit__(self, *exc: object) -> None:
         for node in (self.coordinator, *self.shards):
             node.stop()
         for thread in self._threads:
             thread.join(10)
         for node in (*self.shards, self.coordinator):
-            node.close()
+            if node not in self.killed:
+                node.close()
         for session in self._sessions:
-            session.close()
+            if session is not None:
+                session.close()

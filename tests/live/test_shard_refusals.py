@@ -55,7 +55,7 @@ def test_the_coordinator_refuses_and_counts_hostile_summaries(tmp_path):
         hostile = open_session(ZenohSettings(connect=endpoint))
         status = {"run_id": coordinator.info.run_id, "turbines": list(range(1, 10)), "ready": False}
         _put(hostile, keys.shard_status("1-9"), encode_json("shard.status", status))
-        assert wait_for(lambda: "1-9" in coordinator.shards, 10)
+        assert wait_for(lambda: "1-9" in coordinator.roster.shards, 10)
         good = _summary(3, run=run)
         bad_version = good[:3] + bytes([FARM_SUMMARY.version + 1]) + good[HEADER.itemsize :]
         probes = {

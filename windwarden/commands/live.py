@@ -281,6 +281,21 @@ def _add_coordinate(sub: argparse._SubParsersAction) -> None:
         "--turbines)",
     )
     _plant_wait_flag(p)
+    p.add_argument(
+        "--shard-lost-samples",
+        dest="shard_lost_samples",
+        type=int,
+        default=None,
+        help="a shard whose summaries miss this many farm samples (10 Hz) the others summarised is lost: its "
+        "turbines are held (2-600, default 10)",
+    )
+    p.add_argument(
+        "--shard-silent",
+        dest="shard_silent_s",
+        type=float,
+        default=None,
+        help="s without a shard's status before it is lost (1-60, default 3)",
+    )
     _zenoh_flags(p)
     _run_flags(p)
     p.set_defaults(func=cmd_coordinate)
@@ -290,12 +305,13 @@ def _add_coordinate(sub: argparse._SubParsersAction) -> None:
 def cmd_coordinate(args: argparse.Namespace) -> int:
     from service.farm.shard import ShardingError
     from service.plugins import AlgorithmOptionError, UnknownAlgorithmError
-    from windwarden.live.config import SupervisorSettings, settings_from_flags
-    from windwarden.live.coordinator import CoordinatorNode
+    from windwarden.live.config import settings_from_flags
+    from windwarden.live.coordinator import CoordinatorNode, CoordinatorSettings
 
     setup_logging("coordinator")
+    flags = ["plant_wait_s", "shard_lost_samples", "shard_silent_s", *ZENOH_FLAGS, *RUN_FLAGS]
     try:
-        settings = settings_from_flags(SupervisorSettings, _flags(args, ["plant_wait_s", *ZENOH_FLAGS, *RUN_FLAGS]))
+        settings = settings_from_flags(CoordinatorSettings, _flags(args, flags))
     except ValueError as error:
         raise BadInputError(str(error)) from None
     apply_nice(settings)
@@ -312,8 +328,10 @@ def cmd_coordinate(args: argparse.Namespace) -> int:
         finally:
             status = node.status()
             log.info(
-                "coordinator stops: %d farm samples, dropped %s, step %s",
+                "coordinator stops: %d farm samples, %d shards lost, %d rejoined, dropped %s, step %s",
                 status["samples"],
+                status["shards_lost"],
+                status["shards_rejoined"],
                 status["dropped"],
                 status["step"],
             )

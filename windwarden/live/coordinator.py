@@ -18,6 +18,15 @@ own every turbine of it, each turbine once. Summary frames are refused whole and
 not decode, when a field the coordinator computes with is not finite or out of its range (``FARM_SUMMARY.refusal``),
 for a turbine the run does not have or the sending shard does not own, for a tick already decided, or when the rows
 of one tick are not of one sample and run.
+
+**A lost shard** (``sharding.ShardRoster``): once the run has started, a shard whose summaries are missing from
+``shard_lost_samples`` farm samples the other shards summarised (10: 1 s of farm time at ×1), whose status has been
+silent for ``shard_silent_s`` (3 s), or whose status says it stopped, is lost: a ``liveliness`` event names it and its
+turbines, the status lists it (``lost_shards``, ``held_turbines``, ``shards_lost``), and the farm samples are decided
+without it: its turbines' rows are held at their last summary (``sharding.held_summaries``: the dispatch sees them as
+they were, their flags do not change), nothing is dispatched to it, and the plan in the status leaves it out, so the
+plant completes each tick without its turbines and keeps their last references (``FarmKind.hold_unserved``). It
+rejoins (an event, ``shards_rejoined``) when it reports ready for the run again and summarises a newer sample.
 """
 
 from __future__ import annotations
@@ -31,6 +40,7 @@ from typing import Any
 
 import numpy as np
 import zenoh
+from pydantic import Field
 
 from service.farm.shard import coordinator_supervisor
 from service.farm.supervisor import FarmSupervisor
@@ -39,10 +49,10 @@ from windwarden.live.config import SupervisorSettings
 from windwarden.live.mailbox import TickMailbox
 from windwarden.live.run_query import query_run, wait_for_run
 from windwarden.live.runfolder import EVENTS, EventLog
-from windwarden.live.sharding import checked, farm_sample, mismatch
+from windwarden.live.sharding import ShardRoster, checked, farm_sample, held_summaries, mismatch
 from windwarden.live.timing import LatencyStats
 from windwarden.live.transport import JsonQueryable, LivenessWatch, declare_publisher
-from wwcore.events import Event
+from wwcore.events import Event, EventType
 from wwcore.keys import COMMAND_QOS, EVENT_QOS, Process
 from wwcore.wire import FARM_REFS, FARM_SUMMARY, DropCounter, DropReason, WireError, decode_json, encode_json
 
@@ -50,10 +60,24 @@ log = logging.getLogger(__name__)
 WAKE = None  # put in the summary queue to have the main loop look at the shards and the plant
 
 
+class CoordinatorSettings(SupervisorSettings):
+    """``windwarden coordinate``."""
+
+    shard_lost_samples: int = Field(
+        default=10,
+        ge=2,
+        le=600,
+        description="a shard whose summaries miss this many farm samples the others summarised is lost (10 Hz)",
+    )
+    shard_silent_s: float = Field(
+        default=3.0, ge=1.0, le=60.0, description="s without a shard's status (2 Hz) before it is lost"
+    )
+
+
 class CoordinatorNode:
     """Coordinates the shards of one plant's run (and of the next run) until ``stop()``."""
 
-    def __init__(self, session: zenoh.Session, settings: SupervisorSettings):
+    def __init__(self, session: zenoh.Session, settings: CoordinatorSettings):
         self.session = session
         self.settings = settings
         self.keys = settings.keys
@@ -66,8 +90,10 @@ class CoordinatorNode:
         self.supervisor: FarmSupervisor | None = None
         self.turbines: list[int] = []
         self.events: EventLog | None = None
-        self.shards: dict[str, dict[str, Any]] = {}  # shard name → its last status
+        self.roster = ShardRoster(settings.shard_lost_samples, settings.shard_silent_s)
         self.coverage_problem: str | None = "no shard yet"
+        self._last_summaries: np.ndarray | None = None  # the last sample decided, every turbine's row
+        self._decided_at = -np.inf  # time.monotonic() of the last farm sample decided
         self.last_tick = -1
         self.last_t = 0.0
         self.samples = 0
@@ -111,10 +137,17 @@ class CoordinatorNode:
             self.drops.add("summary", "no_run")
             return
         name = self.keys.sender_of(str(sample.key_expr))
+        head = FARM_SUMMARY.decode_frame(payload)[0]
         with self._lock:
-            shard = self.shards.get(name)
-            run_id = None if self.info is None else self.info.run_id
-        turbines = shard["turbines"] if shard is not None and shard["run_id"] == run_id else []
+            roster = self.roster
+            if self.info is not None and int(head["run"]) == self.info.run_key and name in roster.shards:
+                roster.heard_summary(name, int(head["tick"]))
+            if name in roster.lost:  # not decided with until it rejoins (the main loop's check)
+                self._inbox.put(WAKE)
+                return
+            state = roster.shards.get(name)
+            mine = state is not None and self.info is not None and state.run_id == self.info.run_id
+            turbines = state.turbines if mine else []
         mailbox.put(payload, mailbox.owned_mask(turbines))  # a shard summarises its own turbines only
         self._inbox.put(b"")  # the main loop drains the mailbox
 
@@ -133,7 +166,7 @@ class CoordinatorNode:
             self.drops.add("shard.status", DropReason.BAD_BODY)
             return
         with self._lock:
-            self.shards[name] = {"run_id": body.get("run_id"), "turbines": turbines, "ready": body.get("ready") is True}
+            self.roster.heard_status(name, body.get("run_id"), turbines, body.get("ready") is True)
         self._inbox.put(WAKE)
 
     def _on_liveliness(self, process: str, alive: bool) -> None:
@@ -157,62 +190,99 @@ class CoordinatorNode:
             self.kind = kind_for(info.kind)
             self.turbines = list(info.turbines)
             self.last_tick = -1
+            self._last_summaries = None
             self.summaries = TickMailbox(FARM_SUMMARY, self.turbines, self.drops, "summary", self._summary_window)
+            if new_run:
+                self.roster.start(info.run_id)
         if new_run:
             if self.events is not None:
                 self.events.close()
             folder: Path = self.settings.folder(info.run_id)
             self.events = EventLog(folder / EVENTS, self._publish_event)
-        self._check_coverage()
+        self._check_shards()
         self.publish_status(force=True)
 
-    def _check_coverage(self) -> bool:
-        """Whether the shards ready for this run own every turbine of it, each once (else ``coverage_problem``)."""
+    def _check_shards(self) -> bool:
+        """Admit the shards ready for the run, find the lost and the rejoined ones (an event each, the summaries
+        expected from the shards admitted), and whether they serve every turbine of the run (else
+        ``coverage_problem``); True when the coordinator is ready."""
         with self._lock:
             if self.info is None:
                 self.coverage_problem = "no run yet"
                 return False
-            owner: dict[int, str] = {}
-            twice = []
-            for name, shard in sorted(self.shards.items()):
-                if not shard["ready"] or shard["run_id"] != self.info.run_id:
-                    continue
-                for turbine in shard["turbines"]:
-                    if turbine in owner:
-                        twice.append(f"turbine {turbine} ({owner[turbine]} and {name})")
-                    owner[turbine] = name
-            missing = sorted(set(self.turbines) - set(owner))
-            if twice:
-                problem = "owned twice: " + ", ".join(twice)
-            elif missing:
-                problem = f"no ready shard owns turbines {missing}"
-            else:
-                problem = None
+            roster = self.roster
+            changes = roster.check(self.turbines)
+            problem = roster.coverage(self.turbines)
             changed = problem != self.coverage_problem
             self.coverage_problem = problem
+            if changes and roster.admitted and self.summaries is not None:
+                served = roster.turbines_of(roster.admitted)
+                self.summaries.expect(self.summaries.owned_mask(served))
+            held = roster.held()
+            noticed_t = max(roster.newest(), 0) * self.info.dt  # the newest farm sample summarised: when it was noticed
+        for name, alive, reason in changes:
+            turbines = self.roster.shards[name].turbines
+            detail = {
+                "process": "shard",
+                "shard": name,
+                "turbines": list(turbines),
+                "alive": alive,
+                "reason": reason,
+                "held_turbines": held,
+                "noticed_by": "coordinator",
+            }
+            (log.info if alive else log.warning)(
+                "shard %s (turbines %s) %s: %s", name, turbines, "rejoined" if alive else "lost", reason
+            )
+            if self.events is not None:
+                self.events.write([Event(noticed_t, EventType.LIVELINESS, detail=detail)])
         if changed:
-            log.info("shards: %s", problem or f"every turbine of run {self.info.run_id} is owned")
+            log.info("shards: %s", problem or f"every turbine of run {self.info.run_id} is served")
+        if changes:
+            self.publish_status(force=True)  # the plant takes the new plan from it
         return problem is None
 
     # -- status ----------------------------------------------------------------------------------------------------
     def status(self) -> dict[str, Any]:
         with self._lock:
+            roster = self.roster
+            held = roster.held()
             turbines = []
             if self.supervisor is not None:
                 turbines = self.kind.status(self.supervisor, None, self.turbines)
                 detector = (self.info.supervisor.detector or "analytic") + " (in the shards)"
                 for entry in turbines:
                     entry["detector"] = detector
-            shards = {name: dict(shard) for name, shard in self.shards.items()}
+                    entry["supervised"] = entry["turbine"] not in held
+            shards = {
+                name: {
+                    "run_id": state.run_id,
+                    "turbines": list(state.turbines),
+                    "ready": name in roster.admitted,  # the plan the plant takes
+                    "lost": name in roster.lost,
+                }
+                for name, state in roster.shards.items()
+            }
+            lost = {
+                name: {"turbines": shard.turbines, "reason": shard.reason, "since_tick": shard.tick}
+                for name, shard in roster.lost.items()
+            }
+            counts = roster.lost_total, roster.rejoined_total
         return {
             "run_id": None if self.info is None else self.info.run_id,
             "ready": self.supervisor is not None and self.coverage_problem is None,
             "kind": None if self.info is None else self.info.kind,
             "tick": None if self.last_tick < 0 else self.last_tick,
             "t": self.last_t,
+            "stream_fresh": time.monotonic() - self._decided_at <= self.settings.stale_after_s,
+            "plant_alive": self.watch.is_alive(Process.PLANT),
             "sharded": True,
             "shards": shards,
-            "coverage": self.coverage_problem or "complete",
+            "coverage": self.coverage_problem or ("degraded: turbines held" if held else "complete"),
+            "lost_shards": lost,
+            "held_turbines": held,
+            "shards_lost": counts[0],
+            "shards_rejoined": counts[1],
             "samples": self.samples,
             "step": self.step_time.summary(recent=1000),
             "dropped": self.drops.as_dict(),
@@ -240,19 +310,15 @@ class CoordinatorNode:
             try:
                 item = self._inbox.get(timeout=self.settings.status_every_s)
             except queue.Empty:
-                self.publish_status()
-                continue
-            if item is WAKE:
-                if self._plant_appeared.is_set():
-                    self._plant_appeared.clear()
-                    self._follow_plant()
-                now_ready = self._check_coverage()
-                self.publish_status(force=now_ready != ready)  # the handshake: the plant starts on it
-                ready = now_ready
-                continue
+                item = WAKE
+            if item is WAKE and self._plant_appeared.is_set():
+                self._plant_appeared.clear()
+                self._follow_plant()
+            now_ready = self._check_shards()
+            self.publish_status(force=now_ready != ready)  # the handshake: the plant starts on it
+            ready = now_ready
             for arrival in self.summaries.drain():
-                self._on_sample(arrival.tick, arrival.records)
-            self.publish_status()
+                self._on_sample(arrival.tick, arrival.records, arrival.served)
         return 0
 
     def _follow_plant(self) -> None:
@@ -260,7 +326,13 @@ class CoordinatorNode:
         if info is not None and self.info is not None and info.run_key != self.info.run_key:
             self.start_run(info)
 
-    def _on_sample(self, tick: int, records: np.ndarray) -> None:
+    def _on_sample(self, tick: int, records: np.ndarray, served: np.ndarray | None = None) -> None:
+        if served is not None:  # a lost shard's turbines: held at their last summary
+            records = held_summaries(records, served, self._last_summaries)
+            if records is None:
+                self.drops.add("summary", DropReason.INCOMPLETE)
+                log.warning("farm sample of tick %d not decided: a shard was lost before any sample was", tick)
+                return
         problem = mismatch(records)
         if problem is None and int(records["run"][0]) != self.info.run_key:
             problem = f"summaries of tick {tick} are of another run"
@@ -268,6 +340,8 @@ class CoordinatorNode:
             self.drops.add("summary", DropReason.FOREIGN_RUN if "run" in problem else DropReason.BAD_BODY)
             log.warning("summaries refused: %s", problem)
             return
+        self._last_summaries = records
+        self._decided_at = time.monotonic()
         started = time.perf_counter()
         sample, diagnosis = farm_sample(records)
         with self._lock:
@@ -285,12 +359,9 @@ class CoordinatorNode:
             self._dispatch_pubs[name].put(FARM_REFS.encode_frame(out[rows]))
 
     def _plan(self) -> list[tuple[str, np.ndarray]]:
-        """Each shard ready for the run, with the rows of its turbines in the run's turbine order."""
+        """Each shard admitted for the run (ready, not lost), with the rows of its turbines in the run's order."""
         position = {t: i for i, t in enumerate(self.turbines)}
         with self._lock:
-            shards = sorted(self.shards.items())
-        return [
-            (name, np.array([position[t] for t in shard["turbines"] if t in position], dtype=np.intp))
-            for name, shard in shards
-            if shard["ready"] and shard["run_id"] == self.info.run_id
-        ]
+            shards = [(name, self.roster.shards[name].turbines) for name in sorted(self.roster.admitted)]
+        rows = [(name, [position[t] for t in owned if t in position]) for name, owned in shards]
+        return [(name, np.array(positions, dtype=np.intp)) for name, positions in rows]

@@ -96,6 +96,7 @@ class ShardNode:
         self._pending_since = 0.0
         self._newest_sample = -1  # the newest farm-sample tick whose summaries went out
         self._dispatch_tick = -1  # the farm-sample tick of ``last_dispatch``
+        self._joined_late = False  # its first frame of the run was not tick 0 (a restarted shard)
         self._last_status = 0.0
         s = session
         self._status_pub = declare_publisher(s, self.keys.shard_status(self.name), EVENT_QOS)
@@ -162,6 +163,7 @@ class ShardNode:
         self.last_dispatch = None
         self.last_tick = None
         self._pending, self._newest_sample, self._dispatch_tick = None, -1, -1
+        self._joined_late = False
         self.sequencer.start(info.run_key)
         if self._sensor_sub is None:  # subscribing last: the coordinator tells the plant once every shard is ready
             self._sensor_sub = self.session.declare_subscriber(self.keys.sensors, self._on_sensors)
@@ -266,6 +268,8 @@ class ShardNode:
         if decision in (FrameSequencer.NEW_RUN, FrameSequencer.RESTART):
             self.start_run(self.sequencer.confirmed if decision == FrameSequencer.NEW_RUN else self.info)
         tick = int(records["tick"][0])
+        if self.last_tick is None:
+            self._joined_late = tick > 0
         self.last_tick = tick
         self.sequencer.stepped(tick)
         self.frames += 1
@@ -298,5 +302,8 @@ class ShardNode:
         """Publish the refs of sensor tick ``tick``: the newest dispatch rows, re-stamped."""
         if tick == self._pending:
             self._pending = None
+        if self._joined_late and self._newest_sample < 0:
+            return  # the coordinator (re)admits a shard joining a running farm on its first summary: the plant's
+            # plan has no place for its refs before that (they would be refused as not_owned)
         out = held_records(self.last_dispatch, tick, list(self.owned))
         self._refs_pub.put(FARM_REFS.encode_frame(out))
