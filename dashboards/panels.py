@@ -316,13 +316,18 @@ def _farm_turbine_views(turbine: int) -> list[Any]:
 
 def _farm_plant(sensors: np.ndarray, truth: np.ndarray | None) -> Rows:
     nan = float("nan")
-    return {
+    rows = {
         "power/plant": {
             "farm power": nan if truth is None else float(truth["farm_power"][0]) / 1e6,
             "demand": float(sensors["demand"][0]) / 1e6,
         },
         "wind/plant": {"met mast": float(sensors["mast"][0])},
     }
+    if truth is not None:  # one group for the farm (one send a second), not one per turbine
+        direction = {"met mast vane": float(sensors["mast_direction"][0])}
+        direction |= {f"T{int(t)}": float(d) for t, d in zip(truth["turbine"], truth["wind_direction"], strict=True)}
+        rows["direction/plant"] = direction
+    return rows
 
 
 def _farm_supervisor(sensors: np.ndarray, refs: np.ndarray) -> Rows:
@@ -333,6 +338,12 @@ def _farm_overview(turbines: list[int]) -> list[Any]:
     views: list[Any] = [
         map_view(),
         _series_view("/farm/power", "farm power MW (green) vs demand (black) and the sum of the references (orange)"),
+        rrb.TimeSeriesView(
+            origin="/farm/direction",
+            name="wind direction deg: the mast's vane (blue), the true direction at each turbine (grey)",
+            time_ranges=_window(),
+            plot_legend=rrb.PlotLegend(visible=False),
+        ),
         _residual_view(  # 27 series: no legend; hovering a trace names its turbine
             "/turbine",
             f"CUSUM {_RESIDUAL_SCALE}, all turbines: debris (orange), pitch (purple), drive train (red)",
@@ -373,6 +384,7 @@ FARM = Panel(
         "demand": TRUTH,
         "Σ references": REFERENCE,
         "met mast": SENSOR_1,
+        "met mast vane": SENSOR_1,
     },
     views=_farm_turbine_views,
     farm_plant=_farm_plant,

@@ -34,6 +34,7 @@ def test_each_kind_says_everything_the_program_asks_of_it(name):
         "frame_from_records",
         "refs_records",
         "refs_from_records",
+        "hold_unserved",
         "truth_records",
         "inject",
         "clear",

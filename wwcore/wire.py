@@ -477,7 +477,7 @@ thresholds are display only and may be NaN)."""
 FARM_TRUTH = MessageSchema(
     "farm.truth",
     10,
-    1,
+    2,  # v2: wind_direction
     "Ground truth of one farm turbine and of its farm, for display and scoring only.",
     (
         *_tick_fields(),
@@ -491,8 +491,17 @@ FARM_TRUTH = MessageSchema(
         WireField("row_wind", "<f8", "m/s", "mean wind of the turbine's row (delayed mast wind, waked)"),
         WireField("zone", "i1", "–", "controller zone"),
         WireField("farm_power", "<f8", "W", "the farm's total output"),
+        WireField(
+            "wind_direction",
+            "<f8",
+            "deg",
+            "true direction (from north, clockwise, 0 … <360) of the air at the turbine: the mast's, carried "
+            "across the farm with the wind (docs/farm.md §1.9)",
+        ),
     ),
 )
+FARM_TRUTH = with_limits(FARM_TRUTH, {"wind_direction": (0.0, 360.0, None)})
+"""Truth is never acted on; its ranges say what a row may hold (``MessageSchema.refusal`` checks a recorded one)."""
 
 SCHEMAS: dict[str, MessageSchema] = {
     s.name: s

@@ -128,3 +128,37 @@ def test_rows_of_two_farm_samples_in_one_tick_leave_every_turbine_on_its_referen
     assert kind.refs_from_records(late) is None
     late["computed_tick"][4:], late["power_ref"][4:] = 9, 2e6  # shard 5-9 on the previous sample's rows
     assert kind.refs_from_records(late) is None
+
+
+def test_the_truth_frame_carries_each_turbines_true_wind_direction_and_the_dashboard_records_it():
+    """``farm.truth`` v2: the direction (deg from north, 0 … <360) of the air at each turbine, as the plant carries
+    the mast's across the farm (``docs/farm.md`` §1.9); a veer reaches the turbines at different times, so the rows
+    differ. The farm's Rerun rows hold them in one group, beside the mast's vane."""
+    from dashboards.panels import PANELS
+    from wwcore.wire import FARM_TRUTH, DropReason
+
+    kind = kind_for("farm")
+    scenario = parse_scenario(
+        SCENARIO
+        | {
+            "duration_s": 60.0,
+            "plant": {"kind": "farm", "wind_direction_profile": [[0.0, 270.0], [5.0, 290.0]]},
+        }
+    )
+    plant = kind.make_plant(scenario, seed=3)
+    turbines = kind.turbines(plant)
+    for _ in range(3500):  # 35 s: the turn of the profile has reached the front turbines, not the others
+        frame = plant.measure()
+        plant.control(None)
+        plant.advance()
+    truth = kind.truth_records(plant, frame, turbines)
+    assert np.array_equal(truth["wind_direction"], plant.truth()["wind_direction"])
+    assert ((truth["wind_direction"] >= 0.0) & (truth["wind_direction"] < 360.0)).all()
+    assert np.ptp(truth["wind_direction"]) > 1.0  # the turbines see the turn at different times
+    back = FARM_TRUTH.decode_frame(FARM_TRUTH.encode_frame(truth))
+    assert back.tobytes() == truth.tobytes() and FARM_TRUTH.refusal(back) is None
+    bad = truth.copy()
+    bad["wind_direction"][3] = 400.0
+    assert FARM_TRUTH.refusal(bad) == DropReason.OUT_OF_RANGE
+    rows = PANELS["farm"].farm_plant(kind.frame_records(frame, turbines), truth)["direction/plant"]
+    assert [rows[f"T{t}"] for t in turbines] == list(truth["wind_direction"]) and "met mast vane" in rows

@@ -13,6 +13,7 @@ from hypothesis.extra.numpy import arrays
 
 from wwcore.keys import KeyTree
 from wwcore.wire import (
+    FARM_TRUTH,
     HEADER,
     HYDRO_REFS,
     JSON_SCHEMAS,
@@ -131,3 +132,21 @@ def test_drop_counter():
     drops.add("refs", DropReason.BAD_LENGTH)
     drops.add("sensors", DropReason.BAD_VERSION)
     assert drops.as_dict() == {"refs:bad_length": 2, "sensors:bad_version": 1} and drops.total() == 3
+
+
+def test_the_farm_truth_carries_the_true_wind_direction_in_a_new_version():
+    """A field added to a frame is a new layout, so a new version (the codec refuses the old one as ``bad_version``,
+    never misreads its bytes); ``wind_direction`` is in degrees, 0 … 360."""
+    (field,) = [f for f in FARM_TRUTH.fields if f.name == "wind_direction"]
+    assert FARM_TRUTH.version == 2 and field.unit == "deg" and field.limits == (0.0, 360.0) and field.when is None
+    rows = FARM_TRUTH.empty(3)
+    rows["turbine"], rows["wind_direction"] = [1, 2, 3], [0.0, 271.5, 359.99]
+    payload = FARM_TRUTH.encode_frame(rows)
+    assert FARM_TRUTH.decode_frame(payload)["wind_direction"].tolist() == [0.0, 271.5, 359.99]
+    v1 = payload[:3] + bytes([1]) + payload[4:]
+    with pytest.raises(WireError) as error:
+        FARM_TRUTH.decode_frame(v1)
+    assert error.value.reason == DropReason.BAD_VERSION
+    for bad, reason in ((-0.1, DropReason.OUT_OF_RANGE), (360.5, DropReason.OUT_OF_RANGE), (np.nan, "non_finite")):
+        rows["wind_direction"][1] = bad
+        assert FARM_TRUTH.refusal(rows) == reason

@@ -207,6 +207,7 @@ class FarmKind:
             "row_wind": truth["row_wind"],
             "zone": truth["zone"],
             "farm_power": np.repeat(farm_power, per_farm),
+            "wind_direction": truth["wind_direction"],
         }
         return records_from_batch(FARM_TRUTH, values, turbines)
 
