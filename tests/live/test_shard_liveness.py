@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 from pydantic import ValidationError
 
+from api.routes.supervisor import _status as api_status
 from tests.live.helpers import LiveNodes, router, scenario, wait_for
 from tests.live.shard_helpers import Sharded
 from windwarden.kinds.farm import FARM
@@ -79,6 +80,7 @@ def test_a_killed_shard_is_noticed_the_farm_goes_on_and_the_restarted_shard_rejo
             }
             assert status["coverage"] == "degraded: turbines held"
             assert [t["turbine"] for t in status["turbines"] if not t["supervised"]] == list(B)
+            assert api_status(status).ready  # what GET /supervisor/status answers with
             lost = _liveliness(run_dir, alive=False)
             assert len(lost) == 1 and lost[0].detail["shard"] == "5-9" and lost[0].detail["turbines"] == list(B)
             assert lost[0].detail["noticed_by"] == "coordinator" and "farm samples" in lost[0].detail["reason"]

@@ -93,6 +93,7 @@ class CoordinatorNode:
         self.roster = ShardRoster(settings.shard_lost_samples, settings.shard_silent_s)
         self.coverage_problem: str | None = "no shard yet"
         self._last_summaries: np.ndarray | None = None  # the last sample decided, every turbine's row
+        self._last_out: np.ndarray | None = None  # its references, every turbine's row
         self._decided_at = -np.inf  # time.monotonic() of the last farm sample decided
         self.last_tick = -1
         self.last_t = 0.0
@@ -190,7 +191,7 @@ class CoordinatorNode:
             self.kind = kind_for(info.kind)
             self.turbines = list(info.turbines)
             self.last_tick = -1
-            self._last_summaries = None
+            self._last_summaries = self._last_out = None
             self.summaries = TickMailbox(FARM_SUMMARY, self.turbines, self.drops, "summary", self._summary_window)
             if new_run:
                 self.roster.start(info.run_id)
@@ -240,6 +241,9 @@ class CoordinatorNode:
             log.info("shards: %s", problem or f"every turbine of run {self.info.run_id} is served")
         if changes:
             self.publish_status(force=True)  # the plant takes the new plan from it
+        for name, rows in self._plan():
+            if self._last_out is not None and (name, True) in {(n, a) for n, a, _ in changes}:
+                self._dispatch(name, self._last_out[rows])  # a rejoined shard has references at once
         return problem is None
 
     # -- status ----------------------------------------------------------------------------------------------------
@@ -353,10 +357,14 @@ class CoordinatorNode:
         self.last_tick, self.last_t, self.samples = tick, float(records["t"][0]), self.samples + 1
         if events and self.events is not None:
             self.events.write(events)  # before the references, as one supervisor does
+        self._last_out = out
         for name, rows in self._plan():
-            if name not in self._dispatch_pubs:
-                self._dispatch_pubs[name] = declare_publisher(self.session, self.keys.dispatch(name), COMMAND_QOS)
-            self._dispatch_pubs[name].put(FARM_REFS.encode_frame(out[rows]))
+            self._dispatch(name, out[rows])
+
+    def _dispatch(self, name: str, rows: np.ndarray) -> None:
+        if name not in self._dispatch_pubs:
+            self._dispatch_pubs[name] = declare_publisher(self.session, self.keys.dispatch(name), COMMAND_QOS)
+        self._dispatch_pubs[name].put(FARM_REFS.encode_frame(rows))
 
     def _plan(self) -> list[tuple[str, np.ndarray]]:
         """Each shard admitted for the run (ready, not lost), with the rows of its turbines in the run's order."""
