@@ -94,6 +94,7 @@ class CoordinatorNode:
         self.coverage_problem: str | None = "no shard yet"
         self._last_summaries: np.ndarray | None = None  # the last sample decided, every turbine's row
         self._last_out: np.ndarray | None = None  # its references, every turbine's row
+        self._expecting: set[str] = set()  # the shards whose summaries complete a farm sample
         self._decided_at = -np.inf  # time.monotonic() of the last farm sample decided
         self.last_tick = -1
         self.last_t = 0.0
@@ -193,6 +194,7 @@ class CoordinatorNode:
             self.last_tick = -1
             self._last_summaries = self._last_out = None
             self.summaries = TickMailbox(FARM_SUMMARY, self.turbines, self.drops, "summary", self._summary_window)
+            self._expecting = set()  # a new mailbox expects every turbine
             if new_run:
                 self.roster.start(info.run_id)
         if new_run:
@@ -216,9 +218,9 @@ class CoordinatorNode:
             problem = roster.coverage(self.turbines)
             changed = problem != self.coverage_problem
             self.coverage_problem = problem
-            if changes and roster.admitted and self.summaries is not None:
-                served = roster.turbines_of(roster.admitted)
-                self.summaries.expect(self.summaries.owned_mask(served))
+            if roster.started and roster.admitted != self._expecting and self.summaries is not None:
+                self._expecting = set(roster.admitted)  # a tick is complete with the summaries of these
+                self.summaries.expect(self.summaries.owned_mask(roster.turbines_of(roster.admitted)))
             held = roster.held()
             noticed_t = max(roster.newest(), 0) * self.info.dt  # the newest farm sample summarised: when it was noticed
         for name, alive, reason in changes:
@@ -241,9 +243,11 @@ class CoordinatorNode:
             log.info("shards: %s", problem or f"every turbine of run {self.info.run_id} is served")
         if changes:
             self.publish_status(force=True)  # the plant takes the new plan from it
-        for name, rows in self._plan():
-            if self._last_out is not None and (name, True) in {(n, a) for n, a, _ in changes}:
-                self._dispatch(name, self._last_out[rows])  # a rejoined shard has references at once
+        rejoined = {name for name, alive, _ in changes if alive}
+        if rejoined and self._last_out is not None:
+            for name, rows in self._plan():
+                if name in rejoined:
+                    self._dispatch(name, self._last_out[rows])  # a rejoined shard has references at once
         return problem is None
 
     # -- status ----------------------------------------------------------------------------------------------------
@@ -331,6 +335,9 @@ class CoordinatorNode:
             self.start_run(info)
 
     def _on_sample(self, tick: int, records: np.ndarray, served: np.ndarray | None = None) -> None:
+        if tick <= self.last_tick:  # a sample that waited for a lost shard, older than one decided since: never decided
+            self.drops.add("summary", DropReason.INCOMPLETE)
+            return
         if served is not None:  # a lost shard's turbines: held at their last summary
             records = held_summaries(records, served, self._last_summaries)
             if records is None:
