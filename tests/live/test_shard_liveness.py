@@ -14,6 +14,7 @@ from pydantic import ValidationError
 from api.routes.supervisor import _status as api_status
 from tests.live.helpers import LiveNodes, router, scenario, wait_for
 from tests.live.shard_helpers import Sharded
+from windwarden.cli import main
 from windwarden.kinds.farm import FARM
 from windwarden.live.coordinator import CoordinatorSettings
 from windwarden.live.mailbox import TickMailbox
@@ -223,3 +224,12 @@ def test_the_plant_keeps_the_last_reference_of_a_turbine_nobody_serves():
     empty = FARM.hold_unserved(now, served, None)
     assert list(empty["computed_tick"]) == [49, -1, -1] and FARM.refs_from_records(empty) is None
     assert FARM_REFS.refusal(empty) is None
+
+
+def test_the_command_line_refuses_lost_shard_settings_out_of_range(capsys):
+    for argv in (["--shard-lost-samples", "1"], ["--shard-lost-samples", "601"], ["--shard-silent", "0"]):
+        assert main(["coordinate", *argv]) == 2, argv  # refused before anything starts (no session)
+        assert "shard_" in capsys.readouterr().err, argv
+    with pytest.raises(SystemExit) as exited:  # not a number: argparse's own refusal
+        main(["coordinate", "--shard-lost-samples", "ten"])
+    assert exited.value.code == 2
