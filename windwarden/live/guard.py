@@ -6,7 +6,9 @@ on the messages, and they hold whoever got through.
 **Plant, references** (``RefsGuard``, ``RefsSenders``). A refs frame is assembled into its tick only if its sender
 (the last chunk of its key) is the one supervisor, or a shard of the sharded supervisor's plan (the coordinator's
 status: which shard owns which turbines) and every row is for a turbine the sender owns (``not_owned``), each once
-(``duplicate_turbine``), all of one tick (``mixed_ticks``): ``TickMailbox``. A tick's refs are taken only if it is
+(``duplicate_turbine``), all of one tick (``mixed_ticks``): ``TickMailbox``; a tick needs the rows of the turbines
+the plan's senders own (``RefsSenders.served``: a lost shard is out of the plan, and its turbines keep their last
+reference, ``FarmKind.hold_unserved``). A tick's refs are taken only if it is
 for a tick the plant has measured and not older than its window (k − ``max_ref_age`` ≤ tick ≤ k − 1 when tick k
 starts), every field the plant acts on is finite and inside its physical range (``wwcore.wire.WireField.limits``),
 and no refs for that tick were taken before. A refused message is counted by reason, changes nothing and leaves the

@@ -15,7 +15,9 @@ sensor frame:
 
 The refs, one frame per tick of the shard's turbines on ``refs/<name>``, are the newest dispatch rows of its
 turbines re-stamped with the tick (``sharding.held_records``), as one supervisor re-stamps its references between
-farm samples. The plant takes a shard's rows only for the turbines the coordinator's plan gives it.
+farm samples. The plant takes a shard's rows only for the turbines the coordinator's plan gives it; a shard that
+joins a running farm (restarted after it was lost: its first frame is not tick 0) sends no refs before its first
+summary, on which the coordinator takes it back into the plan (``sharding.ShardRoster``).
 
 Dispatch frames are refused whole and counted (``dropped``) when they do not decode, when a field the plant acts on
 is not finite or out of its range (``FARM_REFS.refusal``), when they are for another tick than the one awaited, or
