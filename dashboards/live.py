@@ -110,7 +110,8 @@ def _record_batch(unit: _Unit) -> pa.RecordBatch:
     n, width = hi - lo, len(group.names)
     offsets = pa.array(np.arange(0, n * width + 1, width, dtype=np.int32))
     block = np.ascontiguousarray(group.values[lo:hi, unit.start : unit.stop, :].transpose(1, 0, 2))
-    arrays: list[pa.Array] = [pa.array((group.times[lo:hi] * 1e9).astype("timedelta64[ns]"), pa.duration("ns"))]
+    nanoseconds = np.rint(group.times[lo:hi] * 1e9).astype("timedelta64[ns]")  # the sample time, to the nearest ns
+    arrays: list[pa.Array] = [pa.array(nanoseconds, pa.duration("ns"))]
     arrays += [pa.ListArray.from_arrays(offsets, pa.array(block[e].ravel())) for e in range(len(block))]
     return pa.RecordBatch.from_arrays(arrays, schema=pa.schema([_TIME_FIELD, *group.fields[unit.start : unit.stop]]))
 
