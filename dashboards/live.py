@@ -46,7 +46,7 @@ _UNSAFE = re.compile(r"[^A-Za-z0-9_\-/.]")  # entity path parts: letters, digits
 FLUSH_ROWS = 10  # rows a unit holds before it is due to be sent (1 s of simulation time at 10 Hz)
 BUFFER_ROWS = 5 * FLUSH_ROWS  # a unit this far behind is sent at once: nobody pumps, do not let it grow
 DISPLAY_EVERY = 10  # ticks between two display rows, when the node does not say (``display_every``)
-MIN_UNIT = 8  # entities per send where a group has them: a send's fixed cost is about that of a few entities
+MIN_UNIT = 16  # entities per send where a group has them: a send's fixed cost is about that of a few entities
 
 _TIME_FIELD = pa.field(TIMELINE, pa.duration("ns"), metadata={"rerun:kind": "index", "rerun:index_name": TIMELINE})
 _SCALARS = {  # what ``rr.Scalars.columns`` declares for its one component, as Arrow field metadata
