@@ -27,8 +27,11 @@ from wwcore.channels import SENSOR_INDEX
 from wwcore.hydro_params import FAULT_TARGETS
 
 Rows = dict[str, dict[str, float]]
-"""One row of every series group: group path under ``/turbine/<id>/`` → series name → value. A group is one entity
-holding several scalar series (one ``send_columns`` call for all of them); its names stay the same from row to row."""
+"""One row of every series group of the whole plant: group path under ``/farm/`` → series name → value."""
+Columns = dict[str, dict[str, Any]]
+"""One row of every series group for each of n turbines at once: group path under ``/turbine/<id>/`` → series name
+→ n values (an array, or one number for all). A group is one entity per turbine holding several scalar series; its
+names stay the same from row to row. Built with numpy over the frame's rows, never a Python loop over turbines."""
 WINDOW_S = 120.0  # s of simulation time the time-series views follow behind the cursor
 MARGIN_DISPLAY_MAX = 4.0  # 1 + log10(1000): statistics above 1000× their threshold are drawn at the top
 RESIDUAL_AXIS = (0.0, 7.0)  # y range of the residual views: traces in [0, MARGIN_DISPLAY_MAX], the legend above
@@ -42,8 +45,8 @@ ESTIMATE, REFERENCE, TRUTH, FAULT = (40, 170, 80), (240, 140, 30), (20, 20, 20),
 class Panel:
     """The live dashboard of one plant kind."""
 
-    plant: Callable[[np.void, np.void | None], Rows]  # (sensor record, truth record or None) → rows of one turbine
-    supervisor: Callable[[np.void, np.void, dict[str, Any]], Rows]  # (sensors, refs, status of that turbine)
+    plant: Callable[[np.ndarray, np.ndarray | None], Columns]  # (sensor rows, truth rows or None) → every turbine's
+    supervisor: Callable[[np.ndarray, np.ndarray, list[dict[str, Any]] | None], Columns]  # (sensors, refs, status)
     colors: dict[str, tuple[int, int, int]]  # series name → colour
     views: Callable[[int], list[Any]]  # turbine → views
     # A plant of several turbines may add rows of the whole plant under ``/farm/…`` and an overview tab:
@@ -51,6 +54,7 @@ class Panel:
     farm_supervisor: Callable[[np.ndarray, np.ndarray], Rows] | None = None  # (all sensor rows, all refs rows)
     overview: Callable[[list[int]], list[Any]] | None = None  # turbines → views of the overview tab
     site_map: Callable[[Any], FarmGeometry] | None = None  # the scenario's plant section → its map (farm_map)
+    uses_status: bool = True  # ``supervisor`` reads the per-turbine status (else it gets None: not built)
 
 
 def _window() -> list[rrb.VisibleTimeRange]:
@@ -71,10 +75,15 @@ def display_margin(margin: Any) -> np.ndarray:
     return np.minimum(np.where(m > 1.0, above, m), MARGIN_DISPLAY_MAX)
 
 
-def _margins(names: Any, margins: Any) -> dict[str, float]:
-    """The residual group's row: each statistic / threshold as drawn, and the trip line at 1."""
-    shown = display_margin(np.asarray(list(margins), dtype=float))
-    return dict(zip(names, map(float, shown), strict=True)) | {"threshold": 1.0}
+def _margins(names: Any, margins: Any) -> dict[str, Any]:
+    """The residual group's columns from margins of shape (n turbines, len(names)): each statistic / threshold as
+    drawn, and the trip line at 1."""
+    shown = display_margin(np.asarray(margins, dtype=float).reshape(-1, len(names)))
+    return {name: shown[:, j] for j, name in enumerate(names)} | {"threshold": 1.0}
+
+
+def _nan(n: int) -> np.ndarray:
+    return np.full(n, np.nan)
 
 
 def _series_view(origin: str, name: str, window: bool = True) -> rrb.TimeSeriesView:
@@ -109,37 +118,41 @@ def _states_view(turbine: int) -> rrb.StateTimelineView:
 
 
 # -- benchmark turbine -------------------------------------------------------------------------------------------
-def _turbine_plant(sensors: np.void, truth: np.void | None) -> Rows:
-    y = sensors["sensors"]
-    nan = float("nan")
+def _turbine_plant(sensors: np.ndarray, truth: np.ndarray | None) -> Columns:
+    y = np.asarray(sensors["sensors"], dtype=float).reshape(len(sensors), -1)
 
-    def true(name: str, scale: float = 1.0) -> float:
-        return nan if truth is None else float(truth[name]) / scale
+    def true(name: str, scale: float = 1.0) -> Any:
+        return _nan(len(sensors)) if truth is None else np.asarray(truth[name], dtype=float) / scale
 
     return {
         "speed/omega_g/plant": {
-            "sensor 1": y[SENSOR_INDEX["omega_g_m1"]],
-            "sensor 2": y[SENSOR_INDEX["omega_g_m2"]],
+            "sensor 1": y[:, SENSOR_INDEX["omega_g_m1"]],
+            "sensor 2": y[:, SENSOR_INDEX["omega_g_m2"]],
             "truth": true("omega_g"),
         },
         "speed/omega_r/plant": {
-            "sensor 1": y[SENSOR_INDEX["omega_r_m1"]],
-            "sensor 2": y[SENSOR_INDEX["omega_r_m2"]],
+            "sensor 1": y[:, SENSOR_INDEX["omega_r_m1"]],
+            "sensor 2": y[:, SENSOR_INDEX["omega_r_m2"]],
             "truth": true("omega_r"),
         },
-        "wind/plant": {"anemometer": y[SENSOR_INDEX["v_hub_m"]], "true rotor-effective": true("wind_rotor")},
-        "power/plant": {"measured": y[SENSOR_INDEX["p_g_m"]] / 1e6, "truth": true("power", 1e6)},
+        "wind/plant": {"anemometer": y[:, SENSOR_INDEX["v_hub_m"]], "true rotor-effective": true("wind_rotor")},
+        "power/plant": {"measured": y[:, SENSOR_INDEX["p_g_m"]] / 1e6, "truth": true("power", 1e6)},
     }
 
 
-def _turbine_supervisor(sensors: np.void, refs: np.void, status: dict[str, Any]) -> Rows:
-    margins = status.get("margins") or {}
-    nan = float("nan")
+def _turbine_supervisor(sensors: np.ndarray, refs: np.ndarray, status: list[dict[str, Any]] | None) -> Columns:
+    first = (status or [{}])[0].get("margins") or {}
+    names = list(first)
+    margins = [
+        [np.nan if m is None else m for m in ((s.get("margins") or {}).get(name) for name in names)]
+        for s in (status or [{}] * len(refs))
+    ]
+    nfte = np.where(np.asarray(refs["nfte_set"], dtype=bool), np.asarray(refs["wind_nfte"], dtype=float), np.nan)
     return {
         "speed/omega_g/supervisor": {"fault-tolerant estimate": refs["omega_g"]},
         "speed/omega_r/supervisor": {"fault-tolerant estimate": refs["omega_r"]},
-        "wind/supervisor": {"FTE": refs["wind"], "NFTE": refs["wind_nfte"] if refs["nfte_set"] else float("nan")},
-        "residuals/supervisor": _margins(margins, (nan if m is None else m for m in margins.values())),
+        "wind/supervisor": {"FTE": refs["wind"], "NFTE": nfte},
+        "residuals/supervisor": _margins(names, np.asarray(margins, dtype=float).reshape(len(refs), len(names))),
     }
 
 
@@ -190,42 +203,48 @@ TURBINE = Panel(
 
 
 # -- hydrostatic turbine -----------------------------------------------------------------------------------------
-def _hydro_plant(sensors: np.void, truth: np.void | None) -> Rows:
-    y, u = sensors["y"], sensors["u"]
-    nan = float("nan")
-    x = truth["x"] if truth is not None else np.full(6, nan)
-    f = truth["f"] if truth is not None else np.full(2, nan)
-    u_nom = truth["u_nominal"] if truth is not None else np.full(3, nan)
-    u_app = truth["u_applied"] if truth is not None else np.full(3, nan)
-    rows: Rows = {
-        "speed/omega_r/plant": {"sensor": y[0], "truth": x[0]},
-        "speed/omega_g/plant": {"sensor": y[1], "truth": x[1]},
-        "hydro/pressure/plant": {"truth": x[2] / 1e6},
-        "power/plant": {"truth": nan if truth is None else truth["P_g"] / 1e6},
+def _hydro_plant(sensors: np.ndarray, truth: np.ndarray | None) -> Columns:
+    n = len(sensors)
+    y, u = np.asarray(sensors["y"]).reshape(n, -1), np.asarray(sensors["u"]).reshape(n, -1)
+
+    def true(name: str, width: int) -> np.ndarray:
+        return np.full((n, width), np.nan) if truth is None else np.asarray(truth[name], dtype=float).reshape(n, -1)
+
+    x, f, u_nom, u_app = true("x", 6), true("f", 2), true("u_nominal", 3), true("u_applied", 3)
+    rows: Columns = {
+        "speed/omega_r/plant": {"sensor": y[:, 0], "truth": x[:, 0]},
+        "speed/omega_g/plant": {"sensor": y[:, 1], "truth": x[:, 1]},
+        "hydro/pressure/plant": {"truth": x[:, 2] / 1e6},
+        "power/plant": {"truth": true("P_g", 1)[:, 0] / 1e6},
     }
     for j, target in enumerate(FAULT_TARGETS):
-        rows[f"hydro/f/{target}/plant"] = {"true offset": f[j]}
+        rows[f"hydro/f/{target}/plant"] = {"true offset": f[:, j]}
         rows[f"hydro/commands/{target}/plant"] = {
-            "nominal u": u_nom[j],
-            "corrected u_corr (36)": u[j],
-            "applied ũ (faults in)": u_app[j],
+            "nominal u": u_nom[:, j],
+            "corrected u_corr (36)": u[:, j],
+            "applied ũ (faults in)": u_app[:, j],
         }
     return rows
 
 
-def _hydro_supervisor(sensors: np.void, refs: np.void, status: dict[str, Any]) -> Rows:
-    thresholds = status.get("thresholds") or {}
-    rows: Rows = {
-        "speed/omega_r/supervisor": {"observer": refs["x_hat"][0]},
-        "speed/omega_g/supervisor": {"observer": refs["x_hat"][1]},
-        "hydro/pressure/supervisor": {"observer": refs["x_hat"][2] / 1e6},
+def _hydro_supervisor(sensors: np.ndarray, refs: np.ndarray, status: list[dict[str, Any]] | None) -> Columns:
+    n = len(refs)
+    x_hat = np.asarray(refs["x_hat"], dtype=float).reshape(n, -1)
+    f_hat = np.asarray(refs["f_hat"], dtype=float).reshape(n, -1)
+    correction = np.asarray(refs["correction"], dtype=float).reshape(n, -1)
+    theta = np.array(
+        [[(s.get("thresholds") or {}).get(target) or np.nan for target in FAULT_TARGETS] for s in status or [{}] * n],
+        dtype=float,
+    )
+    rows: Columns = {
+        "speed/omega_r/supervisor": {"observer": x_hat[:, 0]},
+        "speed/omega_g/supervisor": {"observer": x_hat[:, 1]},
+        "hydro/pressure/supervisor": {"observer": x_hat[:, 2] / 1e6},
     }
-    margins: dict[str, float] = {}
     for j, target in enumerate(FAULT_TARGETS):
-        rows[f"hydro/f/{target}/supervisor"] = {"f̂ (35)": refs["f_hat"][j], "f̂ filtered (37)": refs["correction"][j]}
-        theta = thresholds.get(target)
-        margins[target] = abs(float(refs["correction"][j])) / theta if theta else float("nan")
-    rows["residuals/supervisor"] = _margins(margins, margins.values())
+        rows[f"hydro/f/{target}/supervisor"] = {"f̂ (35)": f_hat[:, j], "f̂ filtered (37)": correction[:, j]}
+    with np.errstate(invalid="ignore", divide="ignore"):
+        rows["residuals/supervisor"] = _margins(FAULT_TARGETS, np.abs(correction) / theta)
     return rows
 
 
@@ -278,26 +297,31 @@ HYDRO = Panel(
 _FARM_TYPES = ("debris", "pitch_misalignment", "drivetrain")
 
 
-def _farm_turbine_plant(sensors: np.void, truth: np.void | None) -> Rows:
-    nan = float("nan")
+def _farm_turbine_plant(sensors: np.ndarray, truth: np.ndarray | None) -> Columns:
+    n = len(sensors)
+    y = np.asarray(sensors["sensors"], dtype=float).reshape(n, -1)
+
+    def true(name: str, scale: float = 1.0) -> np.ndarray:
+        return _nan(n) if truth is None else np.asarray(truth[name], dtype=float) / scale
+
     return {
-        "power/plant": {
-            "measured": sensors["sensors"][SENSOR_INDEX["p_g_m"]] / 1e6,
-            "truth": nan if truth is None else float(truth["power"]) / 1e6,
-        },
+        "power/plant": {"measured": y[:, SENSOR_INDEX["p_g_m"]] / 1e6, "truth": true("power", 1e6)},
         "wind/plant": {
-            "anemometer": sensors["sensors"][SENSOR_INDEX["v_hub_m"]],
-            "true rotor-effective": nan if truth is None else float(truth["wind_rotor"]),
-            "row mean": nan if truth is None else float(truth["row_wind"]),
+            "anemometer": y[:, SENSOR_INDEX["v_hub_m"]],
+            "true rotor-effective": true("wind_rotor"),
+            "row mean": true("row_wind"),
         },
     }
 
 
-def _farm_turbine_supervisor(sensors: np.void, refs: np.void, status: dict[str, Any]) -> Rows:
+def _farm_turbine_supervisor(sensors: np.ndarray, refs: np.ndarray, status: list[dict[str, Any]] | None) -> Columns:
+    n = len(refs)
     with np.errstate(invalid="ignore", divide="ignore"):
-        margins = np.asarray(refs["statistic"], dtype=float) / np.asarray(refs["threshold"], dtype=float)
+        margins = np.asarray(refs["statistic"], dtype=float).reshape(n, -1) / np.asarray(
+            refs["threshold"], dtype=float
+        ).reshape(n, -1)
     return {
-        "power/supervisor": {"reference": float(refs["power_ref"]) / 1e6},
+        "power/supervisor": {"reference": np.asarray(refs["power_ref"], dtype=float) / 1e6},
         "detector/supervisor": _margins(_FARM_TYPES, margins),
     }
 
@@ -391,6 +415,7 @@ FARM = Panel(
     farm_supervisor=_farm_supervisor,
     overview=_farm_overview,
     site_map=geometry_of,
+    uses_status=False,  # every series is in the refs rows: the 80 turbines' status is not built for the display
 )
 
 PANELS: dict[str, Panel] = {"turbine": TURBINE, "hydro": HYDRO, "farm": FARM}

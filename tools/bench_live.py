@@ -2,7 +2,9 @@
 
 Reports, from the run's scorecard (``live`` section, measured by the plant): ticks, overruns (ticks whose work ended
 after their deadline) in %, the sensor→refs loop latency p50/p99/max, the real-time factor; the size of the
-recording and its one-hour equivalent; for the turbine kind, the time from a REST injection of a speed-sensor fault
+recording and its one-hour equivalent; the CPU seconds per wall second of each of ``up``'s children (plant,
+supervisor or shards and coordinator, router, API, Rerun), which unlike the latencies hardly depend on the
+machine's other work; for the turbine kind, the time from a REST injection of a speed-sensor fault
 to its detection in the status route (measured from outside, over HTTP).
 
     .venv/bin/python tools/bench_live.py --kind turbine --seconds 300
@@ -39,6 +41,7 @@ from pathlib import Path
 
 import httpx
 import numpy as np
+import psutil
 
 from windwarden.live.router import free_port
 from wwcore.scenario import dump_scenario, load_scenario, parse_scenario
@@ -171,6 +174,7 @@ def compare(results: dict[str, list[dict]]) -> dict[str, object]:
                 "max_ms": f.get("latency_ms", {}).get("max_ms"),
                 "overrun_pct": f.get("overrun_pct"),
                 "load_average_1min_mean": round(f.get("load_average_1min", {}).get("mean") or 0.0, 2),
+                "cpu_per_wall_s": f.get("cpu_per_wall_s"),
                 "run_dir": f.get("run_dir"),
             }
             for f in runs
@@ -241,10 +245,59 @@ def sample_load(up: subprocess.Popen, into: list[float]) -> None:
         time.sleep(5.0)
 
 
+def role_of(cmdline: list[str]) -> str | None:
+    """Which of ``up``'s children a command line is: plant, supervisor, shard <turbines>, coordinator, api, router,
+    rerun (the recorder and any viewer)."""
+    if cmdline and Path(cmdline[0]).name.startswith("rerun"):
+        return "rerun"
+    if "windwarden.cli" not in cmdline:
+        return None
+    args = cmdline[cmdline.index("windwarden.cli") + 1 :]
+    if not args:
+        return None
+    if args[0] == "supervise":
+        return f"shard {args[args.index('--turbines') + 1]}" if "--turbines" in args else "supervisor"
+    return {"coordinate": "coordinator"}.get(args[0], args[0])
+
+
+def sample_cpu(up: subprocess.Popen, into: dict[int, tuple[str, float]], every_s: float = 0.25) -> None:
+    """CPU seconds (user + system) of each of ``up``'s children, read every ``every_s`` while it lives: unlike
+    latencies, a process's own CPU time hardly depends on what else the machine runs (the last ``every_s`` of a
+    child's life is not seen)."""
+    try:
+        parent = psutil.Process(up.pid)
+    except psutil.NoSuchProcess:
+        return
+    while up.poll() is None:
+        try:
+            children = parent.children(recursive=True)
+        except psutil.NoSuchProcess:
+            return
+        for child in children:
+            try:
+                role = role_of(child.cmdline())
+                cpu = child.cpu_times()
+            except (psutil.NoSuchProcess, psutil.AccessDenied):
+                continue
+            if role is not None:
+                into[child.pid] = (role, cpu.user + cpu.system)
+        time.sleep(every_s)
+
+
+def cpu_by_role(samples: dict[int, tuple[str, float]], seconds: float) -> dict[str, float]:
+    """CPU seconds per wall second of the run, per role (several processes of a role added up)."""
+    total: dict[str, float] = {}
+    for role, cpu in samples.values():
+        total[role] = total.get(role, 0.0) + cpu
+    return {role: round(cpu / seconds, 3) for role, cpu in sorted(total.items())}
+
+
 def report(args: argparse.Namespace, up: subprocess.Popen, port: int, token: str, run_id: str) -> tuple[int, dict]:
     figures: dict[str, object] = {}
     load: list[float] = []
+    cpu: dict[int, tuple[str, float]] = {}
     threading.Thread(target=sample_load, args=(up, load), daemon=True).start()
+    threading.Thread(target=sample_cpu, args=(up, cpu), daemon=True).start()
     api = httpx.Client(base_url=f"http://127.0.0.1:{port}", timeout=5.0)
     if args.kind == "turbine":
         at = args.inject_at if args.inject_at is not None else args.seconds / 2
@@ -287,6 +340,7 @@ def report(args: argparse.Namespace, up: subprocess.Popen, port: int, token: str
         "access_control": up_info.get("access_control"),
         "router_refused": up_info.get("router_refused"),
         "nice": args.nice,
+        "cpu_per_wall_s": cpu_by_role(cpu, args.seconds / args.speed),
         "load_average_1min": {
             "min": min(load, default=None),
             "mean": sum(load) / max(len(load), 1),

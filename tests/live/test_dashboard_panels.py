@@ -9,6 +9,17 @@ import rerun.blueprint as rrb
 
 from dashboards.blueprints import blueprint
 from dashboards.panels import MARGIN_DISPLAY_MAX, PANELS, RESIDUAL_AXIS, display_margin
+from wwcore.wire import (
+    FARM_REFS,
+    FARM_SENSORS,
+    FARM_TRUTH,
+    HYDRO_REFS,
+    HYDRO_SENSORS,
+    HYDRO_TRUTH,
+    TURBINE_REFS,
+    TURBINE_SENSORS,
+    TURBINE_TRUTH,
+)
 
 
 def _prop(view: rrb.TimeSeriesView, archetype: str, field: str) -> list:
@@ -37,19 +48,61 @@ def test_the_trip_line_and_every_trace_fit_the_residual_axis_with_room_for_the_l
 
 
 def test_the_farm_rows_draw_each_cusum_over_its_threshold():
-    refs = {"statistic": [5.0, 9000.0 * 7.0, np.nan], "threshold": [10.0, 7.0, 3.0], "power_ref": 1e6}
-    row = PANELS["farm"].supervisor(None, refs, {})["detector/supervisor"]
-    assert row["debris"] == pytest.approx(0.5)
-    assert row["pitch_misalignment"] == MARGIN_DISPLAY_MAX
-    assert np.isnan(row["drivetrain"]) and row["threshold"] == 1.0
+    refs = FARM_REFS.empty(2)
+    refs["statistic"] = [[5.0, 9000.0 * 7.0, np.nan], [1.0, 2.0, 3.0]]
+    refs["threshold"] = [[10.0, 7.0, 3.0], [1.0, 1.0, 30.0]]
+    refs["power_ref"] = [1e6, 2e6]
+    rows = PANELS["farm"].supervisor(None, refs, None)
+    row = rows["detector/supervisor"]
+    assert row["debris"] == pytest.approx([0.5, 1.0])
+    assert row["pitch_misalignment"] == pytest.approx([MARGIN_DISPLAY_MAX, 1.0 + np.log10(2.0)])
+    assert np.isnan(row["drivetrain"][0]) and row["drivetrain"][1] == pytest.approx(0.1) and row["threshold"] == 1.0
+    assert rows["power/supervisor"]["reference"] == pytest.approx([1.0, 2.0])
+    assert not PANELS["farm"].uses_status  # every farm series is in the refs rows: no status is built for it
 
 
 def test_the_turbine_rows_keep_a_missing_margin_as_nan():
-    status = {"margins": {"observer 1": 0.25, "observer 2": 100.0, "observer 3": None}}
-    refs = {"omega_g": 1.0, "omega_r": 1.0, "wind": 1.0, "wind_nfte": 1.0, "nfte_set": True}
-    row = PANELS["turbine"].supervisor(None, refs, status)["residuals/supervisor"]
-    assert row["observer 1"] == 0.25 and row["observer 2"] == pytest.approx(3.0)
-    assert np.isnan(row["observer 3"]) and row["threshold"] == 1.0
+    status = [{"margins": {"observer 1": 0.25, "observer 2": 100.0, "observer 3": None}}]
+    refs = TURBINE_REFS.empty(1)
+    refs["nfte_set"], refs["wind_nfte"], refs["wind"] = False, 7.0, 8.0
+    rows = PANELS["turbine"].supervisor(None, refs, status)
+    row = rows["residuals/supervisor"]
+    assert row["observer 1"] == [0.25] and row["observer 2"] == pytest.approx([3.0])
+    assert np.isnan(row["observer 3"][0]) and row["threshold"] == 1.0
+    assert np.isnan(rows["wind/supervisor"]["NFTE"][0]) and rows["wind/supervisor"]["FTE"] == [8.0]
+
+
+@pytest.mark.parametrize("kind", sorted(PANELS))
+def test_the_rows_of_many_turbines_are_those_of_each_turbine_alone(kind):
+    """The panels build every turbine's columns at once (numpy over the frame's rows): the same values as the
+    same panel on each turbine's row alone, in the frame's order."""
+    schemas = {
+        "turbine": (TURBINE_SENSORS, TURBINE_TRUTH, TURBINE_REFS),
+        "hydro": (HYDRO_SENSORS, HYDRO_TRUTH, HYDRO_REFS),
+        "farm": (FARM_SENSORS, FARM_TRUTH, FARM_REFS),
+    }[kind]
+    rng = np.random.default_rng(5)
+    sensors, truth, refs = (schema.empty(4) for schema in schemas)
+    for records in (sensors, truth, refs):
+        for name in records.dtype.names:
+            if records.dtype[name].base.kind == "f":
+                records[name] = rng.uniform(0.5, 2.0, records[name].shape)
+    refs["nfte_set" if kind == "turbine" else "turbine"] = [1, 0, 1, 0] if kind == "turbine" else [4, 2, 9, 1]
+    status = [{"margins": {"a": float(i), "b": None}, "thresholds": {"u_p": 1.0 + i, "u_M": None}} for i in range(4)]
+    panel = PANELS[kind]
+    whole = panel.plant(sensors, truth) | panel.supervisor(sensors, refs, status)
+    for i in range(4):
+        alone = panel.plant(sensors[i : i + 1], truth[i : i + 1]) | panel.supervisor(
+            sensors[i : i + 1], refs[i : i + 1], status[i : i + 1]
+        )
+        assert alone.keys() == whole.keys()
+        for group, columns in whole.items():
+            for name, values in columns.items():
+                expected = np.broadcast_to(np.asarray(alone[group][name], dtype=float), (1,))[0]
+                got = np.broadcast_to(np.asarray(values, dtype=float), (4,))[i]
+                assert got == pytest.approx(expected, nan_ok=True), (group, name, i)
+    no_truth = panel.plant(sensors, None)
+    assert all(np.broadcast_to(v, (4,)).shape == (4,) for columns in no_truth.values() for v in columns.values())
 
 
 @pytest.mark.parametrize("kind", sorted(PANELS))

@@ -20,7 +20,7 @@ import numpy as np
 from windwarden.evaluation import farm_scoring
 from windwarden.evaluation.farm_scoring import PowerBalance
 from windwarden.evaluation.kinds import EvalOptions, Evaluation
-from windwarden.kinds.base import RunInfo, finite_or_none, records_from_batch
+from windwarden.kinds.base import RunInfo, records_from_batch
 from wwcore.events import Event
 from wwcore.farm_frames import CANCEL_3P_MODE, DISPATCH_MODES, HOLD_TORQUE_MODE, FarmFrame, FarmRefs
 from wwcore.scenario import FaultSpec, Scenario
@@ -221,27 +221,35 @@ class FarmKind:
 
     # -- status -----------------------------------------------------------------------------------------------------
     def status(self, supervisor: FarmSupervisor, refs: np.ndarray | None, turbines: list[int]) -> list[dict[str, Any]]:
+        """Every turbine's status. The columns are taken out of numpy once (``tolist``), not value by value: the
+        supervisor builds this for 80 turbines twice a second on its loop's thread."""
         diag = supervisor.diagnosis
         controller = supervisor.controller
         avail = getattr(controller, "p_avail", None)
+        n = len(turbines)
+        flags = np.asarray(supervisor.flags, dtype=bool).reshape(n, -1).tolist()
+        modes = [DISPATCH_MODES[m] for m in np.asarray(supervisor.mode, dtype=int).tolist()]
+        detector = type(supervisor.detector).__name__
+        margins = None if diag is None else _finite_rows(diag.margins)
+        power_ref = None if supervisor.refs is None else _finite_rows(supervisor.refs.power_ref)
+        available = _finite_rows(avail) if avail is not None and len(avail) == n else None
+        ticks = None if refs is None else np.asarray(refs["tick"]).tolist()
         out = []
         for row, turbine in enumerate(turbines):
             entry: dict[str, Any] = {
                 "turbine": turbine,
-                "flagged": [FARM_FAULT_TYPES[j] for j in np.flatnonzero(supervisor.flags[row])],
-                "dispatch_mode": DISPATCH_MODES[int(supervisor.mode[row])],
-                "detector": type(supervisor.detector).__name__,
+                "flagged": [name for name, up in zip(FARM_FAULT_TYPES, flags[row], strict=False) if up],
+                "dispatch_mode": modes[row],
+                "detector": detector,
             }
-            if diag is not None:
-                entry["margins"] = {
-                    name: finite_or_none(diag.margins[row, j]) for j, name in enumerate(FARM_FAULT_TYPES)
-                }
-            if supervisor.refs is not None:
-                entry["power_ref_w"] = finite_or_none(supervisor.refs.power_ref[row])
-            if avail is not None and len(avail) == len(turbines):
-                entry["available_power_w"] = finite_or_none(avail[row])
-            if refs is not None:
-                entry["tick"] = int(refs[row]["tick"])
+            if margins is not None:
+                entry["margins"] = dict(zip(FARM_FAULT_TYPES, margins[row], strict=False))
+            if power_ref is not None:
+                entry["power_ref_w"] = power_ref[row]
+            if available is not None:
+                entry["available_power_w"] = available[row]
+            if ticks is not None:
+                entry["tick"] = int(ticks[row])
             out.append(entry)
         return out
 
@@ -302,3 +310,9 @@ class FarmScore:
 
 
 FARM = FarmKind()
+
+
+def _finite_rows(values: Any) -> list[Any]:
+    """``values`` as nested Python lists with NaN and ±inf as None (``finite_or_none`` of every element)."""
+    array = np.asarray(values, dtype=float)
+    return np.where(np.isfinite(array), array, None).tolist()

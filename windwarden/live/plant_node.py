@@ -6,10 +6,12 @@ Tick k (the step contract of ``wwcore.stepping``, the same calls as batch mode):
 2. take the refs that arrived, before ``sensors_k`` leaves (so tick k is controlled with refs from tick ≤ k − 1,
    as in batch mode), each checked by ``guard.RefsGuard`` (finite, in range, for a tick in the window, not a
    repeat; refused ones counted and logged); the newest taken is used if computed from tick ≥ k − ``max_ref_age``,
-   else the turbine controller falls back to its own sensors and its last good reference;
+   else the turbine controller falls back to its own sensors and its last good reference; then at most one bounded
+   send of buffered display rows to Rerun (``_pump_display``), so display work never sits inside the round trip;
 3. ``frame = plant.measure()``; publish ``sensors_k``, one frame of every turbine's row (with the run identity);
    ``plant.control(refs)``;
-4. ``plant.advance()``; append and publish the plant's events;
+4. every ``display_every``-th tick: truth and one buffered display row of every turbine; ``plant.advance()``;
+   append and publish the plant's events;
 5. lockstep: wait for ``refs_k`` (unless the supervisor is gone or has gone mute: then fall back, log, go on);
    realtime: sleep until the deadline t₀ + (k+1)·dt/speed; a tick whose work ends after it is an overrun.
 
@@ -276,6 +278,7 @@ class PlantNode:
             "run_key": self.run_key,
             "supervisor_alive": self.watch.is_alive(Process.SUPERVISOR),
             "dropped": self.drops.as_dict(),
+            "display": None if self.display is None else self.display.counters(),
             "wall_s": wall,
         }
 
@@ -413,6 +416,7 @@ class PlantNode:
             self._apply_commands()
             self._take_refs()  # before sensors_k go out: tick k is controlled with refs from tick ≤ k − 1 only
             refs = self._refs_for(k)
+            self._pump_display(k, realtime)  # before sensors_k go out: never inside the sensor→refs round trip
             frame = plant.measure()
             records = kind.frame_records(frame, self.turbines)
             records["run"] = self.run_key
@@ -430,8 +434,6 @@ class PlantNode:
             if new_events:
                 self.events.write(new_events)
             self._publish_status()
-            if self.display is not None:
-                self.display.pump()
             if realtime:
                 self.pacer.end_tick(k)
             else:
@@ -439,6 +441,17 @@ class PlantNode:
                 self.pacer.ticks += 1
         self._finish()
         return 0
+
+    def _pump_display(self, k: int, realtime: bool) -> None:
+        """One unit of buffered display rows to Rerun (``dashboards.live``), at the start of the tick, before its
+        sensors go out, so the display is never inside the sensor→refs round trip; skipped (counted as deferred)
+        when less than half the tick is left, as when the loop catches up after an overrun."""
+        if self.display is None:
+            return
+        if realtime and time.perf_counter() > self.pacer.deadline(k) - 0.5 * self.pacer.period:
+            self.display.defer()
+        else:
+            self.display.pump()
 
     def _finish(self) -> None:
         last = self.plant.k - 1

@@ -4,8 +4,9 @@ It learns the run from the plant's ``plant/run`` queryable (kind, turbines, publ
 never faults or truth), builds the supervisor with the constructor batch mode uses, and then, per tick:
 ``frame`` from the sensor records → ``refs = supervisor.step(frame)`` → the supervisor's events appended to
 ``events.jsonl`` and published → ``refs`` published, one frame of every turbine's row on ``refs/supervisor``
-(reliable, blocking). Events go out before refs, so when the
-plant holds ``refs_k`` every event up to tick k is in the log.
+(reliable, blocking) → the display's share (``_display``: buffered rows, at most one bounded Rerun send). Events
+go out before refs, so when the plant holds ``refs_k`` every event up to tick k is in the log; the display comes
+after the refs, so a tick's refs never wait on it.
 
 Degradation (DESIGN.md): when no sensors arrive for ``stale_after_s`` or the plant's liveliness token goes, the
 stream is marked stale (an event) and nothing more is published from it. Which frames are stepped is decided by
@@ -209,6 +210,7 @@ class SupervisorNode:
             "refused": self.refusals.counts(),
             "step": self.step_time.summary(recent=1000),
             "dropped": self.drops.as_dict(),
+            "display": None if self.display is None else self.display.counters(),
             "turbines": turbines,
         }
 
@@ -294,9 +296,19 @@ class SupervisorNode:
         self._write(events)  # before the refs: holding refs_k means the log has every event up to tick k
         self._refs_pub.put(kind.refs.encode_frame(out))
         if self.display is not None:
-            if tick % self.settings.display_every == 0:
-                self.display.supervisor_rows(records, out, self.status_rows())
+            self._display(tick, records, out)
+
+    def _display(self, tick: int, records: np.ndarray, out: np.ndarray) -> None:
+        """The display's share of a tick, after its refs are out: every ``display_every``-th tick one buffered row
+        of every turbine (vectorised; the per-turbine status only for panels that show it), then one unit of
+        buffered rows to Rerun, unless the next sensor frame is already waiting: then the sending waits for a tick
+        with time to spare (``dashboards.live``: counted as deferred; rows are never dropped)."""
+        if tick % self.settings.display_every == 0:
+            self.display.supervisor_rows(records, out, self.status_rows)
+        if self._inbox.empty():
             self.display.pump()
+        else:
+            self.display.defer()
 
     def _bridge_gap(self, records: np.ndarray) -> None:
         """Advance the supervisor through the ticks missing before ``records`` (held if it cannot bridge)."""
