@@ -409,7 +409,7 @@ def test_a_late_detector_shows_its_delay_and_misses_the_end(gamed_cards):
 # ---- one policy: the live run folder scores the events of a run as windwarden eval does ----------------------
 FARM_GAMED = """
 name = "farm-gamed"
-duration_s = 90.0
+duration_s = 72.0
 [plant]
 kind = "farm"
 wind_case = 2
@@ -418,15 +418,15 @@ mode = "available_fraction"
 fraction = 0.8
 update_s = 10.0
 [wind]
-mean = [[0.0, 10.0], [90.0, 11.0]]
+mean = [[0.0, 10.0], [72.0, 10.8]]
 [[faults]]
 name = "F1 debris wt5"
 target = "rotor"
 kind = "debris"
 value = 0.97
 turbine = 5
-start_s = 70.0
-end_s = 85.0
+start_s = 62.0
+end_s = 70.0
 """
 DETECTION_FIELDS = (
     "scoring",
