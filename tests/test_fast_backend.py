@@ -198,8 +198,24 @@ def test_aero_kernels_equal_the_reference_inside_and_outside_the_table():
             )
 
 
-def test_turbine_tick_by_tick_through_every_fault_class():
-    scenario = parse_scenario(tomllib.loads(FAULTY))
+def at_half_speed(text: str) -> dict:
+    """A scenario with every time (duration, wind points, fault starts, ends and ramps) halved and every drift
+    doubled: each fault still starts and ends, in the same order, above and below rated, in half the ticks."""
+    data = tomllib.loads(text)
+    data["duration_s"] /= 2
+    data["wind"]["mean"] = [[t / 2, v] for t, v in data["wind"]["mean"]]
+    for fault in data["faults"]:
+        for key in ("start_s", "end_s", "ramp_s"):
+            if key in fault:
+                fault[key] /= 2
+        if fault["kind"] == "drift":
+            fault["value"] *= 2
+    return data
+
+
+@pytest.mark.parametrize("half", [True, pytest.param(False, marks=pytest.mark.slow)], ids=["30s", "60s"])
+def test_turbine_tick_by_tick_through_every_fault_class(half):
+    scenario = parse_scenario(at_half_speed(FAULTY) if half else tomllib.loads(FAULTY))
     ticks = round(scenario.duration_s / BENCHMARK.dt)
     reference = turbine_trace(scenario, "numpy", [0, 1], ticks)
     assert reference["flags"].any() and reference["cusum"].any()  # the isolation and the clearing both ran

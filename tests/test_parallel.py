@@ -30,10 +30,17 @@ def _key(events) -> list[tuple]:
     return sorted((e.run, round(e.t, 9), e.type.value, e.target, e.turbine) for e in events)
 
 
-def test_turbine_runs_give_the_same_events_and_errors_in_one_chunk_or_two():
+@pytest.fixture(scope="module")
+def runs_0_and_1_with_twins():
+    """TURBINE_SHORT's runs 0 and 1 in one chunk, with fault-free twins: two tests compare against it."""
+    scenario = parse_scenario(tomllib.loads(TURBINE_SHORT))
+    return simulate_chunk([0, 1], lambda s: None, scenario, 77, "benchmark", "uio-bank", {}, True)
+
+
+def test_turbine_runs_give_the_same_events_and_errors_in_one_chunk_or_two(runs_0_and_1_with_twins):
     scenario = parse_scenario(tomllib.loads(TURBINE_SHORT))
     args = (scenario, 77, "benchmark", "uio-bank", {}, True)
-    together = simulate_chunk([0, 1], lambda s: None, *args)
+    together = runs_0_and_1_with_twins
     apart = [simulate_chunk([r], lambda s: None, *args) for r in (0, 1)]
     assert _key(together.events) == _key(apart[0].events + apart[1].events)
     assert any(e.type.value == "detection" for e in together.events)  # the comparison has something to compare
@@ -58,11 +65,10 @@ def test_a_fault_free_twin_branches_off_its_window_from_the_runs_own_state():
     assert {e.turbine for e in result.events if e.type.value == "detection"} == {1}  # the twins raised none
 
 
-def test_fault_free_twins_add_nothing_to_the_runs_figures():
+def test_fault_free_twins_add_nothing_to_the_runs_figures(runs_0_and_1_with_twins):
     scenario = parse_scenario(tomllib.loads(TURBINE_SHORT))
-    base = (scenario, 77, "benchmark", "uio-bank", {})
-    with_twins = simulate_chunk([0, 1], lambda s: None, *base, True)
-    without = simulate_chunk([0, 1], lambda s: None, *base, False)
+    with_twins = runs_0_and_1_with_twins
+    without = simulate_chunk([0, 1], lambda s: None, scenario, 77, "benchmark", "uio-bank", {}, False)
     assert _key(with_twins.events) == _key(without.events)
     for name in ("fte", "nfte", "anemometer"):
         np.testing.assert_array_equal(with_twins.sq_err[name], without.sq_err[name])

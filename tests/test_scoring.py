@@ -261,18 +261,18 @@ def test_one_policy_per_kind_and_the_docs_show_it_as_the_code_applies_it():
 SPEED_COLUMNS = [TARGET_INDEX[s] for s in SPEED_SENSORS]
 GAMED = """
 name = "gamed"
-duration_s = 40.0
+duration_s = 30.0
 [plant]
 kind = "turbine"
 [wind]
-mean = [[0.0, 12.0], [40.0, 13.0]]
+mean = [[0.0, 12.0], [30.0, 12.75]]
 [[faults]]
 name = "generator sensor 2 stuck"
 target = "omega_g_m2"
 kind = "fixed"
 value = 100.0
-start_s = 20.0
-end_s = 30.0
+start_s = 12.0
+end_s = 22.0
 """
 RUNS = 2
 
@@ -385,7 +385,7 @@ def test_a_detector_cycling_through_the_sensors_is_not_isolated(gamed_cards):
     card = gamed_cards["cycle"]
     [f] = card["faults"]
     assert f["isolated_pct"] == 0.0 and f["isolated_time_pct"] < 30.0 and f["end_recognised_pct"] == 0.0
-    assert f["delay_s_mean"] == pytest.approx(1.5)  # its first flag in the window is omega_r_m1 (20.0 s)
+    assert f["delay_s_mean"] == pytest.approx(1.5)  # its first flag in the window is omega_r_m1 (12.0 s)
     assert f["wrong_isolation_pct"] == 100.0 and f["flaps_max"] >= 4 and f["lost_pct"] == 100.0
     assert card["false_alarms_per_1000s"] > 100.0
 
@@ -409,7 +409,7 @@ def test_a_late_detector_shows_its_delay_and_misses_the_end(gamed_cards):
 # ---- one policy: the live run folder scores the events of a run as windwarden eval does ----------------------
 FARM_GAMED = """
 name = "farm-gamed"
-duration_s = 90.0
+duration_s = 72.0
 [plant]
 kind = "farm"
 wind_case = 2
@@ -418,15 +418,15 @@ mode = "available_fraction"
 fraction = 0.8
 update_s = 10.0
 [wind]
-mean = [[0.0, 10.0], [90.0, 11.0]]
+mean = [[0.0, 10.0], [72.0, 10.8]]
 [[faults]]
 name = "F1 debris wt5"
 target = "rotor"
 kind = "debris"
 value = 0.97
 turbine = 5
-start_s = 70.0
-end_s = 85.0
+start_s = 62.0
+end_s = 70.0
 """
 DETECTION_FIELDS = (
     "scoring",

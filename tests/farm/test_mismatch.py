@@ -86,10 +86,11 @@ def test_farm_turbines_start_at_their_own_equilibrium():
 
 SHORT = {
     "name": "short-farm",
-    "duration_s": 80.0,
+    "duration_s": 70.0,
     "plant": {"kind": "farm", "wind_case": 1},
     "wind": {"mean": [[0.0, 10.0]], "turbulence_intensity": 0.1},
-    "faults": [{"target": "rotor", "kind": "debris", "value": 0.97, "turbine": 5, "start_s": 65.0, "end_s": 75.0}],
+    # the window after the farm's 60-s warm-up, so that the scorecards compared hold a scored detection
+    "faults": [{"target": "rotor", "kind": "debris", "value": 0.97, "turbine": 5, "start_s": 62.0, "end_s": 68.0}],
 }
 
 
@@ -126,13 +127,14 @@ def test_no_mismatch_value_reaches_the_batch_farm_supervisor(monkeypatch):
     assert "0.913" not in repr(seen[1])
 
 
-def test_the_analytic_detector_keeps_quiet_on_a_plant_that_differs_from_its_model():
-    """The first 400 s of farm-case1-mismatch (its first fault starts at 400 s), one run: calibration biases,
-    actuators that differ per blade, noisy sensors and the demand's steps. The supervisor's ``analytic`` detector,
-    judging each turbine on its learnt levels and spreads, raises no flag after the farm's 60 s warm-up; the same
-    detector on the design model's levels and spreads, fed the same samples, raises several (the test can fail)."""
+@pytest.mark.parametrize("duration", [200.0, pytest.param(400.0, marks=pytest.mark.slow)])
+def test_the_analytic_detector_keeps_quiet_on_a_plant_that_differs_from_its_model(duration):
+    """The first 200 s (``make test-slow``: 400 s) of farm-case1-mismatch (its first fault starts at 400 s), one
+    run: calibration biases, actuators that differ per blade, noisy sensors and the demand's steps (every 30 s).
+    The supervisor's ``analytic`` detector, judging each turbine on its learnt levels and spreads, raises no flag
+    after the farm's 60 s warm-up; the same detector on the design model's levels and spreads, fed the same
+    samples, raises several (the test can fail; seed 2611: 90 flags by 200 s, 291 by 400 s)."""
     scenario = load_scenario("farm-case1-mismatch")
-    duration = 400.0
     plant = FarmBatch(
         scenario.plant, scenario.wind, [], seed=2611, duration_s=duration, runs=[0], mismatch=scenario.mismatch
     )

@@ -10,6 +10,7 @@ wind RMSE bit for bit.
 
 from __future__ import annotations
 
+import copy
 import json
 
 import pytest
@@ -38,6 +39,20 @@ def _lockstep(tmp_path, text, seed):
     return scn, read_events(tmp_path / "run" / EVENTS), card
 
 
+@pytest.fixture(scope="module")
+def lockstep_run(tmp_path_factory):
+    """``_lockstep`` once per (scenario, seed) in this module: the hydro and turbine runs are each checked against
+    the batch loop and against ``windwarden eval``, from the same lockstep run. Each caller gets its own copy."""
+    done: dict[tuple[str, int], tuple] = {}
+
+    def run(text: str, seed: int):
+        if (text, seed) not in done:
+            done[text, seed] = _lockstep(tmp_path_factory.mktemp("lockstep"), text, seed)
+        return copy.deepcopy(done[text, seed])
+
+    return run
+
+
 FARM_SHORT_HOLD = FARM_SHORT + '[supervisor.params]\naccommodation_rule = "hold-torque"\n'
 """FARM_SHORT with the drive-train hold (``hold_torque``, ``held_torque`` on the wire) instead of the default rule"""
 
@@ -52,8 +67,8 @@ FARM_SHORT_HOLD = FARM_SHORT + '[supervisor.params]\naccommodation_rule = "hold-
     ],
     ids=["hydro", "turbine", "farm", "farm-hold"],
 )
-def test_lockstep_equals_batch(tmp_path, text, seed):
-    scn, events, card = _lockstep(tmp_path, text, seed)
+def test_lockstep_equals_batch(lockstep_run, text, seed):
+    scn, events, card = lockstep_run(text, seed)
     batch = run_batch(scn, seed)
     assert _keys(events) == _keys(batch.events)
     assert any(e.type.value == "detection" for e in events), "the scenario must exercise detection"
@@ -66,14 +81,14 @@ def test_lockstep_equals_batch(tmp_path, text, seed):
     assert card == json.loads(json.dumps(batch.scorecard))  # bit for bit, through JSON as both are written
 
 
-def test_hydro_lockstep_reconstruction_equals_windwarden_eval(tmp_path):
-    scn, _, card = _lockstep(tmp_path, HYDRO_SHORT, 1)
+def test_hydro_lockstep_reconstruction_equals_windwarden_eval(lockstep_run):
+    scn, _, card = lockstep_run(HYDRO_SHORT, 1)
     evaluation = kind_for(scn.plant.kind).evaluate(scn, 1, 1, EvalOptions(workers=1, progress=False))
     assert card["metrics"]["reconstruction"] == evaluation.scorecard["metrics"]["reconstruction"]
 
 
-def test_turbine_lockstep_matches_windwarden_eval(tmp_path):
-    scn, _, card = _lockstep(tmp_path, TURBINE_SHORT, 3)
+def test_turbine_lockstep_matches_windwarden_eval(lockstep_run):
+    scn, _, card = lockstep_run(TURBINE_SHORT, 3)
     evaluation = (
         kind_for(scn.plant.kind).evaluate(scn, 1, 3, EvalOptions(workers=1, progress=False, twins=False)).scorecard
     )

@@ -43,7 +43,7 @@ from wwcore.wire import TURBINE_REFS, TURBINE_SENSORS, encode_json
 
 SCENARIO = """
 name = "acl-probes"
-duration_s = 25.0
+duration_s = 18.0
 [plant]
 kind = "turbine"
 [wind]
