@@ -218,11 +218,10 @@ class LiveRecording:
 
     def _compact(self, group: _Group) -> None:
         """Drop the rows every unit has sent (a unit that has sent none is sent first: nothing is lost)."""
-        if min(u.sent for u in group.units) == 0:
-            for unit in group.units:
-                if unit.sent == 0:
-                    self.forced += 1
-                    self._send(unit)
+        for unit in group.units:
+            if unit.sent == 0:
+                self.forced += 1
+                self._send(unit)
         done = min(u.sent for u in group.units)
         keep = group.filled - done
         group.times[:keep] = group.times[done : group.filled]

@@ -72,8 +72,10 @@ def farm_sample(summaries: np.ndarray) -> tuple[FarmSample, FarmDiagnosis]:
     return sample, diagnosis
 
 
-SAMPLE_FIELDS = ("tick", "t", "run", "sample_index", "sample_t", "mast", "demand", "mast_direction")
-"""The fields of a summary that are the farm sample's (the same on every row of one sample)."""
+SHARED_FIELDS = ("run", "sample_index", "sample_t", "mast", "demand", "mast_direction")
+"""The fields every row of one farm sample's summaries carries alike (``mismatch`` checks them)."""
+SAMPLE_FIELDS = ("tick", "t", *SHARED_FIELDS)
+"""The fields of a summary that are the farm sample's: its tick and time, and ``SHARED_FIELDS``."""
 
 
 def held_summaries(summaries: np.ndarray, served: np.ndarray, last: np.ndarray | None) -> np.ndarray | None:
@@ -236,7 +238,7 @@ class ShardRoster:
 
 def mismatch(summaries: np.ndarray) -> str | None:
     """Why the rows of one tick's summaries cannot be one farm sample (rows of different samples or runs), or None."""
-    for name in SAMPLE_FIELDS[2:]:
+    for name in SHARED_FIELDS:
         column = summaries[name]
         if (column != column[0]).any():
             return f"the summaries of tick {int(summaries['tick'][0])} differ in {name}"
