@@ -93,11 +93,12 @@ class FarmSupervisor:
         self.last_tick = tick
         faulty = diagnosis.faulty if self.accommodation else np.zeros_like(diagnosis.faulty)
         power_ref = self.controller.step(sample, faulty)
-        held = sample.held if sample.held is not None and sample.held.any() and self.refs is not None else None
+        last = self.refs
+        held = sample.held if sample.held is not None and sample.held.any() and last is not None else None
         self._record(sample.t, diagnosis, held)
         self.diagnosis, self.sample = diagnosis, sample
         refs = self._refs(tick, power_ref)
-        self.refs = refs if held is None else self._kept(refs, held)
+        self.refs = refs if held is None or last is None else self._kept(refs, last, held)
         return self.refs
 
     def _refs(self, tick: int, power_ref: np.ndarray) -> FarmRefs:
@@ -122,11 +123,10 @@ class FarmSupervisor:
             ripple_rate=None if ripple is None else self.controller.ripple_rate.copy(),
         )
 
-    def _kept(self, refs: FarmRefs, held: np.ndarray) -> FarmRefs:
-        """``refs`` with the ``held`` rows (n,) as the plant keeps them (``FarmKind.hold_unserved``): the last
+    @staticmethod
+    def _kept(refs: FarmRefs, last: FarmRefs, held: np.ndarray) -> FarmRefs:
+        """``refs`` with the ``held`` rows (n,) as the plant keeps them (``FarmKind.hold_unserved``): the ``last``
         references' power reference, held torque and pitch trim (the mode is kept by ``_record``), no ripple."""
-        last = self.refs
-        assert last is not None
 
         def kept(new: np.ndarray | None, old: np.ndarray | None, none: float) -> np.ndarray | None:
             if new is None and old is None:
