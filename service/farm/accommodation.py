@@ -53,18 +53,23 @@ class AccommodationPlan:
     cancelled: np.ndarray  # bool: normal laws with the fault's 3P torque cancelled (mode 5)
     floor: np.ndarray  # W, eq. (26)'s floor
     kept: np.ndarray  # –, the share of its own P_avail eq. (26) leaves a turbine at least
+    held: np.ndarray  # bool: no shard commands it (``FarmSample.held``), a fixed producer outside the sharing
 
     @classmethod
-    def empty(cls, shape: tuple[int, int], kept: float) -> AccommodationPlan:
+    def empty(cls, shape: tuple[int, int], kept: float, held: np.ndarray | None = None) -> AccommodationPlan:
+        """A plan of no rule yet; ``held`` (farms, N) the turbines the dispatch cannot command (None: none)."""
+
         def none() -> np.ndarray:
             return np.zeros(shape, dtype=bool)
 
-        return cls(none(), none(), none(), none(), none(), none(), np.full(shape, P_MIN_W), np.full(shape, kept))
+        held = none() if held is None else held
+        return cls(none(), none(), none(), none(), none(), none(), np.full(shape, P_MIN_W), np.full(shape, kept), held)
 
     @property
     def free(self) -> np.ndarray:
-        """The turbines that may take more of the demand: the trim acts on them (a relieved one too, D-32)."""
-        return ~(self.derate | self.hold)
+        """The turbines that may take more of the demand: the trim acts on them (a relieved one too, D-32); a held
+        one is not."""
+        return ~(self.derate | self.hold | self.held)
 
     def mode(self) -> np.ndarray:
         """(n,) int8 ``wwcore.farm_frames.DISPATCH_MODES``; where rules overlap, the later one here wins."""
@@ -164,10 +169,12 @@ class PaperDrivetrainRule(DrivetrainRule):
 def derate_to_headroom(plan: AccommodationPlan, avail: np.ndarray, over: np.ndarray) -> np.ndarray:
     """Eq. (26) on the derated and relieved turbines of ``avail`` (farms, N) W, given P_over (farms,) W of (25):
     P_avail,f = max(pos(P_avail − P_over), floor, min(kept · P_avail, P_avail)), the headroom shared out in turbine
-    order (D-26). A new array; the others' P_avail unchanged."""
+    order (D-26). A held turbine is not derated (it keeps its reference). A new array; the others' P_avail
+    unchanged."""
     avail = avail.copy()
-    for t in np.flatnonzero((plan.derate | plan.relieved).any(axis=0)):  # turbine order (D-26)
-        hit = plan.derate[:, t] | plan.relieved[:, t]
+    derated = (plan.derate | plan.relieved) & ~plan.held
+    for t in np.flatnonzero(derated.any(axis=0)):  # turbine order (D-26)
+        hit = derated[:, t]
         if hit.any():
             reduced = np.maximum(np.maximum(avail[:, t] - np.maximum(over, 0.0), 0.0), plan.floor[:, t])
             reduced = np.maximum(reduced, np.minimum(plan.kept[:, t] * avail[:, t], avail[:, t]))

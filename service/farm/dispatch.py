@@ -16,6 +16,14 @@ accommodation is on: one rule per fault type, chosen by option (``service.farm.a
 4. trims the free turbines' references by the farm's power error (D-27, ``service.farm.power_loop``);
 5. asks the free turbines for the opposite of the cancelling turbines' ripple (D-29).
 
+**Held turbines** (``FarmSample.held``: a sharded supervisor's lost shard, ``docs/farm.md`` §2.5): the plant keeps
+their last references P_held,h, so the dispatch counts them as fixed producers at the references it sent them last
+and runs eqs. (18)–(26) over the served set S with the demand less theirs, P_ref,farm,S = pos(P_ref,farm − Σ_H
+P_held,h): (19) P_ref,farm,S < Σ_S P_avail, (18) P_ref,t = P_avail,t/Σ_S P_avail · P_ref,farm,S, (25) P_over =
+Σ_S P_avail − P_ref,farm,S, (26) on served turbines only; the trim on the served turbines' power error, the ripple
+estimated on served turbines and cancelled by served ones. So the farm's references still add up to the demand
+while the served turbines can make up the rest. With no turbine held every step is the one above, value for value.
+
 The reasons and the development runs behind each choice are in ``docs/farm.md`` §2.3. Options (declared with
 their ranges in ``service.farm.builtin``): ``accommodation_rule`` (``cancel``, ``hold-torque``, ``paper``),
 ``pitch_rule`` (``trim``, ``paper``), ``drivetrain_relief``, ``derate_floor``, ``hold_margin``, ``hold_reserve``,
@@ -113,6 +121,8 @@ class Dispatch:
         self.p_avail = np.zeros(self.n)  # W, eq. (22), before accommodation
         # wwcore.farm_frames.DISPATCH_MODES: normal, debris, derated (26), held torque, pitch trim, 3P cancelled
         self.mode = np.zeros(self.n, dtype=np.int8)
+        self.held_power = np.zeros(context.farms)  # W, Σ_H P_held: the held turbines' references per farm
+        self.served_demand = np.zeros(context.farms)  # W, P_ref,farm,S: the demand less theirs, shared over S
 
     def estimate_available(self, sample: FarmSample) -> np.ndarray:
         """Eqs. (20)–(22): P_avail,t (n,) in W."""
@@ -124,11 +134,16 @@ class Dispatch:
         if self.ripple is not None:
             sample = self.ripple.without_ripple(sample)
         self.p_avail = self.estimate_available(sample)
-        avail = sample.per_farm(self.p_avail).copy()
+        held = np.zeros(self.n, dtype=bool) if sample.held is None else sample.held
+        held_farm = sample.per_farm(held)
+        # the held turbines: fixed producers at the references sent them last, outside the sharing
+        self.held_power = np.where(held_farm, sample.per_farm(self.p_ref), 0.0).sum(axis=1)
+        avail = np.where(held_farm, 0.0, sample.per_farm(self.p_avail))
         flags = sample.per_farm(faulty)
-        demand = sample.demand
-        maximum = avail.sum(axis=1)  # the farm's theoretical maximum production, Σ P_avail (19)
-        plan = AccommodationPlan.empty(avail.shape, self.derate_floor)
+        demand = np.maximum(sample.demand - self.held_power, 0.0)  # P_ref,farm,S: the served turbines' part
+        self.served_demand = demand
+        maximum = avail.sum(axis=1)  # the served turbines' theoretical maximum production, Σ_S P_avail (19)
+        plan = AccommodationPlan.empty(avail.shape, self.derate_floor, held_farm)
         DebrisRule.mark(plan, flags)
         self.pitch.mark(plan, flags[:, :, PITCH], sample)
         self.drivetrain.mark(plan, flags[:, :, DRIVETRAIN], sample)
@@ -139,17 +154,17 @@ class Dispatch:
         share = avail / np.maximum(avail.sum(axis=1), 1.0)[:, None] * demand[:, None]  # eq. (18)
         share = self.drivetrain.shares(plan, avail, demand, active, share)
         share = DebrisRule.share(plan, share)  # eq. (24)
-        # beyond the farm's maximum every turbine runs at rated, but a held one stays at its floor (until released)
+        # beyond the maximum every turbine runs at rated, but one in the drive-train hold stays at its floor (D-30)
         refs = np.where(active[:, None], share, np.where(plan.hold, plan.floor, self.p.rated_power))
         if self.power_trim.enabled:
-            refs = self.power_trim.apply(sample, refs, active, plan.free)
-        refs = np.clip(refs, 0.0, self.p.rated_power).reshape(-1)
+            refs = self.power_trim.apply(sample, refs, active, plan.free, self.held_power)
+        refs = np.where(held, self.p_ref, np.clip(refs, 0.0, self.p.rated_power).reshape(-1))
         # a hold released at this sample goes out as mode 5 at once (with this sample's references, computed as held)
         plan.cancelled = self.drivetrain.cancelled(flags[:, :, DRIVETRAIN])
         self.mode = plan.mode()
         if self.ripple is not None:  # D-29: the cancelling turbines' 3P power ripple, cancelled by the free ones
-            sources = plan.hold | plan.cancelled
-            self.ripple.step(measured, sources.reshape(-1), ~(sources | plan.derate).reshape(-1))
+            sources = (plan.hold | plan.cancelled) & ~held_farm  # a held turbine's power is not seen: not estimated
+            self.ripple.step(measured, sources.reshape(-1), ~(sources | plan.derate | held_farm).reshape(-1))
         self.p_ref = refs
         return refs
 

@@ -132,15 +132,15 @@ class HoldTorqueRule(DrivetrainRule):
     ) -> np.ndarray:
         """A held turbine gets its floor, the others share the rest as in (18); holds the farm has needed long
         enough are released (they go out as mode 5 at once, with these references); a hold that ended is
-        forgotten."""
-        hold = plan.hold
+        forgotten. A turbine no shard commands (``plan.held``) keeps its latched hold but takes no part here."""
+        hold = plan.hold & ~plan.held
         if hold.any():
             fixed = np.where(hold, plan.floor, 0.0)
             others = np.where(hold, 0.0, avail)
             rest = np.maximum(demand - fixed.sum(axis=1), 0.0)
             self.release.update(hold, rest, others.sum(axis=1), active)
             share = np.where(hold, fixed, others / np.maximum(others.sum(axis=1), 1.0)[:, None] * rest[:, None])
-        held = hold.reshape(-1)
+        held = plan.hold.reshape(-1)
         self.speed_floor = np.where(held, self.speed_floor, np.nan)
         self.held_torque = np.where(held, self.held_torque, np.nan)
         self.held_sum = np.where(held, self.held_sum, np.nan)

@@ -8,6 +8,14 @@ accommodation is off). Both run on 10 Hz farm samples only and see what a farm c
 SCADA means, their controller outputs, the met mast and the demand; never the plant's truth, the fault schedule
 or the wind case or direction (the paper's detector estimates it: eqs. (1)–(2) or the mast's vane).
 
+**Held turbines.** A sample may say that some turbines are ``held`` ((n,) bool; None, the default, when every
+turbine is served): a sharded supervisor's coordinator has lost the shard that commands them, so the plant keeps
+their last references (``FarmKind.hold_unserved``) and whatever the controller returns for them goes nowhere. A
+controller that knows it treats them as fixed producers at the reference it returned them last and answers the
+demand less theirs with the others (the ``dispatch``, ``docs/farm.md`` §2.5); one that ignores the field still runs,
+and the supervisor sends the held rows' last references whatever it returns for them (``FarmSupervisor.decide``).
+Their rows of the sample are their last summary, repeated.
+
 A farm controller may also expose ``mode`` (n,) int8 (``wwcore.farm_frames.DISPATCH_MODES``: 3 holds the torque,
 5 cancels the 3P torque without the hold), ``held_torque`` (n,) N m, ``pitch_trim`` (n, 3) deg and
 ``ripple_power`` (n,) complex W with ``ripple_rate`` (n,) rad/s; the supervisor forwards them to the turbines
@@ -49,6 +57,7 @@ class FarmSample:
     mast: np.ndarray  # (farms,) m/s
     demand: np.ndarray  # (farms,) W
     mast_direction: np.ndarray | None = None  # (farms,) deg from north, the mast vane (None: the plant has none)
+    held: np.ndarray | None = None  # (n,) bool, turbines no shard commands (module docstring; None: every one served)
 
     @classmethod
     def from_frame(cls, frame: FarmFrame, dt: float) -> FarmSample:

@@ -7,7 +7,9 @@ Both act on each farm's relative power error
     e = (P_{ref,farm} − Σ P_m)/P_{ref,farm},\quad I ← \operatorname{sat}(I + K_i e Δt),\quad
     u = \operatorname{sat}(K_p e + I)
 
-(sat = ±limit, Δt the 10 Hz farm sample).
+(sat = ±limit, Δt the 10 Hz farm sample). With turbines no shard commands (``FarmSample.held``) the loop is on the
+served ones: P_ref,farm less the held turbines' references P_H and Σ P_m over the served turbines,
+e = (P_ref,farm − P_H − Σ_S P_m)/(P_ref,farm − P_H) (a held turbine's power in the sample is its last summary's).
 
 **Farm-power trim** (D-27, ``docs/farm.md`` §2.3) [PROPOSED; not in the paper]: eq. (18) shares the demand in
 proportion to P_avail, which eq. (21) low-passes over a rotor transit, so a turbine in a lull cannot make its
@@ -19,7 +21,8 @@ dispatch). It does not follow a held turbine's 0.6–0.8 Hz power ripple (D-C4):
 rated per second.
 
 **PI** (the benchmark's reference farm controller, PARAMETERS.md b): u as above with sat = ±20 %; every turbine gets
-(1 + u) P_ref,farm / 9. K_p = 0.3, K_i = 0.05 1/s [PROPOSED].
+(1 + u) P_ref,farm / N (the served ones (1 + u)(P_ref,farm − P_H)/N_S while some are held). K_p = 0.3, K_i = 0.05 1/s
+[PROPOSED].
 """
 
 from __future__ import annotations
@@ -34,12 +37,19 @@ TRIM_KP, TRIM_KI, TRIM_LIMIT = 0.5, 0.5, 0.1  # –, 1/s, –: the dispatch's fa
 
 
 def farm_power_pi(
-    sample: FarmSample, integral: np.ndarray, kp: float, ki: float, limit: float
+    sample: FarmSample, integral: np.ndarray, kp: float, ki: float, limit: float, held_power: np.ndarray | None = None
 ) -> tuple[np.ndarray, np.ndarray]:
     """One step of a PI on each farm's relative power error e = (P_ref,farm − Σ P_m)/P_ref,farm: the new integral
-    I = sat(I + K_i e Δt) and the output u = sat(K_p e + I), sat = ±``limit`` (the PI and the dispatch's trim)."""
-    farm_power = sample.per_farm(sample.scada[:, P_G]).sum(axis=1)
-    demand = np.maximum(sample.demand, 1.0)
+    I = sat(I + K_i e Δt) and the output u = sat(K_p e + I), sat = ±``limit`` (the PI and the dispatch's trim).
+    ``held_power`` (farms,) W, the held turbines' references P_H: the error of the served turbines (module
+    docstring)."""
+    power = sample.scada[:, P_G]
+    target = sample.demand
+    if held_power is not None and sample.held is not None:
+        power = np.where(sample.held, 0.0, power)
+        target = np.maximum(target - held_power, 0.0)
+    farm_power = sample.per_farm(power).sum(axis=1)
+    demand = np.maximum(target, 1.0)
     error = (demand - farm_power) / demand
     integral = np.clip(integral + ki * error * FARM_DT_S, -limit, limit)
     return integral, np.clip(kp * error + integral, -limit, limit)
@@ -57,10 +67,18 @@ class FarmPowerTrim:
         """False with K_p = K_i = 0: the paper's open-loop dispatch."""
         return self.kp > 0.0 or self.ki > 0.0
 
-    def apply(self, sample: FarmSample, refs: np.ndarray, active: np.ndarray, free: np.ndarray) -> np.ndarray:
+    def apply(
+        self,
+        sample: FarmSample,
+        refs: np.ndarray,
+        active: np.ndarray,
+        free: np.ndarray,
+        held_power: np.ndarray | None = None,
+    ) -> np.ndarray:
         """(1 + u) on the references ``refs`` (farms, N) of the turbines in ``free`` of the farms where the
-        dispatch is ``active`` (farms,); I restarts from 0 where it is not."""
-        integral, u = farm_power_pi(sample, self.integral, self.kp, self.ki, self.limit)
+        dispatch is ``active`` (farms,); I restarts from 0 where it is not. ``held_power`` (farms,) W: the held
+        turbines' references, the error then the served turbines' (``farm_power_pi``)."""
+        integral, u = farm_power_pi(sample, self.integral, self.kp, self.ki, self.limit, held_power)
         self.integral = np.where(active, integral, 0.0)
         return np.where(free & active[:, None], refs * (1.0 + u[:, None]), refs)
 
@@ -79,8 +97,19 @@ class PIFarmController:
         self.p_ref = np.full(self.n, self.p.rated_power)
 
     def step(self, sample: FarmSample, faulty: np.ndarray) -> np.ndarray:
-        self.integral, u = farm_power_pi(sample, self.integral, self.kp, self.ki, PI_LIMIT)
+        """Equal shares (1 + u) P_ref,farm/N; with held turbines (``FarmSample.held``), the served ones share
+        (1 + u)(P_ref,farm − P_H) equally and the held ones keep their last reference."""
         per_farm = sample.turbines_per_farm
-        refs = np.repeat(sample.demand * (1.0 + u) / per_farm, per_farm)
-        self.p_ref = np.clip(refs, 0.0, self.p.rated_power)
+        if sample.held is None or not sample.held.any():
+            self.integral, u = farm_power_pi(sample, self.integral, self.kp, self.ki, PI_LIMIT)
+            refs = np.repeat(sample.demand * (1.0 + u) / per_farm, per_farm)
+            self.p_ref = np.clip(refs, 0.0, self.p.rated_power)
+            return self.p_ref
+        held = sample.per_farm(sample.held)
+        held_power = np.where(held, sample.per_farm(self.p_ref), 0.0).sum(axis=1)
+        self.integral, u = farm_power_pi(sample, self.integral, self.kp, self.ki, PI_LIMIT, held_power)
+        served = np.maximum((~held).sum(axis=1), 1)
+        share = np.maximum(sample.demand - held_power, 0.0) * (1.0 + u) / served
+        refs = np.clip(np.repeat(share, per_farm), 0.0, self.p.rated_power)
+        self.p_ref = np.where(sample.held, self.p_ref, refs)
         return self.p_ref

@@ -4,6 +4,11 @@ It runs on the plant's 10 Hz farm samples (``FarmFrame.sample``) and returns the
 Events: DETECTION / RECOVERY when a turbine's flag of one of the three faults changes (target = the fault type,
 ``wwcore.scenario.farm.FARM_FAULT_TYPES``), DISPATCH when a turbine's accommodation mode changes. Events carry
 ``run`` = the farm index of the batch (the evaluator maps farms to Monte Carlo runs and twins).
+
+Turbines a sample says are ``held`` (a sharded supervisor's lost shard, ``FarmSample.held``) keep what the plant
+keeps for them (``FarmKind.hold_unserved``), whatever the controller returns: the references answering the sample
+carry their last power reference, mode, held torque and pitch trim, and no 3P ripple phasor; their mode does not
+change, so no DISPATCH event is made up for them.
 """
 
 from __future__ import annotations
@@ -88,9 +93,12 @@ class FarmSupervisor:
         self.last_tick = tick
         faulty = diagnosis.faulty if self.accommodation else np.zeros_like(diagnosis.faulty)
         power_ref = self.controller.step(sample, faulty)
-        self._record(sample.t, diagnosis)
+        last = self.refs
+        held = sample.held if sample.held is not None and sample.held.any() and last is not None else None
+        self._record(sample.t, diagnosis, held)
         self.diagnosis, self.sample = diagnosis, sample
-        self.refs = self._refs(tick, power_ref)
+        refs = self._refs(tick, power_ref)
+        self.refs = refs if held is None or last is None else self._kept(refs, last, held)
         return self.refs
 
     def _refs(self, tick: int, power_ref: np.ndarray) -> FarmRefs:
@@ -100,7 +108,7 @@ class FarmSupervisor:
             value = getattr(self.controller, name, None)
             return value.copy() if value is not None and np.any(value) else None
 
-        mode = getattr(self.controller, "mode", None)
+        mode = None if getattr(self.controller, "mode", None) is None else self.mode  # as ``_record`` kept it
         hold = None if mode is None else mode == HOLD_TORQUE_MODE
         cancel = None if mode is None else mode == CANCEL_3P_MODE
         ripple = asked("ripple_power")
@@ -115,11 +123,37 @@ class FarmSupervisor:
             ripple_rate=None if ripple is None else self.controller.ripple_rate.copy(),
         )
 
+    @staticmethod
+    def _kept(refs: FarmRefs, last: FarmRefs, held: np.ndarray) -> FarmRefs:
+        """``refs`` with the ``held`` rows (n,) as the plant keeps them (``FarmKind.hold_unserved``): the ``last``
+        references' power reference, held torque and pitch trim (the mode is kept by ``_record``), no ripple."""
+
+        def kept(new: np.ndarray | None, old: np.ndarray | None, none: float) -> np.ndarray | None:
+            if new is None and old is None:
+                return None
+            shape = (new if new is not None else old).shape
+            new = np.full(shape, none) if new is None else new
+            old = np.full(shape, none) if old is None else old
+            value = np.where(held.reshape(-1, *([1] * (len(shape) - 1))), old, new)
+            return value if np.any(value if none == 0.0 else ~np.isnan(value)) else None
+
+        ripple = None if refs.ripple_power is None else np.where(held, 0.0, refs.ripple_power)
+        asks_ripple = ripple is not None and ripple.any()
+        return replace(
+            refs,
+            power_ref=np.where(held, last.power_ref, refs.power_ref),
+            held_torque=kept(refs.held_torque, last.held_torque, np.nan) if refs.hold_torque is not None else None,
+            pitch_trim=kept(refs.pitch_trim, last.pitch_trim, 0.0),
+            ripple_power=ripple if asks_ripple else None,
+            ripple_rate=np.where(held, 0.0, refs.ripple_rate) if asks_ripple else None,
+        )
+
     def drain_events(self) -> list[Event]:
         events, self._events = self._events, []
         return events
 
-    def _record(self, t: float, diagnosis: FarmDiagnosis) -> None:
+    def _record(self, t: float, diagnosis: FarmDiagnosis, held: np.ndarray | None = None) -> None:
+        """The events of a sample's verdict and the controller's modes; ``held`` rows (n,) keep their mode."""
         rows = self.turbine_of_row, self.farm_of_row
         raised = flag_events(t, self.flags, diagnosis.faulty, FARM_FAULT_TYPES, *rows)
         if raised:
@@ -127,6 +161,8 @@ class FarmSupervisor:
             self.flags = diagnosis.faulty.copy()
         mode = getattr(self.controller, "mode", None)
         if mode is not None:
+            if held is not None:
+                mode = np.where(held, self.mode, mode).astype(np.int8)
             switched = mode != self.mode
             for row in np.flatnonzero(switched):
                 detail = {"from": DISPATCH_MODES[int(self.mode[row])], "to": DISPATCH_MODES[int(mode[row])]}

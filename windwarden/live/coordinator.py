@@ -24,9 +24,13 @@ of one tick are not of one sample and run.
 silent for ``shard_silent_s`` (3 s), or whose status says it stopped, is lost: a ``liveliness`` event names it and its
 turbines, the status lists it (``lost_shards``, ``held_turbines``, ``shards_lost``), and the farm samples are decided
 without it: its turbines' rows are held at their last summary (``sharding.held_summaries``: the dispatch sees them as
-they were, their flags do not change), nothing is dispatched to it, and the plan in the status leaves it out, so the
-plant completes each tick without its turbines and keeps their last references (``FarmKind.hold_unserved``). It
-rejoins (an event, ``shards_rejoined``) when it reports ready for the run again and summarises a newer sample.
+they were, their flags do not change) and the sample names them held (``FarmSample.held``): the dispatch counts them
+as fixed producers at the references it sent them last and shares the demand less theirs over the served turbines
+(the status' ``held_power_ref_w`` and ``served_demand_w``). Nothing is dispatched to the lost shard, and the plan in
+the status leaves it out, so the plant completes each tick without its turbines and keeps their last references
+(``FarmKind.hold_unserved``), the ones the dispatch counts. It rejoins (an event, ``shards_rejoined``) when it
+reports ready for the run again and summarises a newer sample; from the next sample complete without held rows the
+dispatch shares over every turbine again.
 """
 
 from __future__ import annotations
@@ -223,6 +227,7 @@ class CoordinatorNode:
                 self.summaries.expect(self.summaries.owned_mask(roster.turbines_of(roster.admitted)))
             held = roster.held()
             noticed_t = max(roster.newest(), 0) * self.info.dt  # the newest farm sample summarised: when it was noticed
+            held_refs = self._held_refs(held)
         for name, alive, reason in changes:
             turbines = self.roster.shards[name].turbines
             detail = {
@@ -232,6 +237,7 @@ class CoordinatorNode:
                 "alive": alive,
                 "reason": reason,
                 "held_turbines": held,
+                "held_power_ref_w": held_refs,  # what the plant keeps for them and the dispatch counts on
                 "noticed_by": "coordinator",
             }
             (log.info if alive else log.warning)(
@@ -249,6 +255,15 @@ class CoordinatorNode:
                 if name in rejoined:
                     self._dispatch(name, self._last_out[rows])  # a rejoined shard has references at once
         return problem is None
+
+    def _held_refs(self, held: list[int]) -> list[float | None]:
+        """The power reference (W) the coordinator sent each of the ``held`` turbines last (None: none yet): the one
+        the plant keeps for it and the dispatch counts on while it is held."""
+        if self._last_out is None:
+            return [None] * len(held)
+        position = {t: i for i, t in enumerate(self.turbines)}
+        refs = [float(self._last_out["power_ref"][position[t]]) for t in held if t in position]
+        return [r if np.isfinite(r) else None for r in refs]
 
     # -- status ----------------------------------------------------------------------------------------------------
     def status(self) -> dict[str, Any]:
@@ -276,6 +291,7 @@ class CoordinatorNode:
                 for name, shard in roster.lost.items()
             }
             counts = roster.lost_total, roster.rejoined_total
+            dispatch = self._held_dispatch()
         return {
             "run_id": None if self.info is None else self.info.run_id,
             "ready": self.supervisor is not None and self.coverage_problem is None,
@@ -289,6 +305,7 @@ class CoordinatorNode:
             "coverage": self.coverage_problem or ("degraded: turbines held" if held else "complete"),
             "lost_shards": lost,
             "held_turbines": held,
+            **dispatch,
             "shards_lost": counts[0],
             "shards_rejoined": counts[1],
             "samples": self.samples,
@@ -296,6 +313,17 @@ class CoordinatorNode:
             "dropped": self.drops.as_dict(),
             "turbines": turbines,
         }
+
+    def _held_dispatch(self) -> dict[str, float | None]:
+        """What the last sample decided made of the held turbines (under the lock): ``held_power_ref_w``, the sum
+        of their references (what the plant keeps them at), and ``served_demand_w``, the demand less it, which the
+        served turbines were given; None before any sample."""
+        sup = self.supervisor
+        if sup is None or sup.sample is None or sup.refs is None:
+            return {"held_power_ref_w": None, "served_demand_w": None}
+        held = sup.sample.held
+        held_power = 0.0 if held is None else float(sup.refs.power_ref[held].sum())
+        return {"held_power_ref_w": held_power, "served_demand_w": float(sup.sample.demand[0]) - held_power}
 
     def publish_status(self, force: bool = False) -> None:
         now = time.monotonic()
@@ -354,7 +382,7 @@ class CoordinatorNode:
         self._last_summaries = records
         self._decided_at = time.monotonic()
         started = time.perf_counter()
-        sample, diagnosis = farm_sample(records)
+        sample, diagnosis = farm_sample(records, None if served is None else ~served)
         with self._lock:
             sup = self.supervisor
             refs = sup.decide(tick, sup.untrimmed(sample), diagnosis)

@@ -12,8 +12,9 @@ A shard that stops summarising is lost to the coordinator (``ShardRoster``): whe
 ``lost_after_samples`` farm samples the other shards summarised (killed, hung, cut off), when its status falls silent
 for ``silent_after_s`` (every shard gone), or when its status says it stopped. Its turbines are then held: the
 coordinator decides on their last summaries (``held_summaries``), sends them nothing, and the plant keeps their last
-references (``FarmKind.hold_unserved``). A lost shard rejoins once it reports ready for the run again and sends a
-summary of a newer farm sample.
+references (``FarmKind.hold_unserved``); the sample names them (``farm_sample``), so the dispatch counts them as
+fixed producers at those references and shares the rest of the demand over the served turbines. A lost shard
+rejoins once it reports ready for the run again and sends a summary of a newer farm sample.
 """
 
 from __future__ import annotations
@@ -52,10 +53,11 @@ def summary_records(sensors: np.ndarray, sample: FarmSample, diagnosis: FarmDiag
     return records_from_batch(FARM_SUMMARY, values, [int(t) for t in sensors["turbine"]])
 
 
-def farm_sample(summaries: np.ndarray) -> tuple[FarmSample, FarmDiagnosis]:
+def farm_sample(summaries: np.ndarray, held: np.ndarray | None = None) -> tuple[FarmSample, FarmDiagnosis]:
     """The farm's sample (as the plant sent it) and its detectors' diagnosis from one farm's summaries of one tick,
     rows in the farm's turbine order; the met mast and the demand from the first row, as
-    ``FarmKind.frame_from_records`` takes them."""
+    ``FarmKind.frame_from_records`` takes them. ``held`` (rows,) bool: the rows ``held_summaries`` held (a lost
+    shard's turbines), which the sample names (``FarmSample.held``) so the dispatch leaves them out of its sharing."""
     sample = FarmSample(
         j=int(summaries["sample_index"][0]),
         t=float(summaries["sample_t"][0]),
@@ -65,6 +67,7 @@ def farm_sample(summaries: np.ndarray) -> tuple[FarmSample, FarmDiagnosis]:
         mast=np.array(summaries["mast"][:1]),
         demand=np.array(summaries["demand"][:1]),
         mast_direction=np.array(summaries["mast_direction"][:1]),
+        held=None if held is None or not held.any() else held.copy(),
     )
     diagnosis = FarmDiagnosis(
         np.array(summaries["flags"]), np.array(summaries["statistic"]), np.array(summaries["threshold"])
