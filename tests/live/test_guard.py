@@ -96,14 +96,27 @@ def test_refusal_agrees_with_a_plain_implementation(schema):
         assert seen == {None, DropReason.NON_FINITE, DropReason.OUT_OF_RANGE}, (n, seen)
 
 
-def test_large_frames_are_checked_by_columns_small_ones_by_rows(monkeypatch):
+def test_large_frames_are_checked_by_columns_once_per_distinct_values(monkeypatch):
+    """Small frames row by row; a large frame by columns, unless the values the limits read are byte for byte those
+    of the last large frame checked (the farm's refs re-stamped between samples): then its verdict, unchecked."""
     check = FARM_REFS.range_check
-    calls = []
-    monkeypatch.setattr(check, "by_rows", lambda rec: calls.append(("rows", len(rec))))
-    monkeypatch.setattr(check, "by_columns", lambda rec: calls.append(("columns", len(rec))))
-    for n in (1, 9, 80):
-        check(FARM_REFS.empty(n))
-    assert calls == [("rows", 1), ("rows", 9), ("columns", 80)]
+    rows_seen, columns_seen = [], []
+    by_rows, by_columns = check.by_rows, check._by_columns
+    monkeypatch.setattr(check, "by_rows", lambda rec: rows_seen.append(len(rec)) or by_rows(rec))
+    monkeypatch.setattr(check, "_by_columns", lambda picked: columns_seen.append(len(picked)) or by_columns(picked))
+    monkeypatch.setattr(check, "_last", None)
+    frame = FARM_REFS.empty(80)
+    frame["computed_tick"], frame["power_ref"] = 9, 1e6
+    assert [check(FARM_REFS.empty(n)) for n in (1, 9)] == [None, None] and rows_seen == [1, 9]
+    assert check(frame) is None and columns_seen == [80]
+    frame["tick"] += 1  # re-stamped: the tick is not read by the limits
+    assert check(frame) is None and columns_seen == [80]
+    frame["power_ref"][79] = np.nan
+    assert check(frame) == DropReason.NON_FINITE and columns_seen == [80, 80]
+    assert check(frame.copy()) == DropReason.NON_FINITE and columns_seen == [80, 80]
+    frame["power_ref"][79] = 5e6
+    assert check(frame) == DropReason.OUT_OF_RANGE and columns_seen == [80, 80, 80]
+    assert check(FARM_REFS.empty(80)) is None and columns_seen == [80, 80, 80, 80]
 
 
 def test_the_reported_attacks_are_refused():
