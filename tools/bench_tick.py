@@ -84,6 +84,22 @@ PARTS = {  # what the profile reports per tick, by function name (those that exi
 
 
 # -- the workers: one node each, in the process of the tree measured ----------------------------------------------
+def threads_cpu() -> dict[str, tuple[str, float]]:
+    """Each thread of this process: its name and CPU seconds (user + system, at the kernel's clock-tick
+    resolution), from ``/proc/self/task``; names with their numbers dropped (Zenoh's ``rx-3`` → ``rx``)."""
+    out = {}
+    tick = os.sysconf("SC_CLK_TCK")
+    for task in Path("/proc/self/task").iterdir():
+        try:
+            stat = (task / "stat").read_text()
+        except OSError:
+            continue
+        name = stat[stat.index("(") + 1 : stat.rindex(")")]
+        fields = stat[stat.rindex(")") + 2 :].split()
+        out[task.name] = (re.sub(r"[-_ ]?\d+$", "", name), (int(fields[11]) + int(fields[12])) / tick)
+    return out
+
+
 class CpuMeter:
     """The process's and the main thread's CPU time once ``count()`` reaches ``warm``, and at ``finish``."""
 
@@ -95,12 +111,13 @@ class CpuMeter:
         self._done = threading.Event()
         threading.Thread(target=self._watch, daemon=True).start()
 
-    def sample(self, n: int) -> dict[str, float]:
+    def sample(self, n: int) -> dict[str, Any]:
         return {
             "n": n,
             "process_s": time.process_time(),
             "main_s": time.clock_gettime(self._main),
             "wall_s": time.perf_counter(),
+            "threads": threads_cpu(),
         }
 
     def _watch(self) -> None:
@@ -117,7 +134,14 @@ class CpuMeter:
         if self.start is None or end["n"] <= self.start["n"]:
             raise SystemExit(f"the node ran {n} ticks, not more than the {self.warm} of the warm-up")
         ticks = end["n"] - self.start["n"]
+        by_name: dict[str, float] = {}
+        for tid, (name, cpu) in end["threads"].items():
+            before = self.start["threads"].get(tid, (name, 0.0))[1]
+            by_name[name] = by_name.get(name, 0.0) + cpu - before
         return {
+            "threads_ms_per_tick": {
+                name: round(1e3 * cpu / ticks, 4) for name, cpu in sorted(by_name.items(), key=lambda kv: -kv[1]) if cpu
+            },
             "ticks": ticks,
             "process_ms_per_tick": 1e3 * (end["process_s"] - self.start["process_s"]) / ticks,
             "main_thread_ms_per_tick": 1e3 * (end["main_s"] - self.start["main_s"]) / ticks,
