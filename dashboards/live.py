@@ -108,11 +108,15 @@ def _record_batch(unit: _Unit) -> pa.RecordBatch:
     group = unit.group
     lo, hi = unit.sent, group.filled
     n, width = hi - lo, len(group.names)
-    offsets = pa.array(np.arange(0, n * width + 1, width, dtype=np.int32))
+    entities = unit.stop - unit.start
     block = np.ascontiguousarray(group.values[lo:hi, unit.start : unit.stop, :].transpose(1, 0, 2))
     nanoseconds = np.rint(group.times[lo:hi] * 1e9).astype("timedelta64[ns]")  # the sample time, to the nearest ns
     arrays: list[pa.Array] = [pa.array(nanoseconds, pa.duration("ns"))]
-    arrays += [pa.ListArray.from_arrays(offsets, pa.array(block[e].ravel())) for e in range(len(block))]
+    # one list array of every entity's rows (entity-major), each entity's column a zero-copy slice of it: one Arrow
+    # construction per send instead of one per entity
+    offsets = pa.array(np.arange(0, entities * n * width + 1, width, dtype=np.int32))
+    rows = pa.ListArray.from_arrays(offsets, pa.array(block.ravel()))
+    arrays += [rows.slice(e * n, n) for e in range(entities)]
     return pa.RecordBatch.from_arrays(arrays, schema=pa.schema([_TIME_FIELD, *group.fields[unit.start : unit.stop]]))
 
 

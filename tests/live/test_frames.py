@@ -68,6 +68,27 @@ def test_one_frame_of_every_turbine_is_a_tick_in_the_mailbox_order_whatever_the_
     assert arrival.records.tobytes() == frame[::-1].tobytes()
 
 
+def test_a_whole_tick_in_the_lists_order_is_taken_as_sent_and_refused_for_the_same_reasons():
+    """The frame a plant or one supervisor sends every tick (every turbine once, in the list's order) skips the
+    general checks' duplicate search and scatter; it is taken byte for byte, writable, and refused as any other."""
+    drops = DropCounter()
+    box = TickMailbox(FARM_REFS, TURBINES, drops, "refs", lambda tick: DropReason.FUTURE_TICK if tick > 100 else None)
+    frame = rows(TURBINES)
+    box.put(FARM_REFS.encode_frame(frame))
+    (arrival,) = box.drain()
+    assert arrival.records.tobytes() == frame.tobytes() and arrival.served is None
+    arrival.records["power_ref"][0] = 1.0  # the consumer's own copy, not the message's read-only bytes
+    mixed = rows(TURBINES, tick=6)
+    mixed["tick"][8] = 7
+    box.put(FARM_REFS.encode_frame(mixed))
+    box.put(FARM_REFS.encode_frame(rows(TURBINES, tick=7)), box.owned_mask(TURBINES[:-1]))
+    box.put(FARM_REFS.encode_frame(rows(TURBINES, tick=10**15)))
+    box.put(FARM_REFS.encode_frame(rows(TURBINES, tick=8)), box.owned_mask(TURBINES))
+    assert drops.as_dict() == {"refs:mixed_ticks": 1, "refs:not_owned": 1, "refs:future_tick": 1}
+    (arrival,) = box.drain()
+    assert arrival.tick == 8 and arrival.records.tobytes() == rows(TURBINES, tick=8).tobytes()
+
+
 def test_two_shards_frames_make_one_tick():
     drops = DropCounter()
     box = TickMailbox(FARM_REFS, TURBINES, drops, "refs")

@@ -18,6 +18,7 @@ from windwarden.live.guard import (
 from wwcore.turbine_frames import OMEGA_G_MAX
 from wwcore.wire import (
     FARM_REFS,
+    FARM_SUMMARY,
     HYDRO_REFS,
     HYDRO_SENSORS,
     TURBINE_REFS,
@@ -47,9 +48,9 @@ def reference_refusal(schema, records):
     return DropReason.OUT_OF_RANGE if outside else None
 
 
-def random_records(schema, n, rng):
-    """Records whose limited fields are often inside, sometimes outside, sometimes NaN or ±inf, with the
-    conditions' fields random too."""
+def random_records(schema, n, rng, outside=0.01):
+    """Records whose limited fields are mostly inside and, each value with probability ``outside``, above or below
+    its range, NaN or ±inf, with the conditions' fields random too."""
     rec = schema.empty(n)
     for f in schema.fields:
         kind = np.dtype(f.dtype).kind
@@ -60,29 +61,62 @@ def random_records(schema, n, rng):
             rec[f.name] = rng.integers(-2, 6, shape)
         elif f.limits is not None:
             lo, hi = f.limits
-            x = rng.uniform(lo, hi, shape)
-            pick = rng.random(shape)
-            x = np.where(pick < 0.03, hi + 1.0, x)
-            x = np.where((pick >= 0.03) & (pick < 0.05), lo - 1.0, x)
+            pick = rng.random(shape) / outside  # < 1: outside, in four equal parts
             if kind == "f":
-                x = np.where((pick >= 0.05) & (pick < 0.07), np.nan, x)
-                x = np.where((pick >= 0.07) & (pick < 0.08), np.inf, x)
-            rec[f.name] = x if kind == "f" else np.round(x)
+                x = rng.uniform(max(lo, -1e9), min(hi, 1e9), shape)  # a range as wide as all floats: its middle
+                x = np.where(pick < 0.25, hi + abs(hi) * 1e-9 + 1.0, x)  # just above, for hi near the largest too
+                x = np.where((pick >= 0.25) & (pick < 0.5), lo - abs(lo) * 1e-9 - 1.0, x)
+                x = np.where((pick >= 0.5) & (pick < 0.75), np.nan, x)
+                x = np.where((pick >= 0.75) & (pick < 1.0), np.inf, x)
+            else:  # integers exactly, one past each end (2**62 + 1 is no float)
+                x = rng.integers(int(lo), min(int(hi), int(lo) + 10**6) + 1, shape)
+                x = np.where(pick < 0.5, int(hi) + 1, x)
+                x = np.where((pick >= 0.5) & (pick < 1.0), int(lo) - 1, x)
+            rec[f.name] = x
         else:
             rec[f.name] = rng.normal(size=shape)
     return rec
 
 
-@pytest.mark.parametrize("schema", REFS, ids=lambda s: s.name)
+@pytest.mark.parametrize("schema", [*REFS, FARM_SUMMARY], ids=lambda s: s.name)
 def test_refusal_agrees_with_a_plain_implementation(schema):
+    """Both ways of the range check (row by row for small frames, column by column for large ones: Horns Rev 1's
+    80 rows), and the one ``refusal`` picks, against the plain implementation."""
     rng = np.random.default_rng(7)
-    reasons = set()
-    for _ in range(400):
-        rec = random_records(schema, int(rng.choice([1, 9])), rng)
+    check = schema.range_check
+    reasons = {n: set() for n in (1, 9, 80)}
+    for _ in range(600):
+        n = int(rng.choice([1, 9, 80]))
+        rec = random_records(schema, n, rng, outside=0.1 / n)  # about one frame in ten with a value outside
         expected = reference_refusal(schema, rec)
         assert schema.refusal(rec) == expected
-        reasons.add(expected)
-    assert reasons == {None, DropReason.NON_FINITE, DropReason.OUT_OF_RANGE}  # every outcome exercised
+        assert check.by_rows(rec) == expected and check.by_columns(rec) == expected
+        reasons[n].add(expected)
+    for n, seen in reasons.items():  # every outcome exercised at every size
+        assert seen == {None, DropReason.NON_FINITE, DropReason.OUT_OF_RANGE}, (n, seen)
+
+
+def test_large_frames_are_checked_by_columns_once_per_distinct_values(monkeypatch):
+    """Small frames row by row; a large frame by columns, unless the values the limits read are byte for byte those
+    of the last large frame checked (the farm's refs re-stamped between samples): then its verdict, unchecked."""
+    check = FARM_REFS.range_check
+    rows_seen, columns_seen = [], []
+    by_rows, by_columns = check.by_rows, check._by_columns
+    monkeypatch.setattr(check, "by_rows", lambda rec: rows_seen.append(len(rec)) or by_rows(rec))
+    monkeypatch.setattr(check, "_by_columns", lambda picked: columns_seen.append(len(picked)) or by_columns(picked))
+    monkeypatch.setattr(check, "_last", None)
+    frame = FARM_REFS.empty(80)
+    frame["computed_tick"], frame["power_ref"] = 9, 1e6
+    assert [check(FARM_REFS.empty(n)) for n in (1, 9)] == [None, None] and rows_seen == [1, 9]
+    assert check(frame) is None and columns_seen == [80]
+    frame["tick"] += 1  # re-stamped: the tick is not read by the limits
+    assert check(frame) is None and columns_seen == [80]
+    frame["power_ref"][79] = np.nan
+    assert check(frame) == DropReason.NON_FINITE and columns_seen == [80, 80]
+    assert check(frame.copy()) == DropReason.NON_FINITE and columns_seen == [80, 80]
+    frame["power_ref"][79] = 5e6
+    assert check(frame) == DropReason.OUT_OF_RANGE and columns_seen == [80, 80, 80]
+    assert check(FARM_REFS.empty(80)) is None and columns_seen == [80, 80, 80, 80]
 
 
 def test_the_reported_attacks_are_refused():

@@ -99,10 +99,10 @@ class FarmKind:
             "power_ref_used": frame.power_ref_used,
         }
         per_farm = len(turbines) // frame.farms
-        values["mast"] = np.repeat(frame.mast, per_farm)
-        values["demand"] = np.repeat(frame.demand, per_farm)
+        values["mast"] = _per_turbine(frame.mast, per_farm)
+        values["demand"] = _per_turbine(frame.demand, per_farm)
         if frame.mast_direction is not None:
-            values["mast_direction"] = np.repeat(frame.mast_direction, per_farm)
+            values["mast_direction"] = _per_turbine(frame.mast_direction, per_farm)
         return records_from_batch(FARM_SENSORS, values, turbines)
 
     def frame_from_records(self, records: np.ndarray) -> FarmFrame:
@@ -310,6 +310,11 @@ class FarmScore:
 
 
 FARM = FarmKind()
+
+
+def _per_turbine(per_farm_values: np.ndarray, per_farm: int) -> np.ndarray:
+    """Each farm's value on each of its turbines' rows: one farm's (a live run) broadcasts as it is."""
+    return per_farm_values if len(per_farm_values) == 1 else np.repeat(per_farm_values, per_farm)
 
 
 def _finite_rows(values: Any) -> list[Any]:

@@ -68,6 +68,8 @@ class TickMailbox:
         top = max(self.turbines, default=0)
         self._position = np.full(top + 1, -1, dtype=np.intp)  # turbine number → its row in a complete tick
         self._position[self.turbines] = np.arange(self.n)
+        self._in_order = np.array(self.turbines, dtype=np.int64)  # a whole tick's turbine column, in the list's order
+        self._every_row = np.arange(self.n)
         self.drops = drops
         self.stream = stream
         self.cond = threading.Condition()
@@ -102,7 +104,21 @@ class TickMailbox:
         mask[[p for p in positions if p >= 0]] = True
         return mask
 
+    def _whole_tick_in_order(self, rows: np.ndarray) -> bool:
+        """The frame holds every turbine of the list once, in the list's order: what a plant or a single supervisor
+        sends every tick. Its turbines are then known, distinct and at rows 0 … n − 1, so the general checks
+        (``frame_problem``'s duplicate search, the position lookup) have nothing to find."""
+        return len(rows) == self.n and np.array_equal(rows["turbine"], self._in_order)
+
     def _refusal(self, rows: np.ndarray, owned: np.ndarray | None) -> tuple[DropReason | None, np.ndarray]:
+        if self._whole_tick_in_order(rows):
+            ticks = rows["tick"]
+            if (ticks != ticks[0]).any():
+                return DropReason.MIXED_TICKS, rows
+            if owned is not None and not owned.all():
+                return DropReason.NOT_OWNED, self._every_row
+            refused = None if self.window is None else self.window(int(ticks[0]))
+            return refused, self._every_row
         problem = frame_problem(rows)
         if problem is not None:
             return problem, rows
@@ -135,8 +151,11 @@ class TickMailbox:
             partial = self._partial.get(tick)
             if partial is None and len(positions) == self.n:  # a whole tick in one frame
                 self.received += 1
-                out = np.empty(self.n, dtype=self.schema.dtype)
-                out[positions] = rows
+                if positions is self._every_row:  # in the list's order already: one copy, no scatter
+                    out = rows.copy()
+                else:
+                    out = np.empty(self.n, dtype=self.schema.dtype)
+                    out[positions] = rows
                 self._complete.append(Arrival(tick, out, now))
                 self.cond.notify_all()
                 return
