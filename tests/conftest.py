@@ -7,8 +7,9 @@ latency checks assume one system on an otherwise idle machine, so `make test` ru
 rest has run in parallel. Every test in ``tests/live`` and ``tests/security`` is a system test unless it (its
 module, class or function) is marked ``in_process``; a test elsewhere must be marked ``system`` to start one. The
 guard below holds both ways: a test not marked ``system`` that opens a Zenoh session, starts uvicorn or a child
-process fails, naming what it started (the one child allowed is a fresh interpreter running a snippet,
-``sys.executable -c``, as the import checks do), so a marker cannot be forgotten silently.
+process fails, naming what it started, so a marker cannot be forgotten silently. The children allowed are
+one-shot readers that start nothing: a fresh interpreter running a snippet (``sys.executable -c``, the import
+checks) and ``rerun rrd`` reading a recording file.
 """
 
 from __future__ import annotations
@@ -69,9 +70,10 @@ class SystemGuard:
     def audit(self, event: str, args: tuple) -> None:
         if event != "subprocess.Popen" or self.item is None:
             return
-        argv = [str(a) for a in (args[1] if isinstance(args[1], list | tuple) else [args[1]])]
-        fresh_interpreter = len(argv) >= 2 and argv[0] == sys.executable and argv[1] == "-c"
-        if not fresh_interpreter:
+        argv = [os.fsdecode(a) for a in (args[1] if isinstance(args[1], list | tuple) else [args[1]])]
+        fresh_interpreter = argv[:1] == [sys.executable] and argv[1:2] == ["-c"]
+        reads_a_recording = bool(argv) and Path(argv[0]).name == "rerun" and argv[1:2] == ["rrd"]
+        if not (fresh_interpreter or reads_a_recording):
             self.refuse(f"a child process {argv[:3]}")
 
 
@@ -106,8 +108,15 @@ def pytest_runtest_protocol(item: pytest.Item, nextitem: pytest.Item | None):
 @pytest.hookimpl(wrapper=True)
 def pytest_runtest_makereport(item: pytest.Item, call: pytest.CallInfo):
     report = yield
-    if GUARD.item is item and GUARD.started and report.passed:
+    started, GUARD.started = GUARD.started, []  # each refusal reported once, by the phase it happened in
+    if GUARD.item is item and started and report.passed:
         # refused in a thread or caught by the test: fail it all the same
         report.outcome = "failed"
-        report.longrepr = f"{item.nodeid} is not marked system but started: {'; '.join(GUARD.started)}"
+        report.longrepr = f"{item.nodeid} is not marked system but started: {'; '.join(started)}"
     return report
+
+
+@pytest.fixture
+def system_guard() -> SystemGuard:
+    """The guard itself, for the test that checks it refuses."""
+    return GUARD
