@@ -18,20 +18,21 @@ $(STAMP): pyproject.toml
 demo: setup
 	$(BIN)/windwarden demo
 
-# The CPU-bound tests spread over every core (pytest-xdist, one worker per test file); the tests that start whole
-# systems (routers, nodes, the API: tests/live, tests/security) then run one at a time on an otherwise idle machine,
-# as their timeouts and latency checks assume.
+# The tests that start no system spread over every core (pytest-xdist, one worker per test file); the tests that
+# start whole systems (routers, nodes, the API, child processes: marked `system`, which every test of tests/live and
+# tests/security is unless marked `in_process`; tests/conftest.py fails a test that starts one unmarked) then run one
+# at a time on an otherwise idle machine, as their timeouts and latency checks assume.
 SYSTEM_TESTS := tests/live tests/security
-PARALLEL := -n auto --dist loadfile $(foreach d,$(SYSTEM_TESTS),--ignore=$(d))
+PARALLEL := -n auto --dist loadfile
 
 test: setup
 	$(BIN)/ruff check .
-	$(BIN)/python -m pytest -q $(PARALLEL)
-	$(BIN)/python -m pytest -q $(SYSTEM_TESTS)
+	$(BIN)/python -m pytest -q $(PARALLEL) -m 'not slow and not system'
+	$(BIN)/python -m pytest -q -m 'not slow and system' $(SYSTEM_TESTS)
 
 test-slow: setup
-	$(BIN)/python -m pytest -q -m slow $(PARALLEL)
-	$(BIN)/python -m pytest -q -m slow $(SYSTEM_TESTS)
+	$(BIN)/python -m pytest -q $(PARALLEL) -m 'slow and not system'
+	$(BIN)/python -m pytest -q -m 'slow and system' $(SYSTEM_TESTS)
 
 lint: setup
 	$(BIN)/ruff check .

@@ -182,6 +182,7 @@ def test_no_credentials_or_wrong_password_cannot_connect(tmp_path):
     assert counts["logins_refused"].get("wrong password", 0) >= 1
 
 
+@pytest.mark.in_process
 def test_the_compose_router_file_is_the_generated_configuration():
     """docker/zenoh/router.json5 (what zenohd and the CI override run) is what the grants give, and parses."""
     text = (ROOT / "docker" / "zenoh" / "router.json5").read_text()
@@ -190,6 +191,7 @@ def test_the_compose_router_file_is_the_generated_configuration():
     zenoh.Config.from_file(str(ROOT / "docker" / "zenoh" / "router.json5"))
 
 
+@pytest.mark.in_process
 def test_no_two_roles_put_on_one_key():
     from windwarden.live.access import role_grants
 
@@ -219,6 +221,7 @@ def test_router_refuses_to_start_without_credentials(tmp_path):
     assert code.returncode != 0 and "credentials" in code.stderr
 
 
+@pytest.mark.in_process
 def test_credentials_files_are_private(tmp_path):
     users = write_credentials(tmp_path / "c", new_passwords())
     assert (tmp_path / "c").stat().st_mode & 0o777 == 0o700
@@ -228,6 +231,7 @@ def test_credentials_files_are_private(tmp_path):
     assert [line.split(":")[0] for line in lines] == list(ROLES)
 
 
+@pytest.mark.in_process
 def test_audit_counts_only_dropped_messages():
     """A key's first use logs a decision for every message kind (nothing is dropped); a denial is a decision
     followed by 'Msg intercepted!' on the same thread (lines as zenoh 1.10.2 writes them)."""

@@ -16,6 +16,8 @@ from windwarden.live.faults import FaultBook, FaultRecord, InjectionRefusedError
 from wwcore.scenario import FaultSpec
 from wwcore.wire import MAX_JSON_BYTES, encode_json
 
+pytestmark = pytest.mark.in_process  # no network, no process: the parallel phase (tests/conftest.py)
+
 
 class Clock:
     def __init__(self) -> None:

@@ -73,6 +73,7 @@ def load(env: dict[str, str]) -> dict:
     return base
 
 
+@pytest.mark.in_process
 def test_compose_files_pin_one_build_and_fast_stops():
     env = {"WINDWARDEN_API_TOKEN": TOKEN}
     base = yaml.safe_load(interpolate(COMPOSE.read_text(), env))

@@ -21,6 +21,8 @@ from wwcore.wire import (
     TURBINE_TRUTH,
 )
 
+pytestmark = pytest.mark.in_process  # no network, no process: the parallel phase (tests/conftest.py)
+
 
 def _prop(view: rrb.TimeSeriesView, archetype: str, field: str) -> list:
     return getattr(view.properties[archetype], field).as_arrow_array().to_pylist()

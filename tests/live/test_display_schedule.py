@@ -64,6 +64,7 @@ def _run(recording: LiveRecording, ticks: int, pump: bool = True) -> list[int]:
     return per_pump
 
 
+@pytest.mark.in_process
 def test_every_turbine_gets_each_display_row_once_at_its_own_sample_time(tmp_path):
     recording = LiveRecording("farm", "supervisor", "sched", path=str(tmp_path / "s.rrd"), n_turbines=N)
     ticks = 20 * EVERY * FLUSH_ROWS  # 20 flush periods (20 s)
@@ -100,6 +101,7 @@ def test_every_turbine_gets_each_display_row_once_at_its_own_sample_time(tmp_pat
         assert fields[b"rerun:component_type"].decode() == descriptor.component_type, entity
 
 
+@pytest.mark.in_process
 def test_nothing_is_dropped_when_nobody_pumps(tmp_path):
     """A node that never gets to send (always behind): a unit ``BUFFER_ROWS`` behind is sent when its next row
     comes, counted as forced, and every row still reaches the recording once."""
@@ -119,6 +121,7 @@ def test_nothing_is_dropped_when_nobody_pumps(tmp_path):
     assert Counter(len(r) for e, r in rows.items() if e.startswith("/turbine/")) == {len(samples): 2 * N}
 
 
+@pytest.mark.in_process
 def test_a_turbine_run_sends_each_group_as_its_own_unit(tmp_path):
     recording = LiveRecording("turbine", "plant", "one", path=str(tmp_path / "p.rrd"))
     assert unit_size(4, EVERY) == 4 and unit_size(2 * N, EVERY) == MIN_UNIT and unit_size(10_000, EVERY) == 200

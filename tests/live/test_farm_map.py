@@ -20,6 +20,8 @@ from windwarden.live.finalize import recording_entities
 from wwcore.scenario import load_scenario
 from wwcore.wire import FARM_REFS
 
+pytestmark = pytest.mark.in_process  # no network, no process: the parallel phase (tests/conftest.py)
+
 D = 115.0
 
 

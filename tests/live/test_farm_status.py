@@ -8,12 +8,15 @@ import json
 from types import SimpleNamespace
 
 import numpy as np
+import pytest
 
 from windwarden.kinds import kind_for
 from windwarden.kinds.base import finite_or_none
 from wwcore.farm_frames import DISPATCH_MODES
 from wwcore.scenario.farm import FARM_FAULT_TYPES
 from wwcore.wire import FARM_REFS
+
+pytestmark = pytest.mark.in_process  # no network, no process: the parallel phase (tests/conftest.py)
 
 
 def _by_value(sup, refs, turbines):

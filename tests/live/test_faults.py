@@ -7,6 +7,8 @@ import pytest
 from windwarden.live.faults import FaultBook, InjectionRefusedError, check_injection
 from wwcore.scenario import FaultSpec
 
+pytestmark = pytest.mark.in_process  # no network, no process: the parallel phase (tests/conftest.py)
+
 
 def spec(**kw) -> FaultSpec:
     base = {"target": "omega_g_m2", "kind": "fixed", "value": 100.0, "start_s": 0.0}

@@ -19,6 +19,8 @@ from wwcore.wire import (
     WireError,
 )
 
+pytestmark = pytest.mark.in_process  # no network, no process: the parallel phase (tests/conftest.py)
+
 TURBINES = list(range(1, 10))
 
 

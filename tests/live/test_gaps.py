@@ -18,6 +18,8 @@ from tests.live.helpers import HYDRO_SHORT, scenario
 from windwarden.live.batch import random_drops, run_batch
 from windwarden.live.mailbox import backlog_ticks
 
+pytestmark = pytest.mark.in_process  # no network, no process: the parallel phase (tests/conftest.py)
+
 AROUND_RATED = """
 name = "gaps-turbine"
 duration_s = 60.0

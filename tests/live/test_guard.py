@@ -27,6 +27,8 @@ from wwcore.wire import (
     DropReason,
 )
 
+pytestmark = pytest.mark.in_process  # no network, no process: the parallel phase (tests/conftest.py)
+
 REFS = [TURBINE_REFS, HYDRO_REFS, FARM_REFS]
 
 

@@ -115,6 +115,7 @@ def test_a_killed_shard_is_noticed_the_farm_goes_on_and_the_restarted_shard_rejo
     print(f"lost shard noticed {detection_s:.2f} s after the kill (bound {BOUND_S:.1f} s); rejoined {rejoin_s:.2f} s")
 
 
+@pytest.mark.in_process
 @pytest.mark.parametrize(
     "field, value", [("shard_lost_samples", 1), ("shard_lost_samples", 601), ("shard_silent_s", 0.5)]
 )
@@ -147,6 +148,7 @@ def _summarise(roster: ShardRoster, clock: Clock, tick: int, names=("1-4", "5-9"
         roster.heard_summary(name, tick)
 
 
+@pytest.mark.in_process
 def test_a_shard_missing_from_the_samples_the_others_summarise_is_lost_then_rejoins():
     clock = Clock()
     roster = _roster(clock)
@@ -168,6 +170,7 @@ def test_a_shard_missing_from_the_samples_the_others_summarise_is_lost_then_rejo
     assert roster.held() == [] and roster.admitted == {"1-4", "5-9"} and roster.rejoined_total == 1
 
 
+@pytest.mark.in_process
 def test_a_silent_or_stopped_shard_is_lost_and_nothing_is_lost_before_the_run_starts():
     clock = Clock()
     roster = ShardRoster(lost_after_samples=3, silent_after_s=2.0, clock=clock)
@@ -184,6 +187,7 @@ def test_a_silent_or_stopped_shard_is_lost_and_nothing_is_lost_before_the_run_st
     assert roster.coverage(list(A + B)) == "every shard is lost" and roster.held() == list(A + B)
 
 
+@pytest.mark.in_process
 def test_a_tick_completes_without_the_rows_no_longer_expected():
     drops = DropCounter()
     box = TickMailbox(FARM_REFS, list(A + B), drops, "refs")
@@ -200,6 +204,7 @@ def test_a_tick_completes_without_the_rows_no_longer_expected():
     assert [a.tick for a in box.drain()] == [8] and drops.as_dict() == {}
 
 
+@pytest.mark.in_process
 def test_the_plant_keeps_the_last_reference_of_a_turbine_nobody_serves():
     last = FARM_REFS.empty(3)
     last["turbine"], last["tick"], last["computed_tick"] = [1, 2, 3], 40, 39
@@ -226,6 +231,7 @@ def test_the_plant_keeps_the_last_reference_of_a_turbine_nobody_serves():
     assert FARM_REFS.refusal(empty) is None
 
 
+@pytest.mark.in_process
 def test_the_command_line_refuses_lost_shard_settings_out_of_range(capsys):
     for argv in (["--shard-lost-samples", "1"], ["--shard-lost-samples", "601"], ["--shard-silent", "0"]):
         assert main(["coordinate", *argv]) == 2, argv  # refused before anything starts (no session)

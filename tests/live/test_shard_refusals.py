@@ -143,6 +143,7 @@ def test_a_shard_refuses_and_counts_hostile_dispatch_rows(tmp_path):
         assert shard.last_dispatch is None and shard.dispatch.pending() == 0
 
 
+@pytest.mark.in_process
 def test_a_farm_wide_detector_and_bad_turbine_ranges_are_refused():
     scn = scenario(SHARDED_SHORT)
     info = RunInfo.of(scn, list(range(1, 10)), 0.01)
@@ -166,6 +167,7 @@ def test_a_farm_wide_detector_and_bad_turbine_ranges_are_refused():
             parse_turbines(text)
 
 
+@pytest.mark.in_process
 def test_the_command_line_refuses_what_a_sharded_supervisor_cannot_run(tmp_path, capsys):
     paper = tmp_path / "paper.toml"
     paper.write_text(SHARDED_SHORT + '[supervisor]\ndetector = "paper"\n')

@@ -5,10 +5,13 @@ from __future__ import annotations
 
 import io
 
+import pytest
 from rich.console import Console
 
 from windwarden.live.status_line import RunStatus, StatusDisplay, format_status
 from wwcore.events import Event, EventType
+
+pytestmark = pytest.mark.in_process  # no network, no process: the parallel phase (tests/conftest.py)
 
 
 def _event(t: float, kind: EventType, turbine: int = 1, target: str = "omega_r_m1", label: str = "f") -> Event:

@@ -7,6 +7,8 @@ import pytest
 
 from windwarden.live.timing import LatencyStats, Pacer
 
+pytestmark = pytest.mark.in_process  # no network, no process: the parallel phase (tests/conftest.py)
+
 
 class FakeClock:
     def __init__(self):

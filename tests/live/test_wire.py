@@ -29,6 +29,8 @@ from wwcore.wire import (
     stack_records,
 )
 
+pytestmark = pytest.mark.in_process  # no network, no process: the parallel phase (tests/conftest.py)
+
 FLOATS = arrays(np.float64, (13,), elements=st.floats(allow_nan=True, allow_infinity=True, width=64))
 
 
