@@ -9,8 +9,9 @@ import pytest
 from scipy.signal import cont2discrete, lfilter
 from scipy.stats import norm
 
+from service.plugins import AlgorithmOptionError
 from service.turbine import fast
-from service.turbine.component_fdi import actuator_whitener
+from service.turbine.component_fdi import ComponentFDI, ComponentSettings, actuator_whitener
 from service.turbine.pitch_actuator import FAULTS, TOLERANCE, SignatureBank, glr, glr_threshold
 from tests.test_component_fdi import flags_over_time
 from wwcore.channels import DIAGNOSIS_TARGETS
@@ -157,6 +158,22 @@ def test_the_false_clear_rate_over_the_clearing_windows_is_under_its_closed_form
     healthy = np.sqrt(SIGMA_W2) * rng.standard_normal((*reference.shape, 3))
     short = np.array([_ending_glr(healthy, s, 100, end, len(FAULTS))[:, 0] for end in decisions])
     assert (short <= -h_c).mean() > 0.2
+
+
+@pytest.mark.parametrize("windows", [(155,), (500,), (100, 100), (600,)])
+def test_clearing_windows_that_are_not_whole_blocks_below_the_raise_window_are_refused(windows):
+    settings = ComponentSettings(actuator_clear_windows=windows)
+    with pytest.raises(AlgorithmOptionError, match="component_actuator_clear_windows"):
+        ComponentFDI(P, 1, {"beta_1_m1": 0.2, "tau_g_m": 90.0}, settings)
+
+
+def test_the_clearing_threshold_splits_the_false_clear_budget_over_its_windows():
+    sigma = {"beta_1_m1": 0.2, "tau_g_m": 90.0}
+    alpha_c = 0.01 * P.dt * 10 / 1000.0  # the default budget per 0.1-s decision
+    one = ComponentFDI(P, 1, sigma, ComponentSettings(actuator_clear_windows=()))
+    three = ComponentFDI(P, 1, sigma, ComponentSettings())
+    assert one.h_actuator_clear == pytest.approx(0.5 * norm.isf(alpha_c / len(TOLERANCE)) ** 2)
+    assert three.h_actuator_clear == pytest.approx(0.5 * norm.isf(alpha_c / (3 * len(TOLERANCE))) ** 2)
 
 
 def test_the_numba_whitener_equals_the_numpy_reference_bit_for_bit():

@@ -380,9 +380,11 @@ class ComponentFDI:
             spread.update(z2 * (1.0 / self.s.block), healthy, z1 * (1.0 / self.s.block))
         if not self.actuator.full:
             return
-        raisable = np.where(self._actuator_cleared_rest == 0, glr, -np.inf)
-        worst = np.argmax(raisable, axis=1)
-        fault = (raisable[np.arange(self.n), worst] > self.h_actuator) & (self._actuator_rest == 0)
+        # the blade with the largest Λ, as before any clearing: the other blades see −½ s_θ of a faulty one, so a
+        # resting blade is not passed over for the next
+        worst = np.argmax(glr, axis=1)
+        resting = self._actuator_cleared_rest[np.arange(self.n), worst] > 0
+        fault = (glr[np.arange(self.n), worst] > self.h_actuator) & (self._actuator_rest == 0) & ~resting
         flagged = self.flags[:, ACTUATOR_TARGET]
         flagged[np.flatnonzero(fault), worst[fault]] = True
         # the flag drops on a window's evidence for the tolerance against every fault (``pitch_actuator``): the
