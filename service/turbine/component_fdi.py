@@ -389,13 +389,19 @@ class ComponentFDI:
         flagged[np.flatnonzero(fault), worst[fault]] = True
         # the flag drops on a window's evidence for the tolerance against every fault (``pitch_actuator``): the
         # full window's, or a shorter one's, which holds only the pitch motion since a fault that ended; with the
-        # pitch at rest there is none either way, and the flag stays
-        clear = glr <= -self.h_actuator_clear
-        for correlation_m, energy_m, sums_m, count_m in short_windows:
+        # pitch at rest there is none either way, and the flag stays. Newer evidence outranks older: a window
+        # clears only if no shorter window favours a fault by the raise threshold (an actuator that changes
+        # inside the full window, as on a ramp, is no fixed θ, and the full window may favour T while the last
+        # second says F).
+        clear = np.zeros_like(flagged)
+        recent_fault = np.zeros_like(flagged)
+        for correlation_m, energy_m, sums_m, count_m in sorted(short_windows, key=lambda window: window[3]):
             glr_m = actuator_glr(
                 correlation_m, energy_m, variance, self.signatures.n_faults, (sums_m[:, :3], sums_m[:, 3:], count_m)
             )
-            clear |= glr_m <= -self.h_actuator_clear
+            clear |= (glr_m <= -self.h_actuator_clear) & ~recent_fault
+            recent_fault |= glr_m > self.h_actuator
+        clear |= (glr <= -self.h_actuator_clear) & ~recent_fault
         kept = flagged & ~clear & (self._actuator_rest == 0)[:, None]
         self._actuator_cleared_rest = np.where(flagged & ~kept, rest, np.maximum(self._actuator_cleared_rest - 1, 0))
         self.flags[:, ACTUATOR_TARGET] = kept
