@@ -221,7 +221,7 @@ def test_a_ramped_pressure_drop_is_flagged_only_outside_the_tolerance_and_cleare
     dt = P.dt
     left_tolerance = round((10.0 + 0.488 * 10.0) / dt)
     back_in_f_range = round((60.0 - 0.601 * 10.0) / dt)  # the last tick of F's range on the way back
-        assert not flags[:, :, :2].any(), "nothing on the other blades"
+    assert not flags[:, :, :2].any(), "nothing on the other blades"
     blade = flags[:, :, 2]
     assert not blade[:left_tolerance].any(), "no flag while the actuator is within its tolerance"
     first = blade.argmax(axis=0)
