@@ -58,8 +58,9 @@ so ``ComponentFDI`` also weighs shorter windows ending at the decision (``actuat
 once the pitch moves after the fault has ended, a window that holds only that motion clears the flag without
 waiting for the old evidence to leave the full window. Each window obeys the bound above, so over the K windows
 P(a persisting fault clears) ≤ K |T| Q(√(2h_c)) per decision and h_c = ½ [Q⁻¹(α_c/(K|T|))]² (15.0 for the full
-window and two shorter ones, against 14.0 for one). After a flag clears, its blade may not raise again until the
-raise window holds no evidence from before the clearing.
+window and two shorter ones, against 14.0 for one). A window clears only if no shorter window favours a fault by the
+raise threshold (newer evidence first; on a ramp the actuator is no fixed θ inside the full window). After a flag
+clears, its blade may not raise again until the raise window holds no evidence from before the clearing.
 """
 
 from __future__ import annotations
