@@ -9,8 +9,9 @@ import pytest
 from scipy.signal import cont2discrete, lfilter
 from scipy.stats import norm
 
+from service.plugins import AlgorithmOptionError
 from service.turbine import fast
-from service.turbine.component_fdi import actuator_whitener
+from service.turbine.component_fdi import ComponentFDI, ComponentSettings, actuator_whitener
 from service.turbine.pitch_actuator import FAULTS, TOLERANCE, SignatureBank, glr, glr_threshold
 from tests.test_component_fdi import flags_over_time
 from wwcore.channels import DIAGNOSIS_TARGETS
@@ -127,6 +128,54 @@ def test_the_false_alarm_rate_is_under_its_closed_form_bound(truth):
     assert (_window_glr(w, s, window, len(FAULTS))[:, :, 0] > glr_threshold(1e-6, 3 * len(FAULTS))).all()
 
 
+def _ending_glr(w: np.ndarray, s: np.ndarray, window: int, end: int, n_faults: int) -> np.ndarray:
+    """Λ (rows, 3) over the ``window`` ticks before tick ``end``, centred (eq. 5)."""
+    ws, ss = w[end - window : end], s[end - window : end]
+    correlation, energy = np.einsum("knb,knc->nbc", ws, ss), np.einsum("knc,knc->nc", ss, ss)
+    variance = np.full((w.shape[1], 3), SIGMA_W2)
+    return glr(correlation, energy, variance, n_faults, (ws.sum(axis=0), ss.sum(axis=0), window))
+
+
+@pytest.mark.parametrize("fault", [(7.5, 0.6), (2.0, 1.2)])
+def test_the_false_clear_rate_over_the_clearing_windows_is_under_its_closed_form_bound(fault):
+    """A fault on F's grid that persists: P(max_T L − max_F L ≥ h_c on any of the K clearing windows ending at a
+    decision) ≤ K |T| Q(√(2h_c)), the bound (4) with the roles swapped and a union over the windows. At a budget of
+    5 % per decision (large enough to count), decisions every 5 s, windows of 1, 2 and 5 s (the shipped ones)."""
+    rng = np.random.default_rng(4)
+    windows, rows = (100, 200, 500), 12
+    reference = _reference(rng, 100 * 500, rows)
+    s = _bank_signatures(reference)
+    w = _signature(reference, *fault)[:, :, None] + np.sqrt(SIGMA_W2) * rng.standard_normal((*reference.shape, 3))
+    budget = 0.05
+    h_c = glr_threshold(budget, len(TOLERANCE) * len(windows))
+    assert len(TOLERANCE) * len(windows) * norm.sf(np.sqrt(2.0 * h_c)) == pytest.approx(budget)
+    decisions = range(500, len(reference) + 1, 500)
+    cleared = np.array(
+        [np.any([_ending_glr(w, s, m, end, len(FAULTS))[:, 0] <= -h_c for m in windows], axis=0) for end in decisions]
+    )
+    assert cleared.mean() <= budget, cleared.mean()
+    # a healthy actuator after the fault: the short windows give the clearing evidence the full one gives
+    healthy = np.sqrt(SIGMA_W2) * rng.standard_normal((*reference.shape, 3))
+    short = np.array([_ending_glr(healthy, s, 100, end, len(FAULTS))[:, 0] for end in decisions])
+    assert (short <= -h_c).mean() > 0.2
+
+
+@pytest.mark.parametrize("windows", [(155,), (500,), (100, 100), (600,)])
+def test_clearing_windows_that_are_not_whole_blocks_below_the_raise_window_are_refused(windows):
+    settings = ComponentSettings(actuator_clear_windows=windows)
+    with pytest.raises(AlgorithmOptionError, match="component_actuator_clear_windows"):
+        ComponentFDI(P, 1, {"beta_1_m1": 0.2, "tau_g_m": 90.0}, settings)
+
+
+def test_the_clearing_threshold_splits_the_false_clear_budget_over_its_windows():
+    sigma = {"beta_1_m1": 0.2, "tau_g_m": 90.0}
+    alpha_c = 0.01 * P.dt * 10 / 1000.0  # the default budget per 0.1-s decision
+    one = ComponentFDI(P, 1, sigma, ComponentSettings(actuator_clear_windows=()))
+    three = ComponentFDI(P, 1, sigma, ComponentSettings())
+    assert one.h_actuator_clear == pytest.approx(0.5 * norm.isf(alpha_c / len(TOLERANCE)) ** 2)
+    assert three.h_actuator_clear == pytest.approx(0.5 * norm.isf(alpha_c / (3 * len(TOLERANCE))) ** 2)
+
+
 def test_the_numba_whitener_equals_the_numpy_reference_bit_for_bit():
     rng = np.random.default_rng(4)
     b, a = actuator_whitener(P)
@@ -156,6 +205,30 @@ def test_actuators_anywhere_in_their_tolerance_are_not_flagged():
         spread=MismatchSpread(pitch_omega_n_rads=2.7, pitch_zeta=0.15),
     )
     assert not _actuator_flags([], 90.0, mismatch=mismatch, runs=3).any()
+
+
+def test_a_ramped_pressure_drop_is_flagged_only_outside_the_tolerance_and_cleared_back_inside_it():
+    """The benchmark's F7 shape, shortened: actuator 3's (ω_n², 2ζω_n) interpolated from the design's to 3.42/0.9
+    over 10 s, held, and back over 10 s. The actuator is inside the tolerance (ω_n ≥ 8.3 rad/s) while the fault
+    signal is below 0.488 and in F's range (ω_n ≤ 7.5) above 0.601: the flag rises only after the actuator has left
+    the tolerance, never drops while it is still in F's range (on the ramp in, the 5-s window, which mixes
+    tolerance and fault, favoured T while the last second said F, and dropped the flag), and is down once the
+    actuator has been back inside the tolerance long enough for the pitch to show it."""
+    fault = FaultSpec(
+        target="pitch_actuator_3", kind="pitch_dynamics", omega_n=3.42, zeta=0.9, start_s=10.0, end_s=60.0, ramp_s=10.0
+    )
+    flags = _actuator_flags([fault], 75.0, runs=3)
+    dt = P.dt
+    left_tolerance = round((10.0 + 0.488 * 10.0) / dt)
+    back_in_f_range = round((60.0 - 0.601 * 10.0) / dt)  # the last tick of F's range on the way back
+    assert not flags[:, :, :2].any(), "nothing on the other blades"
+    blade = flags[:, :, 2]
+    assert not blade[:left_tolerance].any(), "no flag while the actuator is within its tolerance"
+    first = blade.argmax(axis=0)
+    assert blade.any(axis=0).all() and (first < back_in_f_range).all(), "raised in every run"
+    for row, k in enumerate(first):
+        assert blade[k:back_in_f_range, row].all(), "kept while the actuator is in F's range"
+    assert not blade[-500:].any(), "down 15 s after the actuator is back inside the tolerance"
 
 
 def test_a_pressure_drop_is_flagged_on_its_blade_and_kept_while_it_lasts():

@@ -20,7 +20,8 @@ keeps touching θ/2. Nothing is flagged in the first ``warmup_s``.
 * the smallest offset worth flagging, ``min_offset`` (a hundredth of a stroke): θ_j ≥ min_offset.
 
 With the shipped observer settings: θ = 0.01 for both actuators in the 0.1 % scenarios (the floor; the rate alone
-gives 0.0055) and θ = 0.057 in hydro-noise (±2 %, τ = 0.1 s). ``threshold`` sets θ by hand instead.
+gives 0.0035 with their filter (37') of two 0.025-s stages) and θ = 0.057 in hydro-noise (±2 %, (37) with
+τ = 0.1 s). ``threshold`` sets θ by hand instead.
 """
 
 from __future__ import annotations

@@ -8,6 +8,27 @@ In the coordinates x of the model (24):
     f̂_a = [Σ h_i 𝓕_2,i]⁺ v                                            (35)
     df̂_filt/dt = diag(1/τ) (f̂_a − f̂_filt)                               (37)
 
+Two options (``layer_correction``, ``filter_order``; both off by default, the paper's equations), argued in
+docs/hydro.md §4:
+
+* (35') the equivalent injection of the boundary layer. In the canonical coordinates the output error obeys
+  ė_y = 𝒜_21 e_1 + 𝒜ˢ_22 e_y + v − 𝓕_2 f_a (e = x̂ − x). (35) takes ė_y = e_y = 0 (ideal sliding); the smoothed
+  injection (33) holds e_y at −𝓕_2 f_a/(ρλ_max(P_2)/δ + |𝒜ˢ_22|) instead, so (35) returns f_a scaled by
+  ρλ_max(P_2)/δ / (ρλ_max(P_2)/δ + |𝒜ˢ_22|) = 0.984. With ė_y = 0 and e_1 = 0 but e_y ≠ 0 the injection that
+  holds the layer is v_eq = 𝓕_2 f_a − 𝒜ˢ_22 e_y, and e_y is known, so::
+
+      f̂_a = [Σ h_i 𝓕_2,i]⁺ (v + 𝒜ˢ_22 e_y)                                (35')
+
+  which is exact in steady state whatever δ (ideal sliding, e_y = 0, makes it (35)).
+* (37') two stages of (37) in series, a critically damped second-order filter::
+
+      df̂_1/dt = (f̂_a − f̂_1)/τ,   df̂_filt/dt = (f̂_1 − f̂_filt)/τ                        (37')
+
+  f̂_a carries the stroke reading's noise differentiated (its model is the lag τ_p: f̂ ≈ τ_p dx̃/dt + x̃ − u), which
+  (37) passes with the flat high-frequency gain τ_p/τ; (37') rolls it off. Both filters leave a step's
+  tracking deficit ∫(f − f̂_filt) dt = τ f for (37) and 2τ f for (37'), so (37') at τ/2 costs the compensation
+  the same input deficit as (37) at τ.
+
 Decisions where the paper is silent:
 
 * Output scaling. ‖P_2 e_y‖ in (33) mixes rad/s, N m and strokes; with Q_2 = I in SI units the torque channel
@@ -58,6 +79,10 @@ class SMOSettings:
     x1_pole: Annotated[float | None, Bounds(ge=-100.0, lt=0.0, unit="1/s")] = -2.0
     # None: the smallest N with h (ρλ_max(P_2)/δ + |a22s|) ≤ 1
     substeps: Annotated[int | None, Bounds(ge=1, le=1000)] = None
+    # (35') f̂_a = 𝓕_2⁺ (v + 𝒜ˢ_22 e_y): the injection that holds ė_y = 0 inside the boundary layer; False: (35)
+    layer_correction: bool = False
+    # stages of (37) in series: 1 is the paper's filter, 2 a critically damped second-order filter
+    filter_order: Annotated[int, Bounds(ge=1, le=2)] = 1
 
 
 @dataclass
@@ -126,6 +151,7 @@ class TSSlidingModeObserver:
         self.dt = p.dt
         self.x_hat = np.zeros((n, 6))
         self.f_filt = np.zeros((n, 2))
+        self._f_stage = np.zeros((n, 2))  # the first stage of a second-order (37)
         self._y_prev: np.ndarray | None = None
         d = self.design
         self._Cs = d.ts.C / d.y_scale[:, None]
@@ -137,6 +163,7 @@ class TSSlidingModeObserver:
         self.x_hat[:, OUTPUT_STATES] = y
         self.x_hat[:, 2] = y[:, 2] / (self.p.V_M * np.maximum(y[:, 4], 0.05))
         self.f_filt[:] = 0.0
+        self._f_stage[:] = 0.0
         self._y_prev = y / self.design.y_scale
 
     def premises(self, y: np.ndarray) -> np.ndarray:
@@ -162,7 +189,9 @@ class TSSlidingModeObserver:
         drive1 = np.einsum("nij,nj->ni", G_L, dy)
         N = d.substeps
         h = self.dt / N
-        x, f_filt = self.x_hat, self.f_filt
+        x, f_filt, f_stage = self.x_hat, self.f_filt, self._f_stage
+        a22s = s.a22s if s.layer_correction else 0.0
+        second_order = s.filter_order == 2
         f_sum = np.zeros((self.n, 2))
         rho, delta, F2pT = s.rho, s.delta, d.F2_pinv.T
         sel, inv_scale = list(OUTPUT_STATES), 1.0 / d.y_scale
@@ -178,12 +207,16 @@ class TSSlidingModeObserver:
             # (24): dx̂/dt = (A − G_L C) x̂ + G_L y + B u + G_n v
             dx = np.matmul(M, x[:, :, None])[:, :, 0] + np.matmul(G_n, v[:, :, None])[:, :, 0]
             dx += drive0 + frac * drive1
-            # (35) f̂_a = 𝓕_2⁺ v ;  (37) df̂_filt/dt = (f̂_a − f̂_filt)/τ
-            f_hat = v @ F2pT
-            f_filt = f_filt + alpha * (f_hat - f_filt)
+            # (35) f̂_a = 𝓕_2⁺ v, or (35') 𝓕_2⁺ (v + 𝒜ˢ_22 e_y);  (37) df̂_filt/dt = (f̂_a − f̂_filt)/τ, or (37')
+            f_hat = (v + a22s * e_y) @ F2pT
+            if second_order:
+                f_stage = f_stage + alpha * (f_hat - f_stage)
+                f_filt = f_filt + alpha * (f_stage - f_filt)
+            else:
+                f_filt = f_filt + alpha * (f_hat - f_filt)
             f_sum += f_hat
             x = x + h * dx
-        self.x_hat, self.f_filt, self._y_prev = x, f_filt, y_s
+        self.x_hat, self.f_filt, self._f_stage, self._y_prev = x, f_filt, f_stage, y_s
         e_norm = np.linalg.norm((x @ self._Cs.T - y_s) @ d.P2, axis=1)
         return Reconstruction(
             f_hat=f_sum / N, f_filt=f_filt.copy(), x_hat=x.copy(), sliding=e_norm < delta, e_y_norm=e_norm

@@ -82,6 +82,9 @@ class ComponentSettings:
     parity_window: Annotated[int, Bounds(ge=1, le=10_000, unit="ticks")] = 10
     # ticks of evidence the pitch-actuator GLR weighs (5 s: a few of the turbulence's pitch excursions)
     actuator_window: Annotated[int, Bounds(ge=1, le=10_000, unit="ticks")] = 500
+    # shorter windows whose GLR may also clear an actuator flag (the pitch motion since the fault ended), each a
+    # whole number of blocks below actuator_window; the false-clear budget is split over them and the full window
+    actuator_clear_windows: Annotated[tuple[int, ...], Bounds(ge=1, le=10_000, unit="ticks")] = (100, 200)
     # ticks averaged by the converter test (1 s)
     converter_window: Annotated[int, Bounds(ge=1, le=10_000, unit="ticks")] = 100
     # the actuator and converter tests decide every this many ticks, on every tick's residual
@@ -136,6 +139,12 @@ class ComponentFDI:
                 f"component_actuator_window ({settings.actuator_window}) and component_converter_window "
                 f"({settings.converter_window}) must be whole numbers of component_block ({settings.block}) ticks"
             )
+        short = settings.actuator_clear_windows
+        if any(m % settings.block or m >= settings.actuator_window for m in short) or len(set(short)) < len(short):
+            raise AlgorithmOptionError(
+                f"component_actuator_clear_windows {list(short)} must be distinct whole numbers of component_block "
+                f"({settings.block}) ticks below component_actuator_window ({settings.actuator_window})"
+            )
         self.s = settings
         self.n = n
         self._fast = fast  # ``service.turbine.fast`` (``wwcore.backend``) or None
@@ -149,8 +158,9 @@ class ComponentFDI:
         block_alpha = alpha * settings.block
         # the actuator GLR (``pitch_actuator``, eq. 4): raise against 3 blades × |F| candidates, clear against |T|
         self.h_actuator = glr_threshold(block_alpha, 3 * len(FAULTS))
+        # clear against |T| on each of the clearing windows (the full one and the shorter ones): a union bound
         clear_block_alpha = settings.false_clears_per_1000s * p.dt * settings.block / 1000.0
-        self.h_actuator_clear = glr_threshold(clear_block_alpha, len(TOLERANCE))
+        self.h_actuator_clear = glr_threshold(clear_block_alpha, len(TOLERANCE) * (1 + len(short)))
         self.z_converter = norm_isf(block_alpha / 2.0)
         self._parity_scale = 1.0 / (np.sqrt(2.0) * self.sigma_beta)
         self._window_scale = 1.0 / np.sqrt(settings.parity_window)
@@ -162,6 +172,17 @@ class ComponentFDI:
         self.actuator_energy = _Window(settings.actuator_window // settings.block, (n, n_candidates))  # Σ s_θ²
         self.actuator_sums = _Window(settings.actuator_window // settings.block, (n, 3 + n_candidates))  # Σw, Σs
         self.actuator_glr = np.zeros((n, 3))  # Λ_i of the last decision (``pitch_actuator``, eq. 3)
+        # the same three sums over each shorter clearing window
+        self.actuator_short = [
+            tuple(
+                _Window(m // settings.block, shape)
+                for shape in ((n, 3, n_candidates), (n, n_candidates), (n, 3 + n_candidates))
+            )
+            for m in short
+        ]
+        # blocks until blade i's actuator test may raise again after its flag cleared: the raise window must first
+        # hold no evidence from before the clearing
+        self._actuator_cleared_rest = np.zeros((n, 3), dtype=np.int64)
         self.converter = _Window(settings.converter_window // settings.block, (n,))
         self.whiten_b, self.whiten_a = actuator_whitener(p)
         if len(self.whiten_b) != 3 or len(self.whiten_a) != 3:
@@ -333,9 +354,16 @@ class ComponentFDI:
         # Σ over the block of (w − b̂)², in units of its design variance
         z2 = (z2 - 2.0 * b * z1 + self.s.block * b * b) * (1.0 / (0.75 * self.sigma_beta**2))
         s = self.signatures.block(self._ref_block)  # s_θ[k] (ticks, n, K), eq. 1
-        correlation = self.actuator.push(np.einsum("knb,knc->nbc", w, s))  # Σ_window w_i s_θ
-        energy = self.actuator_energy.push(np.einsum("knc,knc->nc", s, s))  # Σ_window s_θ²
-        sums = self.actuator_sums.push(np.concatenate([z1, s.sum(axis=0)], axis=1))  # Σ w_i, Σ s_θ
+        block_correlation = np.einsum("knb,knc->nbc", w, s)
+        block_energy = np.einsum("knc,knc->nc", s, s)
+        block_sums = np.concatenate([z1, s.sum(axis=0)], axis=1)
+        correlation = self.actuator.push(block_correlation)  # Σ_window w_i s_θ
+        energy = self.actuator_energy.push(block_energy)  # Σ_window s_θ²
+        sums = self.actuator_sums.push(block_sums)  # Σ w_i, Σ s_θ
+        short_windows = [
+            (c.push(block_correlation), e.push(block_energy), t.push(block_sums), c.size * self.s.block)
+            for c, e, t in self.actuator_short
+        ]
         count = self.s.block * min(self.actuator_sums.count, self.actuator_sums.size)
         sensor_flagged = self.flags[:, M1_TARGET].any(axis=1) | self.flags[:, M2_TARGET].any(axis=1)
         rest = self.actuator.size
@@ -352,14 +380,31 @@ class ComponentFDI:
             spread.update(z2 * (1.0 / self.s.block), healthy, z1 * (1.0 / self.s.block))
         if not self.actuator.full:
             return
+        # the blade with the largest Λ, as before any clearing: the other blades see −½ s_θ of a faulty one, so a
+        # resting blade is not passed over for the next
         worst = np.argmax(glr, axis=1)
-        fault = (glr[np.arange(self.n), worst] > self.h_actuator) & (self._actuator_rest == 0)
+        resting = self._actuator_cleared_rest[np.arange(self.n), worst] > 0
+        fault = (glr[np.arange(self.n), worst] > self.h_actuator) & (self._actuator_rest == 0) & ~resting
         flagged = self.flags[:, ACTUATOR_TARGET]
         flagged[np.flatnonzero(fault), worst[fault]] = True
-        # the flag drops on the window's evidence for the tolerance against every fault (``pitch_actuator``):
-        # with the pitch at rest there is none either way, and the flag stays
-        flagged &= (glr > -self.h_actuator_clear) & (self._actuator_rest == 0)[:, None]
-        self.flags[:, ACTUATOR_TARGET] = flagged
+        # the flag drops on a window's evidence for the tolerance against every fault (``pitch_actuator``): the
+        # full window's, or a shorter one's, which holds only the pitch motion since a fault that ended; with the
+        # pitch at rest there is none either way, and the flag stays. Newer evidence outranks older: a window
+        # clears only if no shorter window favours a fault by the raise threshold (an actuator that changes
+        # inside the full window, as on a ramp, is no fixed θ, and the full window may favour T while the last
+        # second says F).
+        clear = np.zeros_like(flagged)
+        recent_fault = np.zeros_like(flagged)
+        for correlation_m, energy_m, sums_m, count_m in sorted(short_windows, key=lambda window: window[3]):
+            glr_m = actuator_glr(
+                correlation_m, energy_m, variance, self.signatures.n_faults, (sums_m[:, :3], sums_m[:, 3:], count_m)
+            )
+            clear |= (glr_m <= -self.h_actuator_clear) & ~recent_fault
+            recent_fault |= glr_m > self.h_actuator
+        clear |= (glr <= -self.h_actuator_clear) & ~recent_fault
+        kept = flagged & ~clear & (self._actuator_rest == 0)[:, None]
+        self._actuator_cleared_rest = np.where(flagged & ~kept, rest, np.maximum(self._actuator_cleared_rest - 1, 0))
+        self.flags[:, ACTUATOR_TARGET] = kept
 
     # -- converter (once per block) -----------------------------------------------------------------------------
     def _converter(self) -> None:

@@ -52,6 +52,15 @@ tolerance over every fault, max_T L − max_F L ≥ h_c, h_c = ½ [Q⁻¹(α_c/|
 decision (a fault θ_f that persists clears the flag with P ≤ |T| Q(√(2h_c)), by (4) with the roles swapped).
 With the pitch at rest both sides are 0, so the flag stays: an actuator shows its dynamics only while the pitch
 moves, and a flag clears only on a window that could have shown the fault and did not.
+
+The full window straddles a fault's end for its whole length (5 s), and its older part still speaks for the fault,
+so ``ComponentFDI`` also weighs shorter windows ending at the decision (``actuator_clear_windows``, 1 and 2 s):
+once the pitch moves after the fault has ended, a window that holds only that motion clears the flag without
+waiting for the old evidence to leave the full window. Each window obeys the bound above, so over the K windows
+P(a persisting fault clears) ≤ K |T| Q(√(2h_c)) per decision and h_c = ½ [Q⁻¹(α_c/(K|T|))]² (15.0 for the full
+window and two shorter ones, against 14.0 for one). A window clears only if no shorter window favours a fault by the
+raise threshold (newer evidence first; on a ramp the actuator is no fixed θ inside the full window). After a flag
+clears, its blade may not raise again until the raise window holds no evidence from before the clearing.
 """
 
 from __future__ import annotations

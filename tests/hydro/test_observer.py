@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 from service.hydro.canonical import ObserverDesignError, check_existence, invariant_zeros
+from service.hydro.noise import noise_response
 from service.hydro.smo import SMOSettings, TSSlidingModeObserver, design_observer, required_substeps
 from service.hydro.supervisor import HydroSupervisor
 from tests.hydro.conftest import offset, run_loop
@@ -74,6 +75,55 @@ def test_constant_offset_is_reconstructed(make_plant):
     # converged within 1 s of each start
     assert np.abs(out["f_filt"][300:400, :, 0] + 0.2).max() < 0.05 * 0.2
     assert np.abs(out["f_filt"][500:600, :, 1] - 0.15).max() < 0.05 * 0.15
+
+
+def _offset_run(make_plant, options, seconds=6.0):
+    """u_p −0.2 from 2 s, no noise, no compensation: f̂_filt (ticks, runs, 2)."""
+    plant = make_plant([offset("u_p", -0.2, 2.0, None)], n=1, noise_pct=0.0)
+    sup = HydroSupervisor(n=1, params=plant.nominal, compensation=False, options=options)
+    return run_loop(plant, sup, seconds)["f_filt"][:, 0, 0]
+
+
+def test_the_layer_corrected_injection_removes_the_boundary_layer_bias(make_plant):
+    """(35') F_2⁺(v + A22s e_y) is the offset itself in steady state; (35) is it times K/(K + |a22s|)."""
+    paper = _offset_run(make_plant, {"tau_filter": [0.05, 0.05]})[400:]
+    corrected = _offset_run(make_plant, {"tau_filter": [0.05, 0.05], "layer_correction": True})[400:]
+    s = SMOSettings()
+    gain = s.rho * 0.025 / s.delta
+    assert np.abs(paper - (-0.2) * gain / (gain + abs(s.a22s))).max() < 2e-4  # 0.984 f: the bias of (35)
+    assert np.abs(corrected + 0.2).max() < 2e-4 < 0.2 * abs(s.a22s) / (gain + abs(s.a22s))  # below a tenth of it
+
+
+@pytest.mark.parametrize("tau", [0.025, 0.05])
+def test_the_filters_follow_their_closed_form_step_responses(make_plant, tau):
+    """(37): 1 − e^(−t/τ); (37'): 1 − (1 + t/τ) e^(−t/τ) (the observer's own 0.8-ms transient aside), and the
+    tracking deficit ∫(f − f̂_filt) dt is τ f for (37), 2τ f for (37'): (37') at τ/2 leaves (37)'s at τ."""
+    runs = {}
+    for order in (1, 2):
+        options = {"tau_filter": [tau, tau], "filter_order": order, "layer_correction": True}
+        runs[order] = _offset_run(make_plant, options, 4.0)
+    t = np.arange(100) * 0.01  # f̂_filt at the sample of 2 s + k dt
+    step = {1: 1.0 - np.exp(-t / tau), 2: 1.0 - (1.0 + t / tau) * np.exp(-t / tau)}
+    for order in (1, 2):
+        measured = runs[order][200:300] / -0.2
+        assert np.abs(measured - step[order]).max() < 0.05
+        assert _deficit(runs[order]) == pytest.approx(order * tau, rel=0.05)
+
+
+def _deficit(f_filt: np.ndarray) -> float:
+    """∫(f − f̂_filt) dt / f over 2 s from the step at 2 s (trapezoidal rule on the samples)."""
+    return float(np.trapezoid(1.0 - f_filt[200:400] / -0.2, dx=0.01))
+
+
+def test_the_second_order_filter_rolls_off_the_stroke_noise():
+    """Two stages at τ/2 (the same step deficit as one at τ) pass less of the differentiated stroke noise."""
+    first = noise_response("ts-smo", {"tau_filter": [0.05, 0.05]}, P)
+    second = noise_response("ts-smo", {"tau_filter": [0.025, 0.025], "filter_order": 2}, P)
+    assert np.all(second.l2 < 0.65 * first.l2)  # 1.08 against 1.76
+    # continuous-time estimate for white noise of one sample's variance: ‖h‖₂² ≈ dt τ_p²/(4τ³) + ‖·‖ of the
+    # direct term; the derivative part dominates at τ = 0.025 s
+    tau, tau_p, dt = 0.025, P.tau_p, P.dt
+    assert second.l2[0] == pytest.approx(np.sqrt(dt * tau_p**2 / (4 * tau**3)), rel=0.25)
 
 
 def test_observer_step_shapes_and_initialisation():

@@ -55,10 +55,16 @@ def test_the_ts_smo_reconstruction_sees_only_its_own_stroke_reading_at_any_wind(
         assert _response("ts-smo", settings, NOMINAL, wind).l2 == pytest.approx(design.l2, rel=1e-4)
 
 
-@pytest.mark.parametrize(("noise_pct", "tau"), [(0.1, 0.05), (2.0, 0.1)])
-def test_the_predicted_sigma_is_what_the_simulated_plant_shows(make_plant, noise_pct, tau):
+SHIPPED_LOW_NOISE = {"tau_filter": [0.025, 0.025], "filter_order": 2, "layer_correction": True}
+
+
+@pytest.mark.parametrize(
+    ("noise_pct", "observer"),
+    [(0.1, {"tau_filter": [0.05, 0.05]}), (0.1, SHIPPED_LOW_NOISE), (2.0, {"tau_filter": [0.1, 0.1]})],
+)
+def test_the_predicted_sigma_is_what_the_simulated_plant_shows(make_plant, noise_pct, observer):
     """Fault-free f̂_filt of the plant in closed loop against the prediction from the sensors' accuracy alone."""
-    options = {"tau_filter": [tau, tau], "sensor_noise_pct": noise_pct}
+    options = {**observer, "sensor_noise_pct": noise_pct}
     sup = HydroSupervisor(n=2, options=options, compensation=False)
     out = run_loop(make_plant([], n=2, seed=11, noise_pct=noise_pct), sup, 30.0)
     f = out["f_filt"][100:]  # after the first second
