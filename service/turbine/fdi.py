@@ -28,6 +28,11 @@ evidence that its sensor is healthy again.
   ``isolation_confirm_alpha`` (default 0.05), the decision waits one more tick, up to ``isolation_patience``
   ticks beyond the deadline, with the explanations considered suspected (so the estimate already leaves them
   out): a first flag that names only part of the faulty set is a wrong isolation, and one more tick is cheaper.
+* **Persistent rotor-speed bias.** Beside the window tests, Page's CUSUM on each rotor-speed sensor's exclusion
+  residual against the generator-speed Kalman filter (``bias_test``; ``rotor_bias_test``, ``bias_shift``) flags a
+  bias of 1–2 σ that the UIOs take for aerodynamic torque, on rows where no rotor-speed sensor is flagged and no
+  isolation is under way; beside a flagged generator-speed sensor it reads the filter on the other one. Its shift
+  exceeds the clearing's floor, so between the two a flag neither drops nor rises again (hysteresis).
 * **Fault end.** A flag drops only when its sensor's CUSUM (``clearing``) has gathered enough evidence that the
   exclusion residual (the sensor against the selected observer's prediction, which never uses it) is back at
   zero mean, with a false-clear budget like the false-alarm one, and the observer that uses the sensor again
