@@ -208,7 +208,7 @@ def test_an_option_out_of_its_range_is_refused_naming_it(options, key):
     [
         ({"isolation_delay": 4}, "isolation_delay"),
         ({"clear_window": 5, "window": 4}, "clear_window"),
-        ({"bias_shift": 1.0, "clear_floor": 1.0}, "bias_shift"),
+        ({"bias_shift": 1.0, "clear_floor": 1.0, "rotor_bias_test": True}, "bias_shift"),
     ],
 )
 def test_options_that_contradict_the_window_are_refused_naming_them(options, key):

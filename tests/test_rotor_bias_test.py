@@ -125,13 +125,13 @@ def test_a_row_whose_predictor_changes_starts_from_zero():
 
 def test_bias_shift_must_exceed_the_clear_floor():
     with pytest.raises(AlgorithmOptionError, match="bias_shift"):
-        FDISettings(bias_shift=0.8, clear_floor=1.0)
+        FDISettings(bias_shift=0.8, clear_floor=1.0, rotor_bias_test=True)
     FDISettings(bias_shift=0.8, clear_floor=1.0, rotor_bias_test=False)  # no test, no hysteresis to keep
 
 
 def test_the_fdi_reads_the_generator_only_kalman_filter_which_never_uses_a_rotor_speed_sensor():
     fdi = TurbineContext(P, 1)
-    supervisor = TurbineSupervisor(1)
+    supervisor = TurbineSupervisor(1, options={"rotor_bias_test": True})
     detector = supervisor.detector.fdi
     assert detector.bias is not None
     design = fdi.bank_design
@@ -144,7 +144,7 @@ def test_the_fdi_reads_the_generator_only_kalman_filter_which_never_uses_a_rotor
         assert not (left_out & set(o.sensors)) or j == predictors[0]
         # σ_e ≈ σ_r: the generator side predicts the rotor speed far better than a rotor-speed sensor reads it
         assert np.allclose(1.0 / detector.bias.scale[j], 0.0251, rtol=0.05)
-    assert TurbineSupervisor(1, options={"rotor_bias_test": False}).detector.fdi.bias is None
+    assert TurbineSupervisor(1).detector.fdi.bias is None  # off by default (docs/decisions.md)
 
 
 def test_a_three_percent_rotor_gain_above_rated_is_flagged_once_and_on_its_sensor():
@@ -152,7 +152,7 @@ def test_a_three_percent_rotor_gain_above_rated_is_flagged_once_and_on_its_senso
     the flag holds to the fault's end; the healthy sensors stay unflagged."""
     fault = FaultSpec(target="omega_r_m2", kind="gain", value=0.97, start_s=8.0, end_s=14.0)
     plant = TurbineBatch(TurbinePlant(), WindSpec(mean=[(0.0, 18.0)]), [fault], seed=4, runs=[0, 1, 2, 3])
-    supervisor = TurbineSupervisor(plant.n)
+    supervisor = TurbineSupervisor(plant.n, options={"rotor_bias_test": True})
     refs, raised_at, drops, before = None, np.full(plant.n, np.nan), np.zeros(plant.n, int), np.zeros(plant.n, bool)
     for _ in range(round(14.0 / plant.dt)):
         frame = plant.measure()
