@@ -32,7 +32,8 @@ evidence that its sensor is healthy again.
   residual against the generator-speed Kalman filter (``bias_test``; ``rotor_bias_test``, ``bias_shift``) flags a
   bias of 1–2 σ that the UIOs take for aerodynamic torque, on rows where no rotor-speed sensor is flagged and no
   isolation is under way; beside a flagged generator-speed sensor it reads the filter on the other one. Its shift
-  exceeds the clearing's floor, so between the two a flag neither drops nor rises again (hysteresis).
+  exceeds the clearing's floor, so between the two a flag neither drops nor rises again (hysteresis). Off by
+  default: its threshold assumes a white residual, and on fresh seeds it raised 3.9 false alarms per 1000 s.
 * **Fault end.** A flag drops only when its sensor's CUSUM (``clearing``) has gathered enough evidence that the
   exclusion residual (the sensor against the selected observer's prediction, which never uses it) is back at
   zero mean, with a false-clear budget like the false-alarm one, and the observer that uses the sensor again
