@@ -137,6 +137,33 @@ def test_arbitration_names_the_sensor_that_moved_and_is_silent_without_a_fault()
     assert quiet.decided().mean() < 0.01
 
 
+def test_arbitration_leaves_out_rotor_speed_sensors_that_disagree():
+    """A 4 % gain on ω_r,m1 beside a 0.4 rad/s offset on ω_g,m2 (a double fault): the rotor-speed opinion, 2 % of
+    ω_g high, names the healthy ω_g,m1 (``total`` > 0); the two rotor-speed sensors disagree by 1.2 σ_d per tick,
+    so the sum with the power-speed channel alone decides, and names ω_g,m2 (``log_ratio`` < 0)."""
+    rng = np.random.default_rng(12)
+    n, omega = 200, 100.0
+    arbiter = GeneratorArbiter(DESIGN, n, 1e-3)
+    band = np.full(n, 1)
+    for _ in range(300):
+        y = omega + rng.standard_normal((n, 4)) * [0.0251 * P.N_g, 0.0251 * P.N_g, 0.05, 0.05]
+        y[:, :2] /= P.N_g
+        y[:, 0] *= 1.04
+        y[:, 3] += 0.4
+        pe = omega + rng.standard_normal(n) * np.sqrt(arbiter.power_variance[1])
+        arbiter.step(y, pe, band, np.ones((n, 2), bool), np.ones(n, bool))
+    assert arbiter.rotor_disagree.all()
+    assert (arbiter.total > 0).mean() > 0.95  # the rotor-speed opinion alone would blame the healthy sensor
+    assert arbiter.decided().mean() > 0.95 and (arbiter.log_ratio[arbiter.decided()] < 0).all()
+    # healthy rotor-speed sensors agree: the parity fires at the isolation level only (α = 1e-3 per row)
+    quiet = GeneratorArbiter(DESIGN, 2000, 1e-3)
+    for _ in range(300):
+        y = omega + rng.standard_normal((2000, 4)) * [0.0251 * P.N_g, 0.0251 * P.N_g, 0.05, 0.05]
+        y[:, :2] /= P.N_g
+        quiet.step(y, np.full(2000, omega), np.full(2000, 1), np.ones((2000, 2), bool), np.ones(2000, bool))
+    assert quiet.rotor_disagree.mean() < 0.01
+
+
 def test_rigid_drive_train_recovers_a_steady_aerodynamic_torque_exactly():
     """Observer 4 (no UIO exists): in steady state the two shaft equations summed give τ_r from ω_g and τ_g."""
     model = design_model(P)
@@ -178,7 +205,11 @@ def test_an_option_out_of_its_range_is_refused_naming_it(options, key):
 
 @pytest.mark.parametrize(
     ("options", "key"),
-    [({"isolation_delay": 4}, "isolation_delay"), ({"clear_window": 5, "window": 4}, "clear_window")],
+    [
+        ({"isolation_delay": 4}, "isolation_delay"),
+        ({"clear_window": 5, "window": 4}, "clear_window"),
+        ({"bias_shift": 1.0, "clear_floor": 1.0, "rotor_bias_test": True}, "bias_shift"),
+    ],
 )
 def test_options_that_contradict_the_window_are_refused_naming_them(options, key):
     with pytest.raises(AlgorithmOptionError, match=key):
@@ -189,7 +220,7 @@ def test_every_option_declares_its_range():
     schema = OptionSchema({"": FDISettings})
     for name in FDISettings.__dataclass_fields__:
         info = schema.options[name]
-        assert info.bounds is not None, name
+        assert info.bounds is not None or info.type_text == "bool", name
         _values, problems = schema.validate({name: getattr(FDISettings(), name)})
         assert not problems, (name, problems)
 

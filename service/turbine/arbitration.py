@@ -19,6 +19,16 @@ offset b it grows by b²/(2 s²) per tick: a 5σ offset (0.25 rad/s) is settled 
 torque (σ₃ ≈ 0.8 rad/s), a drift faster as it grows. A rotor-speed sensor that is flagged or suspected is left
 out of ω₃; below ``POWER_SPEED_MIN_TORQUE`` the power-speed channel is N_g × the rotor-speed mean and adds
 nothing, so it is left out too.
+
+**A rotor-speed fault beside it.** A double fault puts a rotor-speed fault beside the generator-speed one, and a
+rotor-speed sensor that nobody suspects yet moves ω₃: a gain of 4 % on ω_r,m1 moves N_g ω_r,m1 by about 2 % of
+ω_g, ten times a 8σ generator-speed offset, and the sum then names the healthy generator-speed sensor. The two
+rotor-speed sensors measure the same shaft, so their difference d = y_r1 − y_r2 is N(0, σ_r1² + σ_r2²) while
+both are healthy, whatever the wind. Its sum since the isolation started, z = |Σd| / (σ_d √k) over k ticks, tests
+that; once z exceeds the isolation's two-sided level Φ⁻¹(1 − α_iso/2) (3.3 at α_iso = 1e-3) the sum ℓ taken
+with the power-speed channel alone (``total_power``, accumulated beside ``total`` from the start) decides, and
+where that channel is not usable nothing is decided by the third opinion (the isolation's ``arbitration_s``
+runs out instead).
 """
 
 from __future__ import annotations
@@ -28,6 +38,7 @@ import math
 import numpy as np
 
 from service.turbine.bank import POWER_SPEED, BankDesign
+from wwcore.quantiles import norm_isf
 
 
 def _variance_of(R: np.ndarray, i: int) -> float:
@@ -49,10 +60,28 @@ class GeneratorArbiter:
             [_variance_of(bank.observers[j].R, bank.observers[j].sensors.index(POWER_SPEED)) for j in bank.power_speed]
         )
         self.gear_ratio = gear_ratio
+        self.parity_sigma = math.sqrt(float(variance["omega_r_m1"]) + float(variance["omega_r_m2"]))  # σ_d, rad/s
+        self.parity_level = float(norm_isf(0.5 * alpha))  # z above which the rotor-speed sensors disagree
         self.total = np.zeros(n)
+        self.total_power = np.zeros(n)  # ℓ summed with the power-speed channel as the only third opinion
+        self.parity = np.zeros(n)  # Σ (y_r1 − y_r2) since the isolation started, rad/s
+        self.count = np.zeros(n)  # ticks summed
 
     def reset(self, rows: np.ndarray) -> None:
         self.total[rows] = 0.0
+        self.total_power[rows] = 0.0
+        self.parity[rows] = 0.0
+        self.count[rows] = 0.0
+
+    @property
+    def rotor_disagree(self) -> np.ndarray:
+        """(n,) bool: the rotor-speed sensors' summed difference is beyond the isolation level (module docstring)."""
+        return np.abs(self.parity) > self.parity_level * self.parity_sigma * np.sqrt(np.maximum(self.count, 1.0))
+
+    @property
+    def log_ratio(self) -> np.ndarray:
+        """(n,) the sum that decides: ``total_power`` where the rotor-speed sensors disagree, ``total`` elsewhere."""
+        return np.where(self.rotor_disagree, self.total_power, self.total)
 
     def step(
         self,
@@ -64,19 +93,27 @@ class GeneratorArbiter:
     ) -> None:
         """Add this tick's ℓ. y (n, 4) speed readings; power_speed (n,) the power-speed channel (None: not used);
         band (n,) its 5-pe design (σ); rotor_trusted (n, 2) and power_trusted (n,) which opinions to use."""
+        both_rotor = rotor_trusted.all(axis=1)
+        self.parity += np.where(both_rotor, y[:, 0] - y[:, 1], 0.0)
+        self.count += both_rotor
         weight_r = rotor_trusted / self.rotor_variance
         numerator = (weight_r * y[:, :2]).sum(axis=1) * self.gear_ratio
         weight = weight_r.sum(axis=1)
+        power_numerator, power_weight = np.zeros_like(weight), np.zeros_like(weight)
         if power_speed is not None and len(self.power_variance):
-            weight_p = power_trusted / self.power_variance[band]
-            numerator = numerator + weight_p * power_speed
-            weight = weight + weight_p
+            power_weight = power_trusted / self.power_variance[band]
+            power_numerator = power_weight * power_speed
+        delta = y[:, 2] - y[:, 3]
+        middle = 0.5 * (y[:, 2] + y[:, 3])
+        self.total += self._ell(numerator + power_numerator, weight + power_weight, delta, middle)
+        self.total_power += self._ell(power_numerator, power_weight, delta, middle)
+
+    def _ell(self, numerator: np.ndarray, weight: np.ndarray, delta: np.ndarray, middle: np.ndarray) -> np.ndarray:
+        """ℓ = δ (m − ω₃) / s² with ω₃ = numerator / weight; 0 where there is no third opinion (weight 0)."""
         usable = weight > 0.0
         third = numerator / np.where(usable, weight, 1.0)
         s2 = 1.0 / np.where(usable, weight, 1.0) + self.generator_variance
-        delta = y[:, 2] - y[:, 3]
-        middle = 0.5 * (y[:, 2] + y[:, 3])
-        self.total += np.where(usable, delta * (middle - third) / s2, 0.0)
+        return np.where(usable, delta * (middle - third) / s2, 0.0)
 
     def decided(self) -> np.ndarray:
-        return np.abs(self.total) >= self.h
+        return np.abs(self.log_ratio) >= self.h
