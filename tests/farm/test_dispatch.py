@@ -19,7 +19,7 @@ from wwcore.turbine_params import BENCHMARK as P
 MW = 1e6
 
 
-def _sample(demand_mw: float, power_mw: np.ndarray | None = None) -> FarmSample:
+def _sample(demand_mw: float, power_mw: np.ndarray | None = None, held: np.ndarray | None = None) -> FarmSample:
     scada = np.zeros((9, N_SENSORS))
     if power_mw is not None:
         scada[:, P_G] = power_mw * MW
@@ -31,6 +31,7 @@ def _sample(demand_mw: float, power_mw: np.ndarray | None = None) -> FarmSample:
         power_ref_used=np.zeros(9),
         mast=np.array([10.0]),
         demand=np.array([demand_mw * MW]),
+        held=held,
     )
 
 

@@ -10,15 +10,15 @@ import numpy as np
 import pytest
 
 from service.farm.dispatch import Dispatch
-from service.farm.interfaces import P_G, FarmContext, FarmDiagnosis, FarmSample
+from service.farm.interfaces import FarmContext, FarmDiagnosis, FarmSample
 from service.farm.power_loop import PIFarmController
 from service.farm.supervisor import FarmSupervisor
-from wwcore.channels import N_SENSORS
+from tests.farm.test_dispatch import MW
+from tests.farm.test_dispatch import _sample as dispatch_sample
 from wwcore.farm_frames import CANCEL_3P_MODE, DEBRIS_MODE
 from wwcore.scenario.farm import FarmPlant
 from wwcore.turbine_params import BENCHMARK as P
 
-MW = 1e6
 SITE = FarmPlant().site()
 HELD = np.array([False] * 4 + [True] * 5)  # turbines 5-9: the shard 5-9 lost
 AVAIL = [1.0, 2.0, 3.0, 1.0, 2.0, 3.0, 1.0, 2.0, 3.0]  # MW, P_avail stubbed
@@ -29,19 +29,7 @@ SERVED_AVAIL = sum(AVAIL[:4])  # 7 MW
 
 
 def _sample(demand_mw: float, held: np.ndarray | None = None, power_mw: np.ndarray | None = None) -> FarmSample:
-    scada = np.zeros((9, N_SENSORS))
-    if power_mw is not None:
-        scada[:, P_G] = power_mw * MW
-    return FarmSample(
-        j=1,
-        t=0.1,
-        scada=scada,
-        zone=np.zeros(9, dtype=np.int8),
-        power_ref_used=np.zeros(9),
-        mast=np.array([10.0]),
-        demand=np.array([demand_mw * MW]),
-        held=held,
-    )
+    return dispatch_sample(demand_mw, power_mw, held)
 
 
 def _dispatch(avail_mw: list[float] = AVAIL, trim: tuple[float, float] = (0.0, 0.0), **options) -> Dispatch:
