@@ -13,7 +13,8 @@ from service.farm.dispatch import Dispatch
 from service.farm.interfaces import FarmContext, FarmDiagnosis, FarmSample
 from service.farm.power_loop import PIFarmController
 from service.farm.supervisor import FarmSupervisor
-from tests.farm.test_dispatch import MW
+from tests.farm.test_dispatch import MW, _faulty
+from tests.farm.test_dispatch import _dispatch as dispatch_with
 from tests.farm.test_dispatch import _sample as dispatch_sample
 from wwcore.farm_frames import CANCEL_3P_MODE, DEBRIS_MODE
 from wwcore.scenario.farm import FarmPlant
@@ -32,23 +33,13 @@ def _sample(demand_mw: float, held: np.ndarray | None = None, power_mw: np.ndarr
     return dispatch_sample(demand_mw, power_mw, held)
 
 
-def _dispatch(avail_mw: list[float] = AVAIL, trim: tuple[float, float] = (0.0, 0.0), **options) -> Dispatch:
-    options = {"accommodation_rule": "paper", "pitch_rule": "paper", "trim_kp": trim[0], "trim_ki": trim[1]} | options
-    d = Dispatch(context=FarmContext(SITE, 9), options=options)
-    d.estimate_available = lambda sample: np.asarray(avail_mw, dtype=float) * MW  # eqs. (20)–(22) stubbed
-    return d
+def _dispatch(avail_mw: list[float] = AVAIL, trim: tuple[float, float] = (0.0, 0.0)) -> Dispatch:
+    return dispatch_with(avail_mw, trim=trim)
 
 
-def _faulty(**turbines_types) -> np.ndarray:
-    f = np.zeros((9, 3), dtype=bool)
-    for t, col in turbines_types.items():
-        f[int(t[1:]) - 1, col] = True
-    return f
-
-
-def _held_dispatch(**options) -> tuple[Dispatch, np.ndarray]:
+def _held_dispatch() -> tuple[Dispatch, np.ndarray]:
     """A dispatch that has sent its first references (W) with every turbine served, and those references."""
-    d = _dispatch(**options)
+    d = _dispatch()
     first = d.step(_sample(12.0), _faulty()).copy()
     assert first / MW == pytest.approx(FIRST)
     return d, first
