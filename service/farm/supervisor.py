@@ -98,7 +98,7 @@ class FarmSupervisor:
         self._record(sample.t, diagnosis, held)
         self.diagnosis, self.sample = diagnosis, sample
         refs = self._refs(tick, power_ref)
-        self.refs = refs if held is None or last is None else self._kept(refs, last, held)
+        self.refs = refs if held is None else self._kept(refs, last, held)  # held is None without last
         return self.refs
 
     def _refs(self, tick: int, power_ref: np.ndarray) -> FarmRefs:

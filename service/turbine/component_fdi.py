@@ -178,7 +178,7 @@ class ComponentFDI:
                 _Window(m // settings.block, shape)
                 for shape in ((n, 3, n_candidates), (n, n_candidates), (n, 3 + n_candidates))
             )
-            for m in short
+            for m in sorted(short)  # shortest first: newer evidence outranks older (``_actuator``)
         ]
         # blocks until blade i's actuator test may raise again after its flag cleared: the raise window must first
         # hold no evidence from before the clearing
@@ -394,14 +394,15 @@ class ComponentFDI:
         # inside the full window, as on a ramp, is no fixed θ, and the full window may favour T while the last
         # second says F).
         clear = np.zeros_like(flagged)
-        recent_fault = np.zeros_like(flagged)
-        for correlation_m, energy_m, sums_m, count_m in sorted(short_windows, key=lambda window: window[3]):
-            glr_m = actuator_glr(
-                correlation_m, energy_m, variance, self.signatures.n_faults, (sums_m[:, :3], sums_m[:, 3:], count_m)
-            )
-            clear |= (glr_m <= -self.h_actuator_clear) & ~recent_fault
-            recent_fault |= glr_m > self.h_actuator
-        clear |= (glr <= -self.h_actuator_clear) & ~recent_fault
+        if flagged.any():  # the shorter windows' GLRs only decide clearings
+            recent_fault = np.zeros_like(flagged)
+            for correlation_m, energy_m, sums_m, count_m in short_windows:
+                glr_m = actuator_glr(
+                    correlation_m, energy_m, variance, self.signatures.n_faults, (sums_m[:, :3], sums_m[:, 3:], count_m)
+                )
+                clear |= (glr_m <= -self.h_actuator_clear) & ~recent_fault
+                recent_fault |= glr_m > self.h_actuator
+            clear |= (glr <= -self.h_actuator_clear) & ~recent_fault
         kept = flagged & ~clear & (self._actuator_rest == 0)[:, None]
         self._actuator_cleared_rest = np.where(flagged & ~kept, rest, np.maximum(self._actuator_cleared_rest - 1, 0))
         self.flags[:, ACTUATOR_TARGET] = kept
