@@ -190,6 +190,8 @@ class UIOBankEstimator:
         self._band_edges = np.sqrt(np.multiply(torques[:-1], torques[1:])) * context.params.rated_torque
         self._previous: np.ndarray | None = None  # ``selected`` of the last tick
         self._previous_mask = np.zeros(context.n, dtype=np.int64)  # the distrusted speed sensors of the last tick
+        # the distrusted speed sensors that were flagged (not only suspected) at some tick since they were distrusted
+        self._tainted = np.zeros(context.n, dtype=np.int64)
         self._switched = False  # whether any row distrusted a speed sensor at the last tick
         self.reference = design.reference
         self._reference_columns = np.full(context.n, design.reference)
@@ -199,13 +201,21 @@ class UIOBankEstimator:
         self.ticks = 0
         self._winds: np.ndarray | None = None  # (2, n): FTE, NFTE
 
-    def _take_over(self, bank, selected: np.ndarray, mask: np.ndarray) -> None:
-        """Where a distrusted speed sensor is trusted again (``mask``: the distrusted ones, bitmask per row), the
-        observer the estimate moves to restarts from the previous one's state and filters (``ObserverBank.restart``,
-        ``WindRecovery.transfer``): it ran on the faulty readings all along, and its filtered torque still carries
-        them for seconds (the wind filter's 0.3 Hz)."""
+    def _take_over(self, bank, selected: np.ndarray, mask: np.ndarray, flagged: np.ndarray) -> None:
+        """Where a speed sensor that was flagged is trusted again (``mask``: the distrusted speed sensors, ``flagged``:
+        those of them the detector has flagged, bitmasks per row), the observer the estimate moves to restarts from
+        the previous one's state and filters (``ObserverBank.restart``, ``WindRecovery.transfer``): it ran on the
+        faulty readings all along, and its filtered torque still carries them for seconds (the wind filter's 0.3 Hz).
+
+        A sensor that was only suspected (an isolation considered it and named another) is trusted again without
+        a take-over: the detector found its readings healthy, so the observer that uses it has run on healthy
+        readings, and its own filters are the right ones. Handing it the previous observer's would throw away what
+        its filters hold of its own torque (on a ringing drive train, the 4.5 Hz torsion the rigid observers see and
+        the Kalman designs do not: up to 3 MN m of filtered torque for a second, ``docs/turbine.md``)."""
         previous, previous_mask = self._previous, self._previous_mask
         self._previous, self._previous_mask = selected, mask
+        tainted = self._tainted | flagged
+        self._tainted = tainted & mask  # a sensor trusted again starts clean
         fast = self.context.fast
         if fast is not None and previous is not None:  # the tests below, at once, for the common tick
             self._switched, moving = fast.handover(previous, previous_mask, selected, mask)
@@ -214,12 +224,23 @@ class UIOBankEstimator:
         self._switched = bool(mask.any())
         if previous is None:
             return
-        rows = np.flatnonzero((previous_mask & ~mask != 0) & (selected != previous) & (selected >= 0) & (previous >= 0))
+        restored = previous_mask & ~mask & tainted
+        rows = np.flatnonzero((restored != 0) & (selected != previous) & (selected >= 0) & (previous >= 0))
         if len(rows):
             bank.restart(rows, selected[rows], previous[rows])
             self.recovery.transfer(rows, selected[rows], previous[rows], self.context.bank_design, bank.x_hat)
 
-    def step(self, frame: TurbineFrame, faulty: np.ndarray) -> Estimates:
+    @staticmethod
+    def _flagged_mask(flagged: np.ndarray | None, mask: np.ndarray) -> np.ndarray:
+        """The flagged speed sensors among the distrusted ones (``mask``), as bitmasks; all of them without
+        ``flagged``."""
+        if flagged is None:
+            return mask
+        return (flagged[:, SPEED_TARGETS] @ _MASK_WEIGHTS) & mask
+
+    def step(self, frame: TurbineFrame, faulty: np.ndarray, flagged: np.ndarray | None = None) -> Estimates:
+        """``faulty``: the targets not to use (flagged or suspected); ``flagged``: those of them the detector has
+        flagged (None: all of them), which decides whether a sensor trusted again hands over (``_take_over``)."""
         bank = self.context.bank(frame)
         if self.ticks == 0:
             p = self.context.params
@@ -238,7 +259,7 @@ class UIOBankEstimator:
                 faulty, SPEED_TARGETS, _MASK_WEIGHTS, self.observer_of_mask, self._power_speed, frame.tau_g_ref,
                 frame.zone, self._band_edges, mask, selected,
             )  # fmt: skip
-            self._take_over(bank, selected, mask)
+            self._take_over(bank, selected, mask, self._flagged_mask(flagged, mask))
             recovery.step(
                 bank.x_hat, frame.beta_ref, pitch_m1, pitch_m2, ~faulty[:, PITCH_M1_T], ~faulty[:, PITCH_M2_T]
             )
@@ -253,7 +274,7 @@ class UIOBankEstimator:
                 if on_pe.any():
                     band = power_speed_band(frame.tau_g_ref, self.context.params, frame.zone)
                     selected = np.where(on_pe, self._power_speed[band], selected)
-            self._take_over(bank, selected, mask)
+            self._take_over(bank, selected, mask, self._flagged_mask(flagged, mask))
             recovery.step(
                 bank.x_hat, frame.beta_ref, pitch_m1, pitch_m2, ~faulty[:, PITCH_M1_T], ~faulty[:, PITCH_M2_T]
             )
@@ -263,7 +284,8 @@ class UIOBankEstimator:
         else:  # the common tick: every sensor healthy, every row on the observer that uses all four speed sensors
             selected = self._all_healthy.copy()
             if self._switched:
-                self._take_over(bank, selected, np.zeros(len(selected), dtype=np.int64))
+                none = np.zeros(len(selected), dtype=np.int64)
+                self._take_over(bank, selected, none, none)
             recovery.step(bank.x_hat, frame.beta_ref, pitch_m1, pitch_m2, None, None)
             columns = self._all_healthy
             if fast is not None:

@@ -6,6 +6,7 @@ algorithms declare; each algorithm receives the keys it declared.
 
 from __future__ import annotations
 
+import inspect
 from collections.abc import Sequence
 
 import numpy as np
@@ -45,6 +46,8 @@ class TurbineSupervisor:
         self.estimator = TURBINE_ESTIMATORS.create(
             names["estimator"], context=self.context, options=chosen["estimator"]
         )
+        # an estimator whose ``step`` takes ``flagged`` is told which distrusted targets are flagged, not suspected
+        self._estimator_takes_flags = "flagged" in inspect.signature(self.estimator.step).parameters
         self.n = n
         self.run_of_row = np.zeros(n, dtype=int) if run_of_row is None else np.asarray(run_of_row)
         self.turbine_of_row = np.ones(n, dtype=int) if turbine_of_row is None else np.asarray(turbine_of_row)
@@ -58,7 +61,10 @@ class TurbineSupervisor:
         diagnosis = self.detector.step(frame)
         # the estimator stops using a sensor as soon as the detector suspects it, before it is flagged
         distrusted = diagnosis.faulty if diagnosis.suspect is None else diagnosis.suspect
-        estimates = self.estimator.step(frame, distrusted)
+        if self._estimator_takes_flags:  # which of them are flagged rather than suspected
+            estimates = self.estimator.step(frame, distrusted, flagged=diagnosis.faulty)
+        else:
+            estimates = self.estimator.step(frame, distrusted)
         self._record(frame.t, diagnosis, estimates)
         self.diagnosis, self.estimates = diagnosis, estimates
         return TurbineRefs(
