@@ -325,3 +325,26 @@ def test_a_sensor_only_suspected_is_trusted_again_without_a_take_over(g1_flagged
         np.testing.assert_array_equal(torque["4-g2"][0], torque["4-g2"][1])
         np.testing.assert_array_equal(arbitrated_est.omega_g, at_once_est.omega_g)
         np.testing.assert_allclose(arbitrated_est.wind, at_once_est.wind, atol=1e-6)  # the inversion's warm start
+
+
+def test_the_rotor_speed_pair_is_compared_when_the_healthy_one_is_suspected():
+    """The double fault of the previous test with ω_r,m1 healthy and ω_r,m2's gain 0.913 beside an offset on ω_g,m1,
+    while the isolation suspects ω_r,m1 (the healthy one, as a first explanation may): ω₃ is then the faulty
+    ω_r,m2 alone and ``total`` names the healthy ω_g,m2. Compared although one is suspected, the pair disagrees and
+    the power-speed sum decides, naming ω_g,m1; left uncompared (the arbitration before), the wrong one wins."""
+    rng = np.random.default_rng(13)
+    n, omega = 200, 100.0
+    compared, uncompared = GeneratorArbiter(DESIGN, n, 1e-3), GeneratorArbiter(DESIGN, n, 1e-3)
+    band = np.full(n, 1)
+    trusted = np.tile([False, True], (n, 1))  # ω_r,m1 suspected
+    for _ in range(300):
+        y = omega + rng.standard_normal((n, 4)) * [0.0251 * P.N_g, 0.0251 * P.N_g, 0.05, 0.05]
+        y[:, :2] /= P.N_g
+        y[:, 1] *= 0.913
+        y[:, 2] -= 0.42
+        pe = omega + rng.standard_normal(n) * np.sqrt(compared.power_variance[1])
+        compared.step(y, pe, band, trusted, np.ones(n, bool), np.ones(n, bool))
+        uncompared.step(y, pe, band, trusted, np.ones(n, bool))
+    assert (compared.total < 0).all()  # ω₃ = the faulty ω_r,m2: "ω_g,m2 is faulty"
+    assert compared.rotor_disagree.all() and (compared.log_ratio > 0).all()  # power-speed: ω_g,m1, the right one
+    assert not uncompared.rotor_disagree.any() and (uncompared.log_ratio < 0).all()

@@ -28,7 +28,10 @@ both are healthy, whatever the wind. Its sum since the isolation started, z = |�
 that; once z exceeds the isolation's two-sided level Φ⁻¹(1 − α_iso/2) (3.3 at α_iso = 1e-3) the sum ℓ taken
 with the power-speed channel alone (``total_power``, accumulated beside ``total`` from the start) decides, and
 where that channel is not usable nothing is decided by the third opinion (the isolation's ``arbitration_s``
-runs out instead).
+runs out instead). The pair is compared whether or not one of them is suspected, and left uncompared only once one
+is flagged: the first explanation of a double fault may suspect the healthy rotor-speed sensor, which would leave
+the faulty one alone in ω₃ and the pair never compared (a random-scenario window, ω_r,m2 gain 0.913 beside an
+8.5σ offset on ω_g,m1 at 15 m/s: ω_r,m1 suspected first, ω_g,m2 flagged on the rotor-speed opinion; docs/turbine.md).
 """
 
 from __future__ import annotations
@@ -90,10 +93,17 @@ class GeneratorArbiter:
         band: np.ndarray | None,
         rotor_trusted: np.ndarray,
         power_trusted: np.ndarray,
+        rotor_paired: np.ndarray | None = None,
     ) -> None:
         """Add this tick's ℓ. y (n, 4) speed readings; power_speed (n,) the power-speed channel (None: not used);
-        band (n,) its 5-pe design (σ); rotor_trusted (n, 2) and power_trusted (n,) which opinions to use."""
-        both_rotor = rotor_trusted.all(axis=1)
+        band (n,) its 5-pe design (σ); rotor_trusted (n, 2) and power_trusted (n,) which opinions to use;
+        rotor_paired (n,) the rows whose two rotor-speed readings are compared (None: where both are trusted).
+
+        The comparison does not depend on which rotor-speed sensor is suspected: a suspicion may name the healthy
+        one (the first explanation of a double fault is often the wrong rotor-speed sensor), and the other, faulty,
+        would then be the only rotor-speed opinion in ω₃, unchecked. Compared, the pair's disagreement hands the
+        decision to the power-speed channel whichever of the two is at fault."""
+        both_rotor = rotor_trusted.all(axis=1) if rotor_paired is None else rotor_paired
         self.parity += np.where(both_rotor, y[:, 0] - y[:, 1], 0.0)
         self.count += both_rotor
         weight_r = rotor_trusted / self.rotor_variance

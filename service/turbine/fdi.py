@@ -382,6 +382,7 @@ class SpeedSensorFDI:
             np.zeros(self.n, dtype=np.int64) if torque_band is None else torque_band,
             ~suspected[:, :2],
             trusted_power,
+            ~_SENSORS_OF_MASK[self.flagged][:, :2].any(axis=1),  # the pair is compared unless one is flagged
         )
         decided = self.arbiter.decided()
         rows = np.flatnonzero(self.deadline >= 0)
