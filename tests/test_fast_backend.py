@@ -22,6 +22,7 @@ import pytest
 from plant_sim.farm import FarmBatch
 from plant_sim.turbine import TurbineBatch
 from service.farm.supervisor import FarmSupervisor
+from service.turbine.adaptive import HealthySpread
 from service.turbine.supervisor import TurbineSupervisor
 from tests.live.helpers import TURBINE_SHORT
 from windwarden.cli import EXIT_BAD_INPUT, main
@@ -160,6 +161,14 @@ def turbine_trace(scenario, backend: str, runs: list[int], ticks: int, every: in
             "actuator_glr": supervisor.detector.components.actuator_glr,
             "converter_test": supervisor.detector.components.converter.total,
             "parity_window": supervisor.detector.components.parity.total,
+            "pitch_outlier": supervisor.detector.components.outlier.total,
+            # the adaptive thresholds' learnt scales and offsets (``service.turbine.adaptive``)
+            "chi2_scale": fdi.spread.estimate,
+            "speed_offset": fdi.calibration.mean,
+            "parity_offset": supervisor.detector.components.parity_spread.mean,
+            "parity_scale": supervisor.detector.components.parity_spread.estimate,
+            "actuator_scale": supervisor.detector.components.actuator_spread.estimate,
+            "spread_counts": fdi.spread.count,
             "residual": fdi.clearing.residual,
             "flags": supervisor.flags,
             "omega_g": est.omega_g,
@@ -196,6 +205,70 @@ def test_aero_kernels_equal_the_reference_inside_and_outside_the_table():
                 aero.wind_from_torque(tau, omega, pitch, guess, BENCHMARK, iterations),
                 "wind",
             )
+
+
+def spread_pair(shape: tuple[int, ...], limit: float | None) -> tuple[HealthySpread, HealthySpread]:
+    """A ``HealthySpread`` of the numpy reference and its compiled twin, T_a 0.05 s: both weights matter."""
+    fast = fast_module("service.turbine.fast")
+    return HealthySpread(shape, 0.01, 0.05, 2.0, limit), HealthySpread(shape, 0.01, 0.05, 2.0, limit, fast=fast)
+
+
+def assert_same_spread(fast: HealthySpread, reference: HealthySpread, what: str) -> None:
+    for name in ("count", "estimate", "scale2", "scale", "mean", "offset"):
+        np.testing.assert_array_equal(getattr(fast, name), getattr(reference, name), f"{what}: {name}")
+
+
+def test_the_adaptive_thresholds_kernel_equals_the_reference():
+    # per element and per row, with no row healthy, rows healthy then not, a nan and an inf where a sample is
+    # not learnt (numpy's 0 × inf carries them), values beyond both clips; every array equal to the last bit
+    rng = np.random.default_rng(SEED)
+    for limit in (0.3, None):
+        reference, fast = spread_pair((4, 3), limit)
+        for k in range(40):
+            q, x = rng.uniform(0.0, 6.0, (4, 3)) * [0.2, 1.0, 2.0], rng.normal(0.3, 0.5, (4, 3))
+            healthy = rng.random((4, 3)) < (0.0 if k % 7 == 3 else 0.7)
+            if k == 30:
+                q[0, 0], x[1, 2] = np.nan, np.inf
+                healthy[0, 0] = healthy[1, 2] = False
+            with np.errstate(invalid="ignore"):  # 0 × inf
+                reference.update(q, healthy, x)
+            fast.update(q, healthy, x)
+            assert_same_spread(fast, reference, f"limit {limit}, sample {k}")
+        assert np.isnan(reference.estimate[0, 0]) and np.nanmin(reference.scale2) == 1.0
+        assert np.nanmax(reference.scale2) == 4.0 and (np.nanmax(reference.offset) == 0.3 if limit else True)
+        for k in range(20):
+            rows = rng.random(4) < 0.6
+            q, x = rng.uniform(0.0, 6.0, (4, 3)), rng.normal(0.0, 0.5, (4, 3))
+            reference.update_rows(q if k % 2 else None, rows, x)
+            fast.update_rows(q if k % 2 else None, rows, x)
+            assert_same_spread(fast, reference, f"limit {limit}, rows, sample {k}")
+    with pytest.raises(AssertionError):  # the comparison can fail: one more sample on one side
+        reference.update(np.full((4, 3), 5.0), np.ones((4, 3), dtype=bool))
+        assert_same_spread(fast, reference, "one side updated")
+
+
+def test_the_pitch_parity_kernel_equals_the_reference():
+    # ``ComponentFDI._adapt_parity`` with its numpy lines and with the kernel, through flags, outliers and learning
+    scenario = parse_scenario(at_half_speed(FAULTY))
+    rng = np.random.default_rng(SEED)
+    detectors = [
+        TurbineSupervisor(3, backend=backend, noise_convention=scenario.plant.noise_convention).detector.components
+        for backend in ("numpy", "numba")
+    ]
+    detectors[0].parity_spread.min_weight = detectors[1].parity_spread.min_weight = 0.05
+    for k in range(60):
+        parity, window = rng.normal(0.0, 1.5, (3, 3)), rng.normal(0.0, 1.5, (3, 3))
+        flags = rng.random((3, detectors[0].flags.shape[1])) < 0.1
+        outs = []
+        for detector in detectors:
+            detector.flags[:] = flags
+            outs.append(detector._adapt_parity(parity, window))
+        for a, b in zip(outs[1][:2], outs[0][:2], strict=True):
+            np.testing.assert_array_equal(a, b, f"sample {k}")
+        suspicious = np.maximum(np.abs(outs[0][0]), np.abs(outs[0][1])) > detectors[0].z_single
+        assert outs[0][2] is None and outs[1][2] == suspicious.any()
+        assert_same_spread(detectors[1].parity_spread, detectors[0].parity_spread, f"sample {k}")
+    assert detectors[0].parity_spread.count.min() > 0 and detectors[0].parity_spread.count.max() < 60
 
 
 def at_half_speed(text: str) -> dict:
