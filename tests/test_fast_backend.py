@@ -310,17 +310,29 @@ def test_farm_turbines_match(name):
         )
         sup = scenario.supervisor
         supervisor = FarmSupervisor(
-            scenario.plant.site(plant.dt), plant.n, detector=sup.detector, controller=sup.controller, options=sup.params
+            scenario.plant.site(plant.dt),
+            plant.n,
+            detector=sup.detector,
+            controller=sup.controller,
+            options=sup.params,
+            backend=backend,
         )
-        refs, trace = None, []
+        assert (supervisor.context.fast_aero is None) == (backend == "numpy")
+        refs, trace, winds, powers = None, [], [], []
         for _ in range(1500):
             frame = plant.measure()
             plant.control(refs)
             refs = supervisor.step(frame)
             plant.advance()
             trace.append(plant.turbines.x.copy())
-        states[backend] = np.array(trace)
-    assert_close(states["numba"], states["numpy"], "farm turbine states")
+            if frame.sample:  # the supervisor's available-power wind (eq. 20) and its references
+                winds.append(supervisor.controller.available.wind.copy())
+                powers.append(refs.power_ref.copy())
+        events = plant.drain_events() + supervisor.drain_events()
+        states[backend] = np.array(trace), np.array(winds), np.array(powers), [(e.t, e.type, e.turbine) for e in events]
+    for name, fast, reference in zip(("states", "wind", "power refs"), states["numba"], states["numpy"], strict=False):
+        assert_close(fast, reference, f"farm turbine {name}")
+    assert states["numba"][3] == states["numpy"][3]
 
 
 def test_the_scorecard_is_the_same_with_either_backend():
