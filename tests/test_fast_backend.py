@@ -21,6 +21,7 @@ import pytest
 
 from plant_sim.farm import FarmBatch
 from plant_sim.turbine import TurbineBatch
+from service.farm.baseline import LearntLevel
 from service.farm.supervisor import FarmSupervisor
 from service.turbine.adaptive import HealthySpread
 from service.turbine.supervisor import TurbineSupervisor
@@ -271,6 +272,29 @@ def test_the_pitch_parity_kernel_equals_the_reference():
     assert detectors[0].parity_spread.count.min() > 0 and detectors[0].parity_spread.count.max() < 60
 
 
+def test_the_farm_learnt_levels_kernel_equals_the_reference():
+    # ``LearntLevel.update`` with its numpy lines and with the kernel, on the analytic detector's two shapes (per
+    # turbine with a per-turbine σ_d, per blade with one σ_d and a frozen flag per turbine), blocks of 4 filling
+    # and restarting, samples frozen mid-block; every array equal to the last bit
+    fast = fast_module("service.farm.fast")
+    rng = np.random.default_rng(SEED)
+    learnt = {"level_time_s": 0.5, "spread_time_s": 0.8, "max_ratio": 9.0, "block": 4}
+    for shape in ((5,), (5, 3)):
+        reference, twin = LearntLevel(shape, **learnt), LearntLevel(shape, **learnt, fast=fast)
+        for k in range(50):
+            r = rng.normal(0.4, 2.0, shape)
+            std = rng.uniform(0.5, 1.5, shape) if len(shape) == 1 else 1.3
+            frozen = rng.random(shape if len(shape) == 1 else (5, 1)) < 0.15 if k % 9 else False
+            reference.update(r, std, frozen)
+            twin.update(r, std, frozen)
+            for name in ("samples", "level", "raw_ratio", "blocks", "_block_sum", "_block_n"):
+                np.testing.assert_array_equal(getattr(twin, name), getattr(reference, name), f"{shape} {k}: {name}")
+        assert reference.blocks.min() >= 5 and (reference.raw_ratio != 1.0).all()
+    twin = copy.deepcopy(twin)  # a copy learns into its own arrays
+    twin.update(np.ones((5, 3)), 1.0)
+    assert not np.array_equal(twin.level, reference.level)
+
+
 def at_half_speed(text: str) -> dict:
     """A scenario with every time (duration, wind points, fault starts, ends and ramps) halved and every drift
     doubled: each fault still starts and ends, in the same order, above and below rated, in half the ticks."""
@@ -325,12 +349,16 @@ def test_farm_turbines_match(name):
             refs = supervisor.step(frame)
             plant.advance()
             trace.append(plant.turbines.x.copy())
-            if frame.sample:  # the supervisor's available-power wind (eq. 20) and its references
-                winds.append(supervisor.controller.available.wind.copy())
+            if frame.sample:  # the detector's residuals, the available-power wind (eq. 20) and the references
+                detector = supervisor.detector
+                learnt = [detector.level1.level, detector.level2.level] if hasattr(detector, "level1") else []
+                winds.append(np.concatenate([supervisor.controller.available.wind, detector.residuals.ravel()]))
+                winds[-1] = np.concatenate([winds[-1], *[a.ravel() for a in learnt]])
                 powers.append(refs.power_ref.copy())
         events = plant.drain_events() + supervisor.drain_events()
         states[backend] = np.array(trace), np.array(winds), np.array(powers), [(e.t, e.type, e.turbine) for e in events]
-    for name, fast, reference in zip(("states", "wind", "power refs"), states["numba"], states["numpy"], strict=False):
+    names = ("states", "wind, residuals and levels", "power refs")
+    for name, fast, reference in zip(names, states["numba"], states["numpy"], strict=False):
         assert_close(fast, reference, f"farm turbine {name}")
     assert states["numba"][3] == states["numpy"][3]
 

@@ -123,7 +123,8 @@ class FarmContext:
     diameters of each other along the wind form a row), ``rows_of_case(case)`` for the paper's two wind cases on its
     3 × 3. The batch holds ``farms`` = n / N farms, rows farm-major. ``backend`` (``wwcore.backend``; None:
     ``$WINDWARDEN_STEP_BACKEND``, else numpy): with ``"numba"``, ``fast_aero`` is ``wwcore.aero_fast`` (else
-    None), whose ``wind_from_torque`` the algorithms may use for ``wwcore.aero``'s (the same numbers).
+    None), whose ``wind_from_torque`` the algorithms may use for ``wwcore.aero``'s (the same numbers), and ``fast``
+    is ``service.farm.fast``, the compiled twin of their per-sample arithmetic.
     """
 
     def __init__(self, site: SiteInfo, n: int, params: TurbineParams = BENCHMARK, backend: str | None = None):
@@ -151,6 +152,7 @@ class FarmContext:
         # with the ``numba`` backend, ``wwcore.aero_fast``: its compiled wind inversion gives ``wwcore.aero``'s numbers
         self.backend = resolve_backend(backend)
         self.fast_aero = fast_module("wwcore.aero_fast") if self.backend == "numba" else None
+        self.fast = fast_module("service.farm.fast") if self.backend == "numba" else None  # the algorithms' kernels
 
     def rows(self, direction_deg: float) -> list[tuple[int, ...]]:
         """Turbine numbers (1-based) grouped by distance along the wind from ``direction_deg``, front to back."""
