@@ -220,31 +220,33 @@ def assert_same_spread(fast: HealthySpread, reference: HealthySpread, what: str)
 
 
 def test_the_adaptive_thresholds_kernel_equals_the_reference():
-    # per element and per row, with no row healthy, rows healthy then not, a nan and an inf where a sample is
-    # not learnt (numpy's 0 × inf carries them), values beyond both clips; every array equal to the last bit
+    # per element and per row, (n, m) and (n,), with no row healthy, rows healthy then not, a nan and an inf where
+    # a sample is not learnt (numpy's 0 × inf carries them), values beyond both clips; every array equal to the
+    # last bit
     rng = np.random.default_rng(SEED)
-    for limit in (0.3, None):
-        reference, fast = spread_pair((4, 3), limit)
+    for shape, limit in (((4, 3), 0.3), ((4, 3), None), ((12,), 0.3)):  # (n,): the converter's
+        reference, fast = spread_pair(shape, limit)
         for k in range(40):
             q, x = rng.uniform(0.0, 6.0, (4, 3)) * [0.2, 1.0, 2.0], rng.normal(0.3, 0.5, (4, 3))
             healthy = rng.random((4, 3)) < (0.0 if k % 7 == 3 else 0.7)
             if k == 30:
                 q[0, 0], x[1, 2] = np.nan, np.inf
                 healthy[0, 0] = healthy[1, 2] = False
+            q, x, healthy = q.reshape(shape), x.reshape(shape), healthy.reshape(shape)
             with np.errstate(invalid="ignore"):  # 0 × inf
                 reference.update(q, healthy, x)
             fast.update(q, healthy, x)
             assert_same_spread(fast, reference, f"limit {limit}, sample {k}")
-        assert np.isnan(reference.estimate[0, 0]) and np.nanmin(reference.scale2) == 1.0
+        assert np.isnan(reference.estimate.flat[0]) and np.nanmin(reference.scale2) == 1.0
         assert np.nanmax(reference.scale2) == 4.0 and (np.nanmax(reference.offset) == 0.3 if limit else True)
-        for k in range(20):
+        for k in range(20 if len(shape) == 2 else 0):
             rows = rng.random(4) < 0.6
             q, x = rng.uniform(0.0, 6.0, (4, 3)), rng.normal(0.0, 0.5, (4, 3))
             reference.update_rows(q if k % 2 else None, rows, x)
             fast.update_rows(q if k % 2 else None, rows, x)
             assert_same_spread(fast, reference, f"limit {limit}, rows, sample {k}")
     with pytest.raises(AssertionError):  # the comparison can fail: one more sample on one side
-        reference.update(np.full((4, 3), 5.0), np.ones((4, 3), dtype=bool))
+        reference.update(np.full(12, 5.0), np.ones(12, dtype=bool))
         assert_same_spread(fast, reference, "one side updated")
 
 

@@ -46,7 +46,7 @@ class HealthySpread:
     ``max_scale``: s_max, the largest noise scale accepted; ``offset_limit``: b_max in the residual's unit
     (None: no offset is estimated), a scalar or an array broadcast to ``shape``. ``fast``:
     ``service.turbine.fast`` (``wwcore.backend``) or None; with it, an update of a two-dimensional ``shape`` is one
-    kernel (``learn_spread``, the same operations).
+    kernel (``learn_spread``, the same operations) for one- and two-dimensional ``shape``s.
     """
 
     def __init__(
@@ -58,7 +58,7 @@ class HealthySpread:
         offset_limit: float | np.ndarray | None = None,
         fast=None,
     ):
-        self._fast = fast if len(shape) == 2 else None
+        self._fast = fast if len(shape) in (1, 2) else None
         self.enabled = adapt_time_s > 0.0
         self.min_weight = min(1.0, sample_s / adapt_time_s) if self.enabled else 0.0
         self.max_scale2 = float(max_scale) ** 2
@@ -69,7 +69,8 @@ class HealthySpread:
         self.scale = np.ones(shape)  # √scale2: the factor on the thresholds of z-scores
         self.offset_limit = None if offset_limit is None else np.broadcast_to(offset_limit, shape).astype(float)
         self.offset = np.zeros(shape)  # clip(b̂, −b_max, b_max)
-        # the arrays ``fast.learn_spread`` updates in place, and b_max (b̂ stands in where none is learnt: never read)
+        # the arrays ``fast.learn_spread`` updates in place, and b_max (b̂ stands in where none is learnt: never read);
+        # of a one-dimensional ``shape``, (n, 1) views taken at each update (a copied object keeps its own)
         limit = self.mean if self.offset_limit is None else self.offset_limit
         self.state = (self.count, self.estimate, self.scale2, self.scale, self.mean, self.offset, limit)
 
@@ -81,7 +82,12 @@ class HealthySpread:
             return
         if self._fast is not None:
             x = x if self.offset_limit is not None else None
-            self._fast.learn_spread(q, x, healthy, self.min_weight, self.max_scale2, self.state)
+            state = self.state
+            if self.count.ndim == 1:  # as a column: (n, 1) views
+                state = tuple(a.reshape(-1, 1) for a in state)
+                q, x = (None if a is None else a.reshape(-1, 1) for a in (q, x))
+                healthy = healthy.reshape(-1, 1)
+            self._fast.learn_spread(q, x, healthy, self.min_weight, self.max_scale2, state)
             return
         if not healthy.any():
             return

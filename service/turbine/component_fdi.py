@@ -219,7 +219,7 @@ class ComponentFDI:
         # w's offset is at most the cross-blade combination of the pair means' biases, twice one sensor's tolerance
         actuator_limit = 2.0 * SENSOR_BIAS_TOLERANCE["beta_1_m1"]
         self.actuator_spread = HealthySpread((n, 3), block_s, adapt, top, actuator_limit, fast=fast)
-        self.converter_spread = HealthySpread((n,), block_s, adapt, top, SENSOR_BIAS_TOLERANCE["tau_g_m"])
+        self.converter_spread = HealthySpread((n,), block_s, adapt, top, SENSOR_BIAS_TOLERANCE["tau_g_m"], fast=fast)
         self._root_parity_window = float(np.sqrt(settings.parity_window))
 
     def step(self, frame: TurbineFrame) -> np.ndarray:
