@@ -45,8 +45,8 @@ class HealthySpread:
     ``sample_s``: time between updates (s); ``adapt_time_s`` T_a (0: no adaptation, ŝ² = 1 and b̂ = 0 always);
     ``max_scale``: s_max, the largest noise scale accepted; ``offset_limit``: b_max in the residual's unit
     (None: no offset is estimated), a scalar or an array broadcast to ``shape``. ``fast``:
-    ``service.turbine.fast`` (``wwcore.backend``) or None; with it, an update of a two-dimensional ``shape`` is one
-    kernel (``learn_spread``, the same operations) for one- and two-dimensional ``shape``s.
+    ``service.turbine.fast`` (``wwcore.backend``) or None; with it, each update of a one- or two-dimensional
+    ``shape`` is one kernel (``learn_spread``, the same operations).
     """
 
     def __init__(

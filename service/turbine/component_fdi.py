@@ -260,9 +260,9 @@ class ComponentFDI:
         o.count += 1
         self.readings.push(beta)
         if self.parity_spread.enabled:  # the kernel's ``any_suspicious`` is on the unadapted parity
-            self._pitch_flags(beta[:, :3], beta[:, 3:], *self._adapt_parity(parity, window))
+            self._pitch_flags(*self._adapt_parity(parity, window))
         else:
-            self._pitch_flags(beta[:, :3], beta[:, 3:], parity, window, any_suspicious)
+            self._pitch_flags(parity, window, any_suspicious)
 
     # -- pitch sensors ------------------------------------------------------------------------------------------
     def _pitch_sensors(self, beta: np.ndarray, m1: np.ndarray, m2: np.ndarray) -> None:
@@ -271,7 +271,7 @@ class ComponentFDI:
         parity = (m1 - m2) * self._parity_scale
         window = self.parity.push(parity) * self._window_scale
         self._push_outlier(m1, m2)
-        self._pitch_flags(m1, m2, *self._adapt_parity(parity, window))
+        self._pitch_flags(*self._adapt_parity(parity, window))
 
     def _push_outlier(self, m1: np.ndarray, m2: np.ndarray) -> None:
         """Each pitch sensor's distance from the mean of the other two blades' four sensors, into its window sum
@@ -301,9 +301,7 @@ class ComponentFDI:
         spread.update(centred * centred, healthy, parity)
         return parity_n, window_n, None
 
-    def _pitch_flags(
-        self, m1: np.ndarray, m2: np.ndarray, parity: np.ndarray, window: np.ndarray, any_suspicious: bool | None
-    ) -> None:
+    def _pitch_flags(self, parity: np.ndarray, window: np.ndarray, any_suspicious: bool | None) -> None:
         """Raise and clear the pitch-sensor flags from the parity and its window mean (``any_suspicious``: whether
         any exceeds the single-tick level, None when not known)."""
         maybe_frozen = self.readings.counting or self.s.frozen_ticks < 2  # else nothing can be frozen
