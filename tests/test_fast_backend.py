@@ -433,6 +433,23 @@ def test_compiled_objects_copy_and_pickle():
     twin = copy.deepcopy(plant)  # a fault-free twin run in the same process copies the plant
     twin.measure(), plant.measure()
     np.testing.assert_array_equal(twin.last_reading, plant.last_reading)
+    # a copied supervisor learns into its own adaptive state (the kernels update it in place)
+    plant = TurbineBatch(scenario.plant, scenario.wind, scenario.faults, seed=SEED, backend="numba")
+    supervisor, refs = TurbineSupervisor(plant.n, backend="numba"), None
+    for _ in range(3):
+        frame = plant.measure()
+        plant.control(refs)
+        refs = supervisor.step(frame)
+        plant.advance()
+    copied = copy.deepcopy(supervisor)
+    frame = plant.measure()
+    copied.step(frame)
+    spreads = [(s.detector.fdi.spread, s.detector.components.parity_spread) for s in (supervisor, copied)]
+    assert not np.array_equal(spreads[0][1].count, spreads[1][1].count)  # only the copy took the last frame
+    supervisor.step(frame)
+    for mine, its in zip(*spreads, strict=True):
+        for a, b in zip(mine.state, its.state, strict=True):
+            np.testing.assert_array_equal(a, b)
 
 
 def test_starting_the_cli_and_the_live_nodes_does_not_import_the_compiler():
