@@ -21,7 +21,9 @@ import pytest
 
 from plant_sim.farm import FarmBatch
 from plant_sim.turbine import TurbineBatch
+from service.farm.baseline import LearntLevel
 from service.farm.supervisor import FarmSupervisor
+from service.turbine.adaptive import HealthySpread
 from service.turbine.supervisor import TurbineSupervisor
 from tests.live.helpers import TURBINE_SHORT
 from windwarden.cli import EXIT_BAD_INPUT, main
@@ -160,6 +162,14 @@ def turbine_trace(scenario, backend: str, runs: list[int], ticks: int, every: in
             "actuator_glr": supervisor.detector.components.actuator_glr,
             "converter_test": supervisor.detector.components.converter.total,
             "parity_window": supervisor.detector.components.parity.total,
+            "pitch_outlier": supervisor.detector.components.outlier.total,
+            # the adaptive thresholds' learnt scales and offsets (``service.turbine.adaptive``)
+            "chi2_scale": fdi.spread.estimate,
+            "speed_offset": fdi.calibration.mean,
+            "parity_offset": supervisor.detector.components.parity_spread.mean,
+            "parity_scale": supervisor.detector.components.parity_spread.estimate,
+            "actuator_scale": supervisor.detector.components.actuator_spread.estimate,
+            "spread_counts": fdi.spread.count,
             "residual": fdi.clearing.residual,
             "flags": supervisor.flags,
             "omega_g": est.omega_g,
@@ -196,6 +206,95 @@ def test_aero_kernels_equal_the_reference_inside_and_outside_the_table():
                 aero.wind_from_torque(tau, omega, pitch, guess, BENCHMARK, iterations),
                 "wind",
             )
+
+
+def spread_pair(shape: tuple[int, ...], limit: float | None) -> tuple[HealthySpread, HealthySpread]:
+    """A ``HealthySpread`` of the numpy reference and its compiled twin, T_a 0.05 s: both weights matter."""
+    fast = fast_module("service.turbine.fast")
+    return HealthySpread(shape, 0.01, 0.05, 2.0, limit), HealthySpread(shape, 0.01, 0.05, 2.0, limit, fast=fast)
+
+
+def assert_same_spread(fast: HealthySpread, reference: HealthySpread, what: str) -> None:
+    for name in ("count", "estimate", "scale2", "scale", "mean", "offset"):
+        np.testing.assert_array_equal(getattr(fast, name), getattr(reference, name), f"{what}: {name}")
+
+
+def test_the_adaptive_thresholds_kernel_equals_the_reference():
+    # per element and per row, (n, m) and (n,), with no row healthy, rows healthy then not, a nan and an inf where
+    # a sample is not learnt (numpy's 0 × inf carries them), values beyond both clips; every array equal to the
+    # last bit
+    rng = np.random.default_rng(SEED)
+    for shape, limit in (((4, 3), 0.3), ((4, 3), None), ((12,), 0.3)):  # (n,): the converter's
+        reference, fast = spread_pair(shape, limit)
+        for k in range(40):
+            q, x = rng.uniform(0.0, 6.0, (4, 3)) * [0.2, 1.0, 2.0], rng.normal(0.3, 0.5, (4, 3))
+            healthy = rng.random((4, 3)) < (0.0 if k % 7 == 3 else 0.7)
+            if k == 30:
+                q[0, 0], x[1, 2] = np.nan, np.inf
+                healthy[0, 0] = healthy[1, 2] = False
+            q, x, healthy = q.reshape(shape), x.reshape(shape), healthy.reshape(shape)
+            with np.errstate(invalid="ignore"):  # 0 × inf
+                reference.update(q, healthy, x)
+            fast.update(q, healthy, x)
+            assert_same_spread(fast, reference, f"limit {limit}, sample {k}")
+        assert np.isnan(reference.estimate.flat[0]) and np.nanmin(reference.scale2) == 1.0
+        assert np.nanmax(reference.scale2) == 4.0 and (np.nanmax(reference.offset) == 0.3 if limit else True)
+        for k in range(20 if len(shape) == 2 else 0):
+            rows = rng.random(4) < 0.6
+            q, x = rng.uniform(0.0, 6.0, (4, 3)), rng.normal(0.0, 0.5, (4, 3))
+            reference.update_rows(q if k % 2 else None, rows, x)
+            fast.update_rows(q if k % 2 else None, rows, x)
+            assert_same_spread(fast, reference, f"limit {limit}, rows, sample {k}")
+    with pytest.raises(AssertionError):  # the comparison can fail: one more sample on one side
+        reference.update(np.full(12, 5.0), np.ones(12, dtype=bool))
+        assert_same_spread(fast, reference, "one side updated")
+
+
+def test_the_pitch_parity_kernel_equals_the_reference():
+    # ``ComponentFDI._adapt_parity`` with its numpy lines and with the kernel, through flags, outliers and learning
+    scenario = parse_scenario(at_half_speed(FAULTY))
+    rng = np.random.default_rng(SEED)
+    detectors = [
+        TurbineSupervisor(3, backend=backend, noise_convention=scenario.plant.noise_convention).detector.components
+        for backend in ("numpy", "numba")
+    ]
+    detectors[0].parity_spread.min_weight = detectors[1].parity_spread.min_weight = 0.05
+    for k in range(60):
+        parity, window = rng.normal(0.0, 1.5, (3, 3)), rng.normal(0.0, 1.5, (3, 3))
+        flags = rng.random((3, detectors[0].flags.shape[1])) < 0.1
+        outs = []
+        for detector in detectors:
+            detector.flags[:] = flags
+            outs.append(detector._adapt_parity(parity, window))
+        for a, b in zip(outs[1][:2], outs[0][:2], strict=True):
+            np.testing.assert_array_equal(a, b, f"sample {k}")
+        suspicious = np.maximum(np.abs(outs[0][0]), np.abs(outs[0][1])) > detectors[0].z_single
+        assert outs[0][2] is None and outs[1][2] == suspicious.any()
+        assert_same_spread(detectors[1].parity_spread, detectors[0].parity_spread, f"sample {k}")
+    assert detectors[0].parity_spread.count.min() > 0 and detectors[0].parity_spread.count.max() < 60
+
+
+def test_the_farm_learnt_levels_kernel_equals_the_reference():
+    # ``LearntLevel.update`` with its numpy lines and with the kernel, on the analytic detector's two shapes (per
+    # turbine with a per-turbine σ_d, per blade with one σ_d and a frozen flag per turbine), blocks of 4 filling
+    # and restarting, samples frozen mid-block; every array equal to the last bit
+    fast = fast_module("service.farm.fast")
+    rng = np.random.default_rng(SEED)
+    learnt = {"level_time_s": 0.5, "spread_time_s": 0.8, "max_ratio": 9.0, "block": 4}
+    for shape in ((5,), (5, 3)):
+        reference, twin = LearntLevel(shape, **learnt), LearntLevel(shape, **learnt, fast=fast)
+        for k in range(50):
+            r = rng.normal(0.4, 2.0, shape)
+            std = rng.uniform(0.5, 1.5, shape) if len(shape) == 1 else 1.3
+            frozen = rng.random(shape if len(shape) == 1 else (5, 1)) < 0.15 if k % 9 else False
+            reference.update(r, std, frozen)
+            twin.update(r, std, frozen)
+            for name in ("samples", "level", "raw_ratio", "blocks", "_block_sum", "_block_n"):
+                np.testing.assert_array_equal(getattr(twin, name), getattr(reference, name), f"{shape} {k}: {name}")
+        assert reference.blocks.min() >= 5 and (reference.raw_ratio != 1.0).all()
+    twin = copy.deepcopy(twin)  # a copy learns into its own arrays
+    twin.update(np.ones((5, 3)), 1.0)
+    assert not np.array_equal(twin.level, reference.level)
 
 
 def at_half_speed(text: str) -> dict:
@@ -237,17 +336,33 @@ def test_farm_turbines_match(name):
         )
         sup = scenario.supervisor
         supervisor = FarmSupervisor(
-            scenario.plant.site(plant.dt), plant.n, detector=sup.detector, controller=sup.controller, options=sup.params
+            scenario.plant.site(plant.dt),
+            plant.n,
+            detector=sup.detector,
+            controller=sup.controller,
+            options=sup.params,
+            backend=backend,
         )
-        refs, trace = None, []
+        assert (supervisor.context.fast_aero is None) == (backend == "numpy")
+        refs, trace, winds, powers = None, [], [], []
         for _ in range(1500):
             frame = plant.measure()
             plant.control(refs)
             refs = supervisor.step(frame)
             plant.advance()
             trace.append(plant.turbines.x.copy())
-        states[backend] = np.array(trace)
-    assert_close(states["numba"], states["numpy"], "farm turbine states")
+            if frame.sample:  # the detector's residuals, the available-power wind (eq. 20) and the references
+                detector = supervisor.detector
+                learnt = [detector.level1.level, detector.level2.level] if hasattr(detector, "level1") else []
+                winds.append(np.concatenate([supervisor.controller.available.wind, detector.residuals.ravel()]))
+                winds[-1] = np.concatenate([winds[-1], *[a.ravel() for a in learnt]])
+                powers.append(refs.power_ref.copy())
+        events = plant.drain_events() + supervisor.drain_events()
+        states[backend] = np.array(trace), np.array(winds), np.array(powers), [(e.t, e.type, e.turbine) for e in events]
+    names = ("states", "wind, residuals and levels", "power refs")
+    for name, fast, reference in zip(names, states["numba"], states["numpy"], strict=False):
+        assert_close(fast, reference, f"farm turbine {name}")
+    assert states["numba"][3] == states["numpy"][3]
 
 
 def test_the_scorecard_is_the_same_with_either_backend():
@@ -318,6 +433,23 @@ def test_compiled_objects_copy_and_pickle():
     twin = copy.deepcopy(plant)  # a fault-free twin run in the same process copies the plant
     twin.measure(), plant.measure()
     np.testing.assert_array_equal(twin.last_reading, plant.last_reading)
+    # a copied supervisor learns into its own adaptive state (the kernels update it in place)
+    plant = TurbineBatch(scenario.plant, scenario.wind, scenario.faults, seed=SEED, backend="numba")
+    supervisor, refs = TurbineSupervisor(plant.n, backend="numba"), None
+    for _ in range(3):
+        frame = plant.measure()
+        plant.control(refs)
+        refs = supervisor.step(frame)
+        plant.advance()
+    copied = copy.deepcopy(supervisor)
+    frame = plant.measure()
+    copied.step(frame)
+    spreads = [(s.detector.fdi.spread, s.detector.components.parity_spread) for s in (supervisor, copied)]
+    assert not np.array_equal(spreads[0][1].count, spreads[1][1].count)  # only the copy took the last frame
+    supervisor.step(frame)
+    for mine, its in zip(*spreads, strict=True):
+        for a, b in zip(mine.state, its.state, strict=True):
+            np.testing.assert_array_equal(a, b)
 
 
 def test_starting_the_cli_and_the_live_nodes_does_not_import_the_compiler():

@@ -64,7 +64,12 @@ def _farm_pair(scenario_name: str, runs: int, seed: int, twins: bool, backend: s
     )
     sup = scenario.supervisor
     supervisor = FarmSupervisor(
-        scenario.plant.site(plant.dt), plant.n, detector=sup.detector, controller=sup.controller, options=sup.params
+        scenario.plant.site(plant.dt),
+        plant.n,
+        detector=sup.detector,
+        controller=sup.controller,
+        options=sup.params,
+        backend=backend,
     )
     return plant, supervisor
 

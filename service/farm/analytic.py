@@ -177,8 +177,8 @@ class AnalyticDetector:
         spread_s = float(options.get("spread_time_s", SPREAD_TIME_S))
         max_ratio = float(options.get("max_noise_scale", MAX_NOISE_SCALE)) ** 2
         learnt = {"level_time_s": level_s, "spread_time_s": spread_s, "max_ratio": max_ratio}
-        self.level1 = LearntLevel((n,), **learnt)
-        self.level2 = LearntLevel((n, 3), **learnt)
+        self.level1 = LearntLevel((n,), **learnt, fast=context.fast)
+        self.level2 = LearntLevel((n, 3), **learnt, fast=context.fast)
         withheld = SUSPICION**2 * math.log(1.0 / self.p3)  # u = A²/(8s²) above which A is not learnt from
         self.scale3 = LearntRayleighScale(n, self.s3, spread_time_s=spread_s, max_ratio=max_ratio, truncation=withheld)
         self.whiten = bool(options.get("whiten_lockin", True))

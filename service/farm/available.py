@@ -35,10 +35,13 @@ HOLD_AVERAGING_S = 10.0  # s, low-pass of the wind the hold's speed floor and to
 
 
 class AvailablePower:
-    """Eqs. (20)–(22) for ``n`` turbine rows; the state of eq. (21) and of w̄ between samples."""
+    """Eqs. (20)–(22) for ``n`` turbine rows; the state of eq. (21) and of w̄ between samples. ``fast``:
+    ``wwcore.aero_fast`` (``FarmContext.fast_aero``) or None; eq. (20) is solved by its ``wind_from_torque``, the
+    compiled twin of ``wwcore.aero``'s, if given."""
 
-    def __init__(self, params: TurbineParams):
+    def __init__(self, params: TurbineParams, fast=None):
         self.p = params
+        self._fast = fast
         self.wind: np.ndarray | None = None  # (n,) m/s, w_est of eq. (20)
         self.p_a_hat: np.ndarray | None = None  # (n,) W, eq. (21) state
         self.slow_wind: np.ndarray | None = None  # (n,) m/s, w̄: w_est low-passed over HOLD_AVERAGING_S
@@ -50,11 +53,12 @@ class AvailablePower:
         omega_r = omega_g / p.N_g
         pitch = y[:, BETA].mean(axis=(1, 2))
         tau_r = p.N_g * (y[:, TAU_G] + p.B_g * omega_g) / p.eta_dt + p.B_r * omega_r
+        solver = aero if self._fast is None else self._fast
         if self.wind is None:
             guess = np.repeat(sample.mast, sample.turbines_per_farm)
-            self.wind = aero.wind_from_torque(tau_r, omega_r, pitch, guess, p, iterations=8)
+            self.wind = solver.wind_from_torque(tau_r, omega_r, pitch, guess, p, iterations=8)
         else:
-            self.wind = aero.wind_from_torque(tau_r, omega_r, pitch, self.wind, p, iterations=3)  # eq. (20)
+            self.wind = solver.wind_from_torque(tau_r, omega_r, pitch, self.wind, p, iterations=3)  # eq. (20)
         if self.slow_wind is None:
             self.slow_wind = self.wind.copy()
         else:

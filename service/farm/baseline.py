@@ -45,7 +45,8 @@ BLOCK_SAMPLES = 10  # samples per batch mean of the spread estimate (1 s at 10 H
 
 
 class LearntLevel:
-    """Level m and spread ratio ρ of residuals of ``shape`` (module docstring)."""
+    """Level m and spread ratio ρ of residuals of ``shape`` (n,) or (n, m) (module docstring); ``fast``: the
+    compiled twin ``service.farm.fast`` or None."""
 
     def __init__(
         self,
@@ -56,9 +57,12 @@ class LearntLevel:
         max_ratio: float,
         block: int = BLOCK_SAMPLES,
         dt: float = FARM_DT_S,
+        fast=None,
     ):
         if level_time_s <= 0.0 or spread_time_s <= 0.0 or max_ratio < 1.0 or block < 1:
             raise ValueError("time constants must be > 0 s, max_ratio ≥ 1 and blocks ≥ 1 sample")
+        if len(shape) not in (1, 2):
+            raise ValueError(f"learnt levels are of one or two dimensions (turbines, residuals), not {shape}")
         self.block = block
         self.max_ratio = max_ratio
         self.alpha_level = dt / level_time_s
@@ -69,6 +73,10 @@ class LearntLevel:
         self.blocks = np.zeros(shape)  # whole blocks learnt from
         self._block_sum = np.zeros(shape)
         self._block_n = np.zeros(shape, dtype=np.int64)
+        # ``service.farm.fast`` (``wwcore.backend``) or None; with it, ``update`` is one kernel on (n, m) views of
+        # the state, updated in place (views taken at each call: a copied object keeps its own)
+        self._fast = fast
+        self._rows = (shape[0], shape[1] if len(shape) == 2 else 1)
 
     @property
     def ratio(self) -> np.ndarray:
@@ -79,6 +87,13 @@ class LearntLevel:
         """Learn from residuals ``r`` whose design standard deviation is ``design_std``, except where ``frozen``.
 
         A frozen statistic also drops its unfinished block, so a block never spans a flag."""
+        if self._fast is not None:  # the lines below by one kernel (``service.farm.fast.learn_level``)
+            shape, f = self.level.shape, self._fast
+            rows = (f.as_rows(r, shape), f.as_rows(design_std, shape).astype(float), f.as_rows(frozen, shape))
+            arrays = (self.samples, self.level, self.raw_ratio, self.blocks, self._block_sum, self._block_n)
+            state = tuple(a.reshape(self._rows) for a in arrays)
+            f.learn_level(*rows, self.alpha_level, self.alpha_block, self.block, state)
+            return
         live = ~np.broadcast_to(np.asarray(frozen, dtype=bool), self.level.shape)
         self.samples = self.samples + live
         w = learning_weight(self.samples, live, self.alpha_level)

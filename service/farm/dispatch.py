@@ -92,7 +92,7 @@ class Dispatch:
         self.relief = _share_option(options, "drivetrain_relief", DRIVETRAIN_RELIEF)  # D-32
         self.rule = _choice(options, "accommodation_rule", ACCOMMODATION_RULES)
         self.pitch_rule = _choice(options, "pitch_rule", PITCH_RULES)
-        self.available = AvailablePower(self.p)
+        self.available = AvailablePower(self.p, fast=context.fast_aero)
         self.pitch = PitchTrimRule(self.n) if self.pitch_rule == "trim" else PitchDerateRule(self.n)
         self.drivetrain: DrivetrainRule
         if self.rule == "cancel":

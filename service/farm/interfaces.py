@@ -29,6 +29,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
+from wwcore.backend import fast_module, resolve_backend
 from wwcore.channels import SENSOR_INDEX, SENSORS
 from wwcore.farm_frames import FarmFrame
 from wwcore.layout import SEED001_DIRECTIONS_DEG, FarmLayout
@@ -120,10 +121,13 @@ class FarmContext:
     ``mast_distance_m`` upwind of the front row; *not* the wind direction. ``rows(direction)`` groups the turbines
     for any direction a detector has estimated (``groups_along_wind``: turbines within ``ROW_TOLERANCE_D`` rotor
     diameters of each other along the wind form a row), ``rows_of_case(case)`` for the paper's two wind cases on its
-    3 × 3. The batch holds ``farms`` = n / N farms, rows farm-major.
+    3 × 3. The batch holds ``farms`` = n / N farms, rows farm-major. ``backend`` (``wwcore.backend``; None:
+    ``$WINDWARDEN_STEP_BACKEND``, else numpy): with ``"numba"``, ``fast_aero`` is ``wwcore.aero_fast`` (else
+    None), whose ``wind_from_torque`` the algorithms may use for ``wwcore.aero``'s (the same numbers), and ``fast``
+    is ``service.farm.fast``, the compiled twin of their per-sample arithmetic.
     """
 
-    def __init__(self, site: SiteInfo, n: int, params: TurbineParams = BENCHMARK):
+    def __init__(self, site: SiteInfo, n: int, params: TurbineParams = BENCHMARK, backend: str | None = None):
         if site.kind != "farm" or site.mast_distance_m is None:
             raise ValueError(f"a farm supervisor needs a farm's site (its layout and mast), not a {site.kind}'s")
         turbines = len(site.turbines)
@@ -145,6 +149,10 @@ class FarmContext:
         self.row_tolerance_m = ROW_TOLERANCE_D * self.rotor_diameter_m
         self.spacing_m = site.spacing_m
         self.paper_grid = is_seed001_grid(self.layout, site.spacing_m)
+        # with the ``numba`` backend, ``wwcore.aero_fast``: its compiled wind inversion gives ``wwcore.aero``'s numbers
+        self.backend = resolve_backend(backend)
+        self.fast_aero = fast_module("wwcore.aero_fast") if self.backend == "numba" else None
+        self.fast = fast_module("service.farm.fast") if self.backend == "numba" else None  # the algorithms' kernels
 
     def rows(self, direction_deg: float) -> list[tuple[int, ...]]:
         """Turbine numbers (1-based) grouped by distance along the wind from ``direction_deg``, front to back."""

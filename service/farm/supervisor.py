@@ -31,7 +31,12 @@ DEFAULT_CONTROLLER = FARM_CONTROLLERS.default
 
 
 class FarmSupervisor:
-    """Supervises ``n // N`` farms of the site's N turbines (rows farm-major; N and the positions from ``site``)."""
+    """Supervises ``n // N`` farms of the site's N turbines (rows farm-major; N and the positions from ``site``).
+
+    ``backend`` (``wwcore.backend``; None: ``$WINDWARDEN_STEP_BACKEND``, else numpy): with ``"numba"`` the
+    available-power estimate inverts the wind by ``wwcore.aero_fast`` (``FarmContext.fast_aero``), the same
+    numbers.
+    """
 
     def __init__(
         self,
@@ -43,9 +48,10 @@ class FarmSupervisor:
         accommodation: bool = True,
         options: dict | None = None,
         params: TurbineParams = BENCHMARK,
+        backend: str | None = None,
     ):
         self.choice = choose("farm", options, detector=detector, controller=controller)  # refuses bad options
-        self.context = FarmContext(site, n, params)
+        self.context = FarmContext(site, n, params, backend=backend)
         names, chosen = self.choice.names, self.choice.options
         self.detector = FARM_DETECTORS.create(names["detector"], context=self.context, options=chosen["detector"])
         self.controller = FARM_CONTROLLERS.create(

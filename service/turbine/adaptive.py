@@ -44,7 +44,9 @@ class HealthySpread:
 
     ``sample_s``: time between updates (s); ``adapt_time_s`` T_a (0: no adaptation, ŝ² = 1 and b̂ = 0 always);
     ``max_scale``: s_max, the largest noise scale accepted; ``offset_limit``: b_max in the residual's unit
-    (None: no offset is estimated), a scalar or an array broadcast to ``shape``.
+    (None: no offset is estimated), a scalar or an array broadcast to ``shape``. ``fast``:
+    ``service.turbine.fast`` (``wwcore.backend``) or None; with it, each update of a one- or two-dimensional
+    ``shape`` is one kernel (``learn_spread``, the same operations).
     """
 
     def __init__(
@@ -54,7 +56,9 @@ class HealthySpread:
         adapt_time_s: float,
         max_scale: float,
         offset_limit: float | np.ndarray | None = None,
+        fast=None,
     ):
+        self._fast = fast if len(shape) in (1, 2) else None
         self.enabled = adapt_time_s > 0.0
         self.min_weight = min(1.0, sample_s / adapt_time_s) if self.enabled else 0.0
         self.max_scale2 = float(max_scale) ** 2
@@ -65,12 +69,27 @@ class HealthySpread:
         self.scale = np.ones(shape)  # √scale2: the factor on the thresholds of z-scores
         self.offset_limit = None if offset_limit is None else np.broadcast_to(offset_limit, shape).astype(float)
         self.offset = np.zeros(shape)  # clip(b̂, −b_max, b_max)
+        # the arrays ``fast.learn_spread`` updates in place, and b_max (b̂ stands in where none is learnt: never read);
+        # of a one-dimensional ``shape``, (n, 1) views taken at each update (a copied object keeps its own)
+        limit = self.mean if self.offset_limit is None else self.offset_limit
+        self.state = (self.count, self.estimate, self.scale2, self.scale, self.mean, self.offset, limit)
 
     def update(self, q: np.ndarray | None, healthy: np.ndarray, x: np.ndarray | None = None) -> None:
         """One sample: q the statistic of design mean 1 (with the offset already removed; None: learn the offset
-        only), healthy (bool, same shape) where the sample may be learnt from, x the raw residual for the offset
-        (needs ``offset_limit``)."""
-        if not self.enabled or not healthy.any():
+        only), healthy (bool, same shape, or (n, 1): one flag per row) where the sample may be learnt from, x the raw
+        residual for the offset (needs ``offset_limit``)."""
+        if not self.enabled:
+            return
+        if self._fast is not None:
+            x = x if self.offset_limit is not None else None
+            state = self.state
+            if self.count.ndim == 1:  # as a column: (n, 1) views
+                state = tuple(a.reshape(-1, 1) for a in state)
+                q, x = (None if a is None else a.reshape(-1, 1) for a in (q, x))
+                healthy = healthy.reshape(-1, 1)
+            self._fast.learn_spread(q, x, healthy, self.min_weight, self.max_scale2, state)
+            return
+        if not healthy.any():
             return
         self.count += healthy
         weight = learning_weight(self.count, healthy, self.min_weight)
@@ -81,3 +100,8 @@ class HealthySpread:
         if x is not None and self.offset_limit is not None:
             self.mean += weight * (x - self.mean)
             np.clip(self.mean, -self.offset_limit, self.offset_limit, out=self.offset)
+
+    def update_rows(self, q: np.ndarray | None, healthy: np.ndarray, x: np.ndarray | None = None) -> None:
+        """``update`` with one healthy flag per row (n,) for every element of the row (a two-dimensional
+        ``shape``)."""
+        self.update(q, healthy[:, None], x)

@@ -214,12 +214,12 @@ class ComponentFDI:
         # tolerances, in parity units; the converter residual's at most τ_g,m's (N m per tick)
         adapt, top = settings.adapt_time_s, settings.max_noise_scale
         parity_limit = 2.0 * SENSOR_BIAS_TOLERANCE["beta_1_m1"] * self._parity_scale
-        self.parity_spread = HealthySpread((n, 3), p.dt, adapt, top, parity_limit)
+        self.parity_spread = HealthySpread((n, 3), p.dt, adapt, top, parity_limit, fast=fast)
         block_s = p.dt * settings.block
         # w's offset is at most the cross-blade combination of the pair means' biases, twice one sensor's tolerance
         actuator_limit = 2.0 * SENSOR_BIAS_TOLERANCE["beta_1_m1"]
-        self.actuator_spread = HealthySpread((n, 3), block_s, adapt, top, actuator_limit)
-        self.converter_spread = HealthySpread((n,), block_s, adapt, top, SENSOR_BIAS_TOLERANCE["tau_g_m"])
+        self.actuator_spread = HealthySpread((n, 3), block_s, adapt, top, actuator_limit, fast=fast)
+        self.converter_spread = HealthySpread((n,), block_s, adapt, top, SENSOR_BIAS_TOLERANCE["tau_g_m"], fast=fast)
         self._root_parity_window = float(np.sqrt(settings.parity_window))
 
     def step(self, frame: TurbineFrame) -> np.ndarray:
@@ -247,19 +247,22 @@ class ComponentFDI:
     def _fast_tick(self, frame: TurbineFrame, j: int) -> None:
         """The gathers, the parity statistics and the block's inputs of ``step`` by one kernel
         (``service.turbine.fast.component_tick``, the same operations), then the pitch-sensor decisions."""
-        n, w = self.n, self.parity
+        n, w, o = self.n, self.parity, self.outlier
         beta, parity, window = np.empty((n, 6)), np.empty((n, 3)), np.empty((n, 3))
         ring = (w.ring, w.count % w.size, w.total)
+        outlier = (o.ring, o.count % o.size, o.total)
         scales = (self._parity_scale, self._window_scale, self.z_single)
         inputs = (frame.sensors, M12, TAU_G_M, frame.tau_g_ref, j, CROSS_BLADE)
         outputs = (beta, parity, window)
-        any_suspicious = self._fast.component_tick(*inputs, self._e_block, self._tau_block, ring, scales, *outputs)
+        blocks = (self._e_block, self._tau_block)
+        any_suspicious = self._fast.component_tick(*inputs, *blocks, ring, outlier, scales, *outputs)
         w.count += 1
+        o.count += 1
         self.readings.push(beta)
         if self.parity_spread.enabled:  # the kernel's ``any_suspicious`` is on the unadapted parity
-            self._pitch_flags(beta[:, :3], beta[:, 3:], *self._adapt_parity(parity, window))
+            self._pitch_flags(*self._adapt_parity(parity, window))
         else:
-            self._pitch_flags(beta[:, :3], beta[:, 3:], parity, window, any_suspicious)
+            self._pitch_flags(parity, window, any_suspicious)
 
     # -- pitch sensors ------------------------------------------------------------------------------------------
     def _pitch_sensors(self, beta: np.ndarray, m1: np.ndarray, m2: np.ndarray) -> None:
@@ -267,14 +270,29 @@ class ComponentFDI:
         self.readings.push(beta)
         parity = (m1 - m2) * self._parity_scale
         window = self.parity.push(parity) * self._window_scale
-        self._pitch_flags(m1, m2, *self._adapt_parity(parity, window))
+        self._push_outlier(m1, m2)
+        self._pitch_flags(*self._adapt_parity(parity, window))
 
-    def _adapt_parity(self, parity: np.ndarray, window: np.ndarray) -> tuple[np.ndarray, np.ndarray, None]:
+    def _push_outlier(self, m1: np.ndarray, m2: np.ndarray) -> None:
+        """Each pitch sensor's distance from the mean of the other two blades' four sensors, into its window sum
+        (``outlier``): which sensor of a pair is the outlier, on the window's evidence."""
+        others = 0.25 * (m1[:, OTHERS].sum(axis=2) + m2[:, OTHERS].sum(axis=2))
+        self.outlier.push(np.abs(np.concatenate([m1, m2], axis=1) - np.concatenate([others, others], axis=1)))
+
+    def _adapt_parity(self, parity: np.ndarray, window: np.ndarray) -> tuple[np.ndarray, np.ndarray, bool | None]:
         """(p − b̂)/ŝ and (Σ_W p/√W − b̂ √W)/ŝ per blade (``adaptive``), and learn b̂, ŝ² from blades with no flag
-        whose parity passes both tests."""
+        whose parity passes both tests; whether any of the two exceeds the single-tick level (None: not known)."""
         spread = self.parity_spread
         if not spread.enabled:
             return parity, window, None
+        if self._fast is not None:  # the lines below by one kernel
+            parity_n, window_n = np.empty_like(parity), np.empty_like(window)
+            learning = (spread.min_weight, spread.max_scale2, spread.state)
+            any_suspicious = self._fast.adapt_parity(
+                parity, window, self.flags, M1_TARGET, M2_TARGET, self._root_parity_window, self.z_single, learning,
+                parity_n, window_n,
+            )  # fmt: skip
+            return parity_n, window_n, any_suspicious
         centred = parity - spread.offset
         parity_n = centred / spread.scale
         window_n = (window - spread.offset * self._root_parity_window) / spread.scale
@@ -283,13 +301,9 @@ class ComponentFDI:
         spread.update(centred * centred, healthy, parity)
         return parity_n, window_n, None
 
-    def _pitch_flags(
-        self, m1: np.ndarray, m2: np.ndarray, parity: np.ndarray, window: np.ndarray, any_suspicious: bool | None
-    ) -> None:
+    def _pitch_flags(self, parity: np.ndarray, window: np.ndarray, any_suspicious: bool | None) -> None:
         """Raise and clear the pitch-sensor flags from the parity and its window mean (``any_suspicious``: whether
         any exceeds the single-tick level, None when not known)."""
-        others = 0.25 * (m1[:, OTHERS].sum(axis=2) + m2[:, OTHERS].sum(axis=2))
-        self.outlier.push(np.abs(np.concatenate([m1, m2], axis=1) - np.concatenate([others, others], axis=1)))
         maybe_frozen = self.readings.counting or self.s.frozen_ticks < 2  # else nothing can be frozen
         if any_suspicious is False and not (maybe_frozen or self._pitch_flagged):
             return  # the healthy fast path, known without the array of suspicious blades
@@ -376,8 +390,7 @@ class ComponentFDI:
         if spread.enabled:  # w²'s healthy scale ŝ² (``adaptive``), learnt while no blade is suspected
             quiet = ~self.flags[:, ACTUATOR_TARGET].any(axis=1) & (self._actuator_rest == 0)
             healthy = quiet & (glr <= self.h_actuator).all(axis=1) if self.actuator.full else quiet
-            healthy = np.broadcast_to(healthy[:, None], z2.shape)
-            spread.update(z2 * (1.0 / self.s.block), healthy, z1 * (1.0 / self.s.block))
+            spread.update_rows(z2 * (1.0 / self.s.block), healthy, z1 * (1.0 / self.s.block))
         if not self.actuator.full:
             return
         # the blade with the largest Λ, as before any clearing: the other blades see −½ s_θ of a faulty one, so a

@@ -118,20 +118,92 @@ def any_equal(a, b):
     return False
 
 
+@kernel
+def fdi_learning_inputs(flagged, deadline, ratio, raw, rank, y, gear_ratio, healthy, q, deviation):
+    """What ``SpeedSensorFDI.step`` learns its adaptive thresholds from: ``healthy`` (n, 1), the rows with nothing
+    flagged, pending or inconsistent (every ratio ≤ 1); q = χ²_j / rank_j; the speed sensors' ``deviation`` from
+    the redundant ones: ω_r,mi − ω̄_g/N_g and ω_g,mi − ω̄_g, ω̄_g = ½(ω_g,m1 + ω_g,m2)."""
+    for r in range(raw.shape[0]):
+        consistent = True
+        for j in range(ratio.shape[1]):
+            if not ratio[r, j] <= 1.0:
+                consistent = False
+        healthy[r, 0] = flagged[r] == 0 and deadline[r] < 0 and consistent
+        for j in range(raw.shape[1]):
+            q[r, j] = raw[r, j] / rank[j]
+        generator = 0.5 * (y[r, 2] + y[r, 3])
+        rotor = generator / gear_ratio
+        deviation[r, 0] = y[r, 0] - rotor
+        deviation[r, 1] = y[r, 1] - rotor
+        deviation[r, 2] = y[r, 2] - generator
+        deviation[r, 3] = y[r, 3] - generator
+
+
+# -- adaptive thresholds (``service.turbine.adaptive.HealthySpread.update``) ---------------------------------------
+@kernel
+def clip(x, low, high):
+    """np.clip of a float: min(max(x, low), high), nan kept."""
+    x = x if x > low or x != x else low
+    return x if x < high or x != x else high
+
+
+@kernel
+def learn_spread(q, x, healthy, min_weight, max_scale2, state):
+    """One sample of ``HealthySpread.update``: where ``healthy`` (n, m, or n, 1: one flag per row) and if any is,
+    count += 1, w = max(1/count, ``min_weight``) (0 elsewhere), ŝ² += w (q − ŝ²), scale2 = clip(ŝ², 1, s_max²),
+    scale = √scale2; b̂ += w (x − b̂), offset = clip(b̂, −b_max, b_max). ``q`` or ``x`` None: not learnt.
+    ``state`` = (count, ŝ², scale2, scale, b̂, offset, b_max), (n, m) each, in place."""
+    count, estimate, scale2, scale, mean, offset, limit = state
+    learn = False
+    for r in range(healthy.shape[0]):
+        for c in range(healthy.shape[1]):
+            if healthy[r, c]:
+                learn = True
+    if not learn:
+        return
+    per_row = healthy.shape[1] != count.shape[1]
+    for r in range(count.shape[0]):
+        for c in range(count.shape[1]):
+            h = healthy[r, 0] if per_row else healthy[r, c]
+            n = count[r, c] + (1.0 if h else 0.0)
+            count[r, c] = n
+            w = maximum(1.0 / maximum(n, 1.0), min_weight) if h else 0.0
+            if q is not None:
+                e = estimate[r, c] + w * (q[r, c] - estimate[r, c])
+                estimate[r, c] = e
+                s = clip(e, 1.0, max_scale2)
+                scale2[r, c] = s
+                scale[r, c] = np.sqrt(s)
+            if x is not None:
+                b = mean[r, c] + w * (x[r, c] - mean[r, c])
+                mean[r, c] = b
+                offset[r, c] = clip(b, -limit[r, c], limit[r, c])
+
+
 # -- pitch-sensor parity (``service.turbine.component_fdi.ComponentFDI._pitch_sensors``) ---------------------------
 @kernel
-def component_tick(y, m12, tau_col, tau_g_ref, j, cross, e_block, tau_block, ring, scales, beta, par, window):
+def component_tick(y, m12, tau_col, tau_g_ref, j, cross, e_block, tau_block, ring, outlier, scales, beta, par, window):
     """``ComponentFDI.step``'s per-tick arithmetic: β = y[:, m12] ([β_i,m1 | β_i,m2]); parity = (β_m1 − β_m2) s,
     its running window sum (``ring`` = (ring, slot, total), slot replaced), window = Σ × s_w; the block's
-    e[j] = ½(β_m1 + β_m2) @ ``cross`` and [τ_g,m, τ_g,r]. True when any |parity| or |window| exceeds z (``scales`` =
-    (s, s_w, z)). ``cross`` is CROSS_BLADE, whose entries 1 and −½ make every product exact: the three terms added
-    left to right are numpy's product bit for bit (the one product computed in a kernel; checked by the tests)."""
+    e[j] = ½(β_m1 + β_m2) @ ``cross`` and [τ_g,m, τ_g,r]; each sensor's distance from the mean of the other two
+    blades' four sensors into its window sum (``outlier``, as ``ring``; ``ComponentFDI._push_outlier``). True when
+    any |parity| or |window| exceeds z (``scales`` = (s, s_w, z)). ``cross`` is CROSS_BLADE, whose entries 1 and −½
+    make every product exact: the three terms added left to right are numpy's product bit for bit (the one product
+    computed in a kernel; checked by the tests)."""
     ring_values, slot, total = ring
+    outlier_values, outlier_slot, outlier_total = outlier
     scale, window_scale, z_single = scales
     suspicious = False
     for r in range(y.shape[0]):
         for c in range(6):
             beta[r, c] = y[r, m12[c]]
+        for b in range(3):  # the other two blades o < p: 0.25 (β_o,m1 + β_p,m1 + (β_o,m2 + β_p,m2))
+            o, p = (1, 2) if b == 0 else ((0, 2) if b == 1 else (0, 1))
+            others = 0.25 * ((beta[r, o] + beta[r, p]) + (beta[r, 3 + o] + beta[r, 3 + p]))
+            for c in (b, 3 + b):
+                x = abs(beta[r, c] - others)
+                outlier_total[r, c] += x - outlier_values[outlier_slot, r, c]
+                outlier_values[outlier_slot, r, c] = x
         mean0 = 0.5 * (beta[r, 0] + beta[r, 3])
         mean1 = 0.5 * (beta[r, 1] + beta[r, 4])
         mean2 = 0.5 * (beta[r, 2] + beta[r, 5])
@@ -148,6 +220,32 @@ def component_tick(y, m12, tau_col, tau_g_ref, j, cross, e_block, tau_block, rin
             window[r, b] = w
             if maximum(abs(x), abs(w)) > z_single:
                 suspicious = True
+    return suspicious
+
+
+@kernel
+def adapt_parity(parity, window, flags, m1_target, m2_target, root_window, z_single, learning, parity_n, window_n):
+    """``ComponentFDI._adapt_parity``: (p − b̂)/ŝ and (Σ_W p/√W − b̂ √W)/ŝ per blade (``root_window`` = √W), then
+    ``learn_spread`` of (p − b̂)² and p from the blades with neither sensor flagged whose two statistics are
+    within ±``z_single``. ``learning`` = (min_weight, s_max², state) of the parity's ``HealthySpread``. True when
+    any blade's |(p − b̂)/ŝ| or |(Σ_W p/√W − b̂ √W)/ŝ| exceeds ``z_single``."""
+    min_weight, max_scale2, state = learning
+    suspicious = False
+    offset, scale = state[5], state[3]
+    n = parity.shape[0]
+    squared, healthy = np.empty((n, 3)), np.empty((n, 3), dtype=np.bool_)
+    for r in range(n):
+        for b in range(3):
+            centred = parity[r, b] - offset[r, b]
+            p = centred / scale[r, b]
+            w = (window[r, b] - offset[r, b] * root_window) / scale[r, b]
+            parity_n[r, b], window_n[r, b] = p, w
+            squared[r, b] = centred * centred
+            flagged = flags[r, m1_target[b]] or flags[r, m2_target[b]]
+            healthy[r, b] = not flagged and maximum(abs(p), abs(w)) <= z_single
+            if maximum(abs(p), abs(w)) > z_single:
+                suspicious = True
+    learn_spread(squared, parity, healthy, min_weight, max_scale2, state)
     return suspicious
 
 

@@ -225,13 +225,15 @@ class SpeedSensorFDI:
                     self._bias_predictor[mask] = j
             if (self._bias_predictor < 0).all():
                 self.bias = None  # no observer of this bank predicts the rotor speed without the rotor sensors
-        self.spread = HealthySpread((n, bank.n_isolating), dt, settings.adapt_time_s, settings.max_noise_scale)
+        self.spread = HealthySpread(
+            (n, bank.n_isolating), dt, settings.adapt_time_s, settings.max_noise_scale, fast=fast
+        )
         self._rank = np.asarray(ranks, dtype=float)
         # calibration offsets of the four speed sensors against the redundant ones (``adaptive``): the rotor-speed
         # sensors against the generator-speed mean / N_g, each generator-speed sensor against the pair's mean;
         # within the channels' calibration tolerance
         tolerance = np.array([SENSOR_BIAS_TOLERANCE[s] for s in SPEED_SENSORS])
-        self.calibration = HealthySpread((n, N_SPEED), dt, settings.adapt_time_s, 1.0, tolerance)
+        self.calibration = HealthySpread((n, N_SPEED), dt, settings.adapt_time_s, 1.0, tolerance, fast=fast)
         self._gear_ratio = bank.gear_ratio
         self._history = np.zeros((settings.window, n, bank.n_isolating))  # ring of the last χ² statistics
         self._window_sum = np.zeros((n, bank.n_isolating))
@@ -312,12 +314,19 @@ class SpeedSensorFDI:
         self.ticks += 1
         if self._fast is None:
             self.ratio = ratio = np.maximum(chi2_stat / self.h_detect, self._window_sum / self.h_window)
-        if self.spread.enabled:  # learn from rows with nothing flagged, pending or inconsistent
+        if self.spread.enabled and self._fast is not None:  # the three lines below, their inputs by one kernel
+            healthy, q, deviation = np.empty((self.n, 1), dtype=bool), np.empty_like(raw), np.empty_like(y_raw)
+            self._fast.fdi_learning_inputs(
+                self.flagged, self.deadline, ratio, raw, self._rank, y_raw, self._gear_ratio, healthy, q, deviation
+            )
+            self.spread.update(q, healthy)
+            self.calibration.update(None, healthy, deviation)
+        elif self.spread.enabled:  # learn from rows with nothing flagged, pending or inconsistent
             healthy = (self.flagged == 0) & (self.deadline < 0) & (ratio <= 1.0).all(axis=1)
-            self.spread.update(raw / self._rank, np.broadcast_to(healthy[:, None], raw.shape))
+            self.spread.update_rows(raw / self._rank, healthy)
             generator = 0.5 * (y_raw[:, 2] + y_raw[:, 3])
             deviation = y_raw - np.column_stack([generator / self._gear_ratio] * 2 + [generator] * 2)
-            self.calibration.update(None, np.broadcast_to(healthy[:, None], y_raw.shape), deviation)  # offsets only
+            self.calibration.update_rows(None, healthy, deviation)  # offsets only
         if self.ticks <= self.warmup_ticks:
             return
         if self.bias is not None:
