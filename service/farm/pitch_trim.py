@@ -24,11 +24,11 @@ readings since the last one. So what is taken off sample j is not the trim last 
 
 (A_d, B_d the actuator's zero-order-hold model at the turbine's Δt; u the trim the blade's command carried in
 tick m: the one sent with sample j−2 in the block's first tick, the plant taking new references from the tick
-after the sample, then the one sent with sample j−1; ``wwcore.stepping``). Taking off the commanded trim instead
-shows every step of the trim as a misalignment of the step's size, of the other sign, for the 0.2–0.3 s the blade
-takes to follow: when the flag of a fault of δ falls and its trim of ≈ ⅔δ (at most ``LIMIT_DEG``) goes, the
-misalignment test reads ⅔δ on the blade and a new flag rises at once; that trim goes, the same happens the other
-way, and the flag flaps after the fault's end (``docs/farm.md`` D-28).
+after the sample, then the one sent with sample j−1; ``wwcore.stepping``). Why not the commanded trim: it would
+show every step of the trim as a misalignment of the step's size, of the other sign, for the 0.2–0.3 s the blade
+takes to follow; when the flag of a fault of δ falls and its trim of ≈ ⅔δ (at most ``LIMIT_DEG``) goes, the
+misalignment test would read ⅔δ on the blade and raise a new flag at once, whose trim's removal would do the same
+the other way: flaps after every large fault's end (``docs/farm.md`` D-28).
 """
 
 from __future__ import annotations
