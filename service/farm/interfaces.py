@@ -19,8 +19,8 @@ Their rows of the sample are their last summary, repeated.
 A farm controller may also expose ``mode`` (n,) int8 (``wwcore.farm_frames.DISPATCH_MODES``: 3 holds the torque,
 5 cancels the 3P torque without the hold), ``held_torque`` (n,) N m, ``pitch_trim`` (n, 3) deg and
 ``ripple_power`` (n,) complex W with ``ripple_rate`` (n,) rad/s; the supervisor forwards them to the turbines
-(``wwcore.farm_frames.FarmRefs``), and takes a pitch trim it commanded off the next samples' pitch readings
-before the detector and the controller see them.
+(``wwcore.farm_frames.FarmRefs``), and takes a pitch trim it commanded off the next samples' pitch readings, as
+the readings carry it (``service.farm.pitch_trim.TrimInReadings``), before the detector and the controller see them.
 """
 
 from __future__ import annotations
@@ -83,8 +83,9 @@ class FarmSample:
         return len(self.scada) // len(self.mast)
 
     def untrimmed(self, pitch_trim: np.ndarray) -> FarmSample:
-        """This sample with a commanded per-blade pitch trim (n, 3) deg taken off the pitch readings: the blades as
-        their actuators would hold them without it (what detectors and controllers are given)."""
+        """This sample with a per-blade pitch trim (n, 3) deg taken off the pitch readings: the blades as their
+        actuators would hold them without it (what detectors and controllers are given), when ``pitch_trim`` is the
+        trim the readings carry (``pitch_trim.TrimInReadings``)."""
         scada = self.scada.copy()
         scada[:, BETA] -= pitch_trim[:, :, None]
         return replace(self, scada=scada)

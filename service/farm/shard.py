@@ -20,6 +20,7 @@ from itertools import pairwise
 import numpy as np
 
 from service.farm.interfaces import FarmContext, FarmDiagnosis, FarmSample
+from service.farm.pitch_trim import TrimInReadings
 from service.farm.supervisor import FarmSupervisor
 from service.plugins import FARM_DETECTORS, choose
 from wwcore.farm_frames import FarmFrame
@@ -96,7 +97,8 @@ class FarmShard:
 
     ``step(frame)`` takes the shard's rows of a farm sample (rows in ``turbines`` order) and returns their
     diagnosis. ``pitch_trim`` (rows, 3) deg is the trim the coordinator last commanded to these turbines: it is taken
-    off the pitch readings before the detector sees them, as ``FarmSupervisor.untrimmed`` does for the whole farm.
+    off the pitch readings, as the readings carry it (``pitch_trim.TrimInReadings``), before the detector sees them,
+    as ``FarmSupervisor.untrimmed`` does for the whole farm.
     Options are checked as the whole supervisor checks them (detector and controller), so a shard refuses what one
     supervisor would refuse."""
 
@@ -117,13 +119,15 @@ class FarmShard:
         self.turbines = self.context.shard_turbines
         self.dt = params.dt
         self.pitch_trim: np.ndarray | None = None
+        self.trim_read = TrimInReadings(self.context.n, params)
         self.diagnosis: FarmDiagnosis | None = None
         self.sample: FarmSample | None = None
 
     def step(self, frame: FarmFrame) -> FarmDiagnosis:
         sample = FarmSample.from_frame(frame, self.dt)
-        if self.pitch_trim is not None:
-            sample = sample.untrimmed(self.pitch_trim)
+        read = self.trim_read.step(self.pitch_trim)
+        if read.any():
+            sample = sample.untrimmed(read)
         self.sample = sample
         self.diagnosis = self.detector.step(sample)
         return self.diagnosis

@@ -18,6 +18,7 @@ from dataclasses import replace
 import numpy as np
 
 from service.farm.interfaces import FarmContext, FarmDiagnosis, FarmSample
+from service.farm.pitch_trim import TrimInReadings
 from service.flag_events import flag_events, row_event
 from service.plugins import FARM_CONTROLLERS, FARM_DETECTORS, choose
 from wwcore.events import Event, EventType
@@ -69,6 +70,8 @@ class FarmSupervisor:
         self.sample: FarmSample | None = None
         self.refs: FarmRefs | None = None
         self.last_tick = -1  # tick of the last frame stepped
+        self.trim_read = TrimInReadings(n, params)  # the trims sent, as the pitch readings carry them
+        self._untrimmed_t: float | None = None  # time of the last sample the trim model was stepped for
         self._events: list[Event] = []
 
     def step(self, frame: FarmFrame) -> FarmRefs | None:
@@ -87,10 +90,14 @@ class FarmSupervisor:
         return self.untrimmed(FarmSample.from_frame(frame, self.dt))
 
     def untrimmed(self, sample: FarmSample) -> FarmSample:
-        """``sample`` with the pitch trim of this supervisor's last references taken off its pitch readings."""
-        if self.refs is not None and self.refs.pitch_trim is not None:
-            return sample.untrimmed(self.refs.pitch_trim)
-        return sample
+        """``sample`` with the pitch trims this supervisor sent taken off its pitch readings, as the readings carry
+        them: through the blades' actuators and the sample's block mean (``pitch_trim.TrimInReadings``). Called
+        once per sample (a second call for the same sample gives the same answer)."""
+        if sample.t != self._untrimmed_t:
+            self._untrimmed_t = sample.t
+            self.trim_read.step(None if self.refs is None else self.refs.pitch_trim)
+        read = self.trim_read.read
+        return sample.untrimmed(read) if read.any() else sample
 
     def decide(self, tick: int, sample: FarmSample, diagnosis: FarmDiagnosis) -> FarmRefs:
         """The farm-wide part of a farm sample's step: the controller on the detector's ``diagnosis`` of

@@ -12,13 +12,14 @@ from service.farm.accommodation import DRIVETRAIN_RELIEF
 from service.farm.dispatch import ACCOMMODATION_RULES, Dispatch
 from service.farm.hold import HOLD_RESERVE, RELEASE_AFTER_S
 from service.farm.interfaces import BETA, OMEGA_G, P_G, TAU_G, FarmContext, FarmSample
-from service.farm.pitch_trim import AVERAGING_S
+from service.farm.pitch_trim import AVERAGING_S, TrimInReadings
 from service.farm.power_loop import TRIM_KI, TRIM_KP
 from service.farm.ripple import SETTLE_S, RippleCompensation
 from service.farm.supervisor import FarmSupervisor
-from tests.farm.conftest import farm_spec, wind
+from tests.farm.conftest import detections, farm_spec, simulate, wind
 from wwcore.channels import N_SENSORS
-from wwcore.farm_frames import CANCEL_3P_MODE, HOLD_TORQUE_MODE, PITCH_TRIM_MODE
+from wwcore.events import EventType
+from wwcore.farm_frames import CANCEL_3P_MODE, HOLD_TORQUE_MODE, PITCH_TRIM_MODE, FarmRefs
 from wwcore.scenario.farm import FARM_DT_S, FarmPlant
 from wwcore.scenario.faults import FaultSpec
 from wwcore.turbine_params import BENCHMARK as P
@@ -90,6 +91,78 @@ def test_a_sample_without_the_trim_shows_the_blades_as_their_actuators_hold_them
     bare = sample.untrimmed(trim)
     assert bare.scada[5, BETA].mean(axis=1) == pytest.approx([3.9, 4.2, 3.9])
     assert np.array_equal(bare.scada[:4], sample.scada[:4]) and sample.scada[5, BETA[0]][0] == 4.0
+
+
+def _step_response(t: np.ndarray) -> np.ndarray:
+    """The pitch actuator's unit step response ω_n²/(s² + 2ζω_n s + ω_n²) at times t ≥ 0 (closed form)."""
+    wn, zeta = P.pitch.omega_n, P.pitch.zeta
+    wd = wn * np.sqrt(1.0 - zeta**2)
+    return 1.0 - np.exp(-zeta * wn * t) * (np.cos(wd * t) + zeta / np.sqrt(1.0 - zeta**2) * np.sin(wd * t))
+
+
+def test_the_trim_in_the_readings_is_the_actuators_step_response_averaged_over_the_sample():
+    """A trim of 1 deg sent with sample j reaches the blades' commands from the second tick of sample j + 1 on (the
+    plant takes new references from the tick after the sample): that sample's mean of ten readings is
+    (1/10) Σ_{i=1..9} y(iΔt), y the step response; it settles to the trim itself; when the trim goes, what the
+    readings carry is 1 − y (superposition)."""
+    trims = TrimInReadings(2, P)
+    sent = np.zeros((2, 3))
+    sent[1] = [1.0, -0.5, -0.5]
+    ticks = np.arange(1, 10) * P.dt
+    first = trims.step(sent)
+    assert first[1] == pytest.approx(np.mean(np.r_[0.0, _step_response(ticks)]) * sent[1], rel=1e-9)
+    assert not first[0].any()
+    for _ in range(40):  # 4 s: the actuator settles (time constant 1/(ζ ω_n) ≈ 0.15 s)
+        held = trims.step(sent)
+    assert held == pytest.approx(sent, abs=1e-9)
+    gone = trims.step(None)
+    assert gone[1] == pytest.approx(np.mean(np.r_[1.0, 1.0 - _step_response(ticks)]) * sent[1], rel=1e-9)
+    for _ in range(60):
+        trims.step(None)
+    assert not trims.step(None).any() and not trims.state.any()  # a removed trim dies out and is forgotten
+
+
+def test_the_trim_model_matches_the_plants_blades():
+    """Below rated the pitch command is 0 and nothing closes a loop on the pitch, so two plants on the same seed,
+    one sent a trim, differ in their pitch readings by exactly the trim as the readings carry it."""
+    spec = farm_spec(1)
+    plants = [FarmBatch(spec, wind(7.0, ti=0.05), [], seed=4, duration_s=5.0) for _ in range(2)]
+    trims = TrimInReadings(plants[0].n, P)
+    sent = np.zeros((plants[0].n, 3))
+    sent[2] = [0.6, -0.3, -0.3]
+    refs = [None, None]
+    worst = 0.0
+    for k in range(round(3.0 / plants[0].dt)):
+        frames = [plant.measure() for plant in plants]
+        for plant, r in zip(plants, refs, strict=True):
+            plant.control(r)
+        if frames[0].sample:
+            j = (k + 1) // plants[0].ticks_per_sample
+            trim = sent if 10 <= j < 20 else None  # sent with samples 10–19, then taken away
+            carried = trims.step(refs[1].pitch_trim if refs[1] is not None else None)
+            difference = frames[1].scada[:, BETA] - frames[0].scada[:, BETA]
+            worst = max(worst, float(np.abs(difference - carried[:, :, None]).max()))
+            power = np.full(plants[0].n, 2.0 * MW)
+            refs = [FarmRefs(tick=k, power_ref=power), FarmRefs(tick=k, power_ref=power, pitch_trim=trim)]
+        for plant in plants:
+            plant.advance()
+    assert worst < 1e-9
+
+
+@pytest.mark.parametrize(("speed", "offset"), [(8.0, 1.8), (16.0, -1.2)])
+def test_a_pitch_misalignment_window_raises_one_flag_which_falls_once_when_it_ends(speed, offset):
+    """A misalignment well above the design 0.3 deg, below and above rated: one DETECTION in the window and one
+    RECOVERY after it, none after that. Taking the commanded trim off the readings, instead of the trim the blades
+    had received, read the trim's removal at the flag's fall as a misalignment of ⅔ of the fault the other way
+    and raised the flag again (two or three flaps after every such window's end)."""
+    fault = FaultSpec(target="pitch_actuator_2", kind="offset", value=offset, turbine=3, start_s=15.0, end_s=35.0)
+    _, _, events = simulate(farm_spec(1), wind(speed), [fault], 50.0, seed=7)
+    mine = [e for e in events if e.target == "pitch_misalignment" and e.turbine == 3]
+    raised = detections(mine)
+    cleared = [e for e in mine if e.type == EventType.RECOVERY]
+    assert len(raised) == 1 and 15.0 <= raised[0].t < 17.0
+    assert len(cleared) == 1 and 35.0 <= cleared[0].t < 37.0
+    assert not [e for e in events if e.target == "pitch_misalignment" and e.turbine != 3]
 
 
 def test_the_paper_pitch_rule_derates_by_eq_26_and_sends_no_trim():
