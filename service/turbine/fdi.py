@@ -126,7 +126,7 @@ class FDISettings:
     # largest sensor-noise scale the adaptive thresholds accept (their χ² scale is at most its square)
     max_noise_scale: Annotated[float, Bounds(ge=1.0, le=10.0)] = 3.0
     # Page's CUSUM for a persistent bias on one rotor-speed sensor, beside the window tests (``bias_test``)
-    rotor_bias_test: bool = False  # off by default: 3.9 false alarms per 1000 s on fresh seeds (docs/decisions.md)
+    rotor_bias_test: bool = True  # on the rotor-speed parity, valid at every wind (docs/decisions.md)
     # the bias that CUSUM is designed for, m (it detects biases above m/2; > clear_floor, for hysteresis)
     bias_shift: Annotated[float, Bounds(ge=0.25, le=10.0, unit="σ")] = 1.5
 
@@ -216,6 +216,8 @@ class SpeedSensorFDI:
                 dt,
                 settings.false_alarms_per_1000s,
                 settings.bias_shift,
+                settings.adapt_time_s,
+                settings.max_noise_scale,
             )
             for mask in range(1 << N_SPEED):
                 if mask & rotor_bits:
@@ -342,8 +344,7 @@ class SpeedSensorFDI:
         """Flag a rotor-speed sensor whose bias the CUSUM of ``bias_test`` finds, on rows where no rotor-speed
         sensor is flagged and nothing is being isolated; the flag then drops only by its clearing test."""
         predictor = np.where(self.deadline < 0, self._bias_predictor[self.flagged], -1)
-        noise = self.spread.scale[:, self._all_healthy] if self.spread.enabled else None
-        over = self.bias.step(y, x_hat, predictor, noise)
+        over = self.bias.step(y, x_hat, predictor)
         if not over.any():
             return
         rows = over.any(axis=1)
