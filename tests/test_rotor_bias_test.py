@@ -216,6 +216,21 @@ def test_bias_shift_must_exceed_the_clear_floor():
     FDISettings(bias_shift=0.8, clear_floor=1.0, rotor_bias_test=False)  # no test, no hysteresis to keep
 
 
+@pytest.mark.parametrize(
+    ("options", "key"),
+    [
+        ({"bias_shift": 0.1}, "bias_shift"),
+        ({"bias_shift": 11.0}, "bias_shift"),
+        ({"rotor_bias_test": "yes"}, "rotor_bias_test"),
+        ({"rotor_bias_tset": True}, "rotor_bias_tset"),
+        ({"rotor_bias_test": True, "bias_shift": 1.2, "clear_floor": 1.2}, "bias_shift"),
+    ],
+)
+def test_the_supervisor_refuses_bad_bias_test_options_naming_the_key(options, key):
+    with pytest.raises(AlgorithmOptionError, match=key):
+        TurbineSupervisor(1, options=options)
+
+
 def test_the_fdi_reads_the_generator_only_kalman_filter_which_never_uses_a_rotor_speed_sensor():
     fdi = TurbineContext(P, 1)
     supervisor = TurbineSupervisor(1, options={"rotor_bias_test": True})
@@ -231,8 +246,7 @@ def test_the_fdi_reads_the_generator_only_kalman_filter_which_never_uses_a_rotor
         assert not (left_out & set(o.sensors)) or j == predictors[0]
         # σ_e ≈ σ_r: the generator side predicts the rotor speed far better than a rotor-speed sensor reads it
         assert np.allclose(1.0 / detector.bias.scale[j], 0.0251, rtol=0.05)
-    assert TurbineSupervisor(1).detector.fdi.bias is not None  # on by default (docs/decisions.md)
-    assert TurbineSupervisor(1, options={"rotor_bias_test": False}).detector.fdi.bias is None
+    assert TurbineSupervisor(1).detector.fdi.bias is None  # off by default (docs/decisions.md)
 
 
 def test_a_three_percent_rotor_gain_above_rated_is_flagged_once_and_on_its_sensor():
