@@ -246,7 +246,8 @@ def test_the_fdi_reads_the_generator_only_kalman_filter_which_never_uses_a_rotor
         assert not (left_out & set(o.sensors)) or j == predictors[0]
         # σ_e ≈ σ_r: the generator side predicts the rotor speed far better than a rotor-speed sensor reads it
         assert np.allclose(1.0 / detector.bias.scale[j], 0.0251, rtol=0.05)
-    assert TurbineSupervisor(1).detector.fdi.bias is None  # off by default (docs/decisions.md)
+    assert TurbineSupervisor(1).detector.fdi.bias is not None  # on by default (docs/decisions.md)
+    assert TurbineSupervisor(1, options={"rotor_bias_test": False}).detector.fdi.bias is None
 
 
 def test_a_three_percent_rotor_gain_above_rated_is_flagged_once_and_on_its_sensor():

@@ -128,7 +128,7 @@ class FDISettings:
     # largest sensor-noise scale the adaptive thresholds accept (their χ² scale is at most its square)
     max_noise_scale: Annotated[float, Bounds(ge=1.0, le=10.0)] = 3.0
     # Page's CUSUM for a persistent bias on one rotor-speed sensor, beside the window tests (``bias_test``)
-    rotor_bias_test: bool = False  # off until its fresh-seed false alarms are measured (docs/decisions.md)
+    rotor_bias_test: bool = True  # on the rotor-speed parity: < 0.05 false alarms per 1000 s (docs/decisions.md)
     # the bias that CUSUM is designed for, m (it detects biases above m/2; > clear_floor, for hysteresis)
     bias_shift: Annotated[float, Bounds(ge=0.25, le=10.0, unit="σ")] = 1.5
 
