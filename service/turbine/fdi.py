@@ -28,12 +28,14 @@ evidence that its sensor is healthy again.
   ``isolation_confirm_alpha`` (default 0.05), the decision waits one more tick, up to ``isolation_patience``
   ticks beyond the deadline, with the explanations considered suspected (so the estimate already leaves them
   out): a first flag that names only part of the faulty set is a wrong isolation, and one more tick is cheaper.
-* **Persistent rotor-speed bias.** Beside the window tests, Page's CUSUM on each rotor-speed sensor's exclusion
-  residual against the generator-speed Kalman filter (``bias_test``; ``rotor_bias_test``, ``bias_shift``) flags a
-  bias of 1–2 σ that the UIOs take for aerodynamic torque, on rows where no rotor-speed sensor is flagged and no
-  isolation is under way; beside a flagged generator-speed sensor it reads the filter on the other one. Its shift
-  exceeds the clearing's floor, so between the two a flag neither drops nor rises again (hysteresis). Off by
-  default: its threshold assumes a white residual, and on fresh seeds it raised 3.9 false alarms per 1000 s.
+* **Persistent rotor-speed bias.** Beside the window tests, Page's CUSUM on the parity of the two rotor-speed
+  sensors' exclusion residuals against the generator-speed Kalman filter (``bias_test``; ``rotor_bias_test``,
+  ``bias_shift``) flags a bias of 1–2 σ that the UIOs take for aerodynamic torque, and the sum of the two residuals
+  names the sensor, on rows where no rotor-speed sensor is flagged and no isolation is under way; beside a flagged
+  generator-speed sensor it reads the filter on the other one. The filter's prediction error, coloured and three
+  times the design's near rated, is common to both residuals and cancels in the parity, so the threshold holds
+  at every wind. Its shift exceeds the clearing's floor, so between the two a flag neither drops nor rises again
+  (hysteresis).
 * **Fault end.** A flag drops only when its sensor's CUSUM (``clearing``) has gathered enough evidence that the
   exclusion residual (the sensor against the selected observer's prediction, which never uses it) is back at
   zero mean, with a false-clear budget like the false-alarm one, and the observer that uses the sensor again
@@ -126,7 +128,7 @@ class FDISettings:
     # largest sensor-noise scale the adaptive thresholds accept (their χ² scale is at most its square)
     max_noise_scale: Annotated[float, Bounds(ge=1.0, le=10.0)] = 3.0
     # Page's CUSUM for a persistent bias on one rotor-speed sensor, beside the window tests (``bias_test``)
-    rotor_bias_test: bool = False  # off by default: 3.9 false alarms per 1000 s on fresh seeds (docs/decisions.md)
+    rotor_bias_test: bool = True  # on the rotor-speed parity: < 0.05 false alarms per 1000 s (docs/decisions.md)
     # the bias that CUSUM is designed for, m (it detects biases above m/2; > clear_floor, for hysteresis)
     bias_shift: Annotated[float, Bounds(ge=0.25, le=10.0, unit="σ")] = 1.5
 
@@ -216,6 +218,8 @@ class SpeedSensorFDI:
                 dt,
                 settings.false_alarms_per_1000s,
                 settings.bias_shift,
+                settings.adapt_time_s,
+                settings.max_noise_scale,
             )
             for mask in range(1 << N_SPEED):
                 if mask & rotor_bits:
@@ -351,8 +355,7 @@ class SpeedSensorFDI:
         """Flag a rotor-speed sensor whose bias the CUSUM of ``bias_test`` finds, on rows where no rotor-speed
         sensor is flagged and nothing is being isolated; the flag then drops only by its clearing test."""
         predictor = np.where(self.deadline < 0, self._bias_predictor[self.flagged], -1)
-        noise = self.spread.scale[:, self._all_healthy] if self.spread.enabled else None
-        over = self.bias.step(y, x_hat, predictor, noise)
+        over = self.bias.step(y, x_hat, predictor)
         if not over.any():
             return
         rows = over.any(axis=1)
