@@ -18,6 +18,7 @@ from service.turbine.fdi import FDISettings, SpeedSensorFDI
 from service.turbine.interfaces import DESIGN_Q, DESIGN_Q_UNKNOWN, Diagnosis, TurbineContext
 from service.turbine.supervisor import TurbineSupervisor
 from service.turbine.wind_recovery import WindRecovery
+from wwcore.backend import fast_module
 from wwcore.channels import DIAGNOSIS_TARGETS, SPEED_SENSORS, TARGET_INDEX
 from wwcore.options import OptionSchema
 from wwcore.scenario.faults import FaultSpec
@@ -59,19 +60,61 @@ def test_a_persisting_fault_is_not_cleared_and_its_end_is_recognised_in_two_h_ov
     rows, ticks, m = 40, 3000, 2.0
     e = m + rng.standard_normal((ticks, rows))  # 30 s of a 2σ_e fault on 40 turbines: 1.2e5 ticks
     clearing = _clearing(rows)
-    assert (_run_cusum(clearing, e, R1) < 0).all(), "a flag dropped while its fault persisted"
+    assert (_run_cusum(clearing, e, G1) < 0).all(), "a flag dropped while its fault persisted"
     # the fault ends: the statistic grows by m²/2 per tick, h is reached after about 2h/m² = 8 ticks
     after = rng.standard_normal((60, rows))
     ready = np.full(rows, -1)
     y = np.zeros((rows, 4))
-    mask = np.full(rows, 1 << R1)
+    mask = np.full(rows, 1 << G1)
     predictor = clearing.predictor_of_mask[mask[0]]
     for k, row in enumerate(after):
-        y[:, R1] = row / clearing.scale[predictor, R1]
+        y[:, G1] = row / clearing.scale[predictor, G1]
         hit = clearing.step(y, np.zeros((rows, DESIGN.F_blk.shape[0])), mask, np.zeros((rows, 4), dtype=bool))
-        ready[(ready < 0) & hit[:, R1]] = k + 1
+        ready[(ready < 0) & hit[:, G1]] = k + 1
     expected = 2.0 * clearing.h / m**2
     assert (ready > 0).all() and 0.5 * expected <= np.median(ready) <= 2.0 * expected
+
+
+@pytest.mark.parametrize("backend", ["numpy", "numba"])
+def test_a_rotor_speed_flag_beside_a_healthy_partner_is_judged_on_their_difference(backend):
+    """A 2σ_r bias on ω_r,m1 while the generator-side prediction rings at 4.5 Hz with 3σ_r (the torsion near rated,
+    common to both rotor-speed sensors): judged against the prediction, the flag is cleared while the fault persists;
+    against the healthy ω_r,m2 it is kept, and the fault's end is recognised after about 2h/(μ²/2) ticks."""
+    rng = np.random.default_rng(23)
+    rows, ticks, bias = 40, 3000, 2.0
+    fast = fast_module("service.turbine.fast") if backend == "numba" else None
+    clearing = FlagClearing(DESIGN, rows, P.dt, 0.01, 1.0, 0.5, estimate_observers(DESIGN), fast)
+    sigma_r = 1.0 / (math.sqrt(2.0) * clearing.partner_scale)
+    mask = np.full(rows, 1 << R1)
+    column = clearing.column[clearing.predictor_of_mask[mask[0]], R1]
+    clearing.start(np.broadcast_to(np.arange(4) == R1, (rows, 4)).copy())
+    x_hat, y = np.zeros((rows, DESIGN.F_blk.shape[0])), np.zeros((rows, 4))
+    frozen = np.zeros((rows, 4), dtype=bool)
+
+    def tick(k: int, size: float) -> np.ndarray:
+        x_hat[:, column] = 3.0 * sigma_r * math.sin(2.0 * math.pi * 4.5 * k * P.dt)  # the common prediction error
+        y[:, :2] = sigma_r * rng.standard_normal((rows, 2))
+        y[:, R1] += size * sigma_r
+        return clearing.step(y, x_hat, mask, frozen)[:, R1]
+
+    assert not any(tick(k, bias).any() for k in range(ticks)), "a flag dropped while its fault persisted"
+    ready = np.full(rows, -1)
+    for k in range(ticks, ticks + 200):
+        ready[(ready < 0) & tick(k, 0.0)] = k - ticks + 1
+    expected = 2.0 * clearing.h / (bias**2 / 2.0)
+    assert (ready > 0).all() and 0.5 * expected <= np.median(ready) <= 2.0 * expected
+    # both rotor-speed sensors flagged: each is judged against the prediction, whose ringing clears the fault
+    both = FlagClearing(DESIGN, rows, P.dt, 0.01, 1.0, 0.5, estimate_observers(DESIGN), fast)
+    both.start(np.broadcast_to(np.arange(4) < 2, (rows, 4)).copy())
+    mask_both = np.full(rows, (1 << R1) | (1 << (1 - R1)))
+    column = both.column[both.predictor_of_mask[mask_both[0]], R1]
+    x_hat[:] = 0.0
+    cleared = np.zeros(rows, dtype=bool)
+    for k in range(ticks):
+        x_hat[:, column] = 3.0 * sigma_r * math.sin(2.0 * math.pi * 4.5 * k * P.dt)
+        y[:, :2] = sigma_r * rng.standard_normal((rows, 2)) + bias * sigma_r
+        cleared |= both.step(y, x_hat, mask_both, frozen)[:, R1]
+    assert cleared.any(), "the prediction's ringing should clear some flags: the case the partner residual avoids"
 
 
 def test_a_frozen_sensor_is_never_cleared_and_a_zero_size_flag_clears_at_the_floor_rate():

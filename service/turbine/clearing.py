@@ -26,6 +26,22 @@ end of a fault of size m is recognised after about 2h/m² ticks (one tick for m 
 fixed value close to the truth): at most about 2h/μ_floor² ticks. A fault smaller than μ_floor/2 is cleared
 even while it persists; the window tests rarely see one that small.
 
+**A rotor-speed sensor beside a healthy partner.** Near rated the prediction x̂_j,ω_r of the generator-side
+observers carries the drive train's torsion (the healthy e_s has variance 2.7–3.2 at 11.5–13 m/s, coloured at the
+torsion mode, and all of that excess is common to the two rotor-speed sensors: ``bias_test``, docs/turbine.md), so
+a CUSUM derived for a white e_s decides a persisting rotor-speed fault has gone whenever the ringing cancels it
+for a half-period (a 5 % gain at 11.3 m/s: the flag dropped and raised again 12 times per 48-s window). Where one
+rotor-speed sensor is flagged and the other is not, the flagged one is judged against its partner instead:
+
+    e_s[n] = (y_s[n] − y_o[n]) / (√2 σ_r),
+
+the difference of two independent white sensor noises (the common prediction error is not in it), N(0, 1) while s
+is healthy (σ_r the rotor-speed sensors' design noise, the calibration offsets taken off ``y``) and N(b/(√2 σ_r), 1)
+under a bias b. A bias μ σ_r is then μ/√2 in these units, so its floor is μ_floor/√2: the flag is still cleared
+below the same μ_floor/2 σ_r and the hysteresis with ``bias_test`` (raised above ``bias_shift``/2 σ_e) is
+unchanged; the end of a fault is recognised after 2h/(μ²/2) ticks instead of 2h/μ², twice as late. Where both
+rotor-speed sensors are flagged, each is judged against the prediction as before.
+
 σ_e,s: with ε the observer's error (``uio``), e_s σ_e = C_s (ε − H_j η_j) + η_s, so its autocovariance is
 closed-form: γ(0) = C_s Σ_x C_sᵀ + σ_s², γ(k) = C_s (F^k Σ_ε + F^(k−1) K R Hᵀ) C_sᵀ for k ≥ 1. σ_e,s² is the
 larger of γ(0) and the long-run variance Σ_k γ(k) = γ(0) + 2 C_s (F (I − F)⁻¹ Σ_ε + (I − F)⁻¹ K R Hᵀ) C_sᵀ, so
@@ -42,6 +58,8 @@ from service.turbine.bank import BankDesign
 from service.turbine.design_model import SPEED_SENSOR_STATE
 from service.turbine.uio import ObserverDesign
 from wwcore.channels import SPEED_SENSORS
+
+ROTOR = (0, 1)  # columns of the rotor-speed sensors in SPEED_SENSORS order
 
 
 def exclusion_variance(o: ObserverDesign, state: int, sensor_variance: float) -> float:
@@ -76,9 +94,14 @@ class FlagClearing:
         self.power_speed = np.array(bank.power_speed)
         self.h = math.log(1000.0 / (rate_per_1000s * dt))
         self.floor = floor
+        self.partner_floor = floor / math.sqrt(2.0)  # μ_floor in the units of the partner residual
         self.min_weight = min(1.0, dt / memory_s)
         all_sensors = bank.observers[bank.index(frozenset())]
         variance = {s: float(all_sensors.R[i, i]) for i, s in enumerate(all_sensors.sensors)}
+        rotor_variance = [variance[SPEED_SENSORS[i]] for i in ROTOR]
+        if rotor_variance[0] != rotor_variance[1]:
+            raise ValueError(f"the two rotor-speed sensors' design noise differs: {rotor_variance}")
+        self.partner_scale = 1.0 / math.sqrt(2.0 * rotor_variance[0])  # 1/(√2 σ_r), rad/s⁻¹
         m = len(bank.observers)
         self.column = np.zeros((m, len(SPEED_SENSORS)), dtype=np.int64)  # of C_s x̂_j in the bank's x̂
         self.scale = np.full((m, len(SPEED_SENSORS)), np.nan)  # 1/σ_e,s; NaN where j uses s
@@ -119,7 +142,8 @@ class FlagClearing:
             predictor = np.where(predictor == self.power_speed[0], self.power_speed[torque_band], predictor)
         if self._fast is not None:  # the same per row and sensor, in place
             state = (self.count, self.mean, self.statistic, self.residual)
-            args = (self.column, self.scale, self.min_weight, self.floor, self.h, state, ready)
+            partner = (self.partner_scale, self.partner_floor)
+            args = (self.column, self.scale, self.min_weight, self.floor, partner, self.h, state, ready)
             self._fast.cusum(y, x_hat, mask, frozen, predictor, *args)
             return ready
         rows = np.flatnonzero((mask != 0) & (predictor >= 0))
@@ -130,10 +154,16 @@ class FlagClearing:
         scale = self.scale[sel]
         active = flagged[rows] & np.isfinite(scale)
         e = np.where(active, (y[rows] - predicted) * np.where(active, scale, 0.0), 0.0)
+        floor = np.full(e.shape, self.floor)
+        r0, r1 = ROTOR
+        alone = active[:, [r0, r1]] & ~flagged[rows][:, [r1, r0]]  # a flagged rotor-speed sensor, its partner not
+        partner = np.column_stack([y[rows, r0] - y[rows, r1], y[rows, r1] - y[rows, r0]]) * self.partner_scale
+        e[:, [r0, r1]] = np.where(alone, partner, e[:, [r0, r1]])
+        floor[:, [r0, r1]] = np.where(alone, self.partner_floor, self.floor)
         count = self.count[rows] + active
         weight = np.where(active, np.maximum(1.0 / np.maximum(count, 1.0), self.min_weight), 0.0)
         mean = self.mean[rows] + weight * (e - self.mean[rows])
-        m = np.maximum(np.abs(mean), self.floor)
+        m = np.maximum(np.abs(mean), floor)
         llr = m * (0.5 * m - np.where(mean < 0.0, -e, e))
         statistic = np.where(active & ~frozen[rows], np.maximum(0.0, self.statistic[rows] + llr), 0.0)
         self.count[rows], self.mean[rows], self.statistic[rows], self.residual[rows] = count, mean, statistic, e

@@ -326,11 +326,14 @@ def any_above(values, column, level):
 
 # -- flag clearing (``service.turbine.clearing.FlagClearing.step``) -------------------------------------------------
 @kernel
-def cusum(y, x_hat, mask, frozen, predictor, column, scale, min_weight, floor, h, state, ready):
+def cusum(y, x_hat, mask, frozen, predictor, column, scale, min_weight, floor, partner, h, state, ready):
     """Advance the CUSUM of every flagged speed sensor: e = (y − C x̂_j) / σ_e with j the row's ``predictor``
-    (−1: none), μ̂ ← μ̂ + w (e − μ̂), w = max(1/count, w_min), S ← max(0, S + m (m/2 − sign(μ̂) e)), m = max(|μ̂|,
-    floor); ``ready`` where S ≥ h. ``state`` = (count, mean, statistic, residual), (n, 4) each, in place."""
+    (−1: none), or for a flagged rotor-speed sensor whose partner is not flagged e = (y_s − y_o) / (√2 σ_r) with the
+    floor ``partner`` = (1/(√2 σ_r), floor/√2); μ̂ ← μ̂ + w (e − μ̂), w = max(1/count, w_min), S ← max(0, S + m (m/2
+    − sign(μ̂) e)), m = max(|μ̂|, floor); ``ready`` where S ≥ h. ``state`` = (count, mean, statistic, residual),
+    (n, 4) each, in place."""
     count, mean, statistic, residual = state
+    partner_scale, partner_floor = partner
     for r in range(y.shape[0]):
         j = predictor[r]
         if mask[r] == 0 or j < 0:
@@ -339,10 +342,14 @@ def cusum(y, x_hat, mask, frozen, predictor, column, scale, min_weight, floor, h
             sc = scale[j, s]
             active = ((mask[r] >> s) & 1) == 1 and np.isfinite(sc)
             e = (y[r, s] - x_hat[r, column[j, s]]) * sc if active else 0.0
+            lower = floor
+            if active and s < 2 and ((mask[r] >> (1 - s)) & 1) == 0:  # a rotor-speed sensor, its partner healthy
+                e = (y[r, s] - y[r, 1 - s]) * partner_scale
+                lower = partner_floor
             c = count[r, s] + (1.0 if active else 0.0)
             weight = maximum(1.0 / maximum(c, 1.0), min_weight) if active else 0.0
             mu = mean[r, s] + weight * (e - mean[r, s])
-            m = maximum(abs(mu), floor)
+            m = maximum(abs(mu), lower)
             llr = m * (0.5 * m - (-e if mu < 0.0 else e))
             stat = maximum(0.0, statistic[r, s] + llr) if active and not frozen[r, s] else 0.0
             count[r, s], mean[r, s], statistic[r, s], residual[r, s] = c, mu, stat, e
