@@ -77,4 +77,6 @@ def test_short_grid_no_flapping_and_the_estimate_within_ten_percent_of_its_twin(
         assert w.flaps == 0 and w.detections == 1, f"{label}: {w.detections} detections, {w.flaps} flaps"
         assert w.first_flag_isolated and w.wrong == 0, label
         assert w.ratio <= 1.1, f"{label}: FTE RMSE {w.ratio:.3f} × its twin's"
-        assert w.end_delay_s is not None and w.end_delay_s <= 0.1, f"{label}: end after {w.end_delay_s}"
+        # the end: the clearing's CUSUM reaches h after about 2h/m² ticks, 4h/μ² for a rotor-speed sensor judged
+        # against its healthy partner (μ in σ_r: 0.07 s at 3σ), then the observer's 3-tick consistency check
+        assert w.end_delay_s is not None and w.end_delay_s <= 0.2, f"{label}: end after {w.end_delay_s}"
