@@ -19,13 +19,12 @@ import tomllib
 import numpy as np
 import pytest
 
-from plant_sim.farm import FarmBatch
 from plant_sim.turbine import TurbineBatch
 from service.farm.baseline import LearntLevel
-from service.farm.supervisor import FarmSupervisor
 from service.turbine.adaptive import HealthySpread
 from service.turbine.supervisor import TurbineSupervisor
 from tests.live.helpers import TURBINE_SHORT
+from windwarden.bench import farm_pair
 from windwarden.cli import EXIT_BAD_INPUT, main
 from windwarden.evaluation.kinds import EvalOptions
 from windwarden.kinds import kind_for
@@ -328,21 +327,9 @@ def test_a_plant_unlike_the_design_model_falls_back_and_still_matches():
 
 @pytest.mark.parametrize("name", ["farm-case1", "farm-3x3-veer"])  # the row model; FLORIS wakes, a moving direction
 def test_farm_turbines_match(name):
-    scenario = load_scenario(name)
     states = {}
     for backend in ("numpy", "numba"):
-        plant = FarmBatch(
-            scenario.plant, scenario.wind, scenario.faults, seed=SEED, duration_s=20.0, runs=[0], backend=backend
-        )
-        sup = scenario.supervisor
-        supervisor = FarmSupervisor(
-            scenario.plant.site(plant.dt),
-            plant.n,
-            detector=sup.detector,
-            controller=sup.controller,
-            options=sup.params,
-            backend=backend,
-        )
+        plant, supervisor = farm_pair(name, 1, SEED, False, backend, 19.0)  # 20 s of one run
         assert (supervisor.context.fast_aero is None) == (backend == "numpy")
         refs, trace, winds, powers = None, [], [], []
         for _ in range(1500):

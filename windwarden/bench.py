@@ -29,7 +29,8 @@ console = Console()
 CALLS = ("measure", "control", "supervise", "advance")
 
 
-def _turbine_pair(scenario_name: str, runs: int, seed: int, twins: bool, backend: str):
+def turbine_pair(scenario_name: str, runs: int, seed: int, twins: bool, backend: str):
+    """The benchmark turbine's batch of ``runs`` runs of a scenario and its supervisor, both on ``backend``."""
     from plant_sim.turbine import TurbineBatch
     from service.turbine.supervisor import TurbineSupervisor
 
@@ -47,7 +48,9 @@ def _turbine_pair(scenario_name: str, runs: int, seed: int, twins: bool, backend
     return plant, supervisor
 
 
-def _farm_pair(scenario_name: str, runs: int, seed: int, twins: bool, backend: str, seconds: float):
+def farm_pair(scenario_name: str, runs: int, seed: int, twins: bool, backend: str, seconds: float):
+    """A farm scenario's batch of ``runs`` runs, ``seconds`` long, and its supervisor as the scenario chooses it, both
+    on ``backend``."""
     from plant_sim.farm import FarmBatch
     from service.farm.supervisor import FarmSupervisor
 
@@ -173,7 +176,7 @@ def bench_turbine(args: argparse.Namespace) -> int:
     return _bench(
         args,
         "turbine step throughput",
-        lambda runs, backend: _turbine_pair(args.scenario, runs, args.seed, args.twins, backend),
+        lambda runs, backend: turbine_pair(args.scenario, runs, args.seed, args.twins, backend),
     )
 
 
@@ -181,7 +184,7 @@ def bench_farm(args: argparse.Namespace) -> int:
     return _bench(
         args,
         "farm step throughput",
-        lambda runs, backend: _farm_pair(args.scenario, runs, args.seed, args.twins, backend, args.seconds),
+        lambda runs, backend: farm_pair(args.scenario, runs, args.seed, args.twins, backend, args.seconds),
     )
 
 

@@ -12,6 +12,7 @@ from pathlib import Path
 import zenoh
 
 from service.plugins import load_plugins
+from tests.live.helpers import LiveNodes, router
 from windwarden.kinds import RunInfo, kind_for
 from windwarden.live.config import SupervisorSettings
 from windwarden.live.coordinator import CoordinatorNode, CoordinatorSettings
@@ -212,3 +213,17 @@ class Sharded:
         for session in self._sessions:
             if session is not None:
                 session.close()
+
+
+@contextlib.contextmanager
+def sharded_farm(
+    scn: Scenario, run_dir: Path, shards: list[tuple[int, ...]], *, mode: str, seed: int
+) -> Iterator[tuple[Sharded, LiveNodes]]:
+    """A router, a coordinator and one shard per turbine tuple in ``shards`` on it (``Sharded``), and the plant and
+    recorder nodes of a run of ``scn`` with no whole-farm supervisor (the shards answer the plant)."""
+    with (
+        router() as endpoint,
+        Sharded(endpoint, [(endpoint, s) for s in shards], run_dir) as sharded,
+        LiveNodes(endpoint, scn, run_dir, mode=mode, seed=seed, supervisor=False, supervisor_wait_s=30.0) as nodes,
+    ):
+        yield sharded, nodes

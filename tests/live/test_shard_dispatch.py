@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 
 from service.farm.supervisor import FarmSupervisor
-from tests.live.helpers import LiveNodes, router, scenario, wait_for
-from tests.live.shard_helpers import Sharded
+from tests.live.helpers import scenario, wait_for
+from tests.live.shard_helpers import sharded_farm
 from windwarden.live.runfolder import EVENTS, read_events
 
 # the open-loop dispatch (no farm-power trim), so that the references of a sample add up to its demand exactly; the
@@ -63,28 +63,19 @@ def test_the_served_turbines_take_up_a_lost_shards_part_and_the_full_set_returns
     decisions = Decisions()
     monkeypatch.setattr(FarmSupervisor, "decide", decisions.wrap(FarmSupervisor.decide))  # the coordinator's
     run_dir = tmp_path / "run"
-    with router() as endpoint, Sharded(endpoint, [(endpoint, A), (endpoint, B)], run_dir) as sharded:
-        with LiveNodes(
-            endpoint,
-            scenario(HELD_SCENARIO),
-            run_dir,
-            mode="lockstep",
-            seed=5,
-            supervisor=False,
-            supervisor_wait_s=30.0,
-        ) as nodes:
-            plant, coordinator = nodes.plant, sharded.coordinator
-            assert wait_for(lambda: plant.plant.t >= KILL_AT_S, 60), "the farm did not start"
-            sharded.kill(1)
-            assert wait_for(lambda: "5-9" in coordinator.status()["lost_shards"], 30), coordinator.status()
-            assert wait_for(lambda: any(d["held"].any() for d in decisions.rows[-1:]), 30)
-            status = coordinator.status()
-            held_refs = plant.latest_refs["power_ref"][HELD].copy()  # what the plant keeps for turbines 5-9
-            assert wait_for(lambda: plant.plant.t >= RESTART_AT_S, 60)
-            assert np.array_equal(plant.latest_refs["power_ref"][HELD], held_refs)  # still, while lost
-            sharded.restart(1)
-            assert wait_for(lambda: coordinator.status()["shards_rejoined"] == 1, 30), coordinator.status()
-            assert nodes.wait(120) == 0
+    with sharded_farm(scenario(HELD_SCENARIO), run_dir, [A, B], mode="lockstep", seed=5) as (sharded, nodes):
+        plant, coordinator = nodes.plant, sharded.coordinator
+        assert wait_for(lambda: plant.plant.t >= KILL_AT_S, 60), "the farm did not start"
+        sharded.kill(1)
+        assert wait_for(lambda: "5-9" in coordinator.status()["lost_shards"], 30), coordinator.status()
+        assert wait_for(lambda: any(d["held"].any() for d in decisions.rows[-1:]), 30)
+        status = coordinator.status()
+        held_refs = plant.latest_refs["power_ref"][HELD].copy()  # what the plant keeps for turbines 5-9
+        assert wait_for(lambda: plant.plant.t >= RESTART_AT_S, 60)
+        assert np.array_equal(plant.latest_refs["power_ref"][HELD], held_refs)  # still, while lost
+        sharded.restart(1)
+        assert wait_for(lambda: coordinator.status()["shards_rejoined"] == 1, 30), coordinator.status()
+        assert nodes.wait(120) == 0
         assert not sharded.errors
 
     rows = decisions.rows
