@@ -228,23 +228,24 @@ class CoordinatorNode:
             held = roster.held()
             noticed_t = max(roster.newest(), 0) * self.info.dt  # the newest farm sample summarised: when it was noticed
             held_refs = self._held_refs(held)
-        for name, alive, reason in changes:
-            turbines = self.roster.shards[name].turbines
-            detail = {
-                "process": "shard",
-                "shard": name,
-                "turbines": list(turbines),
-                "alive": alive,
-                "reason": reason,
-                "held_turbines": held,
-                "held_power_ref_w": held_refs,  # what the plant keeps for them and the dispatch counts on
-                "noticed_by": "coordinator",
-            }
-            (log.info if alive else log.warning)(
-                "shard %s (turbines %s) %s: %s", name, turbines, "rejoined" if alive else "lost", reason
-            )
-            if self.events is not None:
-                self.events.write([Event(noticed_t, EventType.LIVELINESS, detail=detail)])
+            # written before the lock is released, so whoever reads the status as lost finds its event
+            for name, alive, reason in changes:
+                turbines = self.roster.shards[name].turbines
+                detail = {
+                    "process": "shard",
+                    "shard": name,
+                    "turbines": list(turbines),
+                    "alive": alive,
+                    "reason": reason,
+                    "held_turbines": held,
+                    "held_power_ref_w": held_refs,  # what the plant keeps for them and the dispatch counts on
+                    "noticed_by": "coordinator",
+                }
+                (log.info if alive else log.warning)(
+                    "shard %s (turbines %s) %s: %s", name, turbines, "rejoined" if alive else "lost", reason
+                )
+                if self.events is not None:
+                    self.events.write([Event(noticed_t, EventType.LIVELINESS, detail=detail)])
         if changed:
             log.info("shards: %s", problem or f"every turbine of run {self.info.run_id} is served")
         if changes:
