@@ -16,6 +16,7 @@ from service.hydro.supervisor import HydroSupervisor
 from service.plugins import HYDRO_OBSERVERS
 from tests.hydro.conftest import run_loop
 from wwcore.hydro_params import NOMINAL
+from wwcore.scenario import load_scenario
 
 
 @HYDRO_OBSERVERS.register("test-pass-through")
@@ -56,11 +57,17 @@ def test_the_ts_smo_reconstruction_sees_only_its_own_stroke_reading_at_any_wind(
 
 
 SHIPPED_LOW_NOISE = {"tau_filter": [0.025, 0.025], "filter_order": 2, "layer_correction": True}
+SHIPPED_NOISE = {"tau_filter": [0.05, 0.05], "filter_order": 2, "layer_correction": True}  # hydro-noise's
 
 
 @pytest.mark.parametrize(
     ("noise_pct", "observer"),
-    [(0.1, {"tau_filter": [0.05, 0.05]}), (0.1, SHIPPED_LOW_NOISE), (2.0, {"tau_filter": [0.1, 0.1]})],
+    [
+        (0.1, {"tau_filter": [0.05, 0.05]}),
+        (0.1, SHIPPED_LOW_NOISE),
+        (2.0, {"tau_filter": [0.1, 0.1]}),
+        (2.0, SHIPPED_NOISE),
+    ],
 )
 def test_the_predicted_sigma_is_what_the_simulated_plant_shows(make_plant, noise_pct, observer):
     """Fault-free f̂_filt of the plant in closed loop against the prediction from the sensors' accuracy alone."""
@@ -83,3 +90,17 @@ def test_the_detector_uses_the_design_of_its_own_context():
     noisy = ThresholdDetector(context=context, options={"sensor_noise_pct": 2.0})
     assert noisy.theta == pytest.approx([0.0573, 0.0573], abs=2e-4)
     assert ThresholdDetector(context=context, options={}).theta.tolist() == [0.01, 0.01]  # the floor at 0.1 %
+
+
+def test_the_noise_case_filter_halves_the_reconstruction_noise_at_the_papers_lag():
+    """(37') of two 0.05-s stages lags like (37) at 0.1 s (the stages' time constants add up to the same mean delay)
+    but rolls off the differentiated reading noise (37) passes at its flat gain: its predicted σ of f̂_filt and so
+    its threshold are about half; the shipped scenarios use it."""
+    paper = HydroSupervisor(n=2, options={"tau_filter": [0.1, 0.1], "sensor_noise_pct": 2.0}, compensation=False)
+    split = HydroSupervisor(n=2, options={**SHIPPED_NOISE, "sensor_noise_pct": 2.0}, compensation=False)
+    assert sum(SHIPPED_NOISE["tau_filter"]) == pytest.approx(0.1)
+    assert np.all(split.detector.sigma < 0.6 * paper.detector.sigma)
+    assert np.all(split.detector.theta < 0.6 * paper.detector.theta)
+    for name in ("hydro-noise", "hydro-noise-fault-free"):
+        params = load_scenario(name).supervisor.params
+        assert {k: params[k] for k in SHIPPED_NOISE} == SHIPPED_NOISE
