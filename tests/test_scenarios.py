@@ -104,6 +104,15 @@ def test_cli_refuses_bad_scenario_with_exit_code_2_before_running(tmp_path, caps
     assert "faults[0].target" in err and "omega_r_m9" in err
 
 
+def test_a_folder_named_like_a_shipped_scenario_does_not_hide_it_and_a_folder_is_refused(tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "hydro-noise").mkdir()  # e.g. an earlier eval's --out
+    assert load_scenario("hydro-noise").name == "hydro-noise"
+    (tmp_path / "results").mkdir()
+    with pytest.raises(ScenarioError, match="a folder, not a scenario file"):
+        load_scenario("results")
+
+
 def test_cli_refuses_unknown_scenario_and_unknown_algorithm(tmp_path, capsys):
     assert main(["eval", "no-such-scenario", "--runs", "1"]) == 2
     assert "no such file or shipped scenario" in capsys.readouterr().err

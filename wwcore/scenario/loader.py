@@ -67,12 +67,15 @@ def shipped_scenarios() -> dict[str, Path]:
 def load_scenario(name_or_path: str | Path) -> Scenario:
     """Load a shipped scenario by name or any scenario file by path."""
     path = Path(name_or_path)
-    if not path.exists():
+    if not path.is_file():  # a folder of the same name (an eval's output, say) does not hide a shipped scenario
         shipped = shipped_scenarios()
-        if str(name_or_path) not in shipped:
+        if str(name_or_path) in shipped:
+            path = shipped[str(name_or_path)]
+        elif path.exists():
+            raise ScenarioError(str(name_or_path), [("(file)", "a folder, not a scenario file")])
+        else:
             names = ", ".join(sorted(shipped))
             raise ScenarioError(str(name_or_path), [("(file)", f"no such file or shipped scenario; shipped: {names}")])
-        path = shipped[str(name_or_path)]
     try:
         data = tomllib.loads(path.read_text())
     except tomllib.TOMLDecodeError as error:
