@@ -170,6 +170,9 @@ def turbine_trace(scenario, backend: str, runs: list[int], ticks: int, every: in
             "actuator_scale": supervisor.detector.components.actuator_spread.estimate,
             "spread_counts": fdi.spread.count,
             "residual": fdi.clearing.residual,
+            # the rotor-speed bias CUSUM (``service.turbine.bias_test``): S±, A±, its predictor and learnt spread
+            "rotor_bias": [fdi.bias.up, fdi.bias.down, fdi.bias.run_up, fdi.bias.run_down, fdi.bias.predictor],
+            "rotor_bias_scale": [fdi.bias.spread.estimate, fdi.bias.spread.count],
             "flags": supervisor.flags,
             "omega_g": est.omega_g,
             "wind": est.wind,
@@ -271,6 +274,41 @@ def test_the_pitch_parity_kernel_equals_the_reference():
         assert outs[0][2] is None and outs[1][2] == suspicious.any()
         assert_same_spread(detectors[1].parity_spread, detectors[0].parity_spread, f"sample {k}")
     assert detectors[0].parity_spread.count.min() > 0 and detectors[0].parity_spread.count.max() < 60
+
+
+def test_the_rotor_bias_kernel_equals_the_reference():
+    # ``RotorBiasTest.step_flags`` with its numpy lines and with the kernel: predictors changing with the flags and
+    # pending isolations, biases of either sign on either sensor (raises, both signs at once), a nan reading on a
+    # row not tested (numpy's 0 × nan carries it into the learnt spread), the spread learning; every array equal
+    rng = np.random.default_rng(SEED)
+    fdis = [TurbineSupervisor(4, backend=backend).detector.fdi for backend in ("numpy", "numba")]
+    tests = [fdi.bias for fdi in fdis]
+    for test in tests:
+        test.spread.min_weight = 0.05
+    table, width = fdis[0]._bias_predictor, fdis[0].bank.F_blk.shape[0]
+    raised = 0
+    for k in range(400):
+        if k % 25 == 0:  # the flags hold for a while: the statistics run between the predictor's changes
+            flagged = rng.choice([0, 0, 0, 4, 8, 12, 1], 4)
+        deadline = np.where(rng.random(4) < 0.01, 7, -1)
+        x_hat = rng.normal(1.2, 0.1, (4, width))
+        predictor = np.maximum(table[flagged], 0)
+        y = x_hat[np.arange(4)[:, None], tests[0].column[predictor]] + rng.normal(0.0, 0.03, (4, 2))
+        y[:, 0] += (0.2 if k // 40 % 2 else -0.2) if k % 40 > 25 else 0.0  # a bias on a sensor for a while: raises
+        y[:, 1] -= 0.2 if k % 60 > 50 else 0.0
+        if k == 150:
+            y[2, 0], flagged[2] = np.nan, 1  # row 2 not tested this tick
+        outs = [test.step_flags(y, x_hat, flagged, deadline, table) for test in tests]
+        assert (outs[0] is None) == (outs[1] is None), f"tick {k}"
+        if outs[0] is not None:
+            np.testing.assert_array_equal(outs[1], outs[0], f"tick {k}")
+            for test, out in zip(tests, outs, strict=True):
+                test.reset(out.any(axis=1))
+            raised += 1
+        for name in ("up", "down", "run_up", "run_down", "predictor"):
+            np.testing.assert_array_equal(getattr(tests[1], name), getattr(tests[0], name), f"tick {k}: {name}")
+        assert_same_spread(tests[1].spread, tests[0].spread, f"tick {k}")
+    assert raised >= 3 and np.isnan(tests[0].spread.estimate[2]) and (tests[0].spread.count > 10).all()
 
 
 def test_the_farm_learnt_levels_kernel_equals_the_reference():

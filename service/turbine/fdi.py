@@ -220,6 +220,7 @@ class SpeedSensorFDI:
                 settings.bias_shift,
                 settings.adapt_time_s,
                 settings.max_noise_scale,
+                fast,
             )
             for mask in range(1 << N_SPEED):
                 if mask & rotor_bits:
@@ -354,9 +355,8 @@ class SpeedSensorFDI:
     def _rotor_bias(self, y: np.ndarray, x_hat: np.ndarray) -> None:
         """Flag a rotor-speed sensor whose bias the CUSUM of ``bias_test`` finds, on rows where no rotor-speed
         sensor is flagged and nothing is being isolated; the flag then drops only by its clearing test."""
-        predictor = np.where(self.deadline < 0, self._bias_predictor[self.flagged], -1)
-        over = self.bias.step(y, x_hat, predictor)
-        if not over.any():
+        over = self.bias.step_flags(y, x_hat, self.flagged, self.deadline, self._bias_predictor)
+        if over is None:
             return
         rows = over.any(axis=1)
         raised = np.zeros((self.n, N_SPEED), dtype=bool)
