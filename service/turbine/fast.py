@@ -96,6 +96,18 @@ def recovery_filter(raw, pitch_m1, pitch_m2, healthy, modelled, b0, a1, a2, s1, 
             filtered[r, c] = y
 
 
+@kernel
+def recovery_tick(raw, pitch_m1, pitch_m2, healthy, pitch, reference, coef, biquads, filtered):
+    """``pitch_model`` from ``pitch`` = (β, β̇) and the reference, then ``recovery_filter`` with the new β as the
+    modelled pitch (``WindRecovery.step``); ``biquads`` = (b0, a1, a2, s1, s2). Returns the new (β, β̇)."""
+    n = reference.size
+    beta, rate = np.empty(n), np.empty(n)
+    pitch_model(pitch[0], pitch[1], reference, coef, beta, rate)
+    b0, a1, a2, s1, s2 = biquads
+    recovery_filter(raw, pitch_m1, pitch_m2, healthy, beta, b0, a1, a2, s1, s2, filtered)
+    return beta, rate
+
+
 # -- speed-sensor FDI (``service.turbine.fdi.SpeedSensorFDI.step``) -----------------------------------------------
 @kernel
 def window_ratio(stat, history, slot, window_sum, h_detect, h_window, ratio):
@@ -106,6 +118,29 @@ def window_ratio(stat, history, slot, window_sum, h_detect, h_window, ratio):
             window_sum[r, j] += x - history[slot, r, j]
             history[slot, r, j] = x
             ratio[r, j] = maximum(x / h_detect[j], window_sum[r, j] / h_window[j])
+
+
+@kernel
+def window_test(raw, scale2, history, slot, window_sum, h_detect, h_window, column, chi2_stat, ratio):
+    """χ²_j/ŝ²_j into ``chi2_stat``, then ``window_ratio`` of it; returns whether any row's ratio of observer
+    ``column`` (the all-sensor one) exceeds 1 (``SpeedSensorFDI.step``)."""
+    for r in range(raw.shape[0]):
+        for j in range(raw.shape[1]):
+            chi2_stat[r, j] = raw[r, j] / scale2[r, j]
+    window_ratio(chi2_stat, history, slot, window_sum, h_detect, h_window, ratio)
+    return any_above(ratio, column, 1.0)
+
+
+@kernel
+def fdi_learn(flagged, deadline, ratio, raw, rank, y, gear_ratio, spread, calibration):
+    """``fdi_learning_inputs``, then ``learn_spread`` of the χ² scales from q and of the calibration offsets from
+    the deviations (``SpeedSensorFDI.step``); ``spread``, ``calibration`` = (min_weight, s_max², state) of each
+    ``HealthySpread``."""
+    n = raw.shape[0]
+    healthy, q, deviation = np.empty((n, 1), dtype=np.bool_), np.empty(raw.shape), np.empty(y.shape)
+    fdi_learning_inputs(flagged, deadline, ratio, raw, rank, y, gear_ratio, healthy, q, deviation)
+    learn_spread(q, None, healthy, spread[0], spread[1], spread[2])
+    learn_spread(None, deviation, healthy, calibration[0], calibration[1], calibration[2])
 
 
 @kernel
