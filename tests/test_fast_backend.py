@@ -22,6 +22,7 @@ import pytest
 from plant_sim.turbine import TurbineBatch
 from service.farm.baseline import LearntLevel
 from service.turbine.adaptive import HealthySpread
+from service.turbine.component_fdi import ACTUATOR_TARGET, M1_TARGET
 from service.turbine.supervisor import TurbineSupervisor
 from tests.live.helpers import TURBINE_SHORT
 from windwarden.bench import farm_pair
@@ -309,6 +310,43 @@ def test_the_rotor_bias_kernel_equals_the_reference():
             np.testing.assert_array_equal(getattr(tests[1], name), getattr(tests[0], name), f"tick {k}: {name}")
         assert_same_spread(tests[1].spread, tests[0].spread, f"tick {k}")
     assert raised >= 3 and np.isnan(tests[0].spread.estimate[2]) and (tests[0].spread.count > 10).all()
+
+
+def test_the_pitch_actuator_kernel_equals_the_reference():
+    # ``ComponentFDI._actuators`` with its numpy lines and with ``actuator_test``, block after block through the
+    # windows filling, raises, clearings on the shorter and the full windows and a pitch-sensor flag's rest; the
+    # thresholds lowered so that random blocks cross them both ways; every array equal to the last bit
+    rng = np.random.default_rng(SEED)
+    detectors = [TurbineSupervisor(3, backend=backend).detector.components for backend in ("numpy", "numba")]
+    for detector in detectors:
+        detector.h_actuator, detector.h_actuator_clear = -90.0, 90.0  # Λ of these blocks: −20 to −170
+        detector.actuator_spread.min_weight = 0.05
+    raised = cleared = 0
+    for k in range(4 * detectors[0].actuator.size + 10):
+        e = rng.normal(0.0, 0.3, detectors[0]._e_block.shape) + (
+            0.4 * rng.normal(0.0, 1.0, (1, 3, 3)) if k % 7 < 3 else 0
+        )
+        reference = 8.0 + np.cumsum(rng.normal(0.0, 0.5, detectors[0]._ref_block.shape), axis=0)
+        sensor_flag = rng.random(3) < 0.01
+        before = detectors[0].flags[:, ACTUATOR_TARGET].copy()
+        for detector in detectors:
+            detector._e_block[:], detector._ref_block[:] = e, reference
+            detector.flags[:, M1_TARGET[0]] = sensor_flag
+            detector._actuators()
+        after = detectors[0].flags[:, ACTUATOR_TARGET]
+        raised += (after & ~before).sum()
+        cleared += (before & ~after).sum()
+        np.testing.assert_array_equal(detectors[1].flags, detectors[0].flags, f"block {k}")
+        np.testing.assert_array_equal(detectors[1].actuator_glr, detectors[0].actuator_glr, f"block {k}")
+        for name in ("_actuator_rest", "_actuator_cleared_rest", "_w_block"):
+            np.testing.assert_array_equal(getattr(detectors[1], name), getattr(detectors[0], name), f"{k}: {name}")
+        windows = [[d.actuator, d.actuator_energy, d.actuator_sums, *sum(d.actuator_short, ())] for d in detectors]
+        for fast, numpy_window in zip(*windows, strict=True):
+            assert fast.count == numpy_window.count
+            np.testing.assert_array_equal(fast.total, numpy_window.total, f"block {k}")
+            np.testing.assert_array_equal(fast.ring, numpy_window.ring, f"block {k}")
+        assert_same_spread(detectors[1].actuator_spread, detectors[0].actuator_spread, f"block {k}")
+    assert raised >= 5 and cleared >= 3 and detectors[0].actuator_spread.count.max() > 5
 
 
 def test_the_farm_learnt_levels_kernel_equals_the_reference():
