@@ -22,6 +22,7 @@ import pytest
 from plant_sim.turbine import TurbineBatch
 from service.farm.baseline import LearntLevel
 from service.turbine.adaptive import HealthySpread
+from service.turbine.component_fdi import ACTUATOR_TARGET, M1_TARGET
 from service.turbine.supervisor import TurbineSupervisor
 from tests.live.helpers import TURBINE_SHORT
 from windwarden.bench import farm_pair
@@ -170,6 +171,9 @@ def turbine_trace(scenario, backend: str, runs: list[int], ticks: int, every: in
             "actuator_scale": supervisor.detector.components.actuator_spread.estimate,
             "spread_counts": fdi.spread.count,
             "residual": fdi.clearing.residual,
+            # the rotor-speed bias CUSUM (``service.turbine.bias_test``): S±, A±, its predictor and learnt spread
+            "rotor_bias": [fdi.bias.up, fdi.bias.down, fdi.bias.run_up, fdi.bias.run_down, fdi.bias.predictor],
+            "rotor_bias_scale": [fdi.bias.spread.estimate, fdi.bias.spread.count],
             "flags": supervisor.flags,
             "omega_g": est.omega_g,
             "wind": est.wind,
@@ -271,6 +275,78 @@ def test_the_pitch_parity_kernel_equals_the_reference():
         assert outs[0][2] is None and outs[1][2] == suspicious.any()
         assert_same_spread(detectors[1].parity_spread, detectors[0].parity_spread, f"sample {k}")
     assert detectors[0].parity_spread.count.min() > 0 and detectors[0].parity_spread.count.max() < 60
+
+
+def test_the_rotor_bias_kernel_equals_the_reference():
+    # ``RotorBiasTest.step_flags`` with its numpy lines and with the kernel: predictors changing with the flags and
+    # pending isolations, biases of either sign on either sensor (raises, both signs at once), a nan reading on a
+    # row not tested (numpy's 0 × nan carries it into the learnt spread), the spread learning; every array equal
+    rng = np.random.default_rng(SEED)
+    fdis = [TurbineSupervisor(4, backend=backend).detector.fdi for backend in ("numpy", "numba")]
+    tests = [fdi.bias for fdi in fdis]
+    for test in tests:
+        test.spread.min_weight = 0.05
+    table, width = fdis[0]._bias_predictor, fdis[0].bank.F_blk.shape[0]
+    raised = 0
+    for k in range(400):
+        if k % 25 == 0:  # the flags hold for a while: the statistics run between the predictor's changes
+            flagged = rng.choice([0, 0, 0, 4, 8, 12, 1], 4)
+        deadline = np.where(rng.random(4) < 0.01, 7, -1)
+        x_hat = rng.normal(1.2, 0.1, (4, width))
+        predictor = np.maximum(table[flagged], 0)
+        y = x_hat[np.arange(4)[:, None], tests[0].column[predictor]] + rng.normal(0.0, 0.03, (4, 2))
+        y[:, 0] += (0.2 if k // 40 % 2 else -0.2) if k % 40 > 25 else 0.0  # a bias on a sensor for a while: raises
+        y[:, 1] -= 0.2 if k % 60 > 50 else 0.0
+        if k == 150:
+            y[2, 0], flagged[2] = np.nan, 1  # row 2 not tested this tick
+        outs = [test.step_flags(y, x_hat, flagged, deadline, table) for test in tests]
+        assert (outs[0] is None) == (outs[1] is None), f"tick {k}"
+        if outs[0] is not None:
+            np.testing.assert_array_equal(outs[1], outs[0], f"tick {k}")
+            for test, out in zip(tests, outs, strict=True):
+                test.reset(out.any(axis=1))
+            raised += 1
+        for name in ("up", "down", "run_up", "run_down", "predictor"):
+            np.testing.assert_array_equal(getattr(tests[1], name), getattr(tests[0], name), f"tick {k}: {name}")
+        assert_same_spread(tests[1].spread, tests[0].spread, f"tick {k}")
+    assert raised >= 3 and np.isnan(tests[0].spread.estimate[2]) and (tests[0].spread.count > 10).all()
+
+
+def test_the_pitch_actuator_kernel_equals_the_reference():
+    # ``ComponentFDI._actuators`` with its numpy lines and with ``actuator_test``, block after block through the
+    # windows filling, raises, clearings on the shorter and the full windows and a pitch-sensor flag's rest; the
+    # thresholds lowered so that random blocks cross them both ways; every array equal to the last bit
+    rng = np.random.default_rng(SEED)
+    detectors = [TurbineSupervisor(3, backend=backend).detector.components for backend in ("numpy", "numba")]
+    for detector in detectors:
+        detector.h_actuator, detector.h_actuator_clear = -90.0, 90.0  # Λ of these blocks: −20 to −170
+        detector.actuator_spread.min_weight = 0.05
+    raised = cleared = 0
+    for k in range(4 * detectors[0].actuator.size + 10):
+        e = rng.normal(0.0, 0.3, detectors[0]._e_block.shape) + (
+            0.4 * rng.normal(0.0, 1.0, (1, 3, 3)) if k % 7 < 3 else 0
+        )
+        reference = 8.0 + np.cumsum(rng.normal(0.0, 0.5, detectors[0]._ref_block.shape), axis=0)
+        sensor_flag = rng.random(3) < 0.01
+        before = detectors[0].flags[:, ACTUATOR_TARGET].copy()
+        for detector in detectors:
+            detector._e_block[:], detector._ref_block[:] = e, reference
+            detector.flags[:, M1_TARGET[0]] = sensor_flag
+            detector._actuators()
+        after = detectors[0].flags[:, ACTUATOR_TARGET]
+        raised += (after & ~before).sum()
+        cleared += (before & ~after).sum()
+        np.testing.assert_array_equal(detectors[1].flags, detectors[0].flags, f"block {k}")
+        np.testing.assert_array_equal(detectors[1].actuator_glr, detectors[0].actuator_glr, f"block {k}")
+        for name in ("_actuator_rest", "_actuator_cleared_rest", "_w_block"):
+            np.testing.assert_array_equal(getattr(detectors[1], name), getattr(detectors[0], name), f"{k}: {name}")
+        windows = [[d.actuator, d.actuator_energy, d.actuator_sums, *sum(d.actuator_short, ())] for d in detectors]
+        for fast, numpy_window in zip(*windows, strict=True):
+            assert fast.count == numpy_window.count
+            np.testing.assert_array_equal(fast.total, numpy_window.total, f"block {k}")
+            np.testing.assert_array_equal(fast.ring, numpy_window.ring, f"block {k}")
+        assert_same_spread(detectors[1].actuator_spread, detectors[0].actuator_spread, f"block {k}")
+    assert raised >= 5 and cleared >= 3 and detectors[0].actuator_spread.count.max() > 5
 
 
 def test_the_farm_learnt_levels_kernel_equals_the_reference():

@@ -87,6 +87,8 @@ class RotorBiasTest:
     sensor; ``scale`` (m, 2): 1/σ_e,s of that prediction (rad/s⁻¹; NaN where j uses the sensor); ``dt`` (s);
     ``rate_per_1000s``: the false-alarm budget; ``shift``: m, the bias designed for in σ_e of one sensor;
     ``adapt_time_s``, ``max_noise_scale``: the parity's healthy spread ŝ (``adaptive``; adapt_time_s = 0: ŝ = 1).
+    ``fast``: ``service.turbine.fast`` (``wwcore.backend``) or None; with it, ``step_flags`` is one kernel
+    (``rotor_bias``, the same operations).
     """
 
     def __init__(
@@ -99,6 +101,7 @@ class RotorBiasTest:
         shift: float,
         adapt_time_s: float = 0.0,
         max_noise_scale: float = 1.0,
+        fast=None,
     ):
         if shift <= 0.0:
             raise ValueError(f"the shift must be positive, not {shift}")
@@ -117,10 +120,37 @@ class RotorBiasTest:
         self.run_down = np.zeros(n)
         self.spread = HealthySpread((n,), dt, adapt_time_s, max_noise_scale)
         self.predictor = np.full(n, -1, dtype=np.int64)  # the observer each row's statistics were summed against
+        self._fast = fast
 
     def usable(self, j: int) -> bool:
         """Whether observer j predicts both rotor-speed sensors without using them."""
         return bool(np.isfinite(self.scale[j]).all() and (self.scale[j] > 0.0).all())
+
+    def step_flags(
+        self, y: np.ndarray, x_hat: np.ndarray, flagged: np.ndarray, deadline: np.ndarray, predictor_of_mask: np.ndarray
+    ) -> np.ndarray | None:
+        """``step`` against the predictor ``predictor_of_mask`` (2⁴,) gives each row's ``flagged`` bitmask (n,), −1
+        (not tested) where an isolation is pending (``deadline`` ≥ 0). Returns ``step``'s (n, 2) bool, or None when
+        no bias is detected on any row."""
+        if self._fast is None:
+            over = self.step(y, x_hat, np.where(deadline < 0, predictor_of_mask[flagged], -1))
+            return over if over.any() else None
+        s = self.spread
+        over = np.empty((len(flagged), len(ROTOR)), dtype=bool)
+        raised = self._fast.rotor_bias(
+            y,
+            x_hat,
+            flagged,
+            deadline,
+            predictor_of_mask,
+            self.column,
+            self.scale,
+            (self.parity_shift, self.h),
+            (self.up, self.down, self.run_up, self.run_down, self.predictor),
+            (s.enabled, s.min_weight, s.max_scale2, s.state),
+            over,
+        )
+        return over if raised else None
 
     def step(self, y: np.ndarray, x_hat: np.ndarray, predictor: np.ndarray) -> np.ndarray:
         """Advance the statistics of every row against its ``predictor`` (n,) observer (−1: the row is not tested

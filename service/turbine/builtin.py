@@ -252,7 +252,8 @@ class UIOBankEstimator:
         pitch_m1, pitch_m2 = pitch[:, :3], pitch[:, 3:]
         recovery = self.recovery
         fast = self.context.fast
-        if fast is not None and faulty.any():
+        distrusting = bool(faulty.any())
+        if fast is not None and distrusting:
             n = self.context.n
             mask, selected = np.empty(n, dtype=np.int64), np.empty(n, dtype=np.int64)
             fast.select_observers(
@@ -266,7 +267,7 @@ class UIOBankEstimator:
             columns = np.maximum(selected, 0)
             omega_r, omega_g = np.empty(n), np.empty(n)
             fast.gather_speeds(recovery.filtered, *recovery.speed_starts, selected, omega_r, omega_g)
-        elif faulty.any():
+        elif distrusting:
             mask = faulty[:, SPEED_TARGETS] @ _MASK_WEIGHTS
             selected = self.observer_of_mask[mask]
             if len(self._power_speed):

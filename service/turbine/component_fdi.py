@@ -371,6 +371,9 @@ class ComponentFDI:
         block_correlation = np.einsum("knb,knc->nbc", w, s)
         block_energy = np.einsum("knc,knc->nc", s, s)
         block_sums = np.concatenate([z1, s.sum(axis=0)], axis=1)
+        if self._fast is not None and self.actuator_short:  # the lines below by one kernel
+            self._fast_actuator_test(z1, z2, block_correlation, block_energy, block_sums)
+            return
         correlation = self.actuator.push(block_correlation)  # Σ_window w_i s_θ
         energy = self.actuator_energy.push(block_energy)  # Σ_window s_θ²
         sums = self.actuator_sums.push(block_sums)  # Σ w_i, Σ s_θ
@@ -419,6 +422,26 @@ class ComponentFDI:
         kept = flagged & ~clear & (self._actuator_rest == 0)[:, None]
         self._actuator_cleared_rest = np.where(flagged & ~kept, rest, np.maximum(self._actuator_cleared_rest - 1, 0))
         self.flags[:, ACTUATOR_TARGET] = kept
+
+    def _fast_actuator_test(self, z1, z2, block_correlation, block_energy, block_sums) -> None:
+        """``_actuators`` from the block's sums on, by ``service.turbine.fast.actuator_test`` (the same operations)."""
+        full_windows = (self.actuator, self.actuator_energy, self.actuator_sums)
+        short = [window for windows in self.actuator_short for window in windows]
+        slots = np.array([w.count % w.size for w in (*full_windows, *short)], dtype=np.int64)
+        for w in (*full_windows, *short):
+            w.count += 1
+        count = self.s.block * min(self.actuator_sums.count, self.actuator_sums.size)
+        short_counts = np.array([c.size * self.s.block for c, _, _ in self.actuator_short], dtype=np.int64)
+        windows = (block_correlation, block_energy, block_sums, *((w.ring, w.total) for w in full_windows))
+        shorter = tuple(tuple(a for w in windows_m for a in (w.ring, w.total)) for windows_m in self.actuator_short)
+        spread = self.actuator_spread
+        thresholds = (self.s.block, 0.75 * self.sigma_beta**2, self.h_actuator, self.h_actuator_clear, count)
+        thresholds += (short_counts, self.signatures.n_faults, self.actuator.full)
+        self.actuator_glr = np.empty((self.n, 3))
+        state = (self._actuator_rest, self._actuator_cleared_rest, self.actuator.size, self.actuator_glr)
+        learning = (spread.enabled, spread.min_weight, spread.max_scale2, spread.state)
+        targets = (ACTUATOR_TARGET, M1_TARGET, M2_TARGET)
+        self._fast.actuator_test(z1, z2, windows, shorter, slots, thresholds, targets, state, learning, self.flags)
 
     # -- converter (once per block) -----------------------------------------------------------------------------
     def _converter(self) -> None:

@@ -96,6 +96,18 @@ def recovery_filter(raw, pitch_m1, pitch_m2, healthy, modelled, b0, a1, a2, s1, 
             filtered[r, c] = y
 
 
+@kernel
+def recovery_tick(raw, pitch_m1, pitch_m2, healthy, pitch, reference, coef, biquads, filtered):
+    """``pitch_model`` from ``pitch`` = (β, β̇) and the reference, then ``recovery_filter`` with the new β as the
+    modelled pitch (``WindRecovery.step``); ``biquads`` = (b0, a1, a2, s1, s2). Returns the new (β, β̇)."""
+    n = reference.size
+    beta, rate = np.empty(n), np.empty(n)
+    pitch_model(pitch[0], pitch[1], reference, coef, beta, rate)
+    b0, a1, a2, s1, s2 = biquads
+    recovery_filter(raw, pitch_m1, pitch_m2, healthy, beta, b0, a1, a2, s1, s2, filtered)
+    return beta, rate
+
+
 # -- speed-sensor FDI (``service.turbine.fdi.SpeedSensorFDI.step``) -----------------------------------------------
 @kernel
 def window_ratio(stat, history, slot, window_sum, h_detect, h_window, ratio):
@@ -106,6 +118,29 @@ def window_ratio(stat, history, slot, window_sum, h_detect, h_window, ratio):
             window_sum[r, j] += x - history[slot, r, j]
             history[slot, r, j] = x
             ratio[r, j] = maximum(x / h_detect[j], window_sum[r, j] / h_window[j])
+
+
+@kernel
+def window_test(raw, scale2, history, slot, window_sum, h_detect, h_window, column, chi2_stat, ratio):
+    """χ²_j/ŝ²_j into ``chi2_stat``, then ``window_ratio`` of it; returns whether any row's ratio of observer
+    ``column`` (the all-sensor one) exceeds 1 (``SpeedSensorFDI.step``)."""
+    for r in range(raw.shape[0]):
+        for j in range(raw.shape[1]):
+            chi2_stat[r, j] = raw[r, j] / scale2[r, j]
+    window_ratio(chi2_stat, history, slot, window_sum, h_detect, h_window, ratio)
+    return any_above(ratio, column, 1.0)
+
+
+@kernel
+def fdi_learn(flagged, deadline, ratio, raw, rank, y, gear_ratio, spread, calibration):
+    """``fdi_learning_inputs``, then ``learn_spread`` of the χ² scales from q and of the calibration offsets from
+    the deviations (``SpeedSensorFDI.step``); ``spread``, ``calibration`` = (min_weight, s_max², state) of each
+    ``HealthySpread``."""
+    n = raw.shape[0]
+    healthy, q, deviation = np.empty((n, 1), dtype=np.bool_), np.empty(raw.shape), np.empty(y.shape)
+    fdi_learning_inputs(flagged, deadline, ratio, raw, rank, y, gear_ratio, healthy, q, deviation)
+    learn_spread(q, None, healthy, spread[0], spread[1], spread[2])
+    learn_spread(None, deviation, healthy, calibration[0], calibration[1], calibration[2])
 
 
 @kernel
@@ -412,3 +447,179 @@ def any_differ(a, b):
         if a[i] != b[i]:
             return True
     return False
+
+
+# -- rotor-speed bias CUSUM (``service.turbine.bias_test.RotorBiasTest.step``) ----------------------------------------
+@kernel
+def rotor_bias(y, x_hat, flagged, deadline, predictor_of_mask, column, scale, test, state, learning, over):
+    """One tick of the rotor-speed parity's CUSUM: each row's predictor j (``predictor_of_mask`` of its flags, −1
+    while an isolation is pending; a changed j starts the row from zero), e_s = (y_s − x̂[column[j, s]]) scale[j, s]
+    (j = 0 and scale 0 on rows not tested), raw = (e_1 − e_2)/√2, d = raw/ŝ, S± ← max(0, S± + m_d (±d − m_d/2)) on
+    tested rows (0 elsewhere), A± ← A± + (e_1 + e_2) while S± > 0, raised where S± ≥ h; then ``learn_spread`` of raw²
+    from the tested rows not raised, and ``over`` (n, 2) the sensor named at a raise. ``test`` = (m_d, h);
+    ``state`` = (S⁺, S⁻, A⁺, A⁻, predictor), in place; ``learning`` = (enabled, min_weight, s_max², state of ŝ's
+    ``HealthySpread``, (n,) each). Returns whether any row raised."""
+    m, h = test
+    up, down, run_up, run_down, predictor = state
+    enabled, min_weight, max_scale2, spread = learning
+    n = y.shape[0]
+    root_two = np.sqrt(2.0)
+    squared, healthy = np.empty((n, 1)), np.empty((n, 1), dtype=np.bool_)
+    any_over = False
+    for r in range(n):
+        j = predictor_of_mask[flagged[r]] if deadline[r] < 0 else -1
+        if j != predictor[r]:
+            up[r], down[r], run_up[r], run_down[r] = 0.0, 0.0, 0.0, 0.0
+        predictor[r] = j
+        active = j >= 0
+        k = j if active else 0
+        e1 = (y[r, 0] - x_hat[r, column[k, 0]]) * (scale[k, 0] if active else 0.0)
+        e2 = (y[r, 1] - x_hat[r, column[k, 1]]) * (scale[k, 1] if active else 0.0)
+        raw = (e1 - e2) / root_two
+        d = raw / spread[3][r]
+        total = e1 + e2
+        s_up = maximum(0.0, up[r] + m * (d - 0.5 * m)) if active else 0.0
+        s_down = maximum(0.0, down[r] + m * (-d - 0.5 * m)) if active else 0.0
+        run_up[r] = run_up[r] + total if s_up > 0.0 else 0.0
+        run_down[r] = run_down[r] + total if s_down > 0.0 else 0.0
+        up[r], down[r] = s_up, s_down
+        raised_up, raised_down = s_up >= h, s_down >= h
+        squared[r, 0] = raw * raw
+        healthy[r, 0] = active and not raised_up and not raised_down
+        # both signs on one tick cannot both be right: the larger statistic decides
+        use_up = raised_up and (not raised_down or s_up >= s_down)
+        use_down = raised_down and not use_up
+        first = (use_up and run_up[r] > 0.0) or (use_down and run_down[r] < 0.0)
+        over[r, 0] = first
+        over[r, 1] = (use_up or use_down) and not first
+        any_over = any_over or use_up or use_down
+    if enabled:
+        count, estimate, scale2, root, mean, offset, limit = spread
+        columns = (
+            count.reshape((n, 1)),
+            estimate.reshape((n, 1)),
+            scale2.reshape((n, 1)),
+            root.reshape((n, 1)),
+            mean.reshape((n, 1)),
+            offset.reshape((n, 1)),
+            limit.reshape((n, 1)),
+        )
+        learn_spread(squared, None, healthy, min_weight, max_scale2, columns)
+    return any_over
+
+
+# -- pitch-actuator test (``service.turbine.component_fdi.ComponentFDI._actuators``, after the block's sums) -----------
+@kernel
+def _push(ring, total, slot, x):
+    """``_Window.push`` of x (any shape, flat in C order): total += x − ring[slot], ring[slot] = x."""
+    r, t, v = ring[slot].reshape(x.size), total.reshape(x.size), x.reshape(x.size)  # views (contiguous)
+    for i in range(v.size):
+        t[i] += v[i] - r[i]
+        r[i] = v[i]
+
+
+@kernel
+def _actuator_glr(correlation, energy, variance, n_faults, sum_w, sum_s, count, out):
+    """``pitch_actuator.glr`` with the window's offset maximised out (eq. 5), Λ (n, 3) into ``out``."""
+    k = energy.shape[1]
+    centred = np.empty(k)
+    for r in range(energy.shape[0]):
+        for c in range(k):
+            centred[c] = energy[r, c] - sum_s[r, c] * sum_s[r, c] / count
+        for b in range(3):
+            best_fault, best_tolerance = -np.inf, -np.inf
+            for c in range(k):
+                corr = correlation[r, b, c] - sum_w[r, b] * sum_s[r, c] / count
+                likelihood = (corr - 0.5 * centred[c]) / variance[r, b]
+                if c < n_faults:
+                    best_fault = likelihood if c == 0 else maximum(best_fault, likelihood)
+                else:
+                    best_tolerance = likelihood if c == n_faults else maximum(best_tolerance, likelihood)
+            out[r, b] = best_fault - best_tolerance
+
+
+@kernel
+def actuator_test(z1, z2, windows, short_windows, slots, thresholds, targets, state, learning, flags):
+    """``ComponentFDI._actuators`` from the block's Σ w (``z1``) and Σ (w − b̂)² in units of σ_w² (``z2``) on: the
+    pushes of the block's sums into the full window and into each shorter one (``slots`` in
+    that order, three each), the rest counters, the full window's Λ (eq. 3 and 5, into ``glr``), ŝ² and b̂ learnt
+    from the quiet rows, then, with the full window full, the raise and the clearing on the shorter windows
+    (shortest first) and the full one. ``windows`` = (Σ w s_θ, Σ s_θ², [Σ w | Σ s_θ]) of the block and the full
+    window's (ring, total) of each; ``short_windows``: (ring, total) × 3 of each shorter window; ``thresholds`` =
+    (block, 0.75 σ_β², h, h_clear, the full window's count of samples after the push, the shorter windows' (array),
+    the number of F candidates, whether the full window is full); ``targets`` = the actuator, m1 and m2 columns of
+    ``flags`` (n, targets), in place; ``state`` = (blocks of rest (n,), cleared rest (n, 3), the window in blocks,
+    Λ (n, 3) out); ``learning`` = (enabled, min_weight, s_max², state of the actuator's ``HealthySpread``)."""
+    block, design_variance, h, h_clear, count, short_counts, n_faults, full = thresholds
+    actuator_t, m1_t, m2_t = targets
+    rest, cleared_rest, window_blocks, glr = state
+    enabled, min_weight, max_scale2, spread = learning
+    block_c, block_e, block_t, (c_ring, c_total), (e_ring, e_total), (t_ring, t_total) = windows
+    n = z1.shape[0]
+    q, x = np.empty((n, 3)), np.empty((n, 3))
+    for r in range(n):
+        for b in range(3):
+            q[r, b] = z2[r, b] * (1.0 / block)
+            x[r, b] = z1[r, b] * (1.0 / block)
+    _push(c_ring, c_total, slots[0], block_c)
+    _push(e_ring, e_total, slots[1], block_e)
+    _push(t_ring, t_total, slots[2], block_t)
+    for m in range(len(short_windows)):
+        sc_ring, sc_total, se_ring, se_total, st_ring, st_total = short_windows[m]
+        _push(sc_ring, sc_total, slots[3 + 3 * m], block_c)
+        _push(se_ring, se_total, slots[4 + 3 * m], block_e)
+        _push(st_ring, st_total, slots[5 + 3 * m], block_t)
+    for r in range(n):
+        sensor_flagged = False
+        for b in range(3):
+            sensor_flagged = sensor_flagged or flags[r, m1_t[b]] or flags[r, m2_t[b]]
+        rest[r] = window_blocks if sensor_flagged else max(rest[r] - 1, 0)
+    scale2 = spread[2]
+    variance = np.empty((n, 3))
+    for r in range(n):
+        for b in range(3):
+            variance[r, b] = design_variance * scale2[r, b]
+    _actuator_glr(c_total, e_total, variance, n_faults, t_total[:, :3], t_total[:, 3:], count, glr)
+    if enabled:  # w²'s healthy scale ŝ², learnt while no blade is suspected
+        healthy = np.empty((n, 1), dtype=np.bool_)
+        for r in range(n):
+            quiet = rest[r] == 0
+            for b in range(3):
+                quiet = quiet and not flags[r, actuator_t[b]]
+                if full:
+                    quiet = quiet and glr[r, b] <= h
+            healthy[r, 0] = quiet
+        learn_spread(q, x, healthy, min_weight, max_scale2, spread)
+    if not full:
+        return
+    flagged = np.empty((n, 3), dtype=np.bool_)
+    any_flagged = False
+    for r in range(n):
+        worst = 0  # np.argmax: the first largest, the first nan if any
+        for b in range(1, 3):
+            if glr[r, worst] == glr[r, worst] and (glr[r, b] > glr[r, worst] or glr[r, b] != glr[r, b]):
+                worst = b
+        fault = glr[r, worst] > h and rest[r] == 0 and not cleared_rest[r, worst] > 0
+        for b in range(3):
+            flagged[r, b] = flags[r, actuator_t[b]] or (fault and b == worst)
+            any_flagged = any_flagged or flagged[r, b]
+    clear = np.zeros((n, 3), dtype=np.bool_)
+    if any_flagged:  # the shorter windows' Λ only decide clearings
+        recent_fault = np.zeros((n, 3), dtype=np.bool_)
+        glr_m = np.empty((n, 3))
+        for m in range(len(short_windows)):
+            sc_ring, sc_total, se_ring, se_total, st_ring, st_total = short_windows[m]
+            sums_w, sums_s = st_total[:, :3], st_total[:, 3:]
+            _actuator_glr(sc_total, se_total, variance, n_faults, sums_w, sums_s, short_counts[m], glr_m)
+            for r in range(n):
+                for b in range(3):
+                    clear[r, b] = clear[r, b] or (glr_m[r, b] <= -h_clear and not recent_fault[r, b])
+                    recent_fault[r, b] = recent_fault[r, b] or glr_m[r, b] > h
+        for r in range(n):
+            for b in range(3):
+                clear[r, b] = clear[r, b] or (glr[r, b] <= -h_clear and not recent_fault[r, b])
+    for r in range(n):
+        for b in range(3):
+            kept = flagged[r, b] and not clear[r, b] and rest[r] == 0
+            cleared_rest[r, b] = window_blocks if flagged[r, b] and not kept else max(cleared_rest[r, b] - 1, 0)
+            flags[r, actuator_t[b]] = kept

@@ -220,6 +220,7 @@ class SpeedSensorFDI:
                 settings.bias_shift,
                 settings.adapt_time_s,
                 settings.max_noise_scale,
+                fast,
             )
             for mask in range(1 << N_SPEED):
                 if mask & rotor_bits:
@@ -300,15 +301,17 @@ class SpeedSensorFDI:
         state estimates x̂ (n, width), the 5-pe design for the torque (``clearing``) and the power-speed
         channel (n,) (NaN where it is only the rotor-speed mean; ``arbitration``)."""
         raw = chi2_stat[:, : self.bank.n_isolating]
-        chi2_stat = raw / self.spread.scale2 if self.spread.enabled else raw  # χ²_j / ŝ²_j (``adaptive``)
         slot = self.ticks % self.s.window
         exceeded = True  # whether a ratio of the all-sensor observer is above 1 (computed on the fast path)
-        if self._fast is not None:
-            ratio, fast = np.empty_like(self._window_sum), self._fast
-            fast.window_ratio(chi2_stat, self._history, slot, self._window_sum, self.h_detect, self.h_window, ratio)
+        if self._fast is not None:  # the lines below by one kernel (ŝ² is 1 where nothing is learnt: x/1 is x)
+            chi2_stat, ratio = np.empty_like(self._window_sum), np.empty_like(self._window_sum)
+            exceeded = self._fast.window_test(
+                raw, self.spread.scale2, self._history, slot, self._window_sum, self.h_detect, self.h_window,
+                self._all_healthy, chi2_stat, ratio,
+            )  # fmt: skip
             self.ratio = ratio
-            exceeded = fast.any_above(ratio, self._all_healthy, 1.0)
         else:
+            chi2_stat = raw / self.spread.scale2 if self.spread.enabled else raw  # χ²_j / ŝ²_j (``adaptive``)
             self._window_sum += chi2_stat - self._history[slot]
             self._history[slot] = chi2_stat
         any_frozen = self.readings.push(y)  # the raw readings: a frozen one stays frozen
@@ -318,13 +321,11 @@ class SpeedSensorFDI:
         self.ticks += 1
         if self._fast is None:
             self.ratio = ratio = np.maximum(chi2_stat / self.h_detect, self._window_sum / self.h_window)
-        if self.spread.enabled and self._fast is not None:  # the three lines below, their inputs by one kernel
-            healthy, q, deviation = np.empty((self.n, 1), dtype=bool), np.empty_like(raw), np.empty_like(y_raw)
-            self._fast.fdi_learning_inputs(
-                self.flagged, self.deadline, ratio, raw, self._rank, y_raw, self._gear_ratio, healthy, q, deviation
+        if self.spread.enabled and self._fast is not None:  # the lines below by one kernel
+            learning = [(a.min_weight, a.max_scale2, a.state) for a in (self.spread, self.calibration)]
+            self._fast.fdi_learn(
+                self.flagged, self.deadline, ratio, raw, self._rank, y_raw, self._gear_ratio, *learning
             )
-            self.spread.update(q, healthy)
-            self.calibration.update(None, healthy, deviation)
         elif self.spread.enabled:  # learn from rows with nothing flagged, pending or inconsistent
             healthy = (self.flagged == 0) & (self.deadline < 0) & (ratio <= 1.0).all(axis=1)
             self.spread.update_rows(raw / self._rank, healthy)
@@ -354,9 +355,8 @@ class SpeedSensorFDI:
     def _rotor_bias(self, y: np.ndarray, x_hat: np.ndarray) -> None:
         """Flag a rotor-speed sensor whose bias the CUSUM of ``bias_test`` finds, on rows where no rotor-speed
         sensor is flagged and nothing is being isolated; the flag then drops only by its clearing test."""
-        predictor = np.where(self.deadline < 0, self._bias_predictor[self.flagged], -1)
-        over = self.bias.step(y, x_hat, predictor)
-        if not over.any():
+        over = self.bias.step_flags(y, x_hat, self.flagged, self.deadline, self._bias_predictor)
+        if over is None:
             return
         rows = over.any(axis=1)
         raised = np.zeros((self.n, N_SPEED), dtype=bool)

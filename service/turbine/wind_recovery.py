@@ -85,14 +85,6 @@ class PitchModel:
     def start(self, beta: np.ndarray) -> None:
         self.x = (beta.astype(float).copy(), np.zeros_like(beta, dtype=float))
 
-    def step_fast(self, fast, beta_ref_prev: np.ndarray) -> np.ndarray:
-        """``step`` by ``service.turbine.fast.pitch_model`` (the same operations)."""
-        beta, rate = np.empty(len(beta_ref_prev)), np.empty(len(beta_ref_prev))
-        reference = np.ascontiguousarray(beta_ref_prev, dtype=float)
-        fast.pitch_model(self.x[0], self.x[1], reference, self._coef_array, beta, rate)
-        self.x = (beta, rate)
-        return beta
-
     def step(self, beta_ref_prev: np.ndarray) -> np.ndarray:
         a, b, c, d, g0, g1 = self._coef
         beta, rate = self.x
@@ -217,24 +209,22 @@ class WindRecovery:
         """Update torque, speed and pitch estimates of every observer from the bank's x̂[n] and the pitch
         sensors (n, 3 blades each) with their health flags (None and None: every pitch sensor is healthy)."""
         width, stacked = self._width, self._stacked
-        if self._fast is not None:
+        if self._fast is not None:  # the lines below, the pitch model's and the filters' by one kernel
             self._fast.stack(x_hat, x_hat[:, :0], self._x_prev, stacked)
             raw = stacked @ self._map
-            modelled = self.pitch.step_fast(self._fast, beta_ref_prev)
-        else:
-            stacked[:, :width] = x_hat
-            stacked[:, width:] = self._x_prev
-            raw = stacked @ self._map
-            modelled = self.pitch.step(beta_ref_prev)
-        if self._fast is not None:
-            f = self.filter
+            f, pitch = self.filter, self.pitch
             self._filtered = np.empty_like(self._filter_in)
             healthy = None if healthy_m1 is None and healthy_m2 is None else (healthy_m1, healthy_m2)
-            self._fast.recovery_filter(
-                raw, pitch_m1, pitch_m2, healthy, modelled, f._b0, f._a1, f._a2, f.s1, f.s2, self._filtered
-            )
+            pitch.x = self._fast.recovery_tick(
+                raw, pitch_m1, pitch_m2, healthy, pitch.x, np.ascontiguousarray(beta_ref_prev, dtype=float),
+                pitch._coef_array, (f._b0, f._a1, f._a2, f.s1, f.s2), self._filtered,
+            )  # fmt: skip
             self._x_prev = x_hat
             return
+        stacked[:, :width] = x_hat
+        stacked[:, width:] = self._x_prev
+        raw = stacked @ self._map
+        modelled = self.pitch.step(beta_ref_prev)
         if healthy_m1 is None and healthy_m2 is None:
             # both sensors of every blade: the weighted mean below with weights 1, 1 (the same operations)
             per_blade = (pitch_m1 + pitch_m2) / 2.0
