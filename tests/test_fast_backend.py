@@ -419,8 +419,10 @@ def test_a_farm_sample_at_a_time_equals_the_numpy_ticks(name, monkeypatch):
                 per_tick.extend(np.concatenate([block.states, power, shaft], axis=2))
                 if block.frame.sample:
                     samples.append(farm_sample_numbers(block.frame, refs))
-            assert any(compiled)
-            assert all(compiled) == (name != "early-faults")  # the faults' samples by the calls
+            # the calls: the samples that start a noise block (t = 0 and 10 s) and, with faults, those where one starts,
+            # ends or needs the per-tick code
+            calls = compiled.count(False)
+            assert (calls > 2) if name == "early-faults" else (calls == 2 and len(compiled) == 200)
         events = [(e.t, e.type, e.turbine, e.run) for e in plant.drain_events() + supervisor.drain_events()]
         traces[backend] = np.array(per_tick), np.array(samples), events, plant.truth()
     fast, reference = traces["numba"], traces["numpy"]

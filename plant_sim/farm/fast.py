@@ -108,7 +108,7 @@ def sub_steps(
     power,
     shaft,
 ):
-    """Ticks k … k + T − 1 of the farm plant inside one farm sample, none of them the sample's first: per tick the
+    """Ticks k … k + T − 1 of the farm plant inside one farm sample, its wakes moved on already: per tick the
     turbines' wind (``blade_winds``), blade torques (``plant_sim.turbine.fast.blade_torques``), readings with the
     tick's noise, the block sums of the SCADA means, the farm controller's laws (``control``) and the shared step
     (``step_inputs``, then x' = z · M), in the order of ``FarmBatch.measure`` / ``control`` / ``advance``.

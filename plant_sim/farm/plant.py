@@ -210,6 +210,7 @@ class FarmBatch:
         self.mast_reading = self.mast.v[:, self.mast.offset].copy()
         self.vane_reading = np.mod(self.direction.at(np.arange(len(self.runs)), 0), 360.0)
         self._refs_tick = -1
+        self._opened = -1  # the tick whose farm sample was last opened (``_open_sample``)
 
     # -- set-up -----------------------------------------------------------------------------------------------
     def _trim(self, wind0: np.ndarray) -> None:
@@ -275,16 +276,25 @@ class FarmBatch:
         return self.k * self.dt
 
     def measure(self) -> FarmFrame:
-        k, s = self.k, self.ticks_per_sample
+        k = self.k
         tb = self.turbines
-        if k % s == 0:
-            self.field.update(k // s, tb.tau_aero * tb.x[:, OMEGA_R], tb.x[:, OMEGA_R], tb.x[:, PITCH].mean(axis=1))
-            self._scada_sum[:] = 0.0
-            self._power_ref_sum[:] = 0.0
+        if k % self.ticks_per_sample == 0 and self._opened != k:
+            self._open_sample()
         frame = tb.measure()
         self._scada_sum += frame.sensors
         self._power_ref_sum += frame.power_ref
         return self._farm_frame(k, frame)
+
+    def _open_sample(self) -> None:
+        """The first tick of a farm sample: the wind field takes the turbines' operating points and moves the wakes
+        on; the block's sums start again."""
+        k, tb = self.k, self.turbines
+        self.field.update(
+            k // self.ticks_per_sample, tb.tau_aero * tb.x[:, OMEGA_R], tb.x[:, OMEGA_R], tb.x[:, PITCH].mean(axis=1)
+        )
+        self._scada_sum[:] = 0.0
+        self._power_ref_sum[:] = 0.0
+        self._opened = k
 
     def _farm_frame(self, k: int, frame: TurbineFrame) -> FarmFrame:
         """Tick k's frame around the turbines' ``frame``; on the last tick of a block the farm sample closes."""
@@ -311,6 +321,11 @@ class FarmBatch:
         )
 
     def control(self, refs: FarmRefs | None) -> None:
+        self._take(refs)
+        self.turbines.control(None)
+
+    def _take(self, refs: FarmRefs | None) -> None:
+        """Newer references than the last ones taken set the turbine controllers' (``set_reference``)."""
         if refs is not None and refs.source_tick != self._refs_tick:
             self._refs_tick = refs.source_tick
             ripple = None
@@ -319,7 +334,6 @@ class FarmBatch:
             self.controller.set_reference(
                 refs.power_ref, refs.hold_torque, refs.held_torque, refs.pitch_trim, ripple, refs.cancel_3p
             )
-        self.turbines.control(None)
 
     def advance(self) -> None:
         self.turbines.advance()
@@ -331,8 +345,8 @@ class FarmBatch:
         ``ticks``): the step contract's loop for a supervisor that answers farm samples only (``FarmSupervisor``
         returns the same references in between), which is then given the returned block's ``frame``.
 
-        The first tick runs those calls. With the compiled backend (``wwcore.backend``) the rest of the sample is
-        one ``plant_sim.farm.fast.sub_steps`` call when nothing but the common tick happens in it (no fault starts,
+        With the compiled backend (``wwcore.backend``) a whole sample is one ``plant_sim.farm.fast.sub_steps`` call
+        after the wakes' step when nothing but the common tick happens in it (no fault starts,
         ends or acts on the sensors, the step matrix is every turbine's, no transmission error, hold, 3P
         cancellation or power phasor, no new turbulence or noise block), with the same numbers; otherwise the calls
         again."""
@@ -342,12 +356,15 @@ class FarmBatch:
             raise ValueError(f"run_sample needs at least one tick, got ticks = {ticks}")
         states, power = np.empty((count, self.n, N_STATES)), np.empty((count, self.n))
         shaft = np.empty((count, self.n)) if shaft_torque else None
-        frame = self._tick(refs, states, power, shaft, 0)
-        done = 1
-        if count > 1 and self._sub_steps_apply(count - 1):
-            frame = self._sub_steps(states[1:], power[1:], None if shaft is None else shaft[1:])
-            done = count
-        for i in range(done, count):
+        if count == s and self.field._farm_fast is not None:
+            # a whole sample: the wakes' step and the references first (neither changes what the turbines measure
+            # on the sample's first tick), then the ticks at once if they are common ones
+            self._open_sample()
+            self._take(refs)
+            if self._sub_steps_apply(count):
+                frame = self._sub_steps(states, power, shaft)
+                return FarmBlock(first_tick=k0, frame=frame, states=states, power=power, shaft_torque=shaft)
+        for i in range(count):
             frame = self._tick(refs, states, power, shaft, i)
         return FarmBlock(first_tick=k0, frame=frame, states=states, power=power, shaft_torque=shaft)
 
@@ -365,7 +382,7 @@ class FarmBatch:
         return frame
 
     def _sub_steps_apply(self, count: int) -> bool:
-        """Whether the next ``count`` ticks (none of them a sample's first) are common ticks ``sub_steps`` runs."""
+        """Whether the next ``count`` ticks (a sample's, opened) are common ticks ``sub_steps`` runs."""
         tb, c, field, f = self.turbines, self.controller, self.field, self.turbines.faults
         k, chunk = self.k, tb.noise_chunk
         return (
