@@ -6,7 +6,8 @@ and with the compiled backend (``wwcore.backend``), in one process, the two taki
 of the machine's load then hits both alike). It reports simulated seconds per wall-clock second, run-seconds per
 wall second (the batch's gain from vectorisation), turbine-seconds per wall second (every row is one turbine: a
 farm run counts each of its turbines, so ``--scenario farm-hornsrev1`` and the 3 × 3 compare per turbine), the time
-split between the four calls of the step contract, and the compiled backend's speed-up over numpy per batch: the
+split between the four calls of the step contract (the farm, stepped a farm sample at a time as its evaluation
+steps it: between plant and supervisor), and the compiled backend's speed-up over numpy per batch: the
 ratio is what to compare across machines and loads, the absolute figures only on a quiet machine. The compiled code
 is loaded (or compiled, on a first use) before the clock starts; that time is printed apart.
 No timing assertion lives in the tests; this command is the measurement.

@@ -3,6 +3,13 @@
 (``FarmTurbineController.step``). The same operations in the reference's order, so the same numbers bit for bit
 (``tests/test_fast_backend.py``); the mean over the blades stays numpy's product, and the controller's hold, fade
 and 3P cancellation stay numpy code around the kernel.
+
+``sub_steps`` runs a farm sample's ten ticks (``FarmBatch.run_sample``) in one call: the kernels above and the
+turbine's (``plant_sim.turbine.fast``) tick after tick, the followed reference's ramp computed ahead (``ramp``; it
+does not depend on the plant). Its two matrix products per tick (the aerodynamic fit's 6 × 6 and the exact step's
+16 × 11) are numba's ``@``, which calls OpenBLAS's dgemm through SciPy rather than numpy's own OpenBLAS: equal bit
+for bit on this machine (random operands of these shapes, and the tests tick by tick), the one place where a
+product is not numpy's call (``docs/decisions.md`` N-6).
 """
 
 from __future__ import annotations

@@ -15,6 +15,10 @@ Tick k (100 Hz) of the farm:
 2. ``control(refs)``: a newer ``FarmRefs`` sets each turbine's power reference (followed at the turbine's ramp
    rate); the turbine controllers run.
 3. ``advance()``: the turbines integrate to k + 1.
+
+``run_sample(refs)`` makes these calls for the ticks up to the end of the farm sample, the references unchanged
+(the farm supervisor answers samples only): the farm evaluation's loop. With the compiled backend a sample of
+common ticks is one call of ``plant_sim.farm.fast.sub_steps``, with the same numbers.
 """
 
 from __future__ import annotations
