@@ -6,7 +6,8 @@ and with the compiled backend (``wwcore.backend``), in one process, the two taki
 of the machine's load then hits both alike). It reports simulated seconds per wall-clock second, run-seconds per
 wall second (the batch's gain from vectorisation), turbine-seconds per wall second (every row is one turbine: a
 farm run counts each of its turbines, so ``--scenario farm-hornsrev1`` and the 3 × 3 compare per turbine), the time
-split between the four calls of the step contract, and the compiled backend's speed-up over numpy per batch: the
+split between the four calls of the step contract (the farm, stepped a farm sample at a time as its evaluation
+steps it: between plant and supervisor), and the compiled backend's speed-up over numpy per batch: the
 ratio is what to compare across machines and loads, the absolute figures only on a quiet machine. The compiled code
 is loaded (or compiled, on a first use) before the clock starts; that time is printed apart.
 No timing assertion lives in the tests; this command is the measurement.
@@ -27,6 +28,7 @@ from wwcore.scenario import load_scenario
 
 console = Console()
 CALLS = ("measure", "control", "supervise", "advance")
+SAMPLE_CALLS = ("plant", "supervise")  # a plant stepped a farm sample at a time (``FarmBatch.run_sample``)
 
 
 def turbine_pair(scenario_name: str, runs: int, seed: int, twins: bool, backend: str):
@@ -78,15 +80,24 @@ def farm_pair(scenario_name: str, runs: int, seed: int, twins: bool, backend: st
 
 
 class _Stepper:
-    """A plant and its supervisor stepped in blocks of ticks, with the time spent in each call of the contract."""
+    """A plant and its supervisor stepped in blocks of ticks, with the time spent in each call of the contract.
+
+    A plant that runs a farm sample's ticks at once (``FarmBatch.run_sample``, as the farm evaluation steps it) is
+    stepped that way, its supervisor given each block's last frame; the time then splits into plant and supervisor
+    (``SAMPLE_CALLS``)."""
 
     def __init__(self, plant, supervisor):
         self.plant, self.supervisor = plant, supervisor
         self.refs = None
-        self.spent = np.zeros(4)
+        self.by_sample = hasattr(plant, "run_sample")
+        self.calls = SAMPLE_CALLS if self.by_sample else CALLS
+        self.spent = np.zeros(len(self.calls))
         self.ticks = 0
 
     def run(self, ticks: int) -> None:
+        if self.by_sample:
+            self._run_samples(ticks)
+            return
         plant, supervisor, refs, spent = self.plant, self.supervisor, self.refs, self.spent
         clock = time.perf_counter
         for _ in range(ticks):
@@ -99,6 +110,19 @@ class _Stepper:
             t3 = clock()
             plant.advance()
             spent += (t1 - t0, t2 - t1, t3 - t2, clock() - t3)
+        self.refs = refs
+        self.ticks += ticks
+
+    def _run_samples(self, ticks: int) -> None:
+        plant, supervisor, refs, spent = self.plant, self.supervisor, self.refs, self.spent
+        clock = time.perf_counter
+        end = plant.k + ticks
+        while plant.k < end:
+            t0 = clock()
+            block = plant.run_sample(refs, end - plant.k)
+            t1 = clock()
+            refs = supervisor.step(block.frame)
+            spent += (t1 - t0, clock() - t1)
         self.refs = refs
         self.ticks += ticks
 
@@ -117,11 +141,13 @@ class _Stepper:
 
 
 BLOCK_TICKS = 100  # the two backends take turns every this many ticks, so a change of load hits both alike
+WARM_TICKS = 200  # ticks run before the clock starts: every kernel of a tick and of a farm sample (its ramp too)
 
 
 def _bench(args: argparse.Namespace, title: str, make: Callable[[int, str], tuple]) -> int:
     t0 = time.perf_counter()
-    _Stepper(*make(1, "numba")).run(1)  # one tick loads the compiled kernels from the cache, or compiles them
+    warm = _Stepper(*make(1, "numba"))
+    warm.run(WARM_TICKS)  # loads the compiled kernels from the cache, or compiles them
     console.print(f"compiled kernels of a tick ready in {time.perf_counter() - t0:.1f} s (cache load or compilation)")
     table = Table(title=f"{title}: {args.scenario}, {args.seconds:g} s simulated per batch, seed {args.seed}")
     for column in (
@@ -133,7 +159,7 @@ def _bench(args: argparse.Namespace, title: str, make: Callable[[int, str], tupl
         "run-s / wall s",
         "turbine-s / wall s",
         "ms / tick",
-        "|".join(CALLS),
+        "|".join(warm.calls),
     ):
         table.add_column(column, justify="right")
     speedups = {}

@@ -3,12 +3,22 @@
 (``FarmTurbineController.step``). The same operations in the reference's order, so the same numbers bit for bit
 (``tests/test_fast_backend.py``); the mean over the blades stays numpy's product, and the controller's hold, fade
 and 3P cancellation stay numpy code around the kernel.
+
+``sub_steps`` runs a farm sample's ten ticks (``FarmBatch.run_sample``) in one call: the kernels above and the
+turbine's (``plant_sim.turbine.fast``) tick after tick, the followed reference's ramp computed ahead (``ramp``; it
+does not depend on the plant). Its two matrix products per tick (the aerodynamic fit's 6 × 6 and the exact step's
+16 × 11) are numba's ``@``, which calls OpenBLAS's dgemm through SciPy rather than numpy's own OpenBLAS: equal bit
+for bit on this machine (random operands of these shapes, and the tests tick by tick), the one place where a
+product is not numpy's call (``docs/decisions.md`` N-7).
 """
 
 from __future__ import annotations
 
 import math
 
+import numpy as np
+
+from plant_sim.turbine.fast import _blade_features, _blade_torques, readings, step_inputs
 from wwcore.aero_fast import maximum, minimum
 from wwcore.jit import kernel
 
@@ -63,3 +73,139 @@ def control(omega_g, omega_g_m, p_g_m, state, references, consts):
         z[1, r] = b2 * wm - a2 * d
         damper[r] = d
         base[r] = power_ref[r] / (eta_gc * maximum(w, 1.0)) if region3 else k_opt * w * w
+
+
+@kernel
+def ramp(power_ref, target, step, ticks, out):
+    """The followed reference of ``ticks`` ticks (``FarmTurbineController.step`` while ramping): each tick moves
+    P_r towards the target by at most ``step`` W; ``out`` (ticks, n). Returns the ticks after which P_r still
+    differs from the target somewhere (the controller's ``_ramping`` then stays set)."""
+    moving = 0
+    for i in range(ticks):
+        differs = False
+        for r in range(power_ref.size):
+            previous = power_ref[r] if i == 0 else out[i - 1, r]
+            now = previous + minimum(maximum(target[r] - previous, -step), step)
+            out[i, r] = now
+            differs = differs or now != target[r]
+        if not differs:
+            for later in range(i + 1, ticks):
+                out[later] = out[i]
+            return moving
+        moving += 1
+    return moving
+
+
+@kernel
+def sub_steps(
+    x,
+    shared,
+    wind,
+    gain,
+    aero,
+    sensors,
+    controller,
+    references,
+    pitch_add,
+    trim,
+    sums,
+    last,
+    frame,
+    states,
+    power,
+    shaft,
+):
+    """Ticks k … k + T − 1 of the farm plant inside one farm sample, its wakes moved on already: per tick the
+    turbines' wind (``blade_winds``), blade torques (``plant_sim.turbine.fast.blade_torques``), readings with the
+    tick's noise, the block sums of the SCADA means, the farm controller's laws (``control``) and the shared step
+    (``step_inputs``, then x' = z · M), in the order of ``FarmBatch.measure`` / ``control`` / ``advance``.
+
+    ``wind`` = (table, slope, per_rad, offsets, base, hub, u_3, v_m (each (ticks, n) of the chunk), Δ_0, δ, the
+    first tick's row j in the chunk and its index m in the sample); ``gain`` the turbulence gains (None: 1);
+    ``aero`` = (Mᵀ, gain ρπR³/6 f_aero, pitch offsets, R); ``sensors`` = (noise block (rows, chunk, sensors)
+    σ-scaled, the first tick's index in it, η_gc f_P, pick, bias, β_m1, β_m2 indices, Δτ, ω_g,m1 and P_g,m
+    indices); ``controller`` = (zone, integrator, β_ref, damper state, τ_g,r, constants of ``control``),
+    updated in place; ``references`` = (P_r before the first tick, P_r (T, n), ω_set (T, n), Ω_Δ,set (T, n),
+    hold) of each tick's control; ``pitch_add`` (a fault's pitch command offsets) and ``trim`` (the
+    supervisor's pitch trims), each (n, 3) or None, are added to the pitch commands in that order.
+
+    ``sums`` = (Σ readings, Σ P_r) of the block, added to in place; ``last`` = (blades, hub, mean, τ_r,i, τ_r,
+    y, pitch error, quantities, ω_g read, damper torque) of the last tick and ``frame`` = (τ_g,r, β_ref, P_r,
+    zone) its frame carries (the controller's before the tick's control). ``states`` (T, n, 11) receives x at
+    each tick, ``power`` (T, n) P_g = η_gc f_P ω_g τ_g, and ``shaft`` = (out (T, n), K_dt f_K, B_dt f_B, N_g),
+    unless None, the shaft torque K θ_Δ + B (ω_r − ω_g/N_g). ``x`` (in place) ends at tick k + T."""
+    table, slope, per_rad, offsets, base, hub, u3, vm, offset_now, offset_step, first_j, first_m = wind
+    m_t, blade_gain, pitch_offset, radius = aero
+    draws, first_noise, power_gain, pick, bias, beta_m1, beta_m2, torque_offset, omega_col, power_col = sensors
+    zone, integrator, beta_ref, bp_state, tau_g_ref, consts = controller
+    ref_before, power_refs, setpoints, hysteresis, hold = references
+    scada_sum, power_ref_sum = sums
+    blades, hub_out, mean_out, torque, tau_aero, y, pitch_error, quantities, omega_g, damper = last
+    frame_tau_g, frame_beta, frame_power_ref, frame_zone = frame
+    n, n_states = x.shape
+    own = draws.shape[0]  # rows with their own noise stream; twin rows repeat their run's
+    azimuth, omega_r, p_g_m = np.empty(n), np.empty(n), np.empty(n)
+    pitch = np.empty((n, 3))
+    tsr, lam, f = np.empty(3 * n), np.empty(3 * n), np.empty((6, 3 * n))
+    noise = np.empty((n, pick.size))
+    base_torque = np.empty(n)
+    z = np.empty((n, shared.shape[0]))
+    for i in range(states.shape[0]):
+        j = first_j + i
+        for r in range(n):
+            for c in range(n_states):
+                states[i, r, c] = x[r, c]
+            azimuth[r] = x[r, 4]
+            omega_r[r] = x[r, 0]
+            for b in range(3):
+                pitch[r, b] = x[r, 5 + 2 * b] + pitch_offset[r, b]
+            power[i, r] = power_gain[r] * x[r, 1] * x[r, 3]
+        if shaft is not None:
+            stiffness, damping, n_g = shaft[1], shaft[2], shaft[3]
+            for r in range(n):
+                shaft[0][i, r] = stiffness[r] * x[r, 2] + damping[r] * (x[r, 0] - x[r, 1] / n_g)
+        fields = (base[j], hub[j], u3[j], vm[j])
+        blade_winds(
+            azimuth,
+            table,
+            slope,
+            per_rad,
+            offsets,
+            fields,
+            gain,
+            (offset_now, offset_step, first_m + i),
+            blades,
+            hub_out,
+            mean_out,
+        )
+        _blade_features(omega_r, radius, blades, pitch, tsr, lam, f)
+        _blade_torques(tsr, lam, f, m_t @ f, blades, blade_gain, torque, tau_aero)
+        for r in range(n):
+            for s in range(pick.size):
+                noise[r, s] = draws[r % own, first_noise + i, s]
+        readings(x, hub_out, power_gain, pick, noise, bias, beta_m1, beta_m2, quantities, y, pitch_error)
+        now = ref_before if i == 0 else power_refs[i - 1]
+        for r in range(n):
+            for s in range(pick.size):
+                scada_sum[r, s] += y[r, s]
+            power_ref_sum[r] += now[r]
+            frame_tau_g[r] = tau_g_ref[r]
+            frame_beta[r] = beta_ref[r]
+            frame_power_ref[r] = now[r]
+            frame_zone[r] = zone[r]
+            omega_g[r] = y[r, omega_col]
+            p_g_m[r] = y[r, power_col]
+        state = (zone, integrator, beta_ref, bp_state, damper, base_torque)
+        control(omega_g, omega_g, p_g_m, state, (power_refs[i], setpoints[i], hysteresis[i], hold), consts)
+        for r in range(n):
+            tau_g_ref[r] = base_torque[r] + damper[r]
+        step_inputs(x, tau_aero, tau_g_ref, torque_offset, beta_ref, pitch_error, z)
+        if pitch_add is not None:
+            for r in range(n):
+                for b in range(3):
+                    z[r, n_states + 2 + b] = z[r, n_states + 2 + b] + pitch_add[r, b]
+        if trim is not None:
+            for r in range(n):
+                for b in range(3):
+                    z[r, n_states + 2 + b] = z[r, n_states + 2 + b] + trim[r, b]
+        x[:, :] = z @ shared

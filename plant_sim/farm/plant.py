@@ -15,25 +15,32 @@ Tick k (100 Hz) of the farm:
 2. ``control(refs)``: a newer ``FarmRefs`` sets each turbine's power reference (followed at the turbine's ramp
    rate); the turbine controllers run.
 3. ``advance()``: the turbines integrate to k + 1.
+
+``run_sample(refs)`` makes these calls for the ticks up to the end of the farm sample, the references unchanged
+(the farm supervisor answers samples only): the farm evaluation's loop. With the compiled backend a sample of
+common ticks is one call of ``plant_sim.farm.fast.sub_steps``, with the same numbers.
 """
 
 from __future__ import annotations
 
 from collections.abc import Sequence
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 from scipy import signal
 
-from plant_sim.farm.controller import FarmTurbineController
+from plant_sim.farm.controller import FarmTurbineController, speed_setpoint
 from plant_sim.farm.direction import DirectionSeries
 from plant_sim.farm.wakes import TableWakes, plant_wake_tables
-from plant_sim.farm.wind import HISTORY_S, MIN_MEAN_WIND, FarmWakes, FarmWindField, MastSeries, RowWakes
+from plant_sim.farm.wind import _THIRDS, HISTORY_S, MIN_MEAN_WIND, FarmWakes, FarmWindField, MastSeries, RowWakes
 from plant_sim.turbine import TurbineBatch
-from plant_sim.turbine.dynamics import OMEGA_G, OMEGA_R, PITCH, TAU_G, THETA
-from plant_sim.turbine.plant import row_streams
+from plant_sim.turbine.dynamics import N_STATES, OMEGA_G, OMEGA_R, PITCH, TAU_G, THETA
+from plant_sim.turbine.plant import _BETA_M1, _BETA_M2, _OMEGA_G_M1, _P_G_M, _PICK, row_streams
 from plant_sim.turbine.trim import PlantAero, trim
-from wwcore.channels import N_SENSORS
+from plant_sim.wind import WindSample
+from wwcore.aero import _M_T
+from wwcore.channels import N_SENSORS, SENSORS
 from wwcore.events import Event
 from wwcore.farm_frames import FarmFrame, FarmRefs
 from wwcore.scenario.farm import FARM_DT_S, FarmPlant
@@ -41,6 +48,7 @@ from wwcore.scenario.faults import FaultSpec
 from wwcore.scenario.mismatch import Mismatch
 from wwcore.scenario.turbine import TurbinePlant
 from wwcore.scenario.wind import WindSpec
+from wwcore.turbine_frames import TurbineFrame
 from wwcore.turbine_params import BENCHMARK, TurbineParams
 
 MAST_TURBINE = 0  # turbine number of the met mast's random streams (row_streams(seed, run, 0))
@@ -93,6 +101,18 @@ def demand_series(
     avg, _ = signal.lfilter([1.0 - a], [1.0, -a], rows_free, axis=1, zi=rows_free[:, :1, :] * a)
     held = np.minimum(np.rint(np.floor(t / spec.update_s) * spec.update_s / FARM_DT_S).astype(int), n - 1)
     return spec.fraction * wakes.available_power(params, avg, held)
+
+
+@dataclass
+class FarmBlock:
+    """The ticks one ``FarmBatch.run_sample`` call ran, from ``first_tick`` on: the last tick's frame (the farm
+    sample's when the block reached it) and each tick's truth the evaluation reads, taken at the tick's state."""
+
+    first_tick: int
+    frame: FarmFrame
+    states: np.ndarray  # (ticks, n, N_STATES) each turbine's state x
+    power: np.ndarray  # (ticks, n) W, each turbine's electrical power (``FarmBatch.power_output``)
+    shaft_torque: np.ndarray | None  # (ticks, n) N m (``FarmBatch.shaft_torque``), when asked for
 
 
 class FarmBatch:
@@ -194,6 +214,7 @@ class FarmBatch:
         self.mast_reading = self.mast.v[:, self.mast.offset].copy()
         self.vane_reading = np.mod(self.direction.at(np.arange(len(self.runs)), 0), 360.0)
         self._refs_tick = -1
+        self._opened = -1  # the tick whose farm sample was last opened (``_open_sample``)
 
     # -- set-up -----------------------------------------------------------------------------------------------
     def _trim(self, wind0: np.ndarray) -> None:
@@ -259,15 +280,29 @@ class FarmBatch:
         return self.k * self.dt
 
     def measure(self) -> FarmFrame:
-        k, s = self.k, self.ticks_per_sample
+        k = self.k
         tb = self.turbines
-        if k % s == 0:
-            self.field.update(k // s, tb.tau_aero * tb.x[:, OMEGA_R], tb.x[:, OMEGA_R], tb.x[:, PITCH].mean(axis=1))
-            self._scada_sum[:] = 0.0
-            self._power_ref_sum[:] = 0.0
+        if k % self.ticks_per_sample == 0 and self._opened != k:
+            self._open_sample()
         frame = tb.measure()
         self._scada_sum += frame.sensors
         self._power_ref_sum += frame.power_ref
+        return self._farm_frame(k, frame)
+
+    def _open_sample(self) -> None:
+        """The first tick of a farm sample: the wind field takes the turbines' operating points and moves the wakes
+        on; the block's sums start again."""
+        k, tb = self.k, self.turbines
+        self.field.update(
+            k // self.ticks_per_sample, tb.tau_aero * tb.x[:, OMEGA_R], tb.x[:, OMEGA_R], tb.x[:, PITCH].mean(axis=1)
+        )
+        self._scada_sum[:] = 0.0
+        self._power_ref_sum[:] = 0.0
+        self._opened = k
+
+    def _farm_frame(self, k: int, frame: TurbineFrame) -> FarmFrame:
+        """Tick k's frame around the turbines' ``frame``; on the last tick of a block the farm sample closes."""
+        s = self.ticks_per_sample
         sample = k % s == s - 1
         if sample:
             j = k // s + 1  # the sample closes at t = (k + 1)·dt = j·FARM_DT_S
@@ -279,7 +314,7 @@ class FarmBatch:
             self.vane_reading = np.mod(vane, 360.0)
         return FarmFrame(
             k=k,
-            t=self.t,
+            t=k * self.dt,
             turbines=frame,
             sample=sample,
             scada=self.scada,
@@ -290,6 +325,11 @@ class FarmBatch:
         )
 
     def control(self, refs: FarmRefs | None) -> None:
+        self._take(refs)
+        self.turbines.control(None)
+
+    def _take(self, refs: FarmRefs | None) -> None:
+        """Newer references than the last ones taken set the turbine controllers' (``set_reference``)."""
         if refs is not None and refs.source_tick != self._refs_tick:
             self._refs_tick = refs.source_tick
             ripple = None
@@ -298,11 +338,155 @@ class FarmBatch:
             self.controller.set_reference(
                 refs.power_ref, refs.hold_torque, refs.held_torque, refs.pitch_trim, ripple, refs.cancel_3p
             )
-        self.turbines.control(None)
 
     def advance(self) -> None:
         self.turbines.advance()
         self.k = self.turbines.k
+
+    # -- a farm sample's ticks at once ------------------------------------------------------------------------
+    def run_sample(self, refs: FarmRefs | None, ticks: int | None = None, shaft_torque: bool = False) -> FarmBlock:
+        """``measure`` → ``control(refs)`` → ``advance`` for every tick from k to the end of its farm sample (at most
+        ``ticks``): the step contract's loop for a supervisor that answers farm samples only (``FarmSupervisor``
+        returns the same references in between), which is then given the returned block's ``frame``.
+
+        With the compiled backend (``wwcore.backend``) a whole sample is one ``plant_sim.farm.fast.sub_steps`` call
+        after the wakes' step when nothing but the common tick happens in it (no fault starts,
+        ends or acts on the sensors, the step matrix is every turbine's, no transmission error, hold, 3P
+        cancellation or power phasor, no new turbulence or noise block), with the same numbers; otherwise the calls
+        again."""
+        k0, s = self.k, self.ticks_per_sample
+        count = s - k0 % s if ticks is None else min(ticks, s - k0 % s)
+        if count < 1:
+            raise ValueError(f"run_sample needs at least one tick, got ticks = {ticks}")
+        states, power = np.empty((count, self.n, N_STATES)), np.empty((count, self.n))
+        shaft = np.empty((count, self.n)) if shaft_torque else None
+        if count == s and self.field._farm_fast is not None:
+            # a whole sample: the wakes' step and the references first (neither changes what the turbines measure
+            # on the sample's first tick), then the ticks at once if they are common ones
+            self._open_sample()
+            self._take(refs)
+            if self._sub_steps_apply(count):
+                frame = self._sub_steps(states, power, shaft)
+                return FarmBlock(first_tick=k0, frame=frame, states=states, power=power, shaft_torque=shaft)
+        for i in range(count):
+            frame = self._tick(refs, states, power, shaft, i)
+        return FarmBlock(first_tick=k0, frame=frame, states=states, power=power, shaft_torque=shaft)
+
+    def _tick(
+        self, refs: FarmRefs | None, states: np.ndarray, power: np.ndarray, shaft: np.ndarray | None, i: int
+    ) -> FarmFrame:
+        """One tick of the contract, with its state and true power (and shaft torque) into row i of the block."""
+        frame = self.measure()
+        self.control(refs)
+        states[i] = self.turbines.x
+        power[i] = self.power_output()
+        if shaft is not None:
+            shaft[i] = self.shaft_torque()
+        self.advance()
+        return frame
+
+    def _sub_steps_apply(self, count: int) -> bool:
+        """Whether the next ``count`` ticks (a sample's, opened) are common ticks ``sub_steps`` runs."""
+        tb, c, field, f = self.turbines, self.controller, self.field, self.turbines.faults
+        k, chunk = self.k, tb.noise_chunk
+        return (
+            tb._fast is not None
+            and field._farm_fast is not None
+            and c._farm_fast is not None
+            and tb._tsr_shift is None
+            and tb.bias.ndim == 1
+            and k + count <= tb._next_change  # no fault starts or ends (``TurbineBatch._update_faults``)
+            and not f.sensor_faults_active
+            and tb.discrete.shared is not None
+            and not (f.mesh_active or tb._error_active)  # a transmission error's torque pair (farm fault 3)
+            and field._next_k == k
+            and field._chunk_start <= k
+            and k + count <= field._chunk_end  # the turbulence chunk holds every tick
+            and tb._noise_drawn
+            and k % chunk > 0
+            and k % chunk + count <= chunk  # so does the noise block
+            and c._bp_ready
+            and c._extra is None
+            and not c._handing_over
+            and not c.hold.any()
+            and not (c.cancel_3p and (c._ripple_running or c._any_asked))
+        )
+
+    def _sub_steps(self, states: np.ndarray, power: np.ndarray, shaft: np.ndarray | None) -> FarmFrame:
+        """``len(power)`` common ticks by ``plant_sim.farm.fast.sub_steps``; the last tick's frame."""
+        tb, c, field, f, p = self.turbines, self.controller, self.field, self.turbines.faults, self.p
+        fast = field._farm_fast
+        count, n = power.shape
+        k = self.k
+        wind = (field._table, field._slope, field._per_rad, field._offsets, field._base, field._hub, field._u3)
+        wind += (field._mean, field._offset_now, field._offset_step, k - field._chunk_start)
+        wind += (float(k % self.ticks_per_sample),)
+        aero = (_M_T, tb.dynamics.blade_gain * f.aero_factor, f.pitch_offset, p.radius)
+        power_gain = p.eta_gc * f.power_factor
+        sensors = (tb._draws, k % tb.noise_chunk, power_gain, _PICK, tb.bias, _BETA_M1, _BETA_M2, f.torque_offset)
+        sensors += (_OMEGA_G_M1, _P_G_M)
+        zone, integrator, beta_ref, tau_g_ref = (
+            c.zone.copy(),
+            c.integrator.copy(),
+            c.beta_ref.copy(),
+            c.tau_g_ref.copy(),
+        )
+        controller = (zone, integrator, beta_ref, c._bp_state, tau_g_ref, c._fast_constants)
+        ramping = c._ramping
+        if ramping:  # the followed reference's path does not depend on the plant: each tick's, ahead
+            power_refs = np.empty((count, n))
+            ramping = fast.ramp(c.power_ref, c.power_ref_target, c.ramp, count, power_refs) == count
+            setpoints = speed_setpoint(p, power_refs)
+            hysteresis = c._hysteresis_at(setpoints)
+        else:
+            power_refs = np.broadcast_to(c.power_ref, (count, n)).copy()
+            setpoints = np.broadcast_to(c.setpoint, (count, n)).copy()
+            hysteresis = np.broadcast_to(c._hysteresis, (count, n)).copy()
+        references = (c.power_ref, power_refs, setpoints, hysteresis, c.hold)
+        pitch_add = f.pitch_command_offset if f.command_offset_active else None
+        blades, torque, pitch_error = np.empty((n, 3)), np.empty((n, 3)), np.empty((n, 3))
+        hub, mean, tau_aero, omega_g, damper = (np.empty(n) for _ in range(5))
+        y = np.empty((n, len(SENSORS)))
+        last = (blades, hub, mean, torque, tau_aero, y, pitch_error, tb._quantities, omega_g, damper)
+        frame = (np.empty(n), np.empty(n), np.empty(n), np.empty(n, dtype=np.int8))
+        shaft_args = None
+        if shaft is not None:
+            shaft_args = (shaft, p.K_dt * f.stiffness_factor, p.B_dt * f.damping_factor, p.N_g)
+        x = tb.x.copy()
+        sums = (self._scada_sum, self._power_ref_sum)
+        gain = field.turbulence_gain
+        fast.sub_steps(
+            x,
+            tb.discrete.shared,
+            wind,
+            gain,
+            aero,
+            sensors,
+            controller,
+            references,
+            pitch_add,
+            c.pitch_trim,
+            sums,
+            last,
+            frame,
+            states,
+            power,
+            shaft_args,
+        )
+        # the state every object would hold after the last tick's advance
+        k_last = k + count - 1
+        tb.x, tb.k, self.k = x, k + count, k + count
+        tb.blade_torque, tb.tau_aero, tb.last_reading, tb._pitch_error = torque, tau_aero, y, pitch_error
+        field._next_k = k + count
+        field.rotor_wind = rotor = blades @ _THIRDS
+        tb._wind_sample = WindSample(blades=blades, hub=hub, rotor=rotor, mean=mean)
+        c.zone, c.integrator, c.beta_ref, c.tau_g_ref = zone, integrator, beta_ref, tau_g_ref
+        c.damper_torque, c._omega_g = damper, omega_g
+        if c._ramping:
+            c.power_ref, c.setpoint, c._hysteresis = power_refs[-1].copy(), setpoints[-1].copy(), hysteresis[-1].copy()
+            c._ramping = ramping
+        turbines = TurbineFrame(k_last, k_last * self.dt, y, *frame)
+        return self._farm_frame(k_last, turbines)
 
     def truth(self) -> dict[str, np.ndarray]:
         """Ground truth for scoring and display only; the supervisor never reads it."""

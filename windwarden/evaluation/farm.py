@@ -53,7 +53,6 @@ from windwarden.evaluation.scoring_policy import farm_policy
 from wwcore.events import Event, EventType
 from wwcore.scenario import Scenario
 from wwcore.scenario.farm import FARM_DT_S, N_TURBINES
-from wwcore.stepping import run_ticks
 
 DAMAGE_BIN_S = 10.0  # s, time resolution of the damage sums (Fig. 4)
 MAX_CHUNK = 50  # runs of the 3 × 3 per process at most: 100 runs are two chunks of 50 (900 rows and their twins)
@@ -124,10 +123,11 @@ def simulate_chunk(
     trace: dict[str, list] = {k: [] for k in ("t", "power", "demand", "power_t", "ref_t", "stat", "thr", "flags")}
     events: list[Event] = []
 
-    def record(k: int, frame, refs) -> None:
-        p_farm = balance.tick(k, plant.power_output(), frame.sample, frame.demand)
+    def record(k: int, power: np.ndarray, shaft: np.ndarray | None, frame, refs) -> None:
+        """Tick k's truth (its turbines' power and shaft torque); ``frame`` the farm sample's on its last tick."""
+        p_farm = balance.tick(k, power, frame is not None, None if frame is None else frame.demand)
         if damage_counter is not None:
-            damage_counter.step(k, plant.shaft_torque())
+            damage_counter.step(k, shaft)
         if p_farm is None:
             return
         t = (k + 1) // per_sample * FARM_DT_S
@@ -148,12 +148,20 @@ def simulate_chunk(
             trace["thr"].append(diag.thresholds[rows] if diag is not None else np.zeros((len(rows), N_TYPES)))
             trace["flags"].append(diag.faulty[rows] if diag is not None else np.zeros((len(rows), N_TYPES)))
 
-    def report(k: int) -> None:
-        if (k + 1) % PROGRESS_EVERY == 0:
-            events.extend(plant.drain_events() + sup.drain_events())
-            progress(PROGRESS_EVERY * dt)
-
-    run_ticks(plant, sup, range(n_steps), stepped=record, advanced=report)
+    # A farm sample at a time (``FarmBatch.run_sample``): the supervisor answers samples only and returns the same
+    # references in between, so it is given each sample's frame; the ticks' truth comes with the block.
+    refs = None
+    while plant.k < n_steps:
+        block = plant.run_sample(refs, n_steps - plant.k, shaft_torque=damage_counter is not None)
+        refs = sup.step(block.frame)
+        last = len(block.power) - 1
+        for i in range(last + 1):
+            k = block.first_tick + i
+            shaft = None if block.shaft_torque is None else block.shaft_torque[i]
+            record(k, block.power[i], shaft, block.frame if i == last and block.frame.sample else None, refs)
+            if (k + 1) % PROGRESS_EVERY == 0:
+                events.extend(plant.drain_events() + sup.drain_events())
+                progress(PROGRESS_EVERY * dt)
     events += plant.drain_events() + sup.drain_events()
     progress((n_steps % PROGRESS_EVERY) * dt)
     if damage_counter is not None:
