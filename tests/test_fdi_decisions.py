@@ -391,3 +391,68 @@ def test_the_rotor_speed_pair_is_compared_when_the_healthy_one_is_suspected():
     assert (compared.total < 0).all()  # ω₃ = the faulty ω_r,m2: "ω_g,m2 is faulty"
     assert compared.rotor_disagree.all() and (compared.log_ratio > 0).all()  # power-speed: ω_g,m1, the right one
     assert not uncompared.rotor_disagree.any() and (uncompared.log_ratio < 0).all()
+
+
+def _onset_run(arbiter: GeneratorArbiter, rng, b: float, faulty_g1: np.ndarray, ticks: int = 3000, late: int = 1):
+    """A smooth generator speed (a quadratic in time, which the onset prediction extrapolates exactly) read by two
+    sensors of σ_g = 0.05 rad/s; from tick ``ticks − late`` on, ω_g,m1 (rows of ``faulty_g1``) or ω_g,m2 reads
+    b high. The isolation starts on the last tick (``late`` ticks after the onset)."""
+    n = len(faulty_g1)
+    for k in range(ticks):
+        omega = 100.0 + 0.02 * k + 1e-6 * k * k
+        y = omega + rng.standard_normal((n, 4)) * 0.05
+        if k >= ticks - late:
+            y[faulty_g1, 2] += b
+            y[~faulty_g1, 3] += b
+        arbiter.observe(y, np.full(n, k < ticks - late))
+    arbiter.reset(np.ones(n, dtype=bool), np.ones(n, dtype=bool))
+
+
+@pytest.mark.parametrize("late", [1, 4])
+def test_the_onset_jump_names_the_generator_sensor_at_once(late):
+    """An offset b on one generator-speed sensor: at its first tick the pair mean jumps b/2 away from its own
+    one-tick prediction and the parity by ±b, so ℓ_J = δ (m − p)/s_J² has mean b²/(2 s_J²) exactly (δ's noise
+    η1 − η2 is uncorrelated with m's η1 + η2), with s_J² = v_e + σ_g²/2 and v_e the prediction error's variance,
+    on white noise (σ_g²/2)(1 + Σw²). At b = 0.4 rad/s (8 σ_g) that is 21.3, three times h = ln 1000: the
+    arbitration is decided on the isolation's first tick in 94 % of the rows (the share where ℓ_J ≥ h, from
+    the two normals), naming the sensor that jumped, whether the isolation
+    starts on the onset tick or ``late`` − 1 ticks after it (before: only the power-speed sum, ≈ 0.15 per tick)."""
+    rng = np.random.default_rng(21)
+    n, b = 2000, 0.4
+    arbiter = GeneratorArbiter(DESIGN, n, 1e-3, P.dt)
+    faulty_g1 = np.arange(n) < n // 2
+    _onset_run(arbiter, rng, b, faulty_g1, late=late)
+    white = 0.5 * 0.05**2 * (1.0 + float(arbiter.weights @ arbiter.weights))
+    assert arbiter.jump_floor == pytest.approx(white, rel=1e-9)
+    # learnt, and clipped at the floor (which lifts the mean of a noisy estimate a little): the speed is predictable
+    assert arbiter.jump_variance.mean() == pytest.approx(white, rel=0.06)
+    expected = b**2 / (2.0 * (arbiter.jump_variance + 0.5 * 0.05**2))
+    assert np.abs(arbiter.jump).mean() == pytest.approx(expected.mean(), rel=0.05)
+    # decided where ℓ_J ≥ h, i.e. δ (m − p) ≥ h s_J², with δ ~ N(b, 2σ_g²) and m − p ~ N(b/2, v_e) independent
+    v, floor = arbiter.jump_variance[:, None], arbiter.jump_floor  # each row's s_J²; m − p has the floor's variance
+    z = np.linspace(-6.0, 6.0, 601)
+    delta, density = b + 0.05 * math.sqrt(2.0) * z, np.exp(-0.5 * z**2)
+    threshold = math.log(1e3) * (v + 0.5 * 0.05**2) / delta  # (rows, grid): m − p above this decides
+    above = 0.5 * np.vectorize(math.erfc)((threshold - b / 2.0) / math.sqrt(2.0 * floor))
+    share = float((above @ density).mean() / density.sum())
+    decided = arbiter.decided()
+    assert decided.mean() == pytest.approx(share, abs=0.015) and share > 0.9
+    assert ((arbiter.total > 0) == faulty_g1)[decided].all()
+
+
+def test_the_onset_jump_is_silent_without_a_fault_and_absent_when_not_asked():
+    """No fault: ℓ_J is the product of two independent zero-mean normals over s_J², beyond h = 6.9 far more rarely
+    than α_iso = 1e-3 per isolation; rows not given a jump (a generator-speed sensor flagged) start from 0."""
+    rng = np.random.default_rng(22)
+    n = 4000
+    arbiter = GeneratorArbiter(DESIGN, n, 1e-3, P.dt)
+    _onset_run(arbiter, rng, 0.0, np.zeros(n, dtype=bool))
+    assert arbiter.decided().mean() < 1e-3
+    assert np.abs(arbiter.jump).mean() < 1.0
+    quiet = GeneratorArbiter(DESIGN, 10, 1e-3, P.dt)
+    for k in range(100):
+        y = 100.0 + rng.standard_normal((10, 4)) * 0.05
+        y[:, 3] += 0.4 * (k == 99)
+        quiet.observe(y, np.ones(10, dtype=bool))
+    quiet.reset(np.ones(10, dtype=bool), np.zeros(10, dtype=bool))
+    assert (quiet.total == 0.0).all() and (quiet.jump == 0.0).all()

@@ -268,7 +268,7 @@ class SpeedSensorFDI:
         self._maybe_flagged = False  # False only while no row has a flagged sensor
         self.deadline = np.full(n, -1, dtype=np.int64)  # tick at which a pending isolation is decided, −1 none
         self.started = np.zeros(n, dtype=np.int64)  # tick at which the pending isolation started
-        self.arbiter = GeneratorArbiter(bank, n, iso)
+        self.arbiter = GeneratorArbiter(bank, n, iso, dt)
         self.arbitration_ticks = round(settings.arbitration_s / dt)
         self.provisional = np.zeros(n, dtype=np.int64)  # the pending isolation's current explanation
         self._pending = False  # whether any row has a pending isolation
@@ -316,6 +316,8 @@ class SpeedSensorFDI:
         if self.calibration.enabled:  # the clearing and the arbitration see the bank's calibrated readings
             y = y - self.calibration.offset
         self.ticks += 1
+        # the pair mean's history and its prediction error, for the onset's log-likelihood ratio (``arbitration``)
+        self.arbiter.observe(y, (self.flagged == 0) & (self.deadline < 0))
         if self._fast is None:
             self.ratio = ratio = np.maximum(chi2_stat / self.h_detect, self._window_sum / self.h_window)
         if self.spread.enabled and self._fast is not None:  # the three lines below, their inputs by one kernel
@@ -385,7 +387,8 @@ class SpeedSensorFDI:
         # a reading frozen for ``frozen_ticks`` has already shown its fault for that long: no delay to wait out
         self.deadline[start] = self.ticks + np.where(inconsistent[start], self.s.isolation_delay, 0)
         self.started[start] = self.ticks
-        self.arbiter.reset(start)
+        # the onset's jump names the generator-speed sensor unless one of the pair is flagged (``arbitration``)
+        self.arbiter.reset(start, (self.flagged & _GENERATOR_BITS) == 0)
         suspected = _SENSORS_OF_MASK[self.flagged | self.provisional]
         trusted_power = None if power_speed is None else np.isfinite(power_speed)
         self.arbiter.step(
