@@ -83,13 +83,14 @@ from service.turbine.frozen import FrozenReadings
 from service.turbine.uio import LAGS
 from wwcore.channels import SPEED_SENSORS
 from wwcore.options import Bounds
-from wwcore.quantiles import chi2_isf
+from wwcore.quantiles import chi2_isf, norm_isf
 from wwcore.scenario.mismatch import SENSOR_BIAS_TOLERANCE
 
 N_SPEED = len(SPEED_SENSORS)
 _BITS = 1 << np.arange(N_SPEED)
 _SENSORS_OF_MASK = (np.arange(1 << N_SPEED)[:, None] >> np.arange(N_SPEED)) & 1 == 1  # (16, 4): bitmask → flags
 _GENERATOR_BITS = sum(1 << SPEED_SENSORS.index(g) for g in GENERATOR)
+_ROTOR_BITS = sum(1 << r for r in ROTOR)
 
 
 @dataclass(frozen=True)
@@ -190,6 +191,9 @@ class SpeedSensorFDI:
         self.h_confirm_window = np.array(
             [window_threshold(o.autocov, settings.window, confirm / 2.0) for o in observers]
         )
+        # the rotor-speed pair's summed difference (``arbitration``) at the confirmation level: a rotor-speed fault
+        # beside an explanation that names none (a double fault's rotor half, before the observers see it)
+        self.rotor_doubt = float(norm_isf(0.5 * confirm))
         self.h_clear = np.array(
             [window_threshold(o.autocov, settings.clear_window, settings.clear_alpha) for o in observers]
         )
@@ -427,6 +431,7 @@ class SpeedSensorFDI:
                         continue
                     if (self.arbiter.log_ratio[row] > 0.0) != bool(explanation & _BITS[2]):
                         explanation = other
+                explanation = self._with_rotor_pair(row, explanation, isolate[i])
                 self.flagged[row] = explanation
                 self.deadline[row] = -1
                 self.provisional[row] = explanation
@@ -450,7 +455,22 @@ class SpeedSensorFDI:
         j = self.observer_of_mask[explanation]
         if j < 0 or self.ambiguous[row]:
             return False
+        if not explanation & _ROTOR_BITS and self.arbiter.rotor_z[row] > self.rotor_doubt:
+            return True  # the rotor-speed pair disagrees beyond the confirmation level: a rotor-speed fault beside it
         return bool((self.witnesses[j] * confirm).max() > 1.0)
+
+    def _with_rotor_pair(self, row: int, explanation: int, own: np.ndarray) -> int:
+        """The explanation with a rotor-speed sensor added where it names none and the two rotor-speed sensors
+        disagree at the isolation level (their summed difference, ``arbitration``): a rotor-speed gain of a few
+        percent shows in the pair's difference from the fault's first tick, while the UIOs see it only as their
+        states drift from it, after the generator-speed half of a double fault has been decided. Of the two, the
+        one whose explanation's own observer has the smaller statistic (``own``, at the isolation level)."""
+        if explanation & _ROTOR_BITS or not self.arbiter.rotor_disagree[row]:
+            return explanation
+        candidates = [explanation | _BITS[r] for r in ROTOR if self.observer_of_mask[explanation | _BITS[r]] >= 0]
+        if not candidates:
+            return explanation
+        return int(min(candidates, key=lambda m: own[self.observer_of_mask[m]]))
 
     def _explained(self, ratio: np.ndarray) -> np.ndarray:
         """For each explanation (observer index), the largest ratio among its witnesses (n_isolating,)."""
