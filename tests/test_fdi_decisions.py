@@ -488,3 +488,29 @@ def test_the_onset_jump_is_silent_without_a_fault_and_absent_when_not_asked():
         quiet.observe(y, np.ones(10, dtype=bool))
     quiet.reset(np.ones(10, dtype=bool), np.zeros(10, dtype=bool))
     assert (quiet.total == 0.0).all() and (quiet.jump == 0.0).all()
+
+
+def test_a_rotor_speed_sensor_joins_the_first_flag_when_the_rotor_pair_disagrees():
+    """A double fault's rotor-speed half (a gain of a few percent) shows in the rotor pair's summed difference from
+    its first tick, in the UIOs only as their states drift: an explanation that names no rotor-speed sensor is
+    doubted while that sum's z exceeds the confirmation level Φ⁻¹(1 − 0.05/2) = 1.96, and takes the rotor-speed
+    sensor whose explanation's own observer has the smaller statistic once z exceeds the isolation level 3.29.
+    Before, the first flag of such a window named the generator-speed sensor alone (a wrong isolation) in half the
+    runs of a probe (ω_r,m2 gain 1.046 with ω_g,m1 gain 0.921 at 8.3 m/s)."""
+    fdi = SpeedSensorFDI(DESIGN, 3, P.dt)
+    assert fdi.rotor_doubt == pytest.approx(1.959964, abs=1e-6)
+    assert fdi.arbiter.parity_level == pytest.approx(3.290527, abs=1e-6)
+    sigma_d = fdi.arbiter.parity_sigma
+    fdi.arbiter.count[:] = 4.0
+    fdi.arbiter.parity[:] = np.array([1.0, 2.5, 4.0]) * sigma_d * 2.0  # z = 1.0, 2.5, 4.0
+    g1 = 1 << G1
+    r1, r2 = 1 << R1, 1 << SPEED_SENSORS.index("omega_r_m2")
+    own = np.ones(DESIGN.n_isolating)
+    own[fdi.observer_of_mask[g1 | r1]] = 0.5  # {r1, g1}'s own observer explains the data best
+    confirm = np.zeros(DESIGN.n_isolating)  # every witness at ease: only the rotor pair casts doubt
+    assert [fdi._doubtful(row, g1, confirm) for row in range(3)] == [False, True, True]
+    assert not fdi._doubtful(2, g1 | r2, confirm)  # the explanation names a rotor-speed sensor already
+    assert [fdi._with_rotor_pair(row, g1, own) for row in range(3)] == [g1, g1, g1 | r1]
+    own[fdi.observer_of_mask[g1 | r2]] = 0.1
+    assert fdi._with_rotor_pair(2, g1, own) == g1 | r2
+    assert fdi._with_rotor_pair(2, g1 | r2, own) == g1 | r2
