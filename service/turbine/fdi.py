@@ -28,6 +28,10 @@ evidence that its sensor is healthy again.
   ``isolation_confirm_alpha`` (default 0.05), the decision waits one more tick, up to ``isolation_patience``
   ticks beyond the deadline, with the explanations considered suspected (so the estimate already leaves them
   out): a first flag that names only part of the faulty set is a wrong isolation, and one more tick is cheaper.
+  The rotor-speed pair's summed difference (``arbitration``) casts doubt too, on an explanation that names no
+  rotor-speed sensor, at the same level; once it passes the isolation level, the rotor-speed sensor whose
+  explanation's own observer has the smaller statistic joins the flag (a double fault's rotor-speed gain, which
+  the UIOs see only as their states drift, after the generator-speed half is settled on its first ticks).
 * **Persistent rotor-speed bias.** Beside the window tests, Page's CUSUM on the parity of the two rotor-speed
   sensors' exclusion residuals against the generator-speed Kalman filter (``bias_test``; ``rotor_bias_test``,
   ``bias_shift``) flags a bias of 1–2 σ that the UIOs take for aerodynamic torque, and the sum of the two residuals
@@ -47,6 +51,9 @@ evidence that its sensor is healthy again.
   on the tick the frozen test fires (the test has seen ``frozen_ticks`` of the fault already) and never waits for
   the generator-speed arbitration (``arbitration``), which a reading frozen near the truth would keep open for
   seconds.
+* **Which generator-speed sensor.** Where an explanation names one generator-speed sensor and the other is not
+  ruled out, the isolation waits for the arbitration (``arbitration``): the fault's first ticks against the pair
+  mean's own prediction, then sums against the rotor-speed sensors and the power-speed channel.
 
 Thresholds come from the false-alarm budget (PARAMETERS.md d), not from fault data. A design rate of false
 alarms per 1000 s (default 0.01: the requirement is 1, the aim none) gives α = rate·Ts/1000 per tick, split
