@@ -28,6 +28,10 @@ evidence that its sensor is healthy again.
   ``isolation_confirm_alpha`` (default 0.05), the decision waits one more tick, up to ``isolation_patience``
   ticks beyond the deadline, with the explanations considered suspected (so the estimate already leaves them
   out): a first flag that names only part of the faulty set is a wrong isolation, and one more tick is cheaper.
+  The rotor-speed pair's summed difference (``arbitration``) casts doubt too, on an explanation that names no
+  rotor-speed sensor, at the same level; once it passes the isolation level, the rotor-speed sensor whose
+  explanation's own observer has the smaller statistic joins the flag (a double fault's rotor-speed gain, which
+  the UIOs see only as their states drift, after the generator-speed half is settled on its first ticks).
 * **Persistent rotor-speed bias.** Beside the window tests, Page's CUSUM on the parity of the two rotor-speed
   sensors' exclusion residuals against the generator-speed Kalman filter (``bias_test``; ``rotor_bias_test``,
   ``bias_shift``) flags a bias of 1–2 σ that the UIOs take for aerodynamic torque, and the sum of the two residuals
@@ -47,6 +51,9 @@ evidence that its sensor is healthy again.
   on the tick the frozen test fires (the test has seen ``frozen_ticks`` of the fault already) and never waits for
   the generator-speed arbitration (``arbitration``), which a reading frozen near the truth would keep open for
   seconds.
+* **Which generator-speed sensor.** Where an explanation names one generator-speed sensor and the other is not
+  ruled out, the isolation waits for the arbitration (``arbitration``): the fault's first ticks against the pair
+  mean's own prediction, then sums against the rotor-speed sensors and the power-speed channel.
 
 Thresholds come from the false-alarm budget (PARAMETERS.md d), not from fault data. A design rate of false
 alarms per 1000 s (default 0.01: the requirement is 1, the aim none) gives α = rate·Ts/1000 per tick, split
@@ -83,13 +90,14 @@ from service.turbine.frozen import FrozenReadings
 from service.turbine.uio import LAGS
 from wwcore.channels import SPEED_SENSORS
 from wwcore.options import Bounds
-from wwcore.quantiles import chi2_isf
+from wwcore.quantiles import chi2_isf, norm_isf
 from wwcore.scenario.mismatch import SENSOR_BIAS_TOLERANCE
 
 N_SPEED = len(SPEED_SENSORS)
 _BITS = 1 << np.arange(N_SPEED)
 _SENSORS_OF_MASK = (np.arange(1 << N_SPEED)[:, None] >> np.arange(N_SPEED)) & 1 == 1  # (16, 4): bitmask → flags
 _GENERATOR_BITS = sum(1 << SPEED_SENSORS.index(g) for g in GENERATOR)
+_ROTOR_BITS = sum(1 << r for r in ROTOR)
 
 
 @dataclass(frozen=True)
@@ -190,6 +198,9 @@ class SpeedSensorFDI:
         self.h_confirm_window = np.array(
             [window_threshold(o.autocov, settings.window, confirm / 2.0) for o in observers]
         )
+        # the rotor-speed pair's summed difference (``arbitration``) at the confirmation level: a rotor-speed fault
+        # beside an explanation that names none (a double fault's rotor half, before the observers see it)
+        self.rotor_doubt = float(norm_isf(0.5 * confirm))
         self.h_clear = np.array(
             [window_threshold(o.autocov, settings.clear_window, settings.clear_alpha) for o in observers]
         )
@@ -269,7 +280,7 @@ class SpeedSensorFDI:
         self._maybe_flagged = False  # False only while no row has a flagged sensor
         self.deadline = np.full(n, -1, dtype=np.int64)  # tick at which a pending isolation is decided, −1 none
         self.started = np.zeros(n, dtype=np.int64)  # tick at which the pending isolation started
-        self.arbiter = GeneratorArbiter(bank, n, iso)
+        self.arbiter = GeneratorArbiter(bank, n, iso, dt)
         self.arbitration_ticks = round(settings.arbitration_s / dt)
         self.provisional = np.zeros(n, dtype=np.int64)  # the pending isolation's current explanation
         self._pending = False  # whether any row has a pending isolation
@@ -319,6 +330,8 @@ class SpeedSensorFDI:
         if self.calibration.enabled:  # the clearing and the arbitration see the bank's calibrated readings
             y = y - self.calibration.offset
         self.ticks += 1
+        # the pair mean's history and its prediction error, for the onset's log-likelihood ratio (``arbitration``)
+        self.arbiter.observe(y, (self.flagged == 0) & (self.deadline < 0))
         if self._fast is None:
             self.ratio = ratio = np.maximum(chi2_stat / self.h_detect, self._window_sum / self.h_window)
         if self.spread.enabled and self._fast is not None:  # the lines below by one kernel
@@ -385,7 +398,8 @@ class SpeedSensorFDI:
         # a reading frozen for ``frozen_ticks`` has already shown its fault for that long: no delay to wait out
         self.deadline[start] = self.ticks + np.where(inconsistent[start], self.s.isolation_delay, 0)
         self.started[start] = self.ticks
-        self.arbiter.reset(start)
+        # the onset's jump names the generator-speed sensor unless one of the pair is flagged (``arbitration``)
+        self.arbiter.reset(start, (self.flagged & _GENERATOR_BITS) == 0)
         suspected = _SENSORS_OF_MASK[self.flagged | self.provisional]
         trusted_power = None if power_speed is None else np.isfinite(power_speed)
         self.arbiter.step(
@@ -424,6 +438,7 @@ class SpeedSensorFDI:
                         continue
                     if (self.arbiter.log_ratio[row] > 0.0) != bool(explanation & _BITS[2]):
                         explanation = other
+                explanation = self._with_rotor_pair(row, explanation, isolate[i])
                 self.flagged[row] = explanation
                 self.deadline[row] = -1
                 self.provisional[row] = explanation
@@ -447,7 +462,22 @@ class SpeedSensorFDI:
         j = self.observer_of_mask[explanation]
         if j < 0 or self.ambiguous[row]:
             return False
+        if not explanation & _ROTOR_BITS and self.arbiter.rotor_z[row] > self.rotor_doubt:
+            return True  # the rotor-speed pair disagrees beyond the confirmation level: a rotor-speed fault beside it
         return bool((self.witnesses[j] * confirm).max() > 1.0)
+
+    def _with_rotor_pair(self, row: int, explanation: int, own: np.ndarray) -> int:
+        """The explanation with a rotor-speed sensor added where it names none and the two rotor-speed sensors
+        disagree at the isolation level (their summed difference, ``arbitration``): a rotor-speed gain of a few
+        percent shows in the pair's difference from the fault's first tick, while the UIOs see it only as their
+        states drift from it, after the generator-speed half of a double fault has been decided. Of the two, the
+        one whose explanation's own observer has the smaller statistic (``own``, at the isolation level)."""
+        if explanation & _ROTOR_BITS or not self.arbiter.rotor_disagree[row]:
+            return explanation
+        candidates = [explanation | _BITS[r] for r in ROTOR if self.observer_of_mask[explanation | _BITS[r]] >= 0]
+        if not candidates:
+            return explanation
+        return int(min(candidates, key=lambda m: own[self.observer_of_mask[m]]))
 
     def _explained(self, ratio: np.ndarray) -> np.ndarray:
         """For each explanation (observer index), the largest ratio among its witnesses (n_isolating,)."""
