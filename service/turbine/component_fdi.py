@@ -486,8 +486,9 @@ class ComponentFDI:
         """Page's CUSUM of "the converter is healthy again" against "the offset persists at the size seen so far"
         on the flagged rows (the pitch sensors' clearing, ``_pitch_clearing``): C ← max(0, C + m(m/2 − sgn(μ̂) z)),
         m = max(|μ̂|, ``converter_clear_floor``), μ̂ z's running mean since the flag (exponentially weighted over
-        ``converter_memory_s``, started at the offset of the raising CUSUM as if seen for 0.5 s). While an offset d > m/2 persists, C drifts down (E = −m(d − m/2) per tick); once it
-        is gone, up by m²/2 per tick. Cleared where C ≥ h = ln(1/α) from ``false_clears_per_1000s``; (n,) bool."""
+        ``converter_memory_s``, started at the offset of the raising CUSUM as if seen for ``fault_memory_s``).
+        While an offset d > m/2 persists, C drifts down (E = −m(d − m/2) per tick); once it is gone, up by m²/2
+        per tick. Cleared where C ≥ h = ln(1/α) from ``false_clears_per_1000s``; (n,) bool."""
         count, mean = self._converter_count, self._converter_mean
         count += flagged
         weight = np.where(flagged, np.maximum(1.0 / np.maximum(count, 1.0), self._converter_weight), 0.0)
