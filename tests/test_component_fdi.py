@@ -204,3 +204,32 @@ def test_converter_flag_holds_near_the_limit_and_clears_after_the_end():
     cleared = ~flags[end:]
     assert cleared[-1].all() and not (cleared[1:] < cleared[:-1]).any(), "cleared for good (no raise after)"
     assert np.argmax(cleared, axis=0).mean() <= bound
+
+
+def test_wind_torque_takes_the_measured_generator_torque_on_a_distrusted_converter():
+    """``WindRecovery.converter_correction``: on rows with a measured torque, each rigid observer's raw τ̂_r moves
+    by (N_g/η_dt)(τ_g,m − τ̂_g) (the rotor-side torque a converter offset adds, 95 × the offset); rows without one
+    (NaN) and every other observer's column are untouched."""
+    from service.turbine.interfaces import TurbineContext
+    from service.turbine.wind_recovery import WindRecovery
+
+    design = TurbineContext(P, 3).bank_design
+    recovery = WindRecovery(P, design, 3, wind_cutoff_hz=0.3, speed_cutoff_hz=2.0)
+    rng = np.random.default_rng(1)
+    x_hat = rng.normal(size=(3, design.F_blk.shape[0])) * 1e3
+    m = len(design.names)
+    raw = rng.normal(size=(3, 3 * m))
+    before = raw.copy()
+    measured = np.array([np.nan, x_hat[1, 0] + 500.0, 2.0e4])
+    recovery.converter_correction(raw, x_hat, measured)
+    rigid = [j for j, o in enumerate(design.observers) if o.kind == "rigid"]
+    assert rigid, "the bank has rigid observers (observer 4 and its one-sensor variants)"
+    for j in range(3 * m):
+        if j not in rigid:
+            assert np.array_equal(raw[:, j], before[:, j])
+    for j in rigid:
+        state = design.offsets[j] + 3
+        assert raw[0, j] == before[0, j]
+        for row in (1, 2):
+            expected = before[row, j] + P.N_g / P.eta_dt * (measured[row] - x_hat[row, state])
+            assert raw[row, j] == pytest.approx(expected, rel=1e-12)
