@@ -21,13 +21,17 @@ when the turbine is healthy, so each test's threshold follows from the false-ala
   The residual assumes healthy pitch sensors (a sensor fault moves its blade through the pitch loop), so the test
   rests while any pitch sensor is flagged and for one window after.
 * **Converter** (fault 8). r = τ_g,m − τ̂_g, with τ̂_g the first-order converter (α_gc) driven by the torque
-  reference: white with σ_τ. An offset shows in the window mean of r.
+  reference: white with σ_τ. An offset shows as a shift of r's mean; it is tested every tick by Page's two-sided
+  CUSUMs designed for a few offsets (``converter_shifts``), their threshold h = ln(2K/α) from the false-alarm
+  budget (Lorden's bound), so a large offset is flagged in a few ticks and a small one as soon as its evidence
+  adds up; the flag drops by a clearing CUSUM of "the offset is gone" against "it persists at the size seen"
+  (``_converter``, ``_converter_clearing``).
 
 Adaptive thresholds (``adaptive``, ``adapt_time_s``): each test uses its residual's healthy spread ŝ learnt online
 (the parity, the actuator residual's w² per blade, the converter's block sums) and its offset b̂ (a calibration
 bias: within ±2 × 0.2 deg on a parity and on w, ±90 N m on τ_g,m): (p − b̂)/ŝ, (Σp/√W − b̂√W)/ŝ, the actuator GLR
-with σ_w² = ¾ σ_β² ŝ² (ŝ² learnt about b̂; the GLR itself maximises the offset out), and (Σr − W b̂)/(ŝ σ_τ √W)
-against the design thresholds.
+with σ_w² = ¾ σ_β² ŝ² (ŝ² learnt about b̂; the GLR itself maximises the offset out), and z = (r − b̂)/(ŝ σ_τ) in
+the converter's CUSUMs, against the design thresholds.
 
 Fault 9 (drive-train efficiency) has no test: a gearbox that loses more torque looks, to an observer that
 treats the rotor torque as unknown, exactly like a different aerodynamic torque (docs/turbine.md).
@@ -94,7 +98,7 @@ class ComponentSettings:
     # memory of the converter clearing CUSUM's offset estimate: long beside the clearing (an offset is a constant;
     # a short memory forgets the offset as soon as it ends, and the CUSUM then tests for the floor alone)
     converter_memory_s: Annotated[float, Bounds(ge=0.01, le=3600.0, unit="s")] = 10.0
-    # the actuator and converter tests decide every this many ticks, on every tick's residual
+    # the actuator test decides every this many ticks, on every tick's residual (the converter's spread: per block)
     block: Annotated[int, Bounds(ge=1, le=1000, unit="ticks")] = 10
     frozen_ticks: Annotated[int, Bounds(ge=2, le=1000, unit="ticks")] = 3
     warmup_s: Annotated[float, Bounds(ge=0.0, le=600.0, unit="s")] = 5.0
