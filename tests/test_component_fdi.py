@@ -121,3 +121,115 @@ def test_pitch_actuator_faults_are_isolated_to_their_blade(fault, within_s):
     assert np.all(first >= start) and np.all(first - start <= round(within_s / P.dt)), (first - start) * P.dt
     others = [i for i, name in enumerate(DIAGNOSIS_TARGETS) if name != fault.target]
     assert not flags[:, :, others].any()
+
+
+# -- the converter's CUSUMs on synthetic residuals: closed-form delay, false-alarm bound, clearing -----------------
+def _converter_run(offsets_sigma, ticks, start, end=None, rate=0.01, n_per=1, seed=3, adapt=0.0):
+    """Drive ``ComponentFDI`` with frames whose torque reference is constant and whose τ_g,m is the first-order
+    converter's response to reference + offset, plus τ_g,m's noise; pitch sensors noisy and equal in mean.
+    Returns the converter flags (ticks, rows) and the detector."""
+    from service.turbine.component_fdi import ComponentFDI, ComponentSettings
+    from wwcore.channels import N_SENSORS, SENSOR_INDEX, SENSORS, noise_std
+    from wwcore.turbine_frames import TurbineFrame
+
+    sigma = {c.name: noise_std(c, "sigma") for c in SENSORS}
+    offsets = np.repeat(np.asarray(offsets_sigma, dtype=float), n_per) * sigma["tau_g_m"]
+    n = len(offsets)
+    settings = ComponentSettings(false_alarms_per_1000s=rate, adapt_time_s=adapt, warmup_s=0.0)
+    fdi = ComponentFDI(P, n, sigma, settings)
+    rng = np.random.default_rng(seed)
+    a = float(np.exp(-P.alpha_gc * P.dt))
+    reference = np.full(n, 2.0e4)
+    tau = reference.copy()
+    column = DIAGNOSIS_TARGETS.index("converter")
+    pitch = [SENSOR_INDEX[f"beta_{i}_m{j}"] for i in (1, 2, 3) for j in (1, 2)]
+    out = np.zeros((ticks, n), dtype=bool)
+    for k in range(ticks):
+        on = k >= start and (end is None or k < end)
+        # τ_g[k] = a τ_g[k−1] + (1 − a)(τ_g,r[k−1] + Δ): the plant's converter with the offset on its reference
+        tau = a * tau + (1.0 - a) * (reference + (offsets if on else 0.0)) if k else tau
+        y = np.zeros((n, N_SENSORS))
+        y[:, SENSOR_INDEX["tau_g_m"]] = tau + sigma["tau_g_m"] * rng.standard_normal(n)
+        y[:, pitch] = 5.0 + sigma["beta_1_m1"] * rng.standard_normal((n, 6))
+        frame = TurbineFrame(k, k * P.dt, y, reference, np.full(n, 5.0), np.zeros(n), np.zeros(n, dtype=np.int64))
+        out[k] = fdi.step(frame)[:, column]
+    return out, fdi
+
+
+def _cusum_delay(d: float, shifts, h: float) -> float:
+    """Ticks until the fastest CUSUM's mean path m(d − m/2) per tick reaches h (d in σ, no noise)."""
+    return min(h / (m * (d - m / 2.0)) for m in shifts if d > m / 2.0)
+
+
+@pytest.mark.parametrize("size", [1.0, 2.0, 5.0, 11.0])
+def test_converter_delay_follows_the_cusum_closed_form(size):
+    """Mean delay over 200 rows within the closed form h / max_j m_j (d − m_j/2) plus the converter's lag (the
+    offset enters τ_g through 1 − a^k, a = e^(−α_gc Ts): the first ticks see 39 %, 63 %, 78 % of it): at 5 σ a
+    few ticks where the 1-s window mean took 15–25."""
+    start = 50
+    flags, fdi = _converter_run([size], 400, start, n_per=200)
+    assert not flags[:start].any()
+    first = np.argmax(flags[start:], axis=0)
+    assert flags[start:].any(axis=0).all()
+    expected = _cusum_delay(size, fdi.converter_shifts[fdi.converter_signs > 0], fdi.h_converter)
+    lag = 2.0  # ticks: ∫(1 − (1 − a^k)) = a/(1 − a) ≈ 1.5 ticks of offset missing, plus the reference's tick
+    assert expected <= first.mean() + 1.0
+    assert first.mean() <= expected + lag + 1.0 + 0.3 * expected, (first.mean(), expected)
+
+
+def test_converter_false_alarms_stay_within_the_lorden_bound():
+    """At a budget of 1000 per 1000 s (α = 0.01 per tick, h = ln(2K/α) = 6.9) the CUSUMs' onsets per healthy tick
+    stay below α: Lorden, each of the 2K one-sided tests runs e^h ticks on average before a false alarm."""
+    ticks, rows = 4000, 40
+    flags, fdi = _converter_run([0.0], ticks, ticks, n_per=rows, rate=1000.0)
+    assert fdi.h_converter == pytest.approx(np.log(2 * 5 / 0.01))
+    onsets = (flags[1:] & ~flags[:-1]).sum() + flags[0].sum()
+    healthy_ticks = (~flags).sum()
+    assert 0 < onsets <= 0.01 * healthy_ticks, (onsets, healthy_ticks)
+
+
+def test_converter_flag_holds_near_the_limit_and_clears_after_the_end():
+    """An offset of 0.4 σ (above the smallest shift's half, 0.125 σ): once raised the flag holds through a 20 s
+    window in every row (the clearing CUSUM drifts down by m(d − m/2) per tick), and drops after the end in
+    fewer ticks on average than the closed form h_c / (m²/2) at the floor m = 0.25 (the offset estimate is larger)."""
+    start, end, ticks = 100, 2100, 3700
+    flags, fdi = _converter_run([0.4], ticks, start, end=end, n_per=40, seed=8)
+    inside = flags[start:end]
+    raised = inside.any(axis=0)
+    assert raised.mean() >= 0.9
+    first = np.argmax(inside, axis=0)
+    for row in np.flatnonzero(raised):
+        assert inside[first[row] :, row].all(), "no flag lost while the offset acts"
+    bound = fdi._clear_h / (0.5 * 0.25**2)  # mean ticks at the floor m = 0.25, the slowest clearing: 516
+    cleared = ~flags[end:]
+    assert cleared[-1].all() and not (cleared[1:] < cleared[:-1]).any(), "cleared for good (no raise after)"
+    assert np.argmax(cleared, axis=0).mean() <= bound
+
+
+def test_wind_torque_takes_the_measured_generator_torque_on_a_distrusted_converter():
+    """``WindRecovery.converter_correction``: on rows with a measured torque, each rigid observer's raw τ̂_r moves
+    by (N_g/η_dt)(τ_g,m − τ̂_g) (the rotor-side torque a converter offset adds, 95 × the offset); rows without one
+    (NaN) and every other observer's column are untouched."""
+    from service.turbine.interfaces import TurbineContext
+    from service.turbine.wind_recovery import WindRecovery
+
+    design = TurbineContext(P, 3).bank_design
+    recovery = WindRecovery(P, design, 3, wind_cutoff_hz=0.3, speed_cutoff_hz=2.0)
+    rng = np.random.default_rng(1)
+    x_hat = rng.normal(size=(3, design.F_blk.shape[0])) * 1e3
+    m = len(design.names)
+    raw = rng.normal(size=(3, 3 * m))
+    before = raw.copy()
+    measured = np.array([np.nan, x_hat[1, 0] + 500.0, 2.0e4])
+    recovery.converter_correction(raw, x_hat, measured)
+    rigid = [j for j, o in enumerate(design.observers) if o.kind == "rigid"]
+    assert rigid, "the bank has rigid observers (observer 4 and its one-sensor variants)"
+    for j in range(3 * m):
+        if j not in rigid:
+            assert np.array_equal(raw[:, j], before[:, j])
+    for j in rigid:
+        state = design.offsets[j] + 3
+        assert raw[0, j] == before[0, j]
+        for row in (1, 2):
+            expected = before[row, j] + P.N_g / P.eta_dt * (measured[row] - x_hat[row, state])
+            assert raw[row, j] == pytest.approx(expected, rel=1e-12)

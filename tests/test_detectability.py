@@ -145,7 +145,7 @@ def test_threshold_sizes_bracket_the_measured_curve_with_a_layout_bootstrap():
 
 
 def test_a_tiny_sweep_through_the_command_gives_well_formed_monotone_output(tmp_path):
-    """Two converter offsets, 0.05 σ (4.5 N m, buried in the 1-s mean's 9 N m noise) and 3 σ (270 N m), on one
+    """Two converter offsets, 0.05 σ (4.5 N m, under the CUSUMs' limit of 0.125 σ) and 3 σ (270 N m), on one
     layout of two runs: the large one is always detected and isolated, the small one no more often."""
     out = tmp_path / "sweep"
     argv = ["detectability", "turbine", "--fault", "converter-offset", "--sizes", "3,0.05"]

@@ -164,7 +164,8 @@ def turbine_trace(scenario, backend: str, runs: list[int], ticks: int, every: in
             "cusum": fdi.clearing.statistic,
             "actuator_test": supervisor.detector.components.actuator.total,
             "actuator_glr": supervisor.detector.components.actuator_glr,
-            "converter_test": supervisor.detector.components.converter.total,
+            "converter_test": supervisor.detector.components.converter_statistic,
+            "converter_clear": supervisor.detector.components.converter_clear_statistic,
             "parity_window": supervisor.detector.components.parity.total,
             "pitch_outlier": supervisor.detector.components.outlier.total,
             # the adaptive thresholds' learnt scales and offsets (``service.turbine.adaptive``)

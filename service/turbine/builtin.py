@@ -43,6 +43,7 @@ PITCH_M2 = np.array([SENSOR_INDEX[f"beta_{i}_m2"] for i in (1, 2, 3)])
 PITCH_M12 = np.concatenate([PITCH_M1, PITCH_M2])
 PITCH_M1_T = np.array([TARGET_INDEX[f"beta_{i}_m1"] for i in (1, 2, 3)])
 PITCH_M2_T = np.array([TARGET_INDEX[f"beta_{i}_m2"] for i in (1, 2, 3)])
+CONVERTER_T = TARGET_INDEX["converter"]
 _MASK_WEIGHTS = 1 << np.arange(len(SPEED_SENSORS))
 # Diagnosis row of each speed-sensor bitmask (16, len(DIAGNOSIS_TARGETS)): one gather gives the whole verdict.
 _P_G_M, _TAU_G_M = SENSOR_INDEX["p_g_m"], SENSOR_INDEX["tau_g_m"]
@@ -262,8 +263,9 @@ class UIOBankEstimator:
             )  # fmt: skip
             self._take_over(bank, selected, mask, self._flagged_mask(flagged, mask))
             recovery.step(
-                bank.x_hat, frame.beta_ref, pitch_m1, pitch_m2, ~faulty[:, PITCH_M1_T], ~faulty[:, PITCH_M2_T]
-            )
+                bank.x_hat, frame.beta_ref, pitch_m1, pitch_m2, ~faulty[:, PITCH_M1_T], ~faulty[:, PITCH_M2_T],
+                _converter_torque(frame, faulty),
+            )  # fmt: skip
             columns = np.maximum(selected, 0)
             omega_r, omega_g = np.empty(n), np.empty(n)
             fast.gather_speeds(recovery.filtered, *recovery.speed_starts, selected, omega_r, omega_g)
@@ -277,8 +279,9 @@ class UIOBankEstimator:
                     selected = np.where(on_pe, self._power_speed[band], selected)
             self._take_over(bank, selected, mask, self._flagged_mask(flagged, mask))
             recovery.step(
-                bank.x_hat, frame.beta_ref, pitch_m1, pitch_m2, ~faulty[:, PITCH_M1_T], ~faulty[:, PITCH_M2_T]
-            )
+                bank.x_hat, frame.beta_ref, pitch_m1, pitch_m2, ~faulty[:, PITCH_M1_T], ~faulty[:, PITCH_M2_T],
+                _converter_torque(frame, faulty),
+            )  # fmt: skip
             columns = np.maximum(selected, 0)
             rows = self._rows
             omega_r, omega_g = recovery.omega_r[rows, columns], recovery.omega_g[rows, columns]
@@ -307,6 +310,15 @@ class UIOBankEstimator:
             observer_names=self.names,
             wind_reference=self._winds[1],
         )
+
+
+def _converter_torque(frame: TurbineFrame, faulty: np.ndarray) -> np.ndarray | None:
+    """τ_g,m on the rows whose converter is distrusted, NaN elsewhere; None where none is (``WindRecovery.step``).
+    A converter offset sits in the torque reference, so the torque sensor reads the generator's real torque."""
+    distrusted = faulty[:, CONVERTER_T]
+    if not distrusted.any():
+        return None
+    return np.where(distrusted, frame.sensors[:, _TAU_G_M], np.nan)
 
 
 @TURBINE_ESTIMATORS.register("none")

@@ -21,13 +21,17 @@ when the turbine is healthy, so each test's threshold follows from the false-ala
   The residual assumes healthy pitch sensors (a sensor fault moves its blade through the pitch loop), so the test
   rests while any pitch sensor is flagged and for one window after.
 * **Converter** (fault 8). r = τ_g,m − τ̂_g, with τ̂_g the first-order converter (α_gc) driven by the torque
-  reference: white with σ_τ. An offset shows in the window mean of r.
+  reference: white with σ_τ. An offset shows as a shift of r's mean; it is tested every tick by Page's two-sided
+  CUSUMs designed for a few offsets (``converter_shifts``), their threshold h = ln(2K/α) from the false-alarm
+  budget (Lorden's bound), so a large offset is flagged in a few ticks and a small one as soon as its evidence
+  adds up; the flag drops by a clearing CUSUM of "the offset is gone" against "it persists at the size seen"
+  (``_converter``, ``_converter_clearing``).
 
 Adaptive thresholds (``adaptive``, ``adapt_time_s``): each test uses its residual's healthy spread ŝ learnt online
 (the parity, the actuator residual's w² per blade, the converter's block sums) and its offset b̂ (a calibration
 bias: within ±2 × 0.2 deg on a parity and on w, ±90 N m on τ_g,m): (p − b̂)/ŝ, (Σp/√W − b̂√W)/ŝ, the actuator GLR
-with σ_w² = ¾ σ_β² ŝ² (ŝ² learnt about b̂; the GLR itself maximises the offset out), and (Σr − W b̂)/(ŝ σ_τ √W)
-against the design thresholds.
+with σ_w² = ¾ σ_β² ŝ² (ŝ² learnt about b̂; the GLR itself maximises the offset out), and z = (r − b̂)/(ŝ σ_τ) in
+the converter's CUSUMs, against the design thresholds.
 
 Fault 9 (drive-train efficiency) has no test: a gearbox that loses more torque looks, to an observer that
 treats the rotor torque as unknown, exactly like a different aerodynamic torque (docs/turbine.md).
@@ -85,9 +89,16 @@ class ComponentSettings:
     # shorter windows whose GLR may also clear an actuator flag (the pitch motion since the fault ended), each a
     # whole number of blocks below actuator_window; the false-clear budget is split over them and the full window
     actuator_clear_windows: Annotated[tuple[int, ...], Bounds(ge=1, le=10_000, unit="ticks")] = (100, 200)
-    # ticks averaged by the converter test (1 s)
-    converter_window: Annotated[int, Bounds(ge=1, le=10_000, unit="ticks")] = 100
-    # the actuator and converter tests decide every this many ticks, on every tick's residual
+    # offsets the converter's CUSUMs are designed for, in σ of τ_g,m (one two-sided CUSUM each; the smallest sets
+    # the detection limit, m/2, and the largest the delay of large offsets, a few ticks)
+    converter_shifts: Annotated[tuple[float, ...], Bounds(gt=0.0, le=100.0, unit="σ")] = (0.25, 0.5, 1.0, 2.0, 4.0)
+    # smallest offset the converter's clearing CUSUM assumes, in σ of τ_g,m: a flag holds while the residual's mean
+    # stays above half of it
+    converter_clear_floor: Annotated[float, Bounds(gt=0.0, le=10.0, unit="σ")] = 0.25
+    # memory of the converter clearing CUSUM's offset estimate: long beside the clearing (an offset is a constant;
+    # a short memory forgets the offset as soon as it ends, and the CUSUM then tests for the floor alone)
+    converter_memory_s: Annotated[float, Bounds(ge=0.01, le=3600.0, unit="s")] = 10.0
+    # the actuator test decides every this many ticks, on every tick's residual (the converter's spread: per block)
     block: Annotated[int, Bounds(ge=1, le=1000, unit="ticks")] = 10
     frozen_ticks: Annotated[int, Bounds(ge=2, le=1000, unit="ticks")] = 3
     warmup_s: Annotated[float, Bounds(ge=0.0, le=600.0, unit="s")] = 5.0
@@ -134,10 +145,14 @@ class ComponentFDI:
     """Flags pitch sensors, pitch actuators and the converter for n turbines (DIAGNOSIS_TARGETS columns)."""
 
     def __init__(self, p: TurbineParams, n: int, sigma: dict[str, float], settings: ComponentSettings, fast=None):
-        if settings.actuator_window % settings.block or settings.converter_window % settings.block:
+        if settings.actuator_window % settings.block:
             raise AlgorithmOptionError(
-                f"component_actuator_window ({settings.actuator_window}) and component_converter_window "
-                f"({settings.converter_window}) must be whole numbers of component_block ({settings.block}) ticks"
+                f"component_actuator_window ({settings.actuator_window}) must be a whole number of component_block "
+                f"({settings.block}) ticks"
+            )
+        if not settings.converter_shifts or len(set(settings.converter_shifts)) < len(settings.converter_shifts):
+            raise AlgorithmOptionError(
+                f"component_converter_shifts {list(settings.converter_shifts)} must be one or more distinct offsets"
             )
         short = settings.actuator_clear_windows
         if any(m % settings.block or m >= settings.actuator_window for m in short) or len(set(short)) < len(short):
@@ -161,7 +176,12 @@ class ComponentFDI:
         # clear against |T| on each of the clearing windows (the full one and the shorter ones): a union bound
         clear_block_alpha = settings.false_clears_per_1000s * p.dt * settings.block / 1000.0
         self.h_actuator_clear = glr_threshold(clear_block_alpha, len(TOLERANCE) * (1 + len(short)))
-        self.z_converter = norm_isf(block_alpha / 2.0)
+        # the converter's CUSUMs: 2 signs × the shifts share the row's per-tick budget α; Lorden: each one-sided
+        # CUSUM on a log-likelihood ratio runs at least e^h ticks before a false alarm
+        shifts = np.sort(np.asarray(settings.converter_shifts, dtype=float))
+        self.converter_shifts = np.concatenate([shifts, shifts])  # (2K,): +m_j then −m_j
+        self.converter_signs = np.concatenate([np.ones(len(shifts)), -np.ones(len(shifts))])
+        self.h_converter = float(np.log(2.0 * len(shifts) / alpha))
         self._parity_scale = 1.0 / (np.sqrt(2.0) * self.sigma_beta)
         self._window_scale = 1.0 / np.sqrt(settings.parity_window)
         self._pitch_flagged = False  # whether any pitch-sensor flag is set (the healthy fast path needs none)
@@ -183,7 +203,14 @@ class ComponentFDI:
         # blocks until blade i's actuator test may raise again after its flag cleared: the raise window must first
         # hold no evidence from before the clearing
         self._actuator_cleared_rest = np.zeros((n, 3), dtype=np.int64)
-        self.converter = _Window(settings.converter_window // settings.block, (n,))
+        # Page's CUSUMs of the converter residual z (n, 2K), the clearing CUSUM's fault-size estimate μ̂, its tick
+        # count and statistic C (n,), and the block's Σ r for the healthy spread (``adaptive``)
+        self.converter_statistic = np.zeros((n, len(self.converter_shifts)))
+        self._converter_count = np.zeros(n)
+        self._converter_mean = np.zeros(n)
+        self.converter_clear_statistic = np.zeros(n)
+        self._converter_block_sum = np.zeros(n)
+        self._converter_weight = min(1.0, p.dt / settings.converter_memory_s)
         self.whiten_b, self.whiten_a = actuator_whitener(p)
         if len(self.whiten_b) != 3 or len(self.whiten_a) != 3:
             raise ValueError("the nominal pitch actuator should give a second-order whitening filter")
@@ -192,7 +219,6 @@ class ComponentFDI:
         self._w_block = np.empty((settings.block, n, 3))  # the whitened e of the block's ticks
         self._ref_block = np.zeros((settings.block, n))  # the frames' pitch references β_ref
         self._tau_block = np.zeros((settings.block, 2, n))  # τ_g,m[k], τ_g,r[k−1]
-        self._tau_hat_block = np.empty((settings.block, n))  # τ̂_g of the block's ticks
         self._tau_hat: np.ndarray | None = None
         self._converter_gain = float(np.exp(-p.alpha_gc * p.dt))
         self._actuator_rest = np.zeros(n, dtype=np.int64)  # blocks until the actuator test may flag again
@@ -236,9 +262,10 @@ class ComponentFDI:
             self._tau_block[j, 0] = y[:, TAU_G_M]
             self._tau_block[j, 1] = frame.tau_g_ref
         self.ticks += 1
+        self._converter(self._tau_block[j, 0], self._tau_block[j, 1])
         if j == self.s.block - 1:
             self._actuators()
-            self._converter()
+            self._converter_spread()
         if self.ticks <= self.warmup_ticks:
             self.flags[:] = False
             self._pitch_flagged = False
@@ -443,47 +470,69 @@ class ComponentFDI:
         targets = (ACTUATOR_TARGET, M1_TARGET, M2_TARGET)
         self._fast.actuator_test(z1, z2, windows, shorter, slots, thresholds, targets, state, learning, self.flags)
 
-    # -- converter (once per block) -----------------------------------------------------------------------------
-    def _converter(self) -> None:
-        # τ̂_g[k] = a τ̂_g[k−1] + (1 − a) τ_g,r[k−1] tick by tick, the input term of all the block's ticks at once
-        a = self._converter_gain
-        if self._fast is not None:
-            started = self._tau_hat is not None
-            previous = self._tau_hat if started else self._tau_hat_block[0]
-            r = self._fast.converter_block(self._tau_block, a, previous, started, self._tau_hat_block)
-            self._tau_hat = self._tau_hat_block[-1].copy()
-            self._converter_test(r)
-            return
-        tau_g_m = self._tau_block[:, 0]
-        drive = (1.0 - a) * self._tau_block[:, 1]
-        tau_hat = self._tau_hat_block
-        previous = self._tau_hat
-        for k in range(len(tau_hat)):
-            if previous is None:
-                tau_hat[k] = tau_g_m[k]
-            else:
-                np.add(a * previous, drive[k], out=tau_hat[k])
-            previous = tau_hat[k]
-        self._tau_hat = tau_hat[-1].copy()
-        r = np.add.accumulate(tau_g_m - tau_hat, axis=0)[-1]  # Σ_k (τ_g,m − τ̂_g), added in tick order
-        self._converter_test(r)
+    # -- converter (every tick) ----------------------------------------------------------------------------------
+    def _converter(self, tau_g_m: np.ndarray, tau_g_ref_previous: np.ndarray) -> None:
+        """One tick of the converter test on r = τ_g,m[k] − τ̂_g[k], τ̂_g[k] = a τ̂_g[k−1] + (1 − a) τ_g,r[k−1]
+        (the design model's first-order converter; τ̂_g starts at the first reading).
 
-    def _converter_test(self, r: np.ndarray) -> None:
-        """The window-mean test on the block sums ``r`` of τ_g,m − τ̂_g."""
-        total = self.converter.push(r)
+        z = (r − b̂)/(ŝ σ_τ) is white N(0, 1) on a healthy converter. Raise: Page's two-sided CUSUMs
+        S_j^± ← max(0, S_j^± + m_j (±z − m_j/2)) for each shift m_j (``converter_shifts``), the log-likelihood
+        ratio of N(±m_j, 1) against N(0, 1); flagged when any S ≥ h = ln(2K/α), α = rate·Ts/1000 per tick
+        (Lorden: each of the 2K one-sided tests runs e^h ticks on average before a false alarm). An offset of
+        d σ is found after about min_j h / (m_j (d − m_j/2)) ticks once τ_g has followed it (the converter's
+        lag, 1/α_gc = 2 ticks); an offset below min m_j / 2 never is. Clear: ``_converter_clearing``."""
+        a = self._converter_gain
+        if self._tau_hat is None:
+            self._tau_hat = tau_g_m.copy()
+        else:
+            self._tau_hat = a * self._tau_hat + (1.0 - a) * tau_g_ref_previous
+        r = tau_g_m - self._tau_hat
+        self._converter_block_sum += r
+        if self.ticks <= self.warmup_ticks:
+            return
         spread = self.converter_spread
-        scale = 1.0 / (self.sigma_tau * np.sqrt(self.s.converter_window))
-        if spread.enabled:  # the window mean less its healthy offset b̂, over its healthy spread ŝ (``adaptive``)
-            mean = (total - self.s.converter_window * spread.offset) * scale / spread.scale
+        z = (r - spread.offset) * (1.0 / self.sigma_tau) / spread.scale
+        flagged = self.flags[:, CONVERTER_TARGET]
+        m = self.converter_shifts
+        statistic = np.maximum(0.0, self.converter_statistic + m * (z[:, None] * self.converter_signs - 0.5 * m))
+        statistic[flagged] = 0.0  # a flagged row's raise tests rest; they start from zero when it clears
+        raised = (statistic >= self.h_converter).any(axis=1) & ~flagged
+        if raised.any():
+            # the clearing starts from the offset of the CUSUM furthest over its threshold, as if seen for
+            # ``fault_memory_s``
+            best = np.argmax(statistic[raised], axis=1)
+            self._converter_mean[raised] = (self.converter_signs * m)[best]
+            self._converter_count[raised] = min(1.0 / self._clear_weight, 1.0 / self._converter_weight)
+            self.converter_clear_statistic[raised] = 0.0
+            statistic[raised] = 0.0
+        self.converter_statistic = statistic
+        held = self._converter_clearing(z, flagged)
+        self.flags[:, CONVERTER_TARGET] = raised | (flagged & ~held)
+
+    def _converter_clearing(self, z: np.ndarray, flagged: np.ndarray) -> np.ndarray:
+        """Page's CUSUM of "the converter is healthy again" against "the offset persists at the size seen so far"
+        on the flagged rows (the pitch sensors' clearing, ``_pitch_clearing``): C ← max(0, C + m(m/2 − sgn(μ̂) z)),
+        m = max(|μ̂|, ``converter_clear_floor``), μ̂ z's running mean since the flag (exponentially weighted over
+        ``converter_memory_s``, started at the offset of the raising CUSUM as if seen for ``fault_memory_s``).
+        While an offset d > m/2 persists, C drifts down (E = −m(d − m/2) per tick); once it is gone, up by m²/2
+        per tick. Cleared where C ≥ h = ln(1/α) from ``false_clears_per_1000s``; (n,) bool."""
+        count, mean = self._converter_count, self._converter_mean
+        count += flagged
+        weight = np.where(flagged, np.maximum(1.0 / np.maximum(count, 1.0), self._converter_weight), 0.0)
+        mean += weight * (z - mean)
+        m = np.maximum(np.abs(mean), self.s.converter_clear_floor)
+        llr = m * (0.5 * m - np.where(mean < 0.0, -z, z))
+        statistic = np.where(flagged, np.maximum(0.0, self.converter_clear_statistic + llr), 0.0)
+        self.converter_clear_statistic = statistic
+        return flagged & (statistic >= self._clear_h)
+
+    def _converter_spread(self) -> None:
+        """Learn the converter residual's healthy offset b̂ and spread ŝ² (``adaptive``) from the block's Σ r, on
+        rows whose converter is not flagged."""
+        r = self._converter_block_sum
+        spread = self.converter_spread
+        if spread.enabled:
             centred = r - self.s.block * spread.offset
             q = centred * centred * (1.0 / (self.s.block * self.sigma_tau**2))
-            healthy = ~self.flags[:, CONVERTER_TARGET]
-            if self.converter.full:
-                healthy &= np.abs(mean) <= self.z_converter
-            spread.update(q, healthy, r * (1.0 / self.s.block))
-        else:
-            mean = total * scale
-        if not self.converter.full:
-            return
-        flagged = self.flags[:, CONVERTER_TARGET]
-        self.flags[:, CONVERTER_TARGET] = (flagged | (np.abs(mean) > self.z_converter)) & (np.abs(mean) > self.z_clear)
+            spread.update(q, ~self.flags[:, CONVERTER_TARGET], r * (1.0 / self.s.block))
+        r[:] = 0.0

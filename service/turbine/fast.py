@@ -333,24 +333,6 @@ def pitch_model(beta, rate, reference, coef, new_beta, new_rate):
 
 
 @kernel
-def converter_block(tau_block, a, previous, started, tau_hat):
-    """τ̂_g[k] = a τ̂_g[k−1] + (1 − a) τ_g,r[k−1] over the block's ticks (from τ_g,m[0] when not ``started``), and
-    Σ_k (τ_g,m − τ̂_g) added in tick order (``ComponentFDI._converter``)."""
-    n = tau_hat.shape[1]
-    total = np.zeros(n)
-    for k in range(tau_hat.shape[0]):
-        for i in range(n):
-            if k == 0 and not started:
-                tau_hat[k, i] = tau_block[k, 0, i]
-            else:
-                prev = previous[i] if k == 0 else tau_hat[k - 1, i]
-                tau_hat[k, i] = a * prev + (1.0 - a) * tau_block[k, 1, i]
-            d = tau_block[k, 0, i] - tau_hat[k, i]
-            total[i] = d if k == 0 else total[i] + d
-    return total
-
-
-@kernel
 def any_above(values, column, level):
     """Whether any row's ``values[:, column]`` exceeds ``level``."""
     for r in range(values.shape[0]):  # noqa: SIM110 (a loop: numba compiles no generator into any())

@@ -110,6 +110,7 @@ class WindRecovery:
         now = np.zeros((width, 3 * m))  # raw[n] = x̂[n] @ now + x̂[n−1] @ prev
         prev = np.zeros((width, 3 * m))
         torque, speed_r, speed_g = (slice(i * m, (i + 1) * m) for i in range(3))
+        rigid = []  # (observer, column of its τ̂_g in x̂) of the rigid observers, whose τ̂_r uses τ̂_g
         for j, o in enumerate(bank.observers):
             i0 = bank.offsets[j]
             uses_generator = any(s.startswith("omega_g") for s in o.sensors)
@@ -122,6 +123,7 @@ class WindRecovery:
                 now[i0 + 1, col] += inertia + p.N_g * p.B_g / p.eta_dt + p.B_r / p.N_g
                 prev[i0 + 1, col] -= inertia
                 now[i0 + 3, col] += p.N_g / p.eta_dt
+                rigid.append((j, i0 + 3))
             else:
                 accel_col, accel_gain = (i0 + 1, p.J_r / (p.N_g * p.dt)) if uses_generator else (i0, p.J_r / p.dt)
                 now[accel_col, col] += accel_gain
@@ -135,6 +137,9 @@ class WindRecovery:
             else:
                 now[i0, speed_g.start + j] = p.N_g
         self._map = np.vstack([now, prev])
+        self._rigid_torque_columns = np.array([j for j, _ in rigid], dtype=np.int64)
+        self._rigid_converter_states = np.array([c for _, c in rigid], dtype=np.int64)
+        self._converter_gain = p.N_g / p.eta_dt
         self._groups = (torque, speed_r, speed_g)
         cutoffs = np.r_[np.full(m, wind_cutoff_hz), np.full(2 * m, speed_cutoff_hz), wind_cutoff_hz]
         self.filter = Biquad(cutoffs, p.dt)  # columns: τ, ω_r, ω_g, β
@@ -205,13 +210,21 @@ class WindRecovery:
         pitch_m2: np.ndarray,
         healthy_m1: np.ndarray | None,
         healthy_m2: np.ndarray | None,
+        measured_torque: np.ndarray | None = None,
     ) -> None:
         """Update torque, speed and pitch estimates of every observer from the bank's x̂[n] and the pitch
-        sensors (n, 3 blades each) with their health flags (None and None: every pitch sensor is healthy)."""
+        sensors (n, 3 blades each) with their health flags (None and None: every pitch sensor is healthy).
+
+        ``measured_torque`` (n,), NaN on the rows whose converter is trusted (None: all are): where given, the
+        rigid observers' τ̂_r takes the generator torque from it (τ_g,m, N m) instead of their τ̂_g, which the
+        design model drives with the torque reference and which misses a converter's offset
+        (``converter_correction``)."""
         width, stacked = self._width, self._stacked
         if self._fast is not None:  # the lines below, the pitch model's and the filters' by one kernel
             self._fast.stack(x_hat, x_hat[:, :0], self._x_prev, stacked)
             raw = stacked @ self._map
+            if measured_torque is not None:
+                self.converter_correction(raw, x_hat, measured_torque)
             f, pitch = self.filter, self.pitch
             self._filtered = np.empty_like(self._filter_in)
             healthy = None if healthy_m1 is None and healthy_m2 is None else (healthy_m1, healthy_m2)
@@ -224,6 +237,8 @@ class WindRecovery:
         stacked[:, :width] = x_hat
         stacked[:, width:] = self._x_prev
         raw = stacked @ self._map
+        if measured_torque is not None:
+            self.converter_correction(raw, x_hat, measured_torque)
         modelled = self.pitch.step(beta_ref_prev)
         if healthy_m1 is None and healthy_m2 is None:
             # both sensors of every blade: the weighted mean below with weights 1, 1 (the same operations)
@@ -240,6 +255,18 @@ class WindRecovery:
         filter_in[:, -1] = ((per_blade[:, 0] + per_blade[:, 1]) + per_blade[:, 2]) / 3.0  # β, mean(axis=1)'s sum
         self._filtered = self.filter(filter_in)
         self._x_prev = x_hat
+
+    def converter_correction(self, raw: np.ndarray, x_hat: np.ndarray, measured_torque: np.ndarray) -> None:
+        """Add (N_g/η_dt)(τ_g,m − τ̂_g) to the rigid observers' raw τ̂_r on the rows where ``measured_torque`` is
+        not NaN, in place: their τ̂_r = … + (N_g/η_dt) τ̂_g then uses the measured generator torque. A converter
+        offset Δ is added to the torque reference, so the generator really carries τ_g = τ̂_g + Δ (after the
+        converter's lag) and τ_g,m reads it; τ̂_g, driven by the reference alone, misses Δ, and τ̂_r would carry
+        (N_g/η_dt) Δ (95 × Δ: 43 kN m for a 5 σ offset)."""
+        rows = np.flatnonzero(~np.isnan(measured_torque))
+        if not len(rows) or not len(self._rigid_torque_columns):
+            return
+        states = x_hat[np.ix_(rows, self._rigid_converter_states)]
+        raw[np.ix_(rows, self._rigid_torque_columns)] += self._converter_gain * (measured_torque[rows, None] - states)
 
     def wind(self, columns: np.ndarray, v_guess: np.ndarray) -> np.ndarray:
         """Wind speed of observer ``columns[i]`` (shape (m, n)) for every row: (m, n) m/s, one inversion call."""

@@ -246,9 +246,9 @@ FAULT_TYPES: tuple[FaultType, ...] = (
         FaultKind.TORQUE_OFFSET,
         "sigma",
         (0.1, 0.15, 0.2, 0.25, 0.3, 0.4, 0.6, 1.0),
-        "the residual τ_g,m − τ̂_g has the torque sensor's noise σ = 90 N m, averaged over 100 ticks (σ/10): "
-        "≈ 0.45 σ at a 1e-5 budget per decision, less with persistence; 0.1 σ (9 N m) to 1 σ (90 N m, about the "
-        "benchmark's 100 N m)",
+        "the residual τ_g,m − τ̂_g has the torque sensor's noise σ = 90 N m per tick; CUSUMs for shifts from "
+        "0.25 σ see offsets above 0.125 σ given time (a 10 s window: ≈ 0.2 σ); 0.1 σ (9 N m) to 1 σ (90 N m, about "
+        "the benchmark's 100 N m)",
         11.0,
         "11 σ ≈ 1000 N m, the largest offset magnitude in the benchmark's scenario list (PARAMETERS.md a.8)",
         10.0,
