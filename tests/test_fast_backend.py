@@ -21,10 +21,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from plant_sim.farm import FarmBatch
 from plant_sim.turbine import TurbineBatch
 from service.farm.baseline import LearntLevel
-from service.farm.supervisor import FarmSupervisor
 from service.turbine.adaptive import HealthySpread
 from service.turbine.component_fdi import ACTUATOR_TARGET, M1_TARGET
 from service.turbine.supervisor import TurbineSupervisor
@@ -456,25 +454,7 @@ def test_a_farm_sample_at_a_time_equals_the_numpy_ticks(name, monkeypatch):
     ticks = round(20.0 / BENCHMARK.dt)
     traces = {}
     for backend in ("numpy", "numba"):
-        plant = FarmBatch(
-            scenario.plant,
-            scenario.wind,
-            scenario.faults,
-            seed=SEED,
-            duration_s=21.0,
-            runs=[0],
-            fault_free_twins=True,
-            backend=backend,
-        )
-        sup = scenario.supervisor
-        supervisor = FarmSupervisor(
-            scenario.plant.site(plant.dt),
-            plant.n,
-            detector=sup.detector,
-            controller=sup.controller,
-            options=sup.params,
-            backend=backend,
-        )
+        plant, supervisor = farm_pair(scenario, 1, SEED, True, backend, 20.0)  # 20 s of one run and its twin
         compiled = []
         if backend == "numba":
             monkeypatch.setattr(plant, "_sub_steps_apply", recording(plant._sub_steps_apply, compiled))

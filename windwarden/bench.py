@@ -24,7 +24,7 @@ from rich.console import Console
 from rich.table import Table
 
 from wwcore.backend import BACKENDS
-from wwcore.scenario import load_scenario
+from wwcore.scenario import Scenario, load_scenario
 
 console = Console()
 CALLS = ("measure", "control", "supervise", "advance")
@@ -50,13 +50,13 @@ def turbine_pair(scenario_name: str, runs: int, seed: int, twins: bool, backend:
     return plant, supervisor
 
 
-def farm_pair(scenario_name: str, runs: int, seed: int, twins: bool, backend: str, seconds: float):
-    """A farm scenario's batch of ``runs`` runs, ``seconds`` long, and its supervisor as the scenario chooses it, both
-    on ``backend``."""
+def farm_pair(scenario: str | Scenario, runs: int, seed: int, twins: bool, backend: str, seconds: float):
+    """A farm scenario's (a name or file, or the scenario itself) batch of ``runs`` runs, ``seconds`` long, and its
+    supervisor as the scenario chooses it, both on ``backend``."""
     from plant_sim.farm import FarmBatch
     from service.farm.supervisor import FarmSupervisor
 
-    scenario = load_scenario(scenario_name)
+    scenario = load_scenario(scenario) if isinstance(scenario, str) else scenario
     plant = FarmBatch(
         scenario.plant,
         scenario.wind,
