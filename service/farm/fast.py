@@ -1,6 +1,6 @@
 """Compiled twin of the farm supervisor's per-sample arithmetic (``wwcore.backend``): the analytic detector's learnt
 levels and spread ratios (``service.farm.baseline.LearntLevel.update``). The same operations in the reference's
-order, so the same numbers bit for bit (``tests/test_fast_backend.py``); the lock-in, the CUSUMs and the decisions
+order, so the same numbers bit for bit (``tests/test_fast_backend_farm.py``); the lock-in, the CUSUMs and the decisions
 stay numpy code around it, and the available power's wind inversion is ``wwcore.aero_fast``'s.
 """
 

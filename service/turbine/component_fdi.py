@@ -49,6 +49,7 @@ from service.turbine.adaptive import HealthySpread
 from service.turbine.frozen import FrozenReadings
 from service.turbine.pitch_actuator import FAULTS, TOLERANCE, SignatureBank, glr_threshold
 from service.turbine.pitch_actuator import glr as actuator_glr
+from wwcore.backend import fast_module
 from wwcore.channels import SENSOR_INDEX, TARGET_INDEX, Component
 from wwcore.lti import second_order_tf, zoh
 from wwcore.options import Bounds
@@ -163,6 +164,7 @@ class ComponentFDI:
         self.s = settings
         self.n = n
         self._fast = fast  # ``service.turbine.fast`` (``wwcore.backend``) or None
+        self._fast_actuator = fast_module("service.turbine.fast_actuator") if fast is not None else None
         alpha = settings.false_alarms_per_1000s * p.dt / 1000.0
         self.sigma_beta = sigma["beta_1_m1"]
         self.sigma_tau = sigma["tau_g_m"]
@@ -451,7 +453,8 @@ class ComponentFDI:
         self.flags[:, ACTUATOR_TARGET] = kept
 
     def _fast_actuator_test(self, z1, z2, block_correlation, block_energy, block_sums) -> None:
-        """``_actuators`` from the block's sums on, by ``service.turbine.fast.actuator_test`` (the same operations)."""
+        """``_actuators`` from the block's sums on, by ``service.turbine.fast_actuator.actuator_test`` (the same
+        operations)."""
         full_windows = (self.actuator, self.actuator_energy, self.actuator_sums)
         short = [window for windows in self.actuator_short for window in windows]
         slots = np.array([w.count % w.size for w in (*full_windows, *short)], dtype=np.int64)
@@ -468,7 +471,9 @@ class ComponentFDI:
         state = (self._actuator_rest, self._actuator_cleared_rest, self.actuator.size, self.actuator_glr)
         learning = (spread.enabled, spread.min_weight, spread.max_scale2, spread.state)
         targets = (ACTUATOR_TARGET, M1_TARGET, M2_TARGET)
-        self._fast.actuator_test(z1, z2, windows, shorter, slots, thresholds, targets, state, learning, self.flags)
+        self._fast_actuator.actuator_test(
+            z1, z2, windows, shorter, slots, thresholds, targets, state, learning, self.flags
+        )
 
     # -- converter (every tick) ----------------------------------------------------------------------------------
     def _converter(self, tau_g_m: np.ndarray, tau_g_ref_previous: np.ndarray) -> None:

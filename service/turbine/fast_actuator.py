@@ -1,0 +1,133 @@
+"""Compiled twin of the pitch-actuator test after the block's sums (``wwcore.backend``;
+``service.turbine.component_fdi.ComponentFDI._actuators``): the pushes into every window, the GLRs of the full and
+the shorter windows, the learnt spread, the raise and the clearing.
+
+As in ``service.turbine.fast``, each kernel performs the numpy reference's operations in its order, so its results
+equal the reference's bit for bit (``tests/test_fast_backend.py``). The signature bank and the block's sums stay
+numpy's (their summation order, ``docs/decisions.md`` N-5).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from service.turbine.fast import learn_spread
+from wwcore.aero_fast import maximum
+from wwcore.jit import kernel
+
+
+# -- pitch-actuator test (``service.turbine.component_fdi.ComponentFDI._actuators``, after the block's sums) -----------
+@kernel
+def _push(ring, total, slot, x):
+    """``_Window.push`` of x (any shape, flat in C order): total += x − ring[slot], ring[slot] = x."""
+    r, t, v = ring[slot].reshape(x.size), total.reshape(x.size), x.reshape(x.size)  # views (contiguous)
+    for i in range(v.size):
+        t[i] += v[i] - r[i]
+        r[i] = v[i]
+
+
+@kernel
+def _actuator_glr(correlation, energy, variance, n_faults, sum_w, sum_s, count, out):
+    """``pitch_actuator.glr`` with the window's offset maximised out (eq. 5), Λ (n, 3) into ``out``."""
+    k = energy.shape[1]
+    centred = np.empty(k)
+    for r in range(energy.shape[0]):
+        for c in range(k):
+            centred[c] = energy[r, c] - sum_s[r, c] * sum_s[r, c] / count
+        for b in range(3):
+            best_fault, best_tolerance = -np.inf, -np.inf
+            for c in range(k):
+                corr = correlation[r, b, c] - sum_w[r, b] * sum_s[r, c] / count
+                likelihood = (corr - 0.5 * centred[c]) / variance[r, b]
+                if c < n_faults:
+                    best_fault = likelihood if c == 0 else maximum(best_fault, likelihood)
+                else:
+                    best_tolerance = likelihood if c == n_faults else maximum(best_tolerance, likelihood)
+            out[r, b] = best_fault - best_tolerance
+
+
+@kernel
+def actuator_test(z1, z2, windows, short_windows, slots, thresholds, targets, state, learning, flags):
+    """``ComponentFDI._actuators`` from the block's Σ w (``z1``) and Σ (w − b̂)² in units of σ_w² (``z2``) on: the
+    pushes of the block's sums into the full window and into each shorter one (``slots`` in
+    that order, three each), the rest counters, the full window's Λ (eq. 3 and 5, into ``glr``), ŝ² and b̂ learnt
+    from the quiet rows, then, with the full window full, the raise and the clearing on the shorter windows
+    (shortest first) and the full one. ``windows`` = (Σ w s_θ, Σ s_θ², [Σ w | Σ s_θ]) of the block and the full
+    window's (ring, total) of each; ``short_windows``: (ring, total) × 3 of each shorter window; ``thresholds`` =
+    (block, 0.75 σ_β², h, h_clear, the full window's count of samples after the push, the shorter windows' (array),
+    the number of F candidates, whether the full window is full); ``targets`` = the actuator, m1 and m2 columns of
+    ``flags`` (n, targets), in place; ``state`` = (blocks of rest (n,), cleared rest (n, 3), the window in blocks,
+    Λ (n, 3) out); ``learning`` = (enabled, min_weight, s_max², state of the actuator's ``HealthySpread``)."""
+    block, design_variance, h, h_clear, count, short_counts, n_faults, full = thresholds
+    actuator_t, m1_t, m2_t = targets
+    rest, cleared_rest, window_blocks, glr = state
+    enabled, min_weight, max_scale2, spread = learning
+    block_c, block_e, block_t, (c_ring, c_total), (e_ring, e_total), (t_ring, t_total) = windows
+    n = z1.shape[0]
+    q, x = np.empty((n, 3)), np.empty((n, 3))
+    for r in range(n):
+        for b in range(3):
+            q[r, b] = z2[r, b] * (1.0 / block)
+            x[r, b] = z1[r, b] * (1.0 / block)
+    _push(c_ring, c_total, slots[0], block_c)
+    _push(e_ring, e_total, slots[1], block_e)
+    _push(t_ring, t_total, slots[2], block_t)
+    for m in range(len(short_windows)):
+        sc_ring, sc_total, se_ring, se_total, st_ring, st_total = short_windows[m]
+        _push(sc_ring, sc_total, slots[3 + 3 * m], block_c)
+        _push(se_ring, se_total, slots[4 + 3 * m], block_e)
+        _push(st_ring, st_total, slots[5 + 3 * m], block_t)
+    for r in range(n):
+        sensor_flagged = False
+        for b in range(3):
+            sensor_flagged = sensor_flagged or flags[r, m1_t[b]] or flags[r, m2_t[b]]
+        rest[r] = window_blocks if sensor_flagged else max(rest[r] - 1, 0)
+    scale2 = spread[2]
+    variance = np.empty((n, 3))
+    for r in range(n):
+        for b in range(3):
+            variance[r, b] = design_variance * scale2[r, b]
+    _actuator_glr(c_total, e_total, variance, n_faults, t_total[:, :3], t_total[:, 3:], count, glr)
+    if enabled:  # w²'s healthy scale ŝ², learnt while no blade is suspected
+        healthy = np.empty((n, 1), dtype=np.bool_)
+        for r in range(n):
+            quiet = rest[r] == 0
+            for b in range(3):
+                quiet = quiet and not flags[r, actuator_t[b]]
+                if full:
+                    quiet = quiet and glr[r, b] <= h
+            healthy[r, 0] = quiet
+        learn_spread(q, x, healthy, min_weight, max_scale2, spread)
+    if not full:
+        return
+    flagged = np.empty((n, 3), dtype=np.bool_)
+    any_flagged = False
+    for r in range(n):
+        worst = 0  # np.argmax: the first largest, the first nan if any
+        for b in range(1, 3):
+            if glr[r, worst] == glr[r, worst] and (glr[r, b] > glr[r, worst] or glr[r, b] != glr[r, b]):
+                worst = b
+        fault = glr[r, worst] > h and rest[r] == 0 and not cleared_rest[r, worst] > 0
+        for b in range(3):
+            flagged[r, b] = flags[r, actuator_t[b]] or (fault and b == worst)
+            any_flagged = any_flagged or flagged[r, b]
+    clear = np.zeros((n, 3), dtype=np.bool_)
+    if any_flagged:  # the shorter windows' Λ only decide clearings
+        recent_fault = np.zeros((n, 3), dtype=np.bool_)
+        glr_m = np.empty((n, 3))
+        for m in range(len(short_windows)):
+            sc_ring, sc_total, se_ring, se_total, st_ring, st_total = short_windows[m]
+            sums_w, sums_s = st_total[:, :3], st_total[:, 3:]
+            _actuator_glr(sc_total, se_total, variance, n_faults, sums_w, sums_s, short_counts[m], glr_m)
+            for r in range(n):
+                for b in range(3):
+                    clear[r, b] = clear[r, b] or (glr_m[r, b] <= -h_clear and not recent_fault[r, b])
+                    recent_fault[r, b] = recent_fault[r, b] or glr_m[r, b] > h
+        for r in range(n):
+            for b in range(3):
+                clear[r, b] = clear[r, b] or (glr[r, b] <= -h_clear and not recent_fault[r, b])
+    for r in range(n):
+        for b in range(3):
+            kept = flagged[r, b] and not clear[r, b] and rest[r] == 0
+            cleared_rest[r, b] = window_blocks if flagged[r, b] and not kept else max(cleared_rest[r, b] - 1, 0)
+            flags[r, actuator_t[b]] = kept

@@ -1,0 +1,163 @@
+"""The farm's compiled backend (``wwcore.backend``, ``numba``) against the numpy reference: the farm detector's learnt
+levels, the farm's turbines and supervisor tick by tick, and the farm plant stepped a sample at a time.
+
+As in ``tests/test_fast_backend.py`` (its tolerance and its ``assert_close``): equality within 1e-12 of each
+quantity's scale, in practice to the last bit.
+"""
+
+from __future__ import annotations
+
+import copy
+import tomllib
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from service.farm.baseline import LearntLevel
+from tests.test_fast_backend import SEED, assert_close
+from windwarden.bench import farm_pair
+from wwcore.backend import fast_module
+from wwcore.scenario import load_scenario, parse_scenario
+from wwcore.turbine_params import BENCHMARK
+
+
+def test_the_farm_learnt_levels_kernel_equals_the_reference():
+    # ``LearntLevel.update`` with its numpy lines and with the kernel, on the analytic detector's two shapes (per
+    # turbine with a per-turbine σ_d, per blade with one σ_d and a frozen flag per turbine), blocks of 4 filling
+    # and restarting, samples frozen mid-block; every array equal to the last bit
+    fast = fast_module("service.farm.fast")
+    rng = np.random.default_rng(SEED)
+    learnt = {"level_time_s": 0.5, "spread_time_s": 0.8, "max_ratio": 9.0, "block": 4}
+    for shape in ((5,), (5, 3)):
+        reference, twin = LearntLevel(shape, **learnt), LearntLevel(shape, **learnt, fast=fast)
+        for k in range(50):
+            r = rng.normal(0.4, 2.0, shape)
+            std = rng.uniform(0.5, 1.5, shape) if len(shape) == 1 else 1.3
+            frozen = rng.random(shape if len(shape) == 1 else (5, 1)) < 0.15 if k % 9 else False
+            reference.update(r, std, frozen)
+            twin.update(r, std, frozen)
+            for name in ("samples", "level", "raw_ratio", "blocks", "_block_sum", "_block_n"):
+                np.testing.assert_array_equal(getattr(twin, name), getattr(reference, name), f"{shape} {k}: {name}")
+        assert reference.blocks.min() >= 5 and (reference.raw_ratio != 1.0).all()
+    twin = copy.deepcopy(twin)  # a copy learns into its own arrays
+    twin.update(np.ones((5, 3)), 1.0)
+    assert not np.array_equal(twin.level, reference.level)
+
+
+@pytest.mark.parametrize("name", ["farm-case1", "farm-3x3-veer"])  # the row model; FLORIS wakes, a moving direction
+def test_farm_turbines_match(name):
+    states = {}
+    for backend in ("numpy", "numba"):
+        plant, supervisor = farm_pair(name, 1, SEED, False, backend, 19.0)  # 20 s of one run
+        assert (supervisor.context.fast_aero is None) == (backend == "numpy")
+        refs, trace, winds, powers = None, [], [], []
+        for _ in range(1500):
+            frame = plant.measure()
+            plant.control(refs)
+            refs = supervisor.step(frame)
+            plant.advance()
+            trace.append(plant.turbines.x.copy())
+            if frame.sample:  # the detector's residuals, the available-power wind (eq. 20) and the references
+                detector = supervisor.detector
+                learnt = [detector.level1.level, detector.level2.level] if hasattr(detector, "level1") else []
+                winds.append(np.concatenate([supervisor.controller.available.wind, detector.residuals.ravel()]))
+                winds[-1] = np.concatenate([winds[-1], *[a.ravel() for a in learnt]])
+                powers.append(refs.power_ref.copy())
+        events = plant.drain_events() + supervisor.drain_events()
+        states[backend] = np.array(trace), np.array(winds), np.array(powers), [(e.t, e.type, e.turbine) for e in events]
+    names = ("states", "wind, residuals and levels", "power refs")
+    for name, fast, reference in zip(names, states["numba"], states["numpy"], strict=False):
+        assert_close(fast, reference, f"farm turbine {name}")
+    assert states["numba"][3] == states["numpy"][3]
+
+
+def farm_with_early_faults() -> dict:
+    """farm-case1 cut to 20 s with twins' worth of faults: a debris (the power and aerodynamic factors the compiled
+    sample reads), a pitch offset and a drive-train wear (whose ticks the compiled sample leaves to the calls), each
+    starting and ending inside a farm sample."""
+    data = tomllib.loads(Path("scenarios/farm-case1.toml").read_text())
+    data["duration_s"] = 20.0
+    data["faults"] = [
+        {**data["faults"][0], "start_s": 2.05, "end_s": 8.02},
+        {**data["faults"][1], "start_s": 9.03, "end_s": 12.0},
+        {**data["faults"][2], "start_s": 13.07, "end_s": 16.0},
+    ]
+    return data
+
+
+@pytest.mark.parametrize("name", ["early-faults", "farm-3x3-veer"])  # FLORIS wakes; a moving direction, rows
+def test_a_farm_sample_at_a_time_equals_the_numpy_ticks(name, monkeypatch):
+    """``FarmBatch.run_sample`` with the compiled backend (``sub_steps`` for a sample's common ticks, the calls for
+    the rest) against the numpy reference stepped tick by tick: every tick's state, power and shaft torque, every
+    sample's frame and references, the events; with fault-free twins (their noise is their run's)."""
+    scenario = parse_scenario(farm_with_early_faults()) if name == "early-faults" else load_scenario(name)
+    ticks = round(20.0 / BENCHMARK.dt)
+    traces = {}
+    for backend in ("numpy", "numba"):
+        plant, supervisor = farm_pair(scenario, 1, SEED, True, backend, 20.0)  # 20 s of one run and its twin
+        compiled = []
+        if backend == "numba":
+            monkeypatch.setattr(plant, "_sub_steps_apply", recording(plant._sub_steps_apply, compiled))
+        per_tick, samples, refs = [], [], None
+        if backend == "numpy":  # the reference: the step contract's calls, tick by tick
+            for _ in range(ticks):
+                frame = plant.measure()
+                plant.control(refs)
+                refs = trimmed(supervisor.step(frame), name)
+                per_tick.append(np.concatenate([plant.turbines.x, plant.power_output()[:, None]], axis=1))
+                per_tick[-1] = np.concatenate([per_tick[-1], plant.shaft_torque()[:, None]], axis=1)
+                plant.advance()
+                if frame.sample:
+                    samples.append(farm_sample_numbers(frame, refs))
+        else:
+            while plant.k < ticks:
+                block = plant.run_sample(refs, ticks - plant.k, shaft_torque=True)
+                refs = trimmed(supervisor.step(block.frame), name)
+                power, shaft = block.power[:, :, None], block.shaft_torque[:, :, None]
+                per_tick.extend(np.concatenate([block.states, power, shaft], axis=2))
+                if block.frame.sample:
+                    samples.append(farm_sample_numbers(block.frame, refs))
+            # the calls: the samples that start a noise block (t = 0 and 10 s) and, with faults, those where one starts,
+            # ends or needs the per-tick code
+            calls = compiled.count(False)
+            assert (calls > 2) if name == "early-faults" else (calls == 2 and len(compiled) == 200)
+            assert (plant.controller.pitch_trim is not None) == (name == "early-faults")  # the trims were taken
+        events = [(e.t, e.type, e.turbine, e.run) for e in plant.drain_events() + supervisor.drain_events()]
+        traces[backend] = np.array(per_tick), np.array(samples), events, plant.truth()
+    fast, reference = traces["numba"], traces["numpy"]
+    assert_close(fast[0], reference[0], "state, power and shaft torque of every tick")
+    assert_close(fast[1], reference[1], "readings, SCADA means, controller outputs and references of every sample")
+    assert fast[2] == reference[2]
+    assert len(reference[2]) >= (6 if name == "early-faults" else 0)  # every fault started and ended, on time
+    for key in reference[3]:
+        assert_close(fast[3][key], reference[3][key], f"truth {key} at the end")
+
+
+def trimmed(refs, name: str):
+    """``refs`` with a pitch trim on turbine 3's first blade from 5 s on (the early-faults farm only), as a farm
+    supervisor's pitch accommodation would send it: the trim reaches the pitch commands inside the compiled sample."""
+    if name != "early-faults" or refs is None or refs.source_tick < 500:
+        return refs
+    trim = np.zeros((len(refs.power_ref), 3))
+    trim[2::9, 0] = 0.25
+    return replace(refs, pitch_trim=trim)
+
+
+def recording(method, answers: list):
+    """``method`` that also appends each answer to ``answers``."""
+
+    def recorded(*args):
+        answers.append(method(*args))
+        return answers[-1]
+
+    return recorded
+
+
+def farm_sample_numbers(frame, refs) -> np.ndarray:
+    """A farm sample's readings, SCADA means, the mast's, the controller outputs the frame carries and the answer."""
+    t = frame.turbines
+    parts = [t.sensors, frame.scada, frame.power_ref_used, t.tau_g_ref, t.beta_ref, t.power_ref, t.zone]
+    parts += [frame.mast, frame.demand, frame.mast_direction, refs.power_ref]
+    return np.concatenate([np.ravel(p) for p in parts])
