@@ -220,11 +220,15 @@ class WindRecovery:
         design model drives with the torque reference and which misses a converter's offset
         (``converter_correction``)."""
         width, stacked = self._width, self._stacked
-        if self._fast is not None:  # the lines below, the pitch model's and the filters' by one kernel
+        if self._fast is not None:
             self._fast.stack(x_hat, x_hat[:, :0], self._x_prev, stacked)
-            raw = stacked @ self._map
-            if measured_torque is not None:
-                self.converter_correction(raw, x_hat, measured_torque)
+        else:
+            stacked[:, :width] = x_hat
+            stacked[:, width:] = self._x_prev
+        raw = stacked @ self._map
+        if measured_torque is not None:
+            self.converter_correction(raw, x_hat, measured_torque)
+        if self._fast is not None:  # the lines below, the pitch model's and the filters' by one kernel
             f, pitch = self.filter, self.pitch
             self._filtered = np.empty_like(self._filter_in)
             healthy = None if healthy_m1 is None and healthy_m2 is None else (healthy_m1, healthy_m2)
@@ -234,11 +238,6 @@ class WindRecovery:
             )  # fmt: skip
             self._x_prev = x_hat
             return
-        stacked[:, :width] = x_hat
-        stacked[:, width:] = self._x_prev
-        raw = stacked @ self._map
-        if measured_torque is not None:
-            self.converter_correction(raw, x_hat, measured_torque)
         modelled = self.pitch.step(beta_ref_prev)
         if healthy_m1 is None and healthy_m2 is None:
             # both sensors of every blade: the weighted mean below with weights 1, 1 (the same operations)
