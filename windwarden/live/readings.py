@@ -43,7 +43,7 @@ class ReadingHold:
             ]
         )
         self._itemsize = dtype.itemsize
-        self.last: np.ndarray | None = None  # the last frame passed on: every float finite, or NaN where none yet
+        self.last: np.ndarray | None = None  # the last frame passed on (every float finite); None before the first
         self.held: Counter[str] = Counter()  # readings held, by channel ("sensors.omega_r_m1", "mast", …)
 
     def restart(self) -> None:
@@ -61,8 +61,6 @@ class ReadingHold:
         bad = {name: ~np.isfinite(records[name]) for name in self.fields}
         last = self.last
         if last is None or len(last) != len(records):
-            return None
-        if any(np.isnan(last[name][b]).any() for name, b in bad.items()):
             return None
         out = records.copy()
         for name, b in bad.items():
