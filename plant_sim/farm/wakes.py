@@ -170,7 +170,7 @@ class TableWakes:
             self._fast = fast_module("plant_sim.farm.fast")
             t = self.tables
             x = (self.direction_deg % 360.0) / t.direction_step_deg
-            self._fast_entries = t._bin(int(math.floor(x)) % t.n_directions)
+            self._fast_entries = t._bin(math.floor(x) % t.n_directions)
             self._fast_weight = np.full(self.farms, x - math.floor(x))
             self._fast_tables = (
                 t.added_ti.reshape(-1),
