@@ -214,8 +214,11 @@ def test_the_analytic_detector_kernels_equal_the_reference():
             reference, twin = detectors
             for name in ("residuals", "flag3", "quiet3", "h3_now", "last_rate", "last_pitch"):
                 np.testing.assert_array_equal(getattr(twin, name), getattr(reference, name), f"{options} {j}: {name}")
-            for c in ("cusum1", "cusum2"):
-                for name in ("g", "q", "flag"):
+            learnt = {"level1": ("level", "raw_ratio", "samples", "blocks", "_block_sum", "_block_n")}
+            learnt |= {"level2": learnt["level1"], "rate_gain": ("sxx", "sxr"), "scale3": ("mean_square", "samples")}
+            learnt |= {"cusum1": ("g", "q", "flag"), "cusum2": ("g", "q", "flag")}
+            for c, names in learnt.items():
+                for name in names:
                     a, b = getattr(getattr(twin, c), name), getattr(getattr(reference, c), name)
                     np.testing.assert_array_equal(a, b, f"{options} {j}: {c}.{name}")
             cleared |= previous & ~numpy_d.faulty

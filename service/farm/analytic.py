@@ -201,6 +201,15 @@ class AnalyticDetector:
         consts = (p.eta_gc, self.var_p, self.var_w, self.var_t, p.N_g, 1.0 - DEBRIS_FACTOR)
         self._fast_front = (np.array(columns, dtype=np.intp), np.ascontiguousarray(BETA, dtype=np.intp), consts)
         self._consts = (self.h1, self.h2, MISALIGNMENT_DEG, FARM_DT_S, RELEASE_S)
+        rayleigh = float(np.sqrt(2.0 * math.log(1.0 / self.p3)))  # h_3 = 2 s √(2 ln 1/p_3), ``rayleigh_threshold``
+        self._learn_consts = (self.h1, self.h2, SUSPICION, self.var_2, math.sqrt(self.var_2), self.lag_tolerance)
+        self._learn_consts += (rayleigh,)
+        self._s3_max = self.scale3.design_s * np.sqrt(self.scale3.max_ratio)  # ``LearntRayleighScale.scale``'s clip
+
+    @staticmethod
+    def _level_state(level: LearntLevel) -> tuple[np.ndarray, ...]:
+        """A learnt level's state arrays, as ``service.farm.fast.learn_level`` takes them."""
+        return (level.samples, level.level, level.raw_ratio, level.blocks, level._block_sum, level._block_n)
 
     def thresholds(self) -> dict[str, float]:
         return {"debris": self.h1, "pitch_misalignment": self.h2, "drivetrain": self.h3}
@@ -235,7 +244,30 @@ class AnalyticDetector:
         warming = self.samples <= self.warmup
         rate = (collective - (collective if self.last_pitch is None else self.last_pitch)) / FARM_DT_S  # deg/s
         self.last_pitch = collective
-        if self.learn:  # learn before judging: a sample that raises a flag is not learnt (flags of the last sample)
+        noise_ratio = None  # (n, 3) the learnt noise ratios, from the kernel
+        if self.learn and self._fast is not None:  # the branch below by one kernel (``analytic_learn``)
+            c1, c2 = self.cusum1, self.cusum2
+            tests = (c1.g, c1.flag, c2.g, c2.flag, self.flag3, np.ascontiguousarray(self.h3_now, dtype=float))
+            levels = [
+                (self._level_state(lv), lv.alpha_level, lv.alpha_block, lv.block, lv.max_ratio)
+                for lv in (self.level1, self.level2)
+            ]
+            gain, s3 = self.rate_gain, self.scale3
+            scale = (s3.samples, s3.mean_square, s3.alpha, s3.kept_share, s3.design_s, self._s3_max)
+            settling = self.samples * FARM_DT_S <= LOCKIN_SETTLE_S
+            z1, var1, z2, var2, self.h3_now, noise_ratio = self._fast.analytic_learn(
+                (z1, var1, z2),
+                rate,
+                self.last_rate,
+                amplitude,
+                settling,
+                tests,
+                *levels,
+                (gain.sxx, gain.sxr, gain.forget, gain.prior),
+                scale,
+                self._learn_consts,
+            )
+        elif self.learn:  # learn before judging: a sample that raises a flag is not learnt (flags of the last sample)
             g1, g2 = self.cusum1.g, self.cusum2.g.max(axis=1)
             self.level1.update(z1, np.sqrt(var1), self.cusum1.flag | (g1 >= SUSPICION * self.h1))
             frozen2 = (self.cusum2.flag.any(axis=1) | (g2 >= SUSPICION * self.h2))[:, None]
@@ -258,12 +290,12 @@ class AnalyticDetector:
             diagnosis.extra = {"amplitude_3p": amplitude}
             return diagnosis
         if self._fast is not None:  # the lines below to the diagnosis by one kernel (``analytic_decide``)
-            h3 = np.ascontiguousarray(np.broadcast_to(self.h3_now, (n,)), dtype=float)
             c1, c2 = self.cusum1, self.cusum2
             state = ((c1.g, c1.q, c1.flag), (c2.g, c2.q, c2.flag), (self.flag3, self.quiet3))
             var2 = np.ascontiguousarray(var2, dtype=float)
-            flags, statistics = self._fast.analytic_decide(z1, mu1, var1, z2, var2, amplitude, h3, *state, self._consts)
-            diagnosis = FarmDiagnosis(flags, statistics, self._h(n))
+            h3 = self.h3_now
+            decided = self._fast.analytic_decide(z1, mu1, var1, z2, var2, amplitude, h3, *state, self._consts)
+            diagnosis = FarmDiagnosis(*decided)
         else:
             z2 = np.concatenate([z2, -z2], axis=1)  # (n, 6): +δ and −δ on each blade
             var2 = np.concatenate([var2, var2], axis=1)
@@ -281,7 +313,9 @@ class AnalyticDetector:
                 self._h(n),
             )
         diagnosis.extra = {"amplitude_3p": amplitude}
-        if self.learn:
+        if noise_ratio is not None:
+            diagnosis.extra["noise_ratio"] = noise_ratio
+        elif self.learn:
             diagnosis.extra["noise_ratio"] = np.column_stack(
                 [self.level1.ratio, self.level2.ratio.max(axis=1), (self.scale3.scale / self.s3) ** 2]
             )
