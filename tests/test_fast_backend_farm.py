@@ -100,6 +100,8 @@ def test_a_farm_sample_at_a_time_equals_the_numpy_ticks(name, monkeypatch):
     traces = {}
     for backend in ("numpy", "numba"):
         plant, supervisor = farm_pair(scenario, 1, SEED, True, backend, 20.0)  # 20 s of one run and its twin
+        # the wakes' step compiled at a fixed direction (``wake_step``), numpy's along a moving one
+        assert (plant.wakes._fast is not None) == (backend == "numba" and name == "early-faults")
         compiled = []
         if backend == "numba":
             monkeypatch.setattr(plant, "_sub_steps_apply", recording(plant._sub_steps_apply, compiled))

@@ -193,9 +193,9 @@ class AnalyticDetector:
         self.quiet3 = np.zeros(n)  # s that A has been below h_3/2 while flagged
         self.samples = 0
         self.residuals = np.zeros((n, N_TYPES))
-        # ``service.farm.fast`` (``FarmContext.fast``) or None: with it, the residuals before the lock-in and the
-        # decisions after the learning are one kernel each (the same numbers); the CUSUMs' and fault 3's state is
-        # then updated in place
+        # ``service.farm.fast`` (``FarmContext.fast``) or None: with it, the residuals before the lock-in, the
+        # learning and the decisions are one kernel each (the same numbers); the learnt quantities', the CUSUMs' and
+        # fault 3's state is then updated in place
         self._fast = context.fast
         columns = (*OMEGA_G, *OMEGA_R, TAU_G, P_G)
         consts = (p.eta_gc, self.var_p, self.var_w, self.var_t, p.N_g, 1.0 - DEBRIS_FACTOR)
