@@ -1,7 +1,10 @@
 """Compiled twin of the farm supervisor's per-sample arithmetic (``wwcore.backend``): the analytic detector's learnt
-levels and spread ratios (``service.farm.baseline.LearntLevel.update``). The same operations in the reference's
-order, so the same numbers bit for bit (``tests/test_fast_backend_farm.py``); the lock-in, the CUSUMs and the decisions
-stay numpy code around it, and the available power's wind inversion is ``wwcore.aero_fast``'s.
+levels and spread ratios (``service.farm.baseline.LearntLevel.update``) and its step around the lock-in: the
+residuals (``analytic_residuals``), the learning (``analytic_learn``: levels, rate gains, 3P scales) and the
+decisions (``analytic_decide``: the Page CUSUMs, fault 3's flag). The same operations in the reference's order, so
+the same numbers bit for bit (``tests/test_fast_backend_farm.py``); the lock-in (numpy's SIMD sines, cosines and
+complex products), the dispatch and the other algorithms stay numpy code, and the available power's wind inversion
+is ``wwcore.aero_fast``'s.
 """
 
 from __future__ import annotations
