@@ -206,6 +206,48 @@ def test_converter_flag_holds_near_the_limit_and_clears_after_the_end():
     assert np.argmax(cleared, axis=0).mean() <= bound
 
 
+def test_converter_flag_is_not_lost_while_the_clearing_learns_the_offset():
+    """The clearing CUSUM starts from the raising CUSUM's estimate of the offset, ±z's mean over its run
+    (S/(m L) + m/2, L ticks since it was last zero), weighted as L ticks. Started at the raising CUSUM's shift as if
+    seen for 0.5 s instead, μ̂ sat near 2 σ for a 1.1 σ offset the m = 2 CUSUM happened to raise: C then drifts down
+    by only m(d − m/2) = 0.2 per tick at a step spread of m = 2, and on the same 2 000 rows (0.9 σ and 1.4 σ,
+    10 s each) 7 flags were lost; the benchmark's F8 (1.1 σ) lost one 0.25 s after it rose."""
+    start, ticks = 100, 1100
+    flags, _ = _converter_run([0.9, 1.4], ticks, start, n_per=1000, seed=12)
+    inside = flags[start:]
+    raised = inside.any(axis=0)
+    assert raised.all()
+    first = np.argmax(inside, axis=0)
+    lost = [r for r in range(inside.shape[1]) if not inside[first[r] :, r].all()]
+    assert lost == []
+
+
+@pytest.mark.parametrize("backend", ["numpy", "numba"])
+@pytest.mark.parametrize("z", [3.0, -1.3])
+def test_converter_clearing_starts_from_the_mean_of_the_run_that_raised_the_flag(backend, z):
+    """A residual of exactly z σ from tick 0 after the warm-up (none before, so every CUSUM's run starts there):
+    at the raise μ̂ is z itself (the run's mean, S/(m L) + m/2 of the CUSUM furthest over h) and its count the run's
+    L ticks, the first tick whose statistic reaches h."""
+    from service.turbine.supervisor import TurbineSupervisor
+
+    fdi = TurbineSupervisor(1, backend=backend).detector.components
+    fdi.warmup_ticks = 5
+    sigma, reference = fdi.sigma_tau, np.full(1, 2.0e4)
+    shifts, signs = fdi.converter_shifts, fdi.converter_signs
+    paths = np.maximum(0.0, shifts * (np.sign(z) * signs * abs(z) - 0.5 * shifts))  # each CUSUM's rise per tick
+    expected_ticks = int(np.ceil(fdi.h_converter / paths.max()))
+    column = DIAGNOSIS_TARGETS.index("converter")
+    for k in range(40):
+        on = k > fdi.warmup_ticks
+        fdi.ticks += 1
+        fdi._converter(reference + (z * sigma if on else 0.0), reference)
+        if fdi.flags[0, column]:
+            break
+    assert k - fdi.warmup_ticks == expected_ticks
+    assert fdi._converter_count[0] == expected_ticks
+    assert fdi._converter_mean[0] == pytest.approx(z, rel=1e-12)
+
+
 def test_wind_torque_takes_the_measured_generator_torque_on_a_distrusted_converter():
     """``WindRecovery.converter_correction``: on rows with a measured torque, each rigid observer's raw τ̂_r moves
     by (N_g/η_dt)(τ_g,m − τ̂_g) (the rotor-side torque a converter offset adds, 95 × the offset); rows without one

@@ -342,7 +342,13 @@ def test_the_converter_kernel_equals_the_reference():
         raised += (after & ~before).sum()
         cleared += (before & ~after).sum()
         np.testing.assert_array_equal(detectors[1].flags, detectors[0].flags, f"tick {k}")
-        for name in ("converter_statistic", "converter_clear_statistic", "_converter_mean", "_converter_count"):
+        for name in (
+            "converter_statistic",
+            "_converter_run",
+            "converter_clear_statistic",
+            "_converter_mean",
+            "_converter_count",
+        ):
             np.testing.assert_array_equal(getattr(detectors[1], name), getattr(detectors[0], name), f"{k}: {name}")
         for name in ("_tau_hat", "_converter_block_sum"):
             np.testing.assert_array_equal(getattr(detectors[1], name), getattr(detectors[0], name), f"{k}: {name}")

@@ -209,6 +209,7 @@ class ComponentFDI:
         # Page's CUSUMs of the converter residual z (n, 2K), the clearing CUSUM's fault-size estimate μ̂, its tick
         # count and statistic C (n,), and the block's Σ r for the healthy spread (``adaptive``)
         self.converter_statistic = np.zeros((n, len(self.converter_shifts)))
+        self._converter_run = np.zeros((n, len(self.converter_shifts)))  # ticks since each CUSUM was last zero
         self._converter_count = np.zeros(n)
         self._converter_mean = np.zeros(n)
         self.converter_clear_statistic = np.zeros(n)
@@ -251,11 +252,9 @@ class ComponentFDI:
         self.converter_spread = HealthySpread((n,), block_s, adapt, top, SENSOR_BIAS_TOLERANCE["tau_g_m"], fast=fast)
         self._root_parity_window = float(np.sqrt(settings.parity_window))
         # the converter kernel's constants and the spread it reads (``_converter``; arrays updated in place)
-        restart_count = min(1.0 / self._clear_weight, 1.0 / self._converter_weight)
         self._converter_test = (
             self._converter_gain, 1.0 / self.sigma_tau, self.converter_shifts, self.converter_signs, self.h_converter,
-            restart_count, self._converter_weight, float(settings.converter_clear_floor), self._clear_h,
-            CONVERTER_TARGET,
+            self._converter_weight, float(settings.converter_clear_floor), self._clear_h, CONVERTER_TARGET,
         )  # fmt: skip
         self._converter_spread_state = (self.converter_spread.offset, self.converter_spread.scale)
 
@@ -503,7 +502,8 @@ class ComponentFDI:
             self._fast_converter.converter_tick(
                 tau_g_m, tau_g_ref_previous, self._tau_hat, first, self._converter_block_sum,
                 self.ticks > self.warmup_ticks, self._converter_spread_state, self._converter_test, self.flags,
-                (self.converter_statistic, self._converter_count, self._converter_mean, self.converter_clear_statistic),
+                (self.converter_statistic, self._converter_run, self._converter_count, self._converter_mean,
+                 self.converter_clear_statistic),
             )  # fmt: skip
             return
         if self._tau_hat is None:
@@ -520,16 +520,23 @@ class ComponentFDI:
         m = self.converter_shifts
         statistic = np.maximum(0.0, self.converter_statistic + m * (z[:, None] * self.converter_signs - 0.5 * m))
         statistic[flagged] = 0.0  # a flagged row's raise tests rest; they start from zero when it clears
+        run = np.where(statistic > 0.0, self._converter_run + 1.0, 0.0)
         raised = (statistic >= self.h_converter).any(axis=1) & ~flagged
         if raised.any():
-            # the clearing starts from the offset of the CUSUM furthest over its threshold, as if seen for
-            # ``fault_memory_s``
-            best = np.argmax(statistic[raised], axis=1)
-            self._converter_mean[raised] = (self.converter_signs * m)[best]
-            self._converter_count[raised] = min(1.0 / self._clear_weight, 1.0 / self._converter_weight)
-            self.converter_clear_statistic[raised] = 0.0
-            statistic[raised] = 0.0
+            # the clearing starts from the offset the CUSUM furthest over its threshold saw over its run of L ticks
+            # since it was last zero: S = m Σ(±z − m/2) there, so ±z's mean is S/(m L) + m/2, taken as seen for L ticks
+            rows = np.flatnonzero(raised)
+            best = np.argmax(statistic[rows], axis=1)
+            length = np.maximum(run[rows, best], 1.0)
+            self._converter_mean[rows] = self.converter_signs[best] * (
+                statistic[rows, best] / (m[best] * length) + 0.5 * m[best]
+            )
+            self._converter_count[rows] = length
+            self.converter_clear_statistic[rows] = 0.0
+            statistic[rows] = 0.0
+            run[rows] = 0.0
         self.converter_statistic = statistic
+        self._converter_run = run
         held = self._converter_clearing(z, flagged)
         self.flags[:, CONVERTER_TARGET] = raised | (flagged & ~held)
 
@@ -537,7 +544,9 @@ class ComponentFDI:
         """Page's CUSUM of "the converter is healthy again" against "the offset persists at the size seen so far"
         on the flagged rows (the pitch sensors' clearing, ``_pitch_clearing``): C ← max(0, C + m(m/2 − sgn(μ̂) z)),
         m = max(|μ̂|, ``converter_clear_floor``), μ̂ z's running mean since the flag (exponentially weighted over
-        ``converter_memory_s``, started at the offset of the raising CUSUM as if seen for ``fault_memory_s``).
+        ``converter_memory_s``, started at the raising CUSUM's estimate, ±z's mean over its run since it was last
+        zero, as if seen for the run's ticks: a start at the CUSUM's shift instead, which can be twice the offset,
+        cleared a 1.1 σ offset's flag 0.25 s after it rose on the benchmark).
         While an offset d > m/2 persists, C drifts down (E = −m(d − m/2) per tick); once it is gone, up by m²/2
         per tick. Cleared where C ≥ h = ln(1/α) from ``false_clears_per_1000s``; (n,) bool."""
         count, mean = self._converter_count, self._converter_mean

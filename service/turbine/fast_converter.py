@@ -30,12 +30,12 @@ def converter_tick(tau_g_m, tau_g_ref_previous, tau_hat, first, block_sum, warm,
 
     tau_hat (n,) τ̂_g (set to τ_g,m where ``first``); block_sum (n,) Σ r of the block; ``warm``: the tests run
     (past the warm-up). spread = (offset, scale) of the residual's healthy spread (n,) each; test = (a, 1/σ_τ,
-    shifts (2K,), signs (2K,), h, restart count, memory weight, clear floor, clear h); flags (n, targets) with the
-    converter's column ``column`` = test[9]; state = (statistic (n, 2K), count (n,), mean (n,), clear statistic
-    (n,))."""
+    shifts (2K,), signs (2K,), h, memory weight, clear floor, clear h); flags (n, targets) with the converter's
+    column ``column`` = test[8]; state = (statistic (n, 2K), run (n, 2K) ticks since each statistic was last zero,
+    count (n,), mean (n,), clear statistic (n,))."""
     offset, scale = spread
-    a, inv_sigma, shifts, signs, h, restart_count, memory_weight, clear_floor, clear_h, column = test
-    statistic, count, mean, clear_statistic = state
+    a, inv_sigma, shifts, signs, h, memory_weight, clear_floor, clear_h, column = test
+    statistic, run, count, mean, clear_statistic = state
     k = shifts.shape[0]
     for r in range(tau_g_m.shape[0]):
         if first:
@@ -55,6 +55,7 @@ def converter_tick(tau_g_m, tau_g_ref_previous, tau_hat, first, block_sum, warm,
             if flagged:
                 value = 0.0
             statistic[r, j] = value
+            run[r, j] = run[r, j] + 1.0 if value > 0.0 else 0.0
             if value >= h:
                 over = True
         raised = over and not flagged
@@ -70,11 +71,14 @@ def converter_tick(tau_g_m, tau_g_ref_previous, tau_hat, first, block_sum, warm,
                     if value > largest:
                         largest = value
                         best = j
-            mean[r] = signs[best] * shifts[best]
-            count[r] = restart_count
+            length = run[r, best] if run[r, best] >= 1.0 else 1.0  # np.maximum(run, 1.0); run is never NaN
+            m = shifts[best]
+            mean[r] = signs[best] * (statistic[r, best] / (m * length) + 0.5 * m)
+            count[r] = length
             clear_statistic[r] = 0.0
             for j in range(k):
                 statistic[r, j] = 0.0
+                run[r, j] = 0.0
         # the clearing CUSUM (``_converter_clearing``)
         count[r] += 1.0 if flagged else 0.0
         weight = _at_least(1.0 / _at_least(count[r], 1.0), memory_weight) if flagged else 0.0
