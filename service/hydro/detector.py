@@ -55,6 +55,8 @@ class DetectionSettings:
     off_ratio: Annotated[float, Bounds(gt=0.0, le=1.0)] = 1.0  # release level as a fraction of θ
     off_samples: Annotated[int, Bounds(ge=1, le=100_000, unit="samples")] = 50  # below it to unflag (0.5 s)
     warmup_s: Annotated[float, Bounds(ge=0.0, le=600.0, unit="s")] = 1.0  # observer convergence
+    # while flagged, correct with the mean of f̂_a since the flag once it beats f̂_filt (service.hydro.offset_hold)
+    hold_offset: bool = False
 
 
 def design_thresholds(response: NoiseResponse, settings: DetectionSettings, dt: float) -> np.ndarray:
