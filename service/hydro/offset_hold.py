@@ -68,13 +68,20 @@ def hold_samples(response: NoiseResponse) -> np.ndarray:
 class OffsetHold:
     """Per turbine and actuator: the mean of f̂_a since the flag, or f̂_filt (module docstring)."""
 
-    def __init__(self, n: int, theta: np.ndarray, samples: np.ndarray):
-        theta, samples = np.asarray(theta, dtype=float), np.asarray(samples, dtype=int)
-        if theta.shape != (2,) or samples.shape != (2,) or (theta <= 0).any() or (samples < 1).any():
-            raise ValueError(f"θ and the samples of the mean need two positive values each, got {theta}, {samples}")
+    def __init__(self, n: int, theta: np.ndarray, samples: np.ndarray, sigma: np.ndarray):
+        theta, samples, sigma = (
+            np.asarray(theta, dtype=float),
+            np.asarray(samples, dtype=int),
+            np.asarray(sigma, dtype=float),
+        )
+        if any(v.shape != (2,) or (v <= 0).any() for v in (theta, samples, sigma)):
+            raise ValueError(
+                f"θ, the samples of the mean and σ(f̂_filt) need two positive values each: {theta}, {samples}, {sigma}"
+            )
         self.n = n
         self.theta = theta
         self.samples = samples
+        self.sigma = sigma  # the predicted σ of f̂_filt: how far the correction may leave it
         self.count = np.zeros((n, 2), dtype=int)  # samples in the current segment
         self.total = np.zeros((n, 2))  # Σ f̂_a over the segment
         self.held = np.zeros((n, 2), dtype=bool)  # the correction is the mean
@@ -95,4 +102,5 @@ class OffsetHold:
         total = np.where(changed, f_hat, total)
         held &= ~changed
         self.count, self.total, self.held = count, total, held
-        return np.where(held, mean, f_filt)
+        # the mean, but never further from f̂_filt than f̂_filt's own σ (the bound on the regret, module docstring)
+        return np.where(held, f_filt + np.clip(mean - f_filt, -self.sigma, self.sigma), f_filt)

@@ -74,12 +74,11 @@ class HydroSupervisor:
 
     def _offset_hold(self, detection: dict[str, Any]) -> OffsetHold | None:
         """The held mean of a flagged offset (option ``hold_offset``), designed from the observer's noise response
-        and the detector's θ; None when off or when the detector has no thresholds."""
-        theta = self.thresholds
-        if not detection.get("hold_offset", False) or theta is None:
+        and the detector's θ and predicted σ of f̂_filt; None when off or when the detector has neither."""
+        theta, sigma = self.thresholds, getattr(self.detector, "sigma", None)
+        if not detection.get("hold_offset", False) or theta is None or sigma is None:
             return None
-        samples = hold_samples(self.context.noise_response())
-        return OffsetHold(self.n, theta, samples)
+        return OffsetHold(self.n, theta, hold_samples(self.context.noise_response()), np.asarray(sigma, dtype=float))
 
     def step(self, frame: HydroFrame) -> HydroRefs:
         rec = self.observer.step(frame.y, frame.u)
