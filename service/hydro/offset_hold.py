@@ -1,5 +1,5 @@
 """The correction while an offset is flagged: the mean of the reconstruction (35) since the flag, once it is the
-better estimate (option ``hold_offset``; docs/hydro.md §4).
+better estimate, kept within σ of the filtered one (option ``hold_offset``; docs/hydro.md §4).
 
 The faults are offsets: constant from onset to end (eq. 38). A filter (37)/(37') must trade noise for lag at
 every instant, because it cannot know whether f_a has changed; once the detector has flagged actuator j, the
@@ -18,6 +18,13 @@ which falls as 1/N² at first and as 1/N later, while the filter's σ_j = (a/√
 is used from the first N at which its predicted σ is no larger than the filter's; both scale with the sensors'
 accuracy a, so that N depends on the observer and its filter only (``hold_samples``, computed exactly from the
 observer's measured noise response h_a of f̂_a: σ(f̄[N]) = (a/√3)‖h_a ∗ 1_N/N‖₂).
+
+**Never further than σ from the filter.** The mean is right only while the offset is constant; a drifting one (a
+ramp in or out) leaves it behind by up to θ_j before the change test below fires. The correction is therefore the
+mean clamped to f̂_filt ± σ_j (σ_j the filter's predicted noise at the design accuracy): it can be worse than the
+filter by σ_j at most, whatever the fault does, and on a constant offset, where f̂_filt − f ~ N(0, σ_j) and the
+mean is almost exact, the clamp costs E[(|f̂_filt − f| − σ_j)⁺] = 2 σ_j (φ(1) − Q(1)) = 0.17 σ_j, a fifth of the
+filter's own mean error 0.8 σ_j.
 
 **A change ends the segment.** The detector's threshold θ_j bounds how far the filtered f̂_filt strays from its
 mean by noise alone at the design false-alarm rate (``service.hydro.detector``). While the mean is held, a sample
@@ -66,7 +73,7 @@ def hold_samples(response: NoiseResponse) -> np.ndarray:
 
 
 class OffsetHold:
-    """Per turbine and actuator: the mean of f̂_a since the flag, or f̂_filt (module docstring)."""
+    """Per turbine and actuator: the mean of f̂_a since the flag clamped to f̂_filt ± σ, or f̂_filt (module docstring)."""
 
     def __init__(self, n: int, theta: np.ndarray, samples: np.ndarray, sigma: np.ndarray):
         theta, samples, sigma = (
