@@ -21,7 +21,7 @@ import pytest
 
 from plant_sim.turbine import TurbineBatch
 from service.turbine.adaptive import HealthySpread
-from service.turbine.component_fdi import ACTUATOR_TARGET, M1_TARGET
+from service.turbine.component_fdi import ACTUATOR_TARGET, CONVERTER_TARGET, M1_TARGET
 from service.turbine.supervisor import TurbineSupervisor
 from tests.live.helpers import TURBINE_SHORT
 from windwarden.cli import EXIT_BAD_INPUT, main
@@ -160,6 +160,10 @@ def turbine_trace(scenario, backend: str, runs: list[int], ticks: int, every: in
             "actuator_glr": supervisor.detector.components.actuator_glr,
             "converter_test": supervisor.detector.components.converter_statistic,
             "converter_clear": supervisor.detector.components.converter_clear_statistic,
+            "converter_mean": supervisor.detector.components._converter_mean,
+            # the generator-speed arbiter's sums and the learnt covariance of its onset prediction's errors
+            "arbiter": [fdi.arbiter.total, fdi.arbiter.total_power, fdi.arbiter.jump],
+            "onset_covariance": fdi.arbiter.jump_covariance,
             "parity_window": supervisor.detector.components.parity.total,
             "pitch_outlier": supervisor.detector.components.outlier.total,
             # the adaptive thresholds' learnt scales and offsets (``service.turbine.adaptive``)
@@ -309,6 +313,65 @@ def test_the_rotor_bias_kernel_equals_the_reference():
             np.testing.assert_array_equal(getattr(tests[1], name), getattr(tests[0], name), f"tick {k}: {name}")
         assert_same_spread(tests[1].spread, tests[0].spread, f"tick {k}")
     assert raised >= 3 and np.isnan(tests[0].spread.estimate[2]) and (tests[0].spread.count > 10).all()
+
+
+def test_the_converter_kernel_equals_the_reference():
+    # ``ComponentFDI._converter`` and ``_converter_clearing`` with their numpy lines and with ``converter_tick``:
+    # the warm-up, offsets of either sign (raises on small and large shifts, clearings once they end), a learnt
+    # offset and scale, a nan reading on one row (numpy's 0 × nan carries it into the clearing's mean); every
+    # array equal to the last bit
+    rng = np.random.default_rng(SEED)
+    detectors = [TurbineSupervisor(4, backend=backend).detector.components for backend in ("numpy", "numba")]
+    sigma = detectors[0].sigma_tau
+    for detector in detectors:
+        detector.warmup_ticks = 20
+        detector.converter_spread.offset[:] = [0.0, 0.3, -0.2, 0.1]
+        detector.converter_spread.scale[:] = [1.0, 1.2, 1.0, 1.5]
+    raised = cleared = 0
+    for k in range(1200):
+        offset = np.array([4.0, -1.0, 0.6, -8.0]) * sigma if k % 300 > 150 else np.zeros(4)
+        tau_g_m = 2.0e4 + rng.normal(0.0, sigma, 4) + offset
+        if k == 700:
+            tau_g_m[3] = np.nan
+        tau_g_ref = np.full(4, 2.0e4)
+        before = detectors[0].flags[:, CONVERTER_TARGET].copy()
+        for detector in detectors:
+            detector.ticks += 1
+            detector._converter(tau_g_m, tau_g_ref)
+        after = detectors[0].flags[:, CONVERTER_TARGET]
+        raised += (after & ~before).sum()
+        cleared += (before & ~after).sum()
+        np.testing.assert_array_equal(detectors[1].flags, detectors[0].flags, f"tick {k}")
+        for name in ("converter_statistic", "converter_clear_statistic", "_converter_mean", "_converter_count"):
+            np.testing.assert_array_equal(getattr(detectors[1], name), getattr(detectors[0], name), f"{k}: {name}")
+        for name in ("_tau_hat", "_converter_block_sum"):
+            np.testing.assert_array_equal(getattr(detectors[1], name), getattr(detectors[0], name), f"{k}: {name}")
+    assert raised >= 8 and cleared >= 4 and np.isnan(detectors[0]._converter_mean[3])
+
+
+def test_the_arbiter_history_kernels_equal_the_reference():
+    # ``GeneratorArbiter.observe`` with its numpy lines and with ``arbiter_push``/``arbiter_learn``: rows learning
+    # and not, jumps of either sensor that start an isolation (ℓ_J grown over the next ticks from the change point);
+    # every array equal to the last bit
+    rng = np.random.default_rng(SEED)
+    arbiters = [TurbineSupervisor(4, backend=backend).detector.fdi.arbiter for backend in ("numpy", "numba")]
+    sigma = np.sqrt(arbiters[0].generator_variance)
+    started = 0
+    for k in range(400):
+        y = 150.0 + np.cumsum(rng.normal(0.0, 0.02, (4, 1)), axis=0) + rng.normal(0.0, sigma, (4, 4))
+        if k % 50 > 30:
+            y[k // 50 % 4, 2 + k // 100 % 2] += 8.0 * sigma
+        learn = rng.random(4) < 0.7
+        for arbiter in arbiters:
+            arbiter.observe(y, learn)
+        if k % 50 == 33:
+            rows, jump = rng.random(4) < 0.5, rng.random(4) < 0.8
+            started += (rows & jump).sum()
+            for arbiter in arbiters:
+                arbiter.reset(rows, jump)
+        for name in ("_means", "_parities", "jump_covariance", "total", "total_power", "jump", "_onset"):
+            np.testing.assert_array_equal(getattr(arbiters[1], name), getattr(arbiters[0], name), f"{k}: {name}")
+    assert started >= 4 and (arbiters[0].jump != 0.0).sum() >= 2
 
 
 def test_the_pitch_actuator_kernel_equals_the_reference():

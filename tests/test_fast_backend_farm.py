@@ -15,11 +15,14 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from service.farm.analytic import AnalyticDetector
 from service.farm.baseline import LearntLevel
+from service.farm.interfaces import BETA, OMEGA_G, OMEGA_R, P_G, TAU_G, FarmContext, FarmSample
 from tests.test_fast_backend import SEED, assert_close
 from windwarden.bench import farm_pair
 from wwcore.backend import fast_module
 from wwcore.scenario import load_scenario, parse_scenario
+from wwcore.scenario.farm import FarmPlant
 from wwcore.turbine_params import BENCHMARK
 
 
@@ -97,6 +100,8 @@ def test_a_farm_sample_at_a_time_equals_the_numpy_ticks(name, monkeypatch):
     traces = {}
     for backend in ("numpy", "numba"):
         plant, supervisor = farm_pair(scenario, 1, SEED, True, backend, 20.0)  # 20 s of one run and its twin
+        # the wakes' step compiled at a fixed direction (``wake_step``), numpy's along a moving one
+        assert (plant.wakes._fast is not None) == (backend == "numba" and name == "early-faults")
         compiled = []
         if backend == "numba":
             monkeypatch.setattr(plant, "_sub_steps_apply", recording(plant._sub_steps_apply, compiled))
@@ -161,3 +166,64 @@ def farm_sample_numbers(frame, refs) -> np.ndarray:
     parts = [t.sensors, frame.scada, frame.power_ref_used, t.tau_g_ref, t.beta_ref, t.power_ref, t.zone]
     parts += [frame.mast, frame.demand, frame.mast_direction, refs.power_ref]
     return np.concatenate([np.ravel(p) for p in parts])
+
+
+def test_the_analytic_detector_kernels_equal_the_reference():
+    """``AnalyticDetector.step`` with its numpy lines and with ``analytic_residuals`` and ``analytic_decide``: SCADA
+    means of two farms with a debris on one turbine, a pitch offset on another and a 3P swing on a third, each
+    starting and ending, the false-alarm budget raised so that the CUSUMs and fault 3 raise and clear, with and
+    without learnt levels; every residual, statistic, flag, threshold and state equal to the last bit."""
+    site, n = FarmPlant().site(), 18
+    p = BENCHMARK
+    for options in ({"false_alarms_per_1000s": 50.0, "warmup_s": 2.0}, {"learn_levels": False, "warmup_s": 0.5}):
+        detectors = [
+            AnalyticDetector(context=FarmContext(site, n, backend=b), options=options) for b in ("numpy", "numba")
+        ]
+        assert detectors[0]._fast is None and detectors[1]._fast is not None
+        rng = np.random.default_rng(SEED)
+        raised = np.zeros((n, 3), dtype=bool)
+        cleared = np.zeros((n, 3), dtype=bool)
+        phase = np.zeros(n)
+        previous = np.zeros((n, 3), dtype=bool)
+        for j in range(1, 900):
+            t = j * 0.1
+            y = np.zeros((n, 24))
+            omega_r = 1.6 + 0.05 * np.sin(0.3 * t) + rng.normal(0, 2e-3, n)
+            y[:, OMEGA_R] = omega_r[:, None] + rng.normal(0, 1e-3, (n, 2))
+            phase += 3.0 * omega_r * 0.1  # the 3P phase the lock-in follows
+            swing = 2.0 * np.sin(phase) * (np.arange(n) == 5) * (20 < t < 50)
+            y[:, OMEGA_G] = (p.N_g * omega_r + swing)[:, None] + rng.normal(0, 0.05, (n, 2))
+            y[:, TAU_G] = 3e4 + rng.normal(0, 50, n)
+            debris = np.where((np.arange(n) == 2) & (10 < t < 40), 0.9, 1.0)
+            y[:, P_G] = debris * p.eta_gc * y[:, OMEGA_G].mean(axis=1) * y[:, TAU_G] + rng.normal(0, 1e3, n)
+            pitch = 2.0 + 3.0 * np.sin(0.2 * t) + rng.normal(0, 0.02, (n, 3, 2))
+            pitch[11, 1] += 0.8 * (15 < t < 60)
+            y[:, BETA] = pitch
+            sample = FarmSample(
+                j=j,
+                t=t,
+                scada=y,
+                zone=np.zeros(n, dtype=np.int8),
+                power_ref_used=np.zeros(n),
+                mast=np.full(2, 9.0),
+                demand=np.full(2, 1e7),
+            )
+            numpy_d, numba_d = (d.step(sample) for d in detectors)
+            for name in ("faulty", "statistics", "thresholds"):
+                np.testing.assert_array_equal(getattr(numba_d, name), getattr(numpy_d, name), f"{options} {j}: {name}")
+            for key in numpy_d.extra:
+                np.testing.assert_array_equal(numba_d.extra[key], numpy_d.extra[key], f"{options} {j}: {key}")
+            reference, twin = detectors
+            for name in ("residuals", "flag3", "quiet3", "h3_now", "last_rate", "last_pitch"):
+                np.testing.assert_array_equal(getattr(twin, name), getattr(reference, name), f"{options} {j}: {name}")
+            learnt = {"level1": ("level", "raw_ratio", "samples", "blocks", "_block_sum", "_block_n")}
+            learnt |= {"level2": learnt["level1"], "rate_gain": ("sxx", "sxr"), "scale3": ("mean_square", "samples")}
+            learnt |= {"cusum1": ("g", "q", "flag"), "cusum2": ("g", "q", "flag")}
+            for c, names in learnt.items():
+                for name in names:
+                    a, b = getattr(getattr(twin, c), name), getattr(getattr(reference, c), name)
+                    np.testing.assert_array_equal(a, b, f"{options} {j}: {c}.{name}")
+            cleared |= previous & ~numpy_d.faulty
+            raised |= numpy_d.faulty
+            previous = numpy_d.faulty.copy()
+        assert raised[[2, 11, 5], [0, 1, 2]].all() and cleared[[2, 11, 5], [0, 1, 2]].all(), (raised, cleared)

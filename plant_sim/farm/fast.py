@@ -1,6 +1,7 @@
 """Compiled twin of the farm plant's per-tick arithmetic (``wwcore.backend``): the turbines' wind on the row means
 (``FarmWindField.sample``) and the farm controller's zone logic, PI, drive-train damper and torque laws
-(``FarmTurbineController.step``). The same operations in the reference's order, so the same numbers bit for bit
+(``FarmTurbineController.step``), and the wakes' 10-Hz step at a fixed direction (``wake_step``, with the FLORIS
+tables' combination ``wake_combine``). The same operations in the reference's order, so the same numbers bit for bit
 (``tests/test_fast_backend_farm.py``); the mean over the blades stays numpy's product, and the controller's hold, fade
 and 3P cancellation stay numpy code around the kernel.
 
@@ -209,3 +210,100 @@ def sub_steps(
                 for b in range(3):
                     z[r, n_states + 2 + b] = z[r, n_states + 2 + b] + trim[r, b]
         x[:, :] = z @ shared
+
+
+@kernel
+def wake_combine(entries, w, thrust, free, tables, speed, ti):
+    """``WakeTables._combine`` for G farms in one table interval: each pair's C_T, the bilinear interpolation of τ and
+    δ, their scatters (in the entries' order, as ``bincount`` adds them), the largest τ and the root of the sum of
+    squares of δ over the upstream turbines (in their order). ``entries`` = (up, flat pair index, first-bin mask,
+    table rows × M, table rows × M T) of ``WakeTables._bin``; ``w`` (G,) the weight of the second table direction;
+    ``thrust`` (G, N, N) the C_T of i as its wake reaches j; ``free`` (G, N); ``tables`` = (τ flat, δ flat (float32),
+    TI nodes, C_T max, 1/Δs, last thrust node's index, 1/ΔTI, TI_0²). Writes ``speed`` and ``ti``, each (G, N)."""
+    up, flat, first, row_m, row_mt = entries
+    added_ti, deficit, ti_grid, ct_max, inv_s_step, m_last, inv_ti_step, ambient_sq = tables
+    g_farms, n = free.shape
+    n_ti = ti_grid.size
+    e_count = up.size
+    added = np.empty((n, n))
+    wake = np.empty((n, n))
+    cell_m = np.empty(e_count, dtype=np.intp)
+    cell_f = np.empty(e_count)
+    added_flat, wake_flat = added.reshape(-1), wake.reshape(-1)
+    for g in range(g_farms):
+        low_weight = 1.0 - w[g]
+        pairs = thrust[g].reshape(-1)
+        added_flat[:] = 0.0
+        wake_flat[:] = 0.0
+        for e in range(e_count):
+            weight = low_weight if first[e] else w[g]
+            ct = pairs[flat[e]]
+            x = (1.0 - math.sqrt(1.0 - minimum(maximum(ct, 0.0), ct_max))) * inv_s_step
+            m = min(int(x), m_last)
+            f = x - m
+            lin = row_m[e] + m
+            tau = added_ti[lin] + (added_ti[lin + 1] - added_ti[lin]) * f
+            added_flat[flat[e]] += weight * tau
+            cell_m[e] = m
+            cell_f[e] = f
+        for j in range(n):
+            largest = added[0, j]
+            for i in range(1, n):
+                largest = maximum(largest, added[i, j])
+            ti[g, j] = math.sqrt(ambient_sq + largest * largest)
+        for e in range(e_count):
+            weight = low_weight if first[e] else w[g]
+            m, f = cell_m[e], cell_f[e]
+            if n_ti == 1:
+                lin = row_m[e] + m
+                delta = deficit[lin] + (deficit[lin + 1] - deficit[lin]) * f
+            else:
+                y = minimum((ti[g, up[e]] - ti_grid[0]) * inv_ti_step, n_ti - 1.0)
+                t = min(int(y), n_ti - 2)
+                h = y - t
+                base = row_mt[e] + m * n_ti + t
+                low = deficit[base] + (deficit[base + 1] - deficit[base]) * h
+                high = deficit[base + n_ti] + (deficit[base + n_ti + 1] - deficit[base + n_ti]) * h
+                delta = low + (high - low) * f
+            wake_flat[flat[e]] += weight * delta
+        for j in range(n):
+            square_sum = 0.0
+            for i in range(n):
+                square_sum += wake[i, j] * wake[i, j]
+            speed[g, j] = free[g, j] * (1.0 - math.sqrt(square_sum))
+
+
+@kernel
+def wake_step(ct, nxt, a_ct, filtered, ring, mast, x, entries, w, tables, free, speed, ti):
+    """``TableWakes.advance`` at a fixed wind direction after the thrust coefficients ``ct`` (F, N) of sample
+    nxt − 1: the low-passed C_T (``filtered``, in place) into the ring buffer (float32, (F, N, H)), each turbine's
+    delayed free stream (eq. (3), ``MastSeries.at``), each pair's C_T of when the wake now at j left i, and the
+    combination (``wake_combine``). ``mast`` = (v̄ of sample nxt (F,) before its floor, mast winds v (runs, S),
+    each farm's run, d_t (N,), v̄ floor, FARM_DT_S, HISTORY_S); ``x`` (N, N) x_ij ≥ 0. Writes ``free``, ``speed``
+    and ``ti`` (F, N)."""
+    mean_v, offset, mast_v, runs, distances, floor, dt, history_s = mast
+    farms, n = ct.shape
+    history = ring.shape[2]
+    slot_now = (nxt - 1) % history
+    one_minus = 1.0 - a_ct
+    last = mast_v.shape[1] - 2
+    t_now = nxt * dt
+    pair_thrust = np.empty((farms, n, n))
+    for g in range(farms):
+        for t in range(n):
+            filtered[g, t] = a_ct * filtered[g, t] + one_minus * ct[g, t]
+            ring[g, t, slot_now] = filtered[g, t]
+        run = runs[g]
+        vbar = maximum(mean_v[run, offset + nxt], floor)
+        for t in range(n):
+            delay = minimum(distances[t] / vbar, history_s)
+            position = (t_now - delay + history_s) / dt
+            i = min(max(int(position), 0), last)
+            frac = minimum(maximum(position - i, 0.0), 1.0)
+            free[g, t] = mast_v[run, i] * (1.0 - frac) + mast_v[run, i + 1] * frac
+        travel = vbar * dt
+        for i in range(n):
+            for j in range(n):
+                lag = min(max(int(np.rint(x[i, j] / travel)), 1), history - 1)
+                pair_thrust[g, i, j] = ring[g, i, (nxt - lag) % history]
+    wake_combine(entries, w, pair_thrust, free, tables, speed, ti)

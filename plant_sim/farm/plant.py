@@ -163,7 +163,7 @@ class FarmBatch:
             self.wakes = RowWakes(plant, params, self.mast, self.run_of_farm)
         else:
             tables = plant_wake_tables(plant, wind, params, wake_cache_dir) if plant.wakes else None
-            self.wakes = TableWakes(plant, params, tables, self.mast, self.run_of_farm, self.direction)
+            self.wakes = TableWakes(plant, params, tables, self.mast, self.run_of_farm, self.direction, backend)
         self.demand = demand_series(plant, params, self.mast, duration_s, self.wakes)  # (runs, samples) W
         wind_rngs = [
             row_streams(seed, int(r), t)[0] for _ in range(copies) for r in self.runs for t in range(1, n_turbines + 1)

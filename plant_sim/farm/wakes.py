@@ -50,6 +50,7 @@ from plant_sim.farm.operating_curve import rated_curve
 from plant_sim.farm.wake_tables import WakeTables
 from plant_sim.farm.wind import CT_FILTER_S, HISTORY_S, MIN_MEAN_WIND, MastSeries
 from wwcore import thrust
+from wwcore.backend import fast_module, resolve_backend
 from wwcore.scenario.farm import FARM_DT_S, FarmPlant
 from wwcore.scenario.wind import WindSpec
 from wwcore.turbine_params import TurbineParams
@@ -118,6 +119,7 @@ class TableWakes:
         mast: MastSeries,
         run_of_farm: np.ndarray,
         direction: DirectionSeries | None = None,
+        backend: str | None = None,
     ) -> None:
         if tables is not None and tables.n_turbines != plant.n_turbines:
             raise ValueError(f"wake tables for {tables.n_turbines} turbines, the farm has {plant.n_turbines}")
@@ -161,6 +163,30 @@ class TableWakes:
         self._added_turbulence = plant.wake_added_turbulence and self.tables is not None
         if self._added_turbulence:
             self._set_turbulence(self._waked(ct0, free0)[1])
+        # ``"numba"`` at a fixed direction with tables: ``advance`` after the C_T by ``plant_sim.farm.fast.wake_step``
+        # (the same numbers); the table interval of the direction and its entries are the same at every sample
+        self._fast = None
+        if resolve_backend(backend) == "numba" and self.tables is not None and self.direction is None:
+            self._fast = fast_module("plant_sim.farm.fast")
+            t = self.tables
+            x = (self.direction_deg % 360.0) / t.direction_step_deg
+            self._fast_entries = t._bin(math.floor(x) % t.n_directions)
+            self._fast_weight = np.full(self.farms, x - math.floor(x))
+            self._fast_tables = (
+                t.added_ti.reshape(-1),
+                t.deficit.reshape(-1),
+                np.asarray(t.ti_grid, dtype=float),
+                t._ct_max,
+                t._inv_s_step,
+                t._m_last,
+                t._inv_ti_step,
+                t.ambient_ti**2,
+            )
+            self._ct_filtered = np.array(self._ct_filtered, dtype=float)
+            m = self.mast
+            self._fast_mast = (m.vbar, m.offset, m.v, self.run_of_farm, self.mast_distances, MIN_MEAN_WIND)
+            self._fast_mast += (FARM_DT_S, HISTORY_S)
+            self._x_contiguous = np.ascontiguousarray(self._x)
 
     def advance(
         self, j: int, p_aero: np.ndarray, area_power: float | np.ndarray, tsr: np.ndarray, pitch_deg: np.ndarray
@@ -168,6 +194,9 @@ class TableWakes:
         """Record each turbine's C_T at farm sample j (from ``tsr`` and ``pitch_deg``, (n,), low-passed; ``p_aero``
         and ``area_power`` are the row model's inputs, not used); set the free streams and winds of sample j + 1."""
         ct = thrust.thrust_coefficient(tsr, pitch_deg).reshape(self.farms, self.n_turbines)
+        if self._fast is not None:
+            self._fast_advance(j + 1, ct)
+            return
         self._ct_filtered = self._a_ct * self._ct_filtered + (1.0 - self._a_ct) * ct
         self._ct[:, :, j % self._history] = self._ct_filtered
         nxt = j + 1
@@ -190,6 +219,16 @@ class TableWakes:
         pair_thrust = self._ct[self._farm, self._source, slot]
         self.turbine_wind, turbulence = self._waked(pair_thrust, free)
         self.free_wind = free
+        if self._added_turbulence:
+            self._set_turbulence(turbulence)
+
+    def _fast_advance(self, nxt: int, ct: np.ndarray) -> None:
+        """``advance``'s arithmetic after the C_T by ``plant_sim.farm.fast.wake_step``, into new arrays."""
+        shape = (self.farms, self.n_turbines)
+        free, speed, turbulence = np.empty(shape), np.empty(shape), np.empty(shape)
+        args = (self._ct_filtered, self._ct, self._fast_mast, self._x_contiguous, self._fast_entries)
+        self._fast.wake_step(ct, nxt, self._a_ct, *args, self._fast_weight, self._fast_tables, free, speed, turbulence)
+        self.free_wind, self.turbine_wind = free, speed
         if self._added_turbulence:
             self._set_turbulence(turbulence)
 

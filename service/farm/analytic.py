@@ -193,6 +193,23 @@ class AnalyticDetector:
         self.quiet3 = np.zeros(n)  # s that A has been below h_3/2 while flagged
         self.samples = 0
         self.residuals = np.zeros((n, N_TYPES))
+        # ``service.farm.fast`` (``FarmContext.fast``) or None: with it, the residuals before the lock-in, the
+        # learning and the decisions are one kernel each (the same numbers); the learnt quantities', the CUSUMs' and
+        # fault 3's state is then updated in place
+        self._fast = context.fast
+        columns = (*OMEGA_G, *OMEGA_R, TAU_G, P_G)
+        consts = (p.eta_gc, self.var_p, self.var_w, self.var_t, p.N_g, 1.0 - DEBRIS_FACTOR)
+        self._fast_front = (np.array(columns, dtype=np.intp), np.ascontiguousarray(BETA, dtype=np.intp), consts)
+        self._consts = (self.h1, self.h2, MISALIGNMENT_DEG, FARM_DT_S, RELEASE_S)
+        rayleigh = float(np.sqrt(2.0 * math.log(1.0 / self.p3)))  # h_3 = 2 s √(2 ln 1/p_3), ``rayleigh_threshold``
+        self._learn_consts = (self.h1, self.h2, SUSPICION, self.var_2, math.sqrt(self.var_2), self.lag_tolerance)
+        self._learn_consts += (rayleigh,)
+        self._s3_max = self.scale3.design_s * np.sqrt(self.scale3.max_ratio)  # ``LearntRayleighScale.scale``'s clip
+
+    @staticmethod
+    def _level_state(level: LearntLevel) -> tuple[np.ndarray, ...]:
+        """A learnt level's state arrays, as ``service.farm.fast.learn_level`` takes them."""
+        return (level.samples, level.level, level.raw_ratio, level.blocks, level._block_sum, level._block_n)
 
     def thresholds(self) -> dict[str, float]:
         return {"debris": self.h1, "pitch_misalignment": self.h2, "drivetrain": self.h3}
@@ -200,28 +217,57 @@ class AnalyticDetector:
     def step(self, sample: FarmSample) -> FarmDiagnosis:
         p, n = self.p, self.n
         y = sample.scada
-        omega_g = y[:, OMEGA_G].mean(axis=1)
-        omega_r = y[:, OMEGA_R].mean(axis=1)
-        tau_g = y[:, TAU_G]
-        # fault 1: z1 = η ω̄_g τ̄_g − P̄_g
-        p_gen = p.eta_gc * omega_g * tau_g
-        z1 = p_gen - y[:, P_G]
-        var1 = self.var_p + (p.eta_gc * tau_g) ** 2 * self.var_w + (p.eta_gc * omega_g) ** 2 * self.var_t
-        mu1 = (1.0 - DEBRIS_FACTOR) * np.abs(p_gen)
-        # fault 2: z2_i = β̄_i − ½ Σ_{j≠i} β̄_j
-        blades = y[:, BETA].mean(axis=2)
-        z2 = 1.5 * blades - 0.5 * blades.sum(axis=1, keepdims=True)
-        # fault 3: 3P amplitude of z3 = ω̄_g − N ω̄_r
-        amplitude = self.lockin.step(omega_g - p.N_g * omega_r, omega_g / p.N_g)
+        if self._fast is not None:  # the lines below to the lock-in by one kernel (``analytic_residuals``)
+            front = self._fast.analytic_residuals(np.ascontiguousarray(y, dtype=float), *self._fast_front)
+            omega_g, z1, var1, mu1, blades, z2, worst2, z3, omega_r_of_g, collective = front
+        else:
+            omega_g = y[:, OMEGA_G].mean(axis=1)
+            omega_r = y[:, OMEGA_R].mean(axis=1)
+            tau_g = y[:, TAU_G]
+            # fault 1: z1 = η ω̄_g τ̄_g − P̄_g
+            p_gen = p.eta_gc * omega_g * tau_g
+            z1 = p_gen - y[:, P_G]
+            var1 = self.var_p + (p.eta_gc * tau_g) ** 2 * self.var_w + (p.eta_gc * omega_g) ** 2 * self.var_t
+            mu1 = (1.0 - DEBRIS_FACTOR) * np.abs(p_gen)
+            # fault 2: z2_i = β̄_i − ½ Σ_{j≠i} β̄_j
+            blades = y[:, BETA].mean(axis=2)
+            z2 = 1.5 * blades - 0.5 * blades.sum(axis=1, keepdims=True)
+            worst2 = np.abs(z2).max(axis=1)
+            # fault 3: z3 = ω̄_g − N ω̄_r, whose 3P amplitude the lock-in takes
+            z3, omega_r_of_g = omega_g - p.N_g * omega_r, omega_g / p.N_g
+            collective = blades.mean(axis=1)
+        amplitude = self.lockin.step(z3, omega_r_of_g)
         if self.whiten:
             amplitude = self.lockin.whitened
         self.samples += 1
-        self.residuals = np.column_stack([z1, np.abs(z2).max(axis=1), amplitude])
+        self.residuals = np.column_stack([z1, worst2, amplitude])
         warming = self.samples <= self.warmup
-        collective = blades.mean(axis=1)
         rate = (collective - (collective if self.last_pitch is None else self.last_pitch)) / FARM_DT_S  # deg/s
         self.last_pitch = collective
-        if self.learn:  # learn before judging: a sample that raises a flag is not learnt (flags of the last sample)
+        noise_ratio = None  # (n, 3) the learnt noise ratios, from the kernel
+        if self.learn and self._fast is not None:  # the branch below by one kernel (``analytic_learn``)
+            c1, c2 = self.cusum1, self.cusum2
+            tests = (c1.g, c1.flag, c2.g, c2.flag, self.flag3, np.ascontiguousarray(self.h3_now, dtype=float))
+            levels = [
+                (self._level_state(lv), lv.alpha_level, lv.alpha_block, lv.block, lv.max_ratio)
+                for lv in (self.level1, self.level2)
+            ]
+            gain, s3 = self.rate_gain, self.scale3
+            scale = (s3.samples, s3.mean_square, s3.alpha, s3.kept_share, s3.design_s, self._s3_max)
+            settling = self.samples * FARM_DT_S <= LOCKIN_SETTLE_S
+            z1, var1, z2, var2, self.h3_now, noise_ratio = self._fast.analytic_learn(
+                (z1, var1, z2),
+                rate,
+                self.last_rate,
+                amplitude,
+                settling,
+                tests,
+                *levels,
+                (gain.sxx, gain.sxr, gain.forget, gain.prior),
+                scale,
+                self._learn_consts,
+            )
+        elif self.learn:  # learn before judging: a sample that raises a flag is not learnt (flags of the last sample)
             g1, g2 = self.cusum1.g, self.cusum2.g.max(axis=1)
             self.level1.update(z1, np.sqrt(var1), self.cusum1.flag | (g1 >= SUSPICION * self.h1))
             frozen2 = (self.cusum2.flag.any(axis=1) | (g2 >= SUSPICION * self.h2))[:, None]
@@ -243,23 +289,33 @@ class AnalyticDetector:
             diagnosis = FarmDiagnosis(np.zeros((n, N_TYPES), dtype=bool), np.zeros((n, N_TYPES)), self._h(n))
             diagnosis.extra = {"amplitude_3p": amplitude}
             return diagnosis
-        z2 = np.concatenate([z2, -z2], axis=1)  # (n, 6): +δ and −δ on each blade
-        var2 = np.concatenate([var2, var2], axis=1)
-        f1 = self.cusum1.step(llr_increment(z1, 0.0, mu1, var1))
-        f2 = self.cusum2.step(llr_increment(z2, 0.0, MISALIGNMENT_DEG, var2)).any(axis=1)
-        h3 = self.h3_now
-        rise = amplitude >= h3
-        low = amplitude < 0.5 * h3
-        self.quiet3 = np.where(self.flag3 & low, self.quiet3 + FARM_DT_S, 0.0)
-        self.flag3 = (self.flag3 | rise) & ~(self.quiet3 >= RELEASE_S)
-        self.quiet3 = np.where(self.flag3, self.quiet3, 0.0)
-        diagnosis = FarmDiagnosis(
-            np.column_stack([f1, f2, self.flag3]),
-            np.column_stack([self.cusum1.g, self.cusum2.g.max(axis=1), amplitude]),
-            self._h(n),
-        )
+        if self._fast is not None:  # the lines below to the diagnosis by one kernel (``analytic_decide``)
+            c1, c2 = self.cusum1, self.cusum2
+            state = ((c1.g, c1.q, c1.flag), (c2.g, c2.q, c2.flag), (self.flag3, self.quiet3))
+            var2 = np.ascontiguousarray(var2, dtype=float)
+            h3 = self.h3_now
+            decided = self._fast.analytic_decide(z1, mu1, var1, z2, var2, amplitude, h3, *state, self._consts)
+            diagnosis = FarmDiagnosis(*decided)
+        else:
+            z2 = np.concatenate([z2, -z2], axis=1)  # (n, 6): +δ and −δ on each blade
+            var2 = np.concatenate([var2, var2], axis=1)
+            f1 = self.cusum1.step(llr_increment(z1, 0.0, mu1, var1))
+            f2 = self.cusum2.step(llr_increment(z2, 0.0, MISALIGNMENT_DEG, var2)).any(axis=1)
+            h3 = self.h3_now
+            rise = amplitude >= h3
+            low = amplitude < 0.5 * h3
+            self.quiet3 = np.where(self.flag3 & low, self.quiet3 + FARM_DT_S, 0.0)
+            self.flag3 = (self.flag3 | rise) & ~(self.quiet3 >= RELEASE_S)
+            self.quiet3 = np.where(self.flag3, self.quiet3, 0.0)
+            diagnosis = FarmDiagnosis(
+                np.column_stack([f1, f2, self.flag3]),
+                np.column_stack([self.cusum1.g, self.cusum2.g.max(axis=1), amplitude]),
+                self._h(n),
+            )
         diagnosis.extra = {"amplitude_3p": amplitude}
-        if self.learn:
+        if noise_ratio is not None:
+            diagnosis.extra["noise_ratio"] = noise_ratio
+        elif self.learn:
             diagnosis.extra["noise_ratio"] = np.column_stack(
                 [self.level1.ratio, self.level2.ratio.max(axis=1), (self.scale3.scale / self.s3) ** 2]
             )

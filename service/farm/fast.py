@@ -1,14 +1,19 @@
 """Compiled twin of the farm supervisor's per-sample arithmetic (``wwcore.backend``): the analytic detector's learnt
-levels and spread ratios (``service.farm.baseline.LearntLevel.update``). The same operations in the reference's
-order, so the same numbers bit for bit (``tests/test_fast_backend_farm.py``); the lock-in, the CUSUMs and the decisions
-stay numpy code around it, and the available power's wind inversion is ``wwcore.aero_fast``'s.
+levels and spread ratios (``service.farm.baseline.LearntLevel.update``) and its step around the lock-in: the
+residuals (``analytic_residuals``), the learning (``analytic_learn``: levels, rate gains, 3P scales) and the
+decisions (``analytic_decide``: the Page CUSUMs, fault 3's flag). The same operations in the reference's order, so
+the same numbers bit for bit (``tests/test_fast_backend_farm.py``); the lock-in (numpy's SIMD sines, cosines and
+complex products), the dispatch and the other algorithms stay numpy code, and the available power's wind inversion
+is ``wwcore.aero_fast``'s.
 """
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
-from wwcore.aero_fast import maximum
+from wwcore.aero_fast import maximum, minimum
 from wwcore.jit import kernel
 
 
@@ -58,3 +63,183 @@ def as_rows(a, shape: tuple[int, ...]) -> np.ndarray:
     if a.ndim == 0:
         return a.reshape(1, 1)
     return a.reshape(a.shape[0], 1) if len(shape) == 1 else a
+
+
+@kernel
+def analytic_residuals(y, columns, beta, consts):
+    """The analytic detector's residuals of one sample (``AnalyticDetector.step``, before the lock-in) from the SCADA
+    means ``y`` (n, sensors): ``columns`` = (ω_g,m1, ω_g,m2, ω_r,m1, ω_r,m2, τ_g, P_g) indices, ``beta`` (3, 2) the
+    blades' encoders; ``consts`` = (η_gc, σ_P²/10, σ_ωg²/20, σ_τ²/10, N_g, 1 − 0.97). Returns (ω̄_g, z_1, σ_1², μ_1,
+    β̄ (n, 3), z_2 (n, 3), max |z_2|, z_3 = ω̄_g − N_g ω̄_r, ω̄_g/N_g, the collective β̄), each mean as numpy's
+    (the sum in order, divided by the count)."""
+    eta, var_p, var_w, var_t, n_g, debris_share = consts
+    wg1, wg2, wr1, wr2, tau_col, p_col = columns
+    n = y.shape[0]
+    omega_g, z1, var1, mu1 = np.empty(n), np.empty(n), np.empty(n), np.empty(n)
+    blades, z2 = np.empty((n, 3)), np.empty((n, 3))
+    worst, z3, omega_r, collective = np.empty(n), np.empty(n), np.empty(n), np.empty(n)
+    for r in range(n):
+        wg = (y[r, wg1] + y[r, wg2]) / 2.0
+        wr = (y[r, wr1] + y[r, wr2]) / 2.0
+        tau = y[r, tau_col]
+        p_gen = eta * wg * tau
+        omega_g[r] = wg
+        z1[r] = p_gen - y[r, p_col]
+        torque_part = eta * tau
+        speed_part = eta * wg
+        var1[r] = var_p + torque_part * torque_part * var_w + speed_part * speed_part * var_t
+        mu1[r] = debris_share * abs(p_gen)
+        for b in range(3):
+            blades[r, b] = (y[r, beta[b, 0]] + y[r, beta[b, 1]]) / 2.0
+        total = blades[r, 0] + blades[r, 1] + blades[r, 2]
+        largest = 0.0
+        for b in range(3):
+            z = 1.5 * blades[r, b] - 0.5 * total
+            z2[r, b] = z
+            largest = abs(z) if b == 0 else maximum(largest, abs(z))
+        worst[r] = largest
+        z3[r] = wg - n_g * wr
+        omega_r[r] = wg / n_g
+        collective[r] = total / 3.0
+    return omega_g, z1, var1, mu1, blades, z2, worst, z3, omega_r, collective
+
+
+@kernel
+def _page_step(g, q, flag, llr, h, h_end):
+    """``cusum.PageCusum.step`` of one statistic; returns (g, q, flag)."""
+    g = maximum(g + llr, 0.0)
+    q = maximum(q - llr, 0.0) if flag else 0.0
+    rise = not flag and g >= h
+    fall = flag and q >= h_end
+    flag = (flag or rise) and not fall
+    if fall:
+        g, q = 0.0, 0.0
+    return g, q, flag
+
+
+@kernel
+def analytic_decide(z1, mu1, var1, z2, var2, amplitude, h3, cusum1, cusum2, fault3, consts):
+    """The analytic detector's decisions of one sample after its warm-up (``AnalyticDetector.step``): the LLR
+    increments (``cusum.llr_increment``) of z_1 (design shift μ_1) and of ±z_2 per blade (±δ), both Page CUSUMs
+    (``cusum.PageCusum.step``; ``cusum1`` = (g, q, flag) (n,) and ``cusum2`` the same (n, 6), the +δ tests then the
+    −δ ones, in place), and fault 3's raise at A ≥ h_3 and release after A < h_3/2 for ``RELEASE_S`` (``fault3`` =
+    (flag, quiet time) (n,), in place). ``consts`` = (h_1, h_2, δ, Δt, RELEASE_S). Returns the flags (n, 3), the
+    statistics (g_1, max g_2, A) (n, 3) and their thresholds (h_1, h_2, h_3) (n, 3)."""
+    h1, h2, shift, dt, release = consts
+    g1, q1, flag1 = cusum1
+    g2, q2, flag2 = cusum2
+    flag3, quiet3 = fault3
+    n = z1.size
+    flags = np.empty((n, 3), dtype=np.bool_)
+    stats = np.empty((n, 3))
+    thresholds = np.empty((n, 3))
+    mu0 = 0.0
+    for r in range(n):
+        s1 = (mu1[r] - mu0) / var1[r] * (z1[r] - 0.5 * (mu0 + mu1[r]))
+        g1[r], q1[r], flag1[r] = _page_step(g1[r], q1[r], flag1[r], s1, h1, h1)
+        any2 = False
+        largest = 0.0
+        for c in range(6):
+            z = z2[r, c] if c < 3 else -z2[r, c - 3]
+            var = var2[r, c % 3]
+            s2 = (shift - mu0) / var * (z - 0.5 * (mu0 + shift))
+            g2[r, c], q2[r, c], flag2[r, c] = _page_step(g2[r, c], q2[r, c], flag2[r, c], s2, h2, h2)
+            any2 = any2 or flag2[r, c]
+            largest = g2[r, c] if c == 0 else maximum(largest, g2[r, c])
+        a = amplitude[r]
+        rise = a >= h3[r]
+        low = a < 0.5 * h3[r]
+        quiet = quiet3[r] + dt if flag3[r] and low else 0.0
+        flag = (flag3[r] or rise) and not (quiet >= release)
+        flag3[r] = flag
+        quiet3[r] = quiet if flag else 0.0
+        flags[r, 0], flags[r, 1], flags[r, 2] = flag1[r], any2, flag
+        stats[r, 0], stats[r, 1], stats[r, 2] = g1[r], largest, a
+        thresholds[r, 0], thresholds[r, 1], thresholds[r, 2] = h1, h2, h3[r]
+    return flags, stats, thresholds
+
+
+@kernel
+def analytic_learn(residuals, rate, last_rate, amplitude, settling, tests, level1, level2, rate_gain, scale3, consts):
+    """The analytic detector's learning of one sample (``AnalyticDetector.step`` with ``learn_levels``), in the
+    reference's order: the debris level (``LearntLevel.update``, by ``learn_level``), the pitch residual's rate gain
+    (``LearntRateGain.update``) and level, the 3P scale (``LearntRayleighScale.update``), each frozen where its test
+    is up or above its share of the threshold; then the residuals less their levels, the variances by the learnt
+    ratios (and the pitch lag's allowance) and fault 3's threshold from the learnt scale.
+
+    ``residuals`` = (z_1 (n,), σ_1² (n,), z_2 (n, 3)); ``tests`` = (g_1, flag_1 (n,), g_2, flag_2 (n, 6), fault 3's
+    flag (n,), its threshold (n,)); ``level1`` / ``level2`` = (state of ``learn_level`` ((n,) or (n, 3) arrays),
+    α_level, α_block, block, ρ_max); ``rate_gain`` = (S_xx, S_xr (n, 3), λ, P_0); ``scale3`` = (samples, mean of
+    A²/8 (n,), α, kept share, s_d, s_max); ``consts`` = (h_1, h_2, the suspicion share, σ_2², σ_2, τ_u,
+    √(2 ln 1/p_3)). States in place; returns (z_1, σ_1², z_2, σ_2² (n, 3), h_3 (n,), the noise ratios (ρ_1,
+    max ρ_2, (s/s_d)²) (n, 3))."""
+    z1, var1, z2 = residuals
+    g1, flag1, g2, flag2, flag3, h3_now = tests
+    state1, alpha_level1, alpha_block1, block1, max_ratio1 = level1
+    state2, alpha_level2, alpha_block2, block2, max_ratio2 = level2
+    sxx, sxr, forget, prior = rate_gain
+    samples3, mean_square, alpha3, kept_share, design_s, s_max = scale3
+    h1, h2, suspicion, var_2, std_2, lag_tolerance, rayleigh = consts
+    n = z1.size
+    # fault 1's level, frozen where its CUSUM is up or above its share of h_1
+    frozen1 = np.empty((n, 1), dtype=np.bool_)
+    std1 = np.empty((n, 1))
+    for r in range(n):
+        frozen1[r, 0] = flag1[r] or g1[r] >= suspicion * h1
+        std1[r, 0] = math.sqrt(var1[r])
+    count1, level1_state, raw_ratio1, blocks1, block_sum1, block_n1 = state1
+    rows1 = (
+        count1.reshape((n, 1)),
+        level1_state.reshape((n, 1)),
+        raw_ratio1.reshape((n, 1)),
+        blocks1.reshape((n, 1)),
+        block_sum1.reshape((n, 1)),
+        block_n1.reshape((n, 1)),
+    )
+    learn_level(z1.reshape((n, 1)), std1, frozen1, alpha_level1, alpha_block1, block1, rows1)
+    level1_now, ratio1 = rows1[1], rows1[2]
+    # fault 2's rate gain on the residual less its level, then its level
+    frozen2 = np.empty((n, 1), dtype=np.bool_)
+    corrected = np.empty((n, 3))
+    level2_before = state2[1]
+    for r in range(n):
+        up, largest = False, 0.0
+        for c in range(6):
+            up = up or flag2[r, c]
+            largest = g2[r, c] if c == 0 else maximum(largest, g2[r, c])
+        frozen = up or largest >= suspicion * h2
+        frozen2[r, 0] = frozen
+        x = rate[r]
+        for b in range(3):
+            if not frozen:
+                sxx[r, b] = forget * sxx[r, b] + x * x
+                sxr[r, b] = forget * sxr[r, b] + x * (z2[r, b] - level2_before[r, b])
+            corrected[r, b] = z2[r, b] - sxr[r, b] / (sxx[r, b] + prior) * x
+    learn_level(corrected, np.full((1, 1), std_2), frozen2, alpha_level2, alpha_block2, block2, state2)
+    level2_now, ratio2 = state2[1], state2[2]
+    # fault 3's scale, then every residual less its level, the variances and h_3
+    h3 = np.empty(n)
+    noise_ratio = np.empty((n, 3))
+    z1_out, var1_out, z2_out, var2_out = np.empty(n), np.empty(n), np.empty((n, 3)), np.empty((n, 3))
+    for r in range(n):
+        a = amplitude[r]
+        live = not (flag3[r] or a >= suspicion * h3_now[r] or settling)
+        count = samples3[r] + (1.0 if live else 0.0)
+        samples3[r] = count
+        w = maximum(1.0 / maximum(count, 1.0), alpha3) if live else 0.0
+        mean_square[r] = mean_square[r] + w * (a * a / 8.0 - mean_square[r])
+        z1_out[r] = z1[r] - level1_now[r, 0]
+        rho1 = minimum(maximum(ratio1[r, 0], 1.0), max_ratio1)
+        var1_out[r] = var1[r] * rho1
+        swing = lag_tolerance * maximum(abs(rate[r]), abs(last_rate[r]))
+        largest = 0.0
+        for b in range(3):
+            rho2 = minimum(maximum(ratio2[r, b], 1.0), max_ratio2)
+            largest = rho2 if b == 0 else maximum(largest, rho2)
+            z2_out[r, b] = corrected[r, b] - level2_now[r, b]
+            var2_out[r, b] = var_2 * rho2 + swing * swing
+        s = minimum(maximum(math.sqrt(mean_square[r] / kept_share), design_s), s_max)
+        h3[r] = 2.0 * s * rayleigh
+        scale = s / design_s
+        noise_ratio[r, 0], noise_ratio[r, 1], noise_ratio[r, 2] = rho1, largest, scale * scale
+    return z1_out, var1_out, z2_out, var2_out, h3, noise_ratio

@@ -70,6 +70,7 @@ import math
 import numpy as np
 
 from service.turbine.bank import POWER_SPEED, BankDesign
+from wwcore.backend import fast_module
 from wwcore.quantiles import norm_isf
 
 JUMP_HISTORY = 8  # W: ticks of the pair mean the onset prediction is fitted to
@@ -95,7 +96,8 @@ def _variance_of(R: np.ndarray, i: int) -> float:
 class GeneratorArbiter:
     """The running log-likelihood ratio ``total`` (n,): > 0 favours ω_g,m1 faulty, < 0 ω_g,m2."""
 
-    def __init__(self, bank: BankDesign, n: int, alpha: float, dt: float = 0.01):
+    def __init__(self, bank: BankDesign, n: int, alpha: float, dt: float = 0.01, fast=None):
+        self._fast_arbitration = fast_module("service.turbine.fast_arbitration") if fast is not None else None
         gear_ratio = bank.gear_ratio
         self.h = math.log(1.0 / alpha)
         all_sensors = bank.observers[bank.index(frozenset())]
@@ -180,12 +182,22 @@ class GeneratorArbiter:
         """Push this tick's pair mean and parity (y (n, 4) calibrated speed readings) into the histories, learn
         Cov(e) on the rows of ``learn`` ((n,) bool: nothing flagged or being isolated) from the L errors of the fit
         that ended L ticks ago, and grow ℓ_J where its onset is recent."""
+        W, L = JUMP_HISTORY, JUMP_TICKS
+        if self._fast_arbitration is not None:  # the lines below by two kernels around numpy's product
+            growing = self._fast_arbitration.arbiter_push(y, self._means, self._parities, self._onset)
+            self._seen += 1
+            if self._seen >= W + L:
+                predicted = self._means[:, -L - W : -L] @ self.weights.T
+                fast = self._fast_arbitration
+                fast.arbiter_learn(self._means, predicted, learn, self._jump_rate, self.jump_covariance)
+            if growing:
+                self._grow_jump(np.flatnonzero(self._onset >= 0))
+            return
         self._means[:, :-1] = self._means[:, 1:]
         self._means[:, -1] = 0.5 * (y[:, 2] + y[:, 3])
         self._parities[:, :-1] = self._parities[:, 1:]
         self._parities[:, -1] = y[:, 2] - y[:, 3]
         self._seen += 1
-        W, L = JUMP_HISTORY, JUMP_TICKS
         if self._seen >= W + L:
             error = self._means[:, -L:] - self._means[:, -L - W : -L] @ self.weights.T
             rows = np.flatnonzero(learn)

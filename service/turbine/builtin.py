@@ -96,7 +96,7 @@ class UIOBankDetector:
         fast = self.context.fast
         if fast is not None:  # the channel and the design band below, by one kernel
             channel, band = np.empty(self.context.n), np.empty(self.context.n, dtype=np.int64)
-            threshold = POWER_SPEED_MIN_TORQUE * p.rated_torque
+            threshold = self.context.power_speed_min_torque
             fast.power_speed_test(
                 frame.sensors, _P_G_M, _TAU_G_M, threshold, p.eta_gc, frame.tau_g_ref, frame.zone, self._band_edges,
                 len(POWER_SPEED_DESIGN_TORQUES), channel, band,
@@ -249,11 +249,12 @@ class UIOBankEstimator:
             tau_aero0 = p.N_g * (p.B_g * x0[:, 1] + x0[:, 3]) / p.eta_dt + p.B_r * x0[:, 0]
             self.recovery.start(bank.x_hat, frame.beta_ref, tau_aero0)
             self._winds = np.tile(np.maximum(frame.sensors[:, SENSOR_INDEX["v_hub_m"]], 3.0), (2, 1))
-        pitch = frame.sensors[:, PITCH_M12]  # [β_i,m1 | β_i,m2], one gather
-        pitch_m1, pitch_m2 = pitch[:, :3], pitch[:, 3:]
         recovery = self.recovery
         fast = self.context.fast
         distrusting = bool(faulty.any())
+        if distrusting or fast is None:
+            pitch = frame.sensors[:, PITCH_M12]  # [β_i,m1 | β_i,m2], one gather
+            pitch_m1, pitch_m2 = pitch[:, :3], pitch[:, 3:]
         if fast is not None and distrusting:
             n = self.context.n
             mask, selected = np.empty(n, dtype=np.int64), np.empty(n, dtype=np.int64)
@@ -290,12 +291,12 @@ class UIOBankEstimator:
             if self._switched:
                 none = np.zeros(len(selected), dtype=np.int64)
                 self._take_over(bank, selected, none, none)
-            recovery.step(bank.x_hat, frame.beta_ref, pitch_m1, pitch_m2, None, None)
             columns = self._all_healthy
-            if fast is not None:
+            if fast is not None:  # the recovery's step and the speeds' gather below, by one kernel after the map
                 omega_r, omega_g = np.empty(self.context.n), np.empty(self.context.n)
-                fast.gather_speeds(recovery.filtered, *recovery.speed_starts, selected, omega_r, omega_g)
+                recovery.step_healthy(bank.x_hat, frame.beta_ref, frame.sensors, PITCH_M12, selected, omega_r, omega_g)
             else:
+                recovery.step(bank.x_hat, frame.beta_ref, pitch_m1, pitch_m2, None, None)
                 healthy = int(columns[0])
                 omega_r, omega_g = recovery.omega_r[:, healthy].copy(), recovery.omega_g[:, healthy].copy()
         if self.ticks % self.wind_every == 0:

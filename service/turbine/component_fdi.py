@@ -165,6 +165,7 @@ class ComponentFDI:
         self.n = n
         self._fast = fast  # ``service.turbine.fast`` (``wwcore.backend``) or None
         self._fast_actuator = fast_module("service.turbine.fast_actuator") if fast is not None else None
+        self._fast_converter = fast_module("service.turbine.fast_converter") if fast is not None else None
         alpha = settings.false_alarms_per_1000s * p.dt / 1000.0
         self.sigma_beta = sigma["beta_1_m1"]
         self.sigma_tau = sigma["tau_g_m"]
@@ -249,6 +250,14 @@ class ComponentFDI:
         self.actuator_spread = HealthySpread((n, 3), block_s, adapt, top, actuator_limit, fast=fast)
         self.converter_spread = HealthySpread((n,), block_s, adapt, top, SENSOR_BIAS_TOLERANCE["tau_g_m"], fast=fast)
         self._root_parity_window = float(np.sqrt(settings.parity_window))
+        # the converter kernel's constants and the spread it reads (``_converter``; arrays updated in place)
+        restart_count = min(1.0 / self._clear_weight, 1.0 / self._converter_weight)
+        self._converter_test = (
+            self._converter_gain, 1.0 / self.sigma_tau, self.converter_shifts, self.converter_signs, self.h_converter,
+            restart_count, self._converter_weight, float(settings.converter_clear_floor), self._clear_h,
+            CONVERTER_TARGET,
+        )  # fmt: skip
+        self._converter_spread_state = (self.converter_spread.offset, self.converter_spread.scale)
 
     def step(self, frame: TurbineFrame) -> np.ndarray:
         y = frame.sensors
@@ -487,6 +496,16 @@ class ComponentFDI:
         d σ is found after about min_j h / (m_j (d − m_j/2)) ticks once τ_g has followed it (the converter's
         lag, 1/α_gc = 2 ticks); an offset below min m_j / 2 never is. Clear: ``_converter_clearing``."""
         a = self._converter_gain
+        if self._fast_converter is not None:  # the lines below and ``_converter_clearing`` by one kernel
+            first = self._tau_hat is None
+            if first:
+                self._tau_hat = np.empty_like(tau_g_m)
+            self._fast_converter.converter_tick(
+                tau_g_m, tau_g_ref_previous, self._tau_hat, first, self._converter_block_sum,
+                self.ticks > self.warmup_ticks, self._converter_spread_state, self._converter_test, self.flags,
+                (self.converter_statistic, self._converter_count, self._converter_mean, self.converter_clear_statistic),
+            )  # fmt: skip
+            return
         if self._tau_hat is None:
             self._tau_hat = tau_g_m.copy()
         else:

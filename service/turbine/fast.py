@@ -109,6 +109,23 @@ def recovery_tick(raw, pitch_m1, pitch_m2, healthy, pitch, reference, coef, biqu
     return beta, rate
 
 
+@kernel
+def recovery_healthy_tick(raw, sensors, pitch_columns, pitch, reference, coef, biquads, filtered, speeds, selected):
+    """``recovery_tick`` with every pitch sensor healthy, the readings [β_i,m1 | β_i,m2] gathered from ``sensors``
+    (columns ``pitch_columns``), then ``gather_speeds`` of ``selected`` with ``speeds`` = (rotor start, generator
+    start, ω̂_r out, ω̂_g out) (``UIOBankEstimator.step``'s common tick). Returns the new (β, β̇)."""
+    n = sensors.shape[0]
+    pitch_m1, pitch_m2 = np.empty((n, 3)), np.empty((n, 3))
+    for r in range(n):
+        for b in range(3):
+            pitch_m1[r, b] = sensors[r, pitch_columns[b]]
+            pitch_m2[r, b] = sensors[r, pitch_columns[3 + b]]
+    new_pitch = recovery_tick(raw, pitch_m1, pitch_m2, None, pitch, reference, coef, biquads, filtered)
+    rotor_start, generator_start, omega_r, omega_g = speeds
+    gather_speeds(filtered, rotor_start, generator_start, selected, omega_r, omega_g)
+    return new_pitch
+
+
 # -- speed-sensor FDI (``service.turbine.fdi.SpeedSensorFDI.step``) -----------------------------------------------
 @kernel
 def window_ratio(stat, history, slot, window_sum, h_detect, h_window, ratio):

@@ -280,7 +280,7 @@ class SpeedSensorFDI:
         self._maybe_flagged = False  # False only while no row has a flagged sensor
         self.deadline = np.full(n, -1, dtype=np.int64)  # tick at which a pending isolation is decided, −1 none
         self.started = np.zeros(n, dtype=np.int64)  # tick at which the pending isolation started
-        self.arbiter = GeneratorArbiter(bank, n, iso, dt)
+        self.arbiter = GeneratorArbiter(bank, n, iso, dt, fast)
         self.arbitration_ticks = round(settings.arbitration_s / dt)
         self.provisional = np.zeros(n, dtype=np.int64)  # the pending isolation's current explanation
         self._pending = False  # whether any row has a pending isolation

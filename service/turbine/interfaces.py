@@ -109,6 +109,11 @@ class TurbineContext:
     def bank_design(self) -> BankDesign:
         return _cached_bank_design(self.params, self.noise_convention)
 
+    @cached_property
+    def power_speed_min_torque(self) -> float:
+        """``POWER_SPEED_MIN_TORQUE`` × the rated torque, N m: below it the power-speed channel is not used."""
+        return POWER_SPEED_MIN_TORQUE * self.params.rated_torque
+
     def bank(self, frame: TurbineFrame) -> ObserverBank:
         """The observer bank advanced to ``frame`` (initialised on the first frame)."""
         if self._bank is None:
@@ -128,9 +133,7 @@ class TurbineContext:
         if self.fast is not None:
             p = self.params
             read = np.empty((self.n, len(BANK_COLUMNS)))
-            self.fast.bank_inputs(
-                frame.sensors, BANK_COLUMNS, POWER_SPEED_MIN_TORQUE * p.rated_torque, p.N_g, p.eta_gc, read
-            )
+            self.fast.bank_inputs(frame.sensors, BANK_COLUMNS, self.power_speed_min_torque, p.N_g, p.eta_gc, read)
         else:
             read = frame.sensors.take(BANK_COLUMNS, axis=1)  # (n, 6); column 4 becomes the power-speed channel
             read[:, 4] = power_speed(read[:, 4], read[:, 5], read, self.params)

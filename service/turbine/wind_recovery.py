@@ -151,6 +151,7 @@ class WindRecovery:
         self._width = width
         self._stacked = np.empty((n, 2 * width))
         self._filter_in = np.empty((n, 3 * m + 1))
+        self._no_columns = np.empty((n, 0))  # the empty middle block of ``fast.stack``
 
     @property
     def filtered(self) -> np.ndarray:
@@ -253,6 +254,31 @@ class WindRecovery:
         filter_in[:, :-1] = raw
         filter_in[:, -1] = ((per_blade[:, 0] + per_blade[:, 1]) + per_blade[:, 2]) / 3.0  # β, mean(axis=1)'s sum
         self._filtered = self.filter(filter_in)
+        self._x_prev = x_hat
+
+    def step_healthy(
+        self,
+        x_hat: np.ndarray,
+        beta_ref_prev: np.ndarray,
+        sensors: np.ndarray,
+        pitch_columns: np.ndarray,
+        selected: np.ndarray,
+        omega_r: np.ndarray,
+        omega_g: np.ndarray,
+    ) -> None:
+        """``step`` with every pitch sensor healthy and no converter correction, on the compiled backend only: the
+        pitch readings gathered from ``sensors`` (columns ``pitch_columns``: β_i,m1 then β_i,m2), then each row's
+        ω̂_r and ω̂_g of observer ``selected`` written to ``omega_r`` and ``omega_g`` (n,): one kernel after the
+        map (``fast.recovery_healthy_tick``, the same operations as ``step`` and the estimator's gather)."""
+        self._fast.stack(x_hat, self._no_columns, self._x_prev, self._stacked)
+        raw = self._stacked @ self._map
+        f, pitch = self.filter, self.pitch
+        self._filtered = np.empty_like(self._filter_in)
+        speeds = (self._groups[1].start, self._groups[2].start, omega_r, omega_g)
+        pitch.x = self._fast.recovery_healthy_tick(
+            raw, sensors, pitch_columns, pitch.x, np.ascontiguousarray(beta_ref_prev, dtype=float),
+            pitch._coef_array, (f._b0, f._a1, f._a2, f.s1, f.s2), self._filtered, speeds, selected,
+        )  # fmt: skip
         self._x_prev = x_hat
 
     def converter_correction(self, raw: np.ndarray, x_hat: np.ndarray, measured_torque: np.ndarray) -> None:

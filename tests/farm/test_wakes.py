@@ -15,6 +15,7 @@ import pytest
 from plant_sim.farm import floris_wakes
 from plant_sim.farm.floris_wakes import WakeSettings, floris_model, wake_tables
 from plant_sim.farm.wake_tables import WakeTables
+from wwcore.backend import fast_module
 from wwcore.layout import HORNS_REV_1, SEED001_DIRECTIONS_DEG, SEED001_LAYOUT, FarmLayout
 from wwcore.turbine_params import BENCHMARK
 
@@ -160,6 +161,31 @@ def test_batch_equals_farm_by_farm(tables_3x3):
             assert np.allclose(speed[f], one[0], rtol=0, atol=1e-12) and np.allclose(ti[f], one[1], rtol=0, atol=1e-12)
         per_turbine = tables.waked(directions, thrust[:, :, 0], free[:, 0])[0]
         assert per_turbine[2] == pytest.approx(tables.waked_speeds(315.0, thrust[2, :, 0], free[2, 0]))
+
+
+def test_the_compiled_combination_equals_the_reference(tables_3x3):
+    """``plant_sim.farm.fast.wake_combine`` (the compiled backend's, ``wwcore.backend``) against
+    ``WakeTables._combine`` for farms sharing a table interval: per-pair thrusts inside and outside the table's C_T
+    range (negative, above its largest), free streams, Gauss (interpolated in TI) and Jensen; equal to the last bit."""
+    fast = fast_module("plant_sim.farm.fast")
+    rng = np.random.default_rng(11)
+    farms = 6
+    thrust = rng.uniform(-0.1, 1.0, (farms, 9, 9))
+    free = rng.uniform(4.0, 20.0, (farms, 9))
+    for direction in (270.0, 270.37, 313.9):
+        for tables in tables_3x3.values():
+            x = direction / tables.direction_step_deg
+            entries = tables._bin(int(np.floor(x)))
+            w = np.full(farms, x - np.floor(x))
+            w[1] = 0.0
+            reference = tables._combine(entries, w, thrust, free)
+            constants = (tables._ct_max, tables._inv_s_step, tables._m_last, tables._inv_ti_step, tables.ambient_ti**2)
+            flat = (tables.added_ti.reshape(-1), tables.deficit.reshape(-1), np.asarray(tables.ti_grid, dtype=float))
+            speed, ti = np.empty((farms, 9)), np.empty((farms, 9))
+            fast.wake_combine(entries, w, thrust, free, flat + constants, speed, ti)
+            np.testing.assert_array_equal(ti, reference[1], f"{tables.model} {direction}: TI")
+            np.testing.assert_array_equal(speed, reference[0], f"{tables.model} {direction}: speed")
+            assert (speed < free).any()
 
 
 def test_bad_inputs_are_refused(tables_3x3, seed001, cache):

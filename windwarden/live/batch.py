@@ -10,17 +10,23 @@ newest refs while they are within ``max_ref_age`` ticks, else falls back, as the
 gap is handled, for the comparison ``tools/bench_drops.py`` makes: ``"bridge"`` (what the supervisor node does),
 ``"consecutive"`` (the frames after a gap fed as if none was missing), ``"step"`` (the whole supervisor, detectors
 included, stepped on the interpolated frames). Without ``drop`` this is the lockstep reference.
+
+``corrupt(k, records)`` changes the sensor records of tick k on their way to the supervisor (a dead sensor's NaN,
+say); they then pass the supervisor node's ``readings.ReadingHold``, and the supervisor steps what it passes (a frame
+it refuses is handled as a dropped one). ``BatchResult.held`` counts the held readings by channel.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from collections.abc import Callable
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 
 from windwarden.kinds import RunInfo, kind_for
 from windwarden.live.guard import bridge_gap
+from windwarden.live.readings import ReadingHold
 from wwcore.events import Event
 from wwcore.scenario import Scenario
 from wwcore.stepping import run_ticks
@@ -30,6 +36,8 @@ from wwcore.stepping import run_ticks
 class BatchResult:
     events: list[Event]
     scorecard: dict[str, Any]
+    held: dict[str, int] = field(default_factory=dict)  # readings held by ``ReadingHold``, by channel
+    refused: int = 0  # frames ``ReadingHold`` refused
 
 
 def random_drops(n: int, fraction: float, longest: int, seed: int) -> np.ndarray:
@@ -44,7 +52,12 @@ def random_drops(n: int, fraction: float, longest: int, seed: int) -> np.ndarray
 
 
 def run_batch(
-    scenario: Scenario, seed: int, drop: np.ndarray | None = None, max_ref_age: int = 10, gaps: str = "bridge"
+    scenario: Scenario,
+    seed: int,
+    drop: np.ndarray | None = None,
+    max_ref_age: int = 10,
+    gaps: str = "bridge",
+    corrupt: Callable[[int, np.ndarray], np.ndarray] | None = None,
 ) -> BatchResult:
     kind = kind_for(scenario.plant.kind)
     plant = kind.make_plant(scenario, seed)
@@ -54,7 +67,9 @@ def run_batch(
     score = kind.score(scenario, n_steps, plant.dt)
     events: list[Event] = []
     refs = None
-    if drop is None:
+    hold = ReadingHold(kind.sensors)
+    refused = 0
+    if drop is None and corrupt is None:
 
         def controlled(k: int, frame: Any) -> None:
             score.on_tick(k, frame, plant)
@@ -67,14 +82,19 @@ def run_batch(
 
         run_ticks(plant, supervisor, range(n_steps), controlled=controlled, stepped=stepped, advanced=advanced)
     else:
+        drop = np.zeros(n_steps, dtype=bool) if drop is None else drop
         bridge = {"bridge": getattr(supervisor, "bridge", None), "consecutive": None, "step": supervisor.step}[gaps]
         before, refs_tick = None, -1
         for k in range(n_steps):
             frame = plant.measure()
             plant.control(refs if k - refs_tick <= max_ref_age else None)
             score.on_tick(k, frame, plant)
-            if not drop[k]:
-                records = kind.frame_records(frame, turbines)
+            records = None if drop[k] else kind.frame_records(frame, turbines)
+            if records is not None and corrupt is not None:
+                records = hold.take(corrupt(k, records))
+                refused += records is None
+                frame = None if records is None else kind.frame_from_records(records)
+            if records is not None:
                 if before is not None:
                     bridge_gap(bridge, kind, before, records)
                 refs, refs_tick, before = supervisor.step(frame), k, records
@@ -82,4 +102,5 @@ def run_batch(
             plant.advance()
             events += plant.drain_events() + supervisor.drain_events()
     metrics = score.result(list(scenario.faults))
-    return BatchResult(events, kind.scorecard(scenario, seed, list(scenario.faults), events, metrics))
+    card = kind.scorecard(scenario, seed, list(scenario.faults), events, metrics)
+    return BatchResult(events, card, dict(sorted(hold.held.items())), refused)

@@ -33,13 +33,14 @@ from windwarden.kinds import PlantKind, RunInfo, kind_for
 from windwarden.live.config import SupervisorSettings
 from windwarden.live.guard import FrameSequencer, RefusalLog, bridge_gap
 from windwarden.live.mailbox import TickMailbox, backlog_ticks
+from windwarden.live.readings import ReadingHold
 from windwarden.live.run_query import confirm_run, plant_has_measured, query_run, wait_for_run
 from windwarden.live.runfolder import EVENTS, EventLog
 from windwarden.live.timing import LatencyStats
 from windwarden.live.transport import JsonQueryable, LivenessWatch, declare_publisher
 from wwcore.events import Event, EventType
 from wwcore.keys import COMMAND_QOS, EVENT_QOS, Process
-from wwcore.wire import DropCounter, WireError, decode_json, encode_json
+from wwcore.wire import DropCounter, DropReason, WireError, decode_json, encode_json
 
 log = logging.getLogger(__name__)
 PLANT_APPEARED = None  # put in the sensor queue by the liveliness callback: the main loop handles it in turn
@@ -73,6 +74,7 @@ class SupervisorNode:
         self.gaps = 0
         self.bridged = 0  # ticks bridged across gaps
         self.last_records: np.ndarray | None = None
+        self.readings: ReadingHold | None = None  # non-finite readings held, per run (``_start_run``)
         self.sequencer = FrameSequencer(settings.max_gap_ticks, self.drops, self._confirm_run, self._confirm_tick)
         self.refusals = RefusalLog(self.drops, "sensors", Process.SUPERVISOR.value, self._write)
         self._last_status = 0.0
@@ -163,6 +165,10 @@ class SupervisorNode:
             self.last_refs = None
         self.turbines = list(info.turbines)
         self.mailbox = TickMailbox(self.kind.sensors, self.turbines, self.drops, "sensors")
+        if new_run or self.readings is None:
+            self.readings = ReadingHold(self.kind.sensors)
+        else:
+            self.readings.restart()  # observers restarted: nothing to hold from before; the counts stay
         if new_run:
             if self.events is not None:
                 self.events.close()
@@ -207,6 +213,7 @@ class SupervisorNode:
             "gaps": self.gaps,
             "bridged_ticks": self.bridged,
             "observer_restarts": self.resets,
+            "held_readings": dict(sorted(self.readings.held.items())) if self.readings is not None else {},
             "refused": self.refusals.counts(),
             "step": self.step_time.summary(recent=1000),
             "dropped": self.drops.as_dict(),
@@ -272,7 +279,10 @@ class SupervisorNode:
             self._start_run(self.sequencer.confirmed if decision == FrameSequencer.NEW_RUN else self.info)
             self.resets += 1
             kind = self.kind
-        elif missing:
+        records = self._hold_non_finite(records)
+        if records is None:
+            return
+        if not restart and missing:
             self.gaps += 1
             self._bridge_gap(records)
         if backlog_ticks(self._inbox.qsize()) > self.settings.max_backlog_ticks:
@@ -297,6 +307,21 @@ class SupervisorNode:
         self._refs_pub.put(kind.refs.encode_frame(out))
         if self.display is not None:
             self._display(tick, records, out)
+
+    def _hold_non_finite(self, records: np.ndarray) -> np.ndarray | None:
+        """``records`` with non-finite readings held (``readings.ReadingHold``), or None: refused and counted. The
+        first hold of a channel in a run is logged as a ``stream`` event."""
+        seen = set(self.readings.held)
+        held = self.readings.take(records)
+        if held is None:
+            self.drops.add("sensors", DropReason.NON_FINITE)
+            return None
+        new = [c for c in self.readings.held if c not in seen]
+        if new:
+            t = float(held["t"][0])
+            detail = {"stream": "sensors", "held_non_finite": new, "noticed_by": Process.SUPERVISOR.value}
+            self._write([Event(t, EventType.STREAM, detail=detail)])
+        return held
 
     def _display(self, tick: int, records: np.ndarray, out: np.ndarray) -> None:
         """The display's share of a tick, after its refs are out: every ``display_every``-th tick one buffered row
