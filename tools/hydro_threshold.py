@@ -1,5 +1,6 @@
 """Print the hydrostatic supervisor's detection design for a scenario: the observer's noise response, the predicted
-fault-free σ and worst case of f̂_a,filt, and the thresholds the live supervisor and ``windwarden eval`` use.
+fault-free σ and worst case of f̂_a,filt, the thresholds the live supervisor and ``windwarden eval`` use, and
+(``hold_offset``) when a flagged offset's correction becomes the mean of f̂_a and how noisy that mean is.
 
     .venv/bin/python tools/hydro_threshold.py hydro-fig9 hydro-noise
 
@@ -11,6 +12,7 @@ from __future__ import annotations
 
 import sys
 
+from service.hydro.offset_hold import mean_response_l2
 from service.hydro.supervisor import HydroSupervisor
 from wwcore.scenario import load_scenario
 
@@ -34,6 +36,13 @@ def describe(name: str) -> str:
     theta = sup.thresholds
     if theta is not None:
         lines.append(f"  θ [u_p, u_M] = {theta[0]:.5f}, {theta[1]:.5f}")
+    if sup.hold is not None and settings is not None and noise is not None and noise.h_a is not None:
+        scale = settings.sensor_noise_pct / 100.0 / 3.0**0.5
+        after = {s: scale * mean_response_l2(noise.h_a, round(s / sup.context.dt))[0] for s in (1.0, 10.0)}
+        lines.append(
+            f"  flagged: the mean of f̂_a from {sup.hold.samples[0]} samples after the flag; its σ "
+            + ", ".join(f"{v:.5f} at {k:g} s" for k, v in after.items())
+        )
     return "\n".join(lines)
 
 

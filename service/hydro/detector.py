@@ -20,8 +20,12 @@ keeps touching θ/2. Nothing is flagged in the first ``warmup_s``.
 * the smallest offset worth flagging, ``min_offset`` (a hundredth of a stroke): θ_j ≥ min_offset.
 
 With the shipped observer settings: θ = 0.01 for both actuators in the 0.1 % scenarios (the floor; the rate alone
-gives 0.0035 with their filter (37') of two 0.025-s stages) and θ = 0.057 in hydro-noise (±2 %, (37) with
-τ = 0.1 s). ``threshold`` sets θ by hand instead.
+gives 0.0035 with their filter (37') of two 0.025-s stages) and θ = 0.029 in hydro-noise (±2 %, (37') of two
+0.05-s stages). ``threshold`` sets θ by hand instead.
+
+``hold_offset`` is read by the supervisor, not by the flags: while actuator j is flagged its correction becomes the
+mean of f̂_a since the flag once that mean is less noisy than f̂_filt, and θ_j decides when the mean is stale
+(``service.hydro.offset_hold``).
 """
 
 from __future__ import annotations
@@ -55,6 +59,8 @@ class DetectionSettings:
     off_ratio: Annotated[float, Bounds(gt=0.0, le=1.0)] = 1.0  # release level as a fraction of θ
     off_samples: Annotated[int, Bounds(ge=1, le=100_000, unit="samples")] = 50  # below it to unflag (0.5 s)
     warmup_s: Annotated[float, Bounds(ge=0.0, le=600.0, unit="s")] = 1.0  # observer convergence
+    # while flagged, correct with the mean of f̂_a since the flag once it beats f̂_filt (service.hydro.offset_hold)
+    hold_offset: bool = False
 
 
 def design_thresholds(response: NoiseResponse, settings: DetectionSettings, dt: float) -> np.ndarray:

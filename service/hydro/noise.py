@@ -54,9 +54,11 @@ def rated_readings(p: HydroParams) -> np.ndarray:
 
 @dataclass(frozen=True)
 class NoiseResponse:
-    """h (samples, 5 readings, 2 actuators) per unit of y_N, and its norms per actuator."""
+    """h (samples, 5 readings, 2 actuators) of f̂_filt per unit of y_N, and its norms per actuator; h_a the same
+    of the unfiltered reconstruction f̂_a (35) (None for an observer measured without it)."""
 
     h: np.ndarray
+    h_a: np.ndarray | None = None
 
     @property
     def l2(self) -> np.ndarray:
@@ -94,15 +96,18 @@ def _response(observer: str, settings: tuple[tuple[str, Any], ...], params: Hydr
         obs.step(y, u)
     kicked = y.copy()
     kicked[1:] += np.diag(EPSILON * rated_readings(params))
-    out = [obs.step(kicked, u).f_filt]
+    first = obs.step(kicked, u)
+    out, raw = [first.f_filt], [first.f_hat]
     total = float(np.sum((out[0][1:] - out[0][:1]) ** 2))
     while len(out) < MAX_SAMPLES:
-        block = [obs.step(y, u).f_filt for _ in range(BLOCK)]
-        out.extend(block)
-        energy = float(sum(np.sum((f[1:] - f[:1]) ** 2) for f in block))
+        block = [obs.step(y, u) for _ in range(BLOCK)]
+        out.extend(r.f_filt for r in block)
+        raw.extend(r.f_hat for r in block)
+        energy = float(sum(np.sum((r.f_filt[1:] - r.f_filt[:1]) ** 2) for r in block))
         total += energy
         if energy <= TAIL * total:
             break
-    f = np.array(out)  # (samples, rows, 2)
+    f, f_a = np.array(out), np.array(raw)  # (samples, rows, 2)
     h = (f[:, 1:, :] - f[:, :1, :]) / EPSILON
-    return NoiseResponse(np.nan_to_num(h))
+    h_a = (f_a[:, 1:, :] - f_a[:, :1, :]) / EPSILON
+    return NoiseResponse(np.nan_to_num(h), np.nan_to_num(h_a))

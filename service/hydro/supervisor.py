@@ -17,6 +17,7 @@ import numpy as np
 
 from service.flag_events import flag_events
 from service.hydro.builtin import HydroContext
+from service.hydro.offset_hold import OffsetHold, hold_samples
 from service.plugins import HYDRO_DETECTORS, HYDRO_OBSERVERS, choose
 from wwcore.events import Event
 from wwcore.hydro_frames import HydroFrame, HydroRefs
@@ -59,6 +60,7 @@ class HydroSupervisor:
         self.detector = HYDRO_DETECTORS.create(
             self.detector_name, context=self.context, options=self.choice.options["detector"]
         )
+        self.hold = self._offset_hold(self.choice.options["detector"])
         self.compensation = np.broadcast_to(np.asarray(compensation, dtype=bool), (n,)).copy()
         self.flags = np.zeros((n, len(FAULT_TARGETS)), dtype=bool)
         self.last: Any = None
@@ -70,16 +72,25 @@ class HydroSupervisor:
         theta = getattr(self.detector, "theta", None)
         return None if theta is None else np.asarray(theta, dtype=float)
 
+    def _offset_hold(self, detection: dict[str, Any]) -> OffsetHold | None:
+        """The held mean of a flagged offset (option ``hold_offset``), designed from the observer's noise response
+        and the detector's θ and predicted σ of f̂_filt; None when off or when the detector has neither."""
+        theta, sigma = self.thresholds, getattr(self.detector, "sigma", None)
+        if not detection.get("hold_offset", False) or theta is None or sigma is None:
+            return None
+        return OffsetHold(self.n, theta, hold_samples(self.context.noise_response()), np.asarray(sigma, dtype=float))
+
     def step(self, frame: HydroFrame) -> HydroRefs:
         rec = self.observer.step(frame.y, frame.u)
         self.last = rec
         flags = np.asarray(self.detector.step(frame.t, rec), dtype=bool)
         self._record(frame.t, flags, rec.f_filt)
-        valid = rec.sliding & (frame.t >= CONVERGENCE_S) & np.all(np.isfinite(rec.f_filt), axis=1)
+        correction = rec.f_filt if self.hold is None else self.hold.step(flags, rec.f_hat, rec.f_filt)
+        valid = rec.sliding & (frame.t >= CONVERGENCE_S) & np.all(np.isfinite(correction), axis=1)
         return HydroRefs(
             t=frame.t,
             k=frame.k,
-            correction=rec.f_filt,
+            correction=correction,
             apply=valid & self.compensation,
             f_hat=rec.f_hat,
             x_hat=rec.x_hat,
