@@ -85,6 +85,27 @@ def test_a_doubtful_isolation_waits_and_names_the_whole_faulty_set_first():
     assert (k, first) == (2, BIT["omega_g_m1"])
 
 
+def test_a_double_fault_s_large_rotor_speed_offset_is_named_with_the_generator_speed_half():
+    """ω_r,m2 + 10 σ_r and ω_g,m1 faulty from tick 0, both rejecting every explanation that leaves them in: the
+    bias test's 6 σ_e CUSUM would reach h on the first tick (m_d (10/√2 − m_d/2) = 21 > 17.9, m_d = 6/√2) and
+    flag ω_r,m2 alone a tick before the isolation names both; it runs after the isolations start, so a row in
+    trouble is the isolation's and the first flag names the pair at the deadline."""
+    fdi = _fdi()
+    rng, x_hat = _healthy_history(fdi, 5)
+    x_hat[0, fdi.bias.column[0]] = 1.2  # the rotor-speed prediction the bias test reads: the true speed
+    masks = []
+    for _ in range(6):
+        stat = _healthy_chi2(fdi)
+        for j, left_out in enumerate(DESIGN.left_out):
+            if not {"omega_g_m1", "omega_r_m2"} <= left_out:
+                stat[0, j] = 1e4
+        y = _readings(rng)
+        y[0, 1] += 10.0 * SPEED_SIGMA[1]
+        fdi.step(y, stat, x_hat)
+        masks.append(int(fdi.flagged[0]))
+    assert _first_flag(masks) == (fdi.s.isolation_delay, BIT["omega_r_m2"] | BIT["omega_g_m1"])
+
+
 def test_patience_is_bounded():
     """Evidence that never grows: the decision is taken after isolation_delay + isolation_patience ticks."""
     fdi = _fdi(isolation_patience=3)

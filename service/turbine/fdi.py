@@ -361,9 +361,9 @@ class SpeedSensorFDI:
             self.calibration.update_rows(None, healthy, deviation)  # offsets only
         if self.ticks <= self.warmup_ticks:
             return
-        if self.bias is not None:
-            self._rotor_bias(y, x_hat)
         if not (exceeded or any_frozen or self._maybe_flagged or self._pending):
+            if self.bias is not None:
+                self._rotor_bias(y, x_hat)
             return  # nothing inconsistent, frozen, flagged or pending: what the lines below conclude on such a tick
         frozen_mask = self.readings.frozen @ _BITS if any_frozen else self._no_frozen
         if self._maybe_flagged or self._pending:
@@ -374,6 +374,10 @@ class SpeedSensorFDI:
         trouble = inconsistent | ((frozen_mask & ~self.flagged) != 0) if any_frozen else inconsistent
         if self._pending or trouble.any():
             self._isolate(trouble, inconsistent, chi2_stat, ratio, frozen_mask, y, torque_band, power_speed)
+        if self.bias is not None:
+            # after the isolations: a row whose trouble starts on this tick is the isolation's (its bias statistics
+            # pause), so a double fault's rotor-speed half is not flagged alone a tick before the isolation names both
+            self._rotor_bias(y, x_hat)
         if self._maybe_flagged:
             if self.flagged.any():
                 self._clear(y, x_hat, frozen_mask, trouble | (self.deadline >= 0), torque_band)
