@@ -37,13 +37,13 @@ evidence that its sensor is healthy again.
   explanation's own observer has the smaller statistic joins the flag. A healthy pair doubts on the deadline with
   probability 2Φ(−m_d √3/2) = 0.36, for a tick or two: the price of a first flag that names both halves.
 * **Persistent rotor-speed bias.** Beside the window tests, Page's CUSUMs (a bank of shifts ``bias_shift``·2^k,
-  k < ``bias_bank``) on the parity of the two rotor-speed
-  sensors' exclusion residuals against the generator-speed Kalman filter (``bias_test``; ``rotor_bias_test``,
-  ``bias_shift``) flags a bias of 1–2 σ that the UIOs take for aerodynamic torque, and the sum of the two residuals
-  names the sensor, on rows where no rotor-speed sensor is flagged and no isolation is under way; beside a flagged
-  generator-speed sensor it reads the filter on the other one. The filter's prediction error, coloured and three
-  times the design's near rated, is common to both residuals and cancels in the parity, so the threshold holds
-  at every wind. Its shift exceeds the clearing's floor, so between the two a flag neither drops nor rises again
+  k < ``bias_bank``) on the parity of the two rotor-speed sensors' exclusion residuals against the generator-speed
+  Kalman filter (``bias_test``; ``rotor_bias_test``, ``bias_shift``) flag a bias of 1–2 σ that the UIOs take for
+  aerodynamic torque, and the sum of the two residuals names the sensor, on rows where no rotor-speed sensor is
+  flagged and no isolation is under way (this tick's isolations start first); beside a flagged generator-speed
+  sensor they read the filter on the other one. The filter's prediction error, coloured and three times the
+  design's near rated, is common to both residuals and cancels in the parity, so the threshold holds at every wind.
+  The smallest shift exceeds the clearing's floor, so between the two a flag neither drops nor rises again
   (hysteresis).
 * **Fault end.** A flag drops only when its sensor's CUSUM (``clearing``) has gathered enough evidence that the
   exclusion residual (the sensor against the selected observer's prediction, which never uses it) is back at
