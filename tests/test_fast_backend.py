@@ -175,7 +175,8 @@ def turbine_trace(scenario, backend: str, runs: list[int], ticks: int, every: in
             "spread_counts": fdi.spread.count,
             "residual": fdi.clearing.residual,
             # the rotor-speed bias CUSUM (``service.turbine.bias_test``): S±, A±, its predictor and learnt spread
-            "rotor_bias": [fdi.bias.up, fdi.bias.down, fdi.bias.run_up, fdi.bias.run_down, fdi.bias.predictor],
+            "rotor_bias": [fdi.bias.up, fdi.bias.down, fdi.bias.run_up, fdi.bias.run_down],  # (n, K) each
+            "rotor_bias_predictor": fdi.bias.predictor,
             "rotor_bias_scale": [fdi.bias.spread.estimate, fdi.bias.spread.count],
             "flags": supervisor.flags,
             "omega_g": est.omega_g,

@@ -493,24 +493,30 @@ def test_the_onset_jump_is_silent_without_a_fault_and_absent_when_not_asked():
 def test_a_rotor_speed_sensor_joins_the_first_flag_when_the_rotor_pair_disagrees():
     """A double fault's rotor-speed half (a gain of a few percent) shows in the rotor pair's summed difference from
     its first tick, in the UIOs only as their states drift: an explanation that names no rotor-speed sensor is
-    doubted while that sum's z exceeds the confirmation level Φ⁻¹(1 − 0.05/2) = 1.96, and takes the rotor-speed
-    sensor whose explanation's own observer has the smaller statistic once z exceeds the isolation level 3.29.
-    Before, the first flag of such a window named the generator-speed sensor alone (a wrong isolation) in half the
-    runs of a probe (ω_r,m2 gain 1.046 with ω_g,m1 gain 0.921 at 8.3 m/s)."""
-    fdi = SpeedSensorFDI(DESIGN, 3, P.dt)
-    assert fdi.rotor_doubt == pytest.approx(1.959964, abs=1e-6)
+    doubted while a bias of the bias test's smallest design size (1.5 σ_r on one sensor, m_d = 1.5/√2 σ_d of the
+    pair's difference) is the likelier, Λ = m_d |Σd| − k m_d²/2 > 0, for at most ⌈2 ln(1/α_iso)/m_d²⌉ = 13 ticks,
+    and takes the rotor-speed sensor whose explanation's own observer has the smaller statistic once the sum's z
+    exceeds the isolation level 3.29, deciding at once. Before, the doubt needed z > 1.96 (a 3 % gain at 16 m/s,
+    z ≈ 2.5 ± 1 on the deadline's tick, went undoubted in a third of the runs) and held on past 3.29."""
+    fdi = SpeedSensorFDI(DESIGN, 4, P.dt)
+    m_d = 1.5 / math.sqrt(2.0)
+    assert fdi.rotor_shift == pytest.approx(m_d)
+    assert fdi.rotor_patience == math.ceil(2.0 * math.log(1e3) / m_d**2) == 13
     assert fdi.arbiter.parity_level == pytest.approx(3.290527, abs=1e-6)
     sigma_d = fdi.arbiter.parity_sigma
     fdi.arbiter.count[:] = 4.0
-    fdi.arbiter.parity[:] = np.array([1.0, 2.5, 4.0]) * sigma_d * 2.0  # z = 1.0, 2.5, 4.0
+    z = np.array([0.5, 1.5, 2.5, 4.0])  # Λ = 2 m_d z − 4 m_d²/2 = −1.19, 0.93, 3.05; z = 4 > 3.29 disagrees
+    fdi.arbiter.parity[:] = z * sigma_d * 2.0
+    np.testing.assert_allclose(fdi.arbiter.rotor_log_ratio(m_d), 2.0 * m_d * z - 2.0 * m_d**2)
     g1 = 1 << G1
     r1, r2 = 1 << R1, 1 << SPEED_SENSORS.index("omega_r_m2")
     own = np.ones(DESIGN.n_isolating)
     own[fdi.observer_of_mask[g1 | r1]] = 0.5  # {r1, g1}'s own observer explains the data best
     confirm = np.zeros(DESIGN.n_isolating)  # every witness at ease: only the rotor pair casts doubt
-    assert [fdi._doubtful(row, g1, confirm) for row in range(3)] == [False, True, True]
-    assert not fdi._doubtful(2, g1 | r2, confirm)  # the explanation names a rotor-speed sensor already
-    assert [fdi._with_rotor_pair(row, g1, own) for row in range(3)] == [g1, g1, g1 | r1]
+    assert [fdi._doubtful(row, g1, confirm, waited=3) for row in range(4)] == [False, True, True, False]
+    assert not fdi._doubtful(2, g1, confirm, waited=13)  # the rotor patience has run out
+    assert not fdi._doubtful(2, g1 | r2, confirm, waited=3)  # the explanation names a rotor-speed sensor already
+    assert [fdi._with_rotor_pair(row, g1, own) for row in range(4)] == [g1, g1, g1, g1 | r1]
     own[fdi.observer_of_mask[g1 | r2]] = 0.1
-    assert fdi._with_rotor_pair(2, g1, own) == g1 | r2
-    assert fdi._with_rotor_pair(2, g1 | r2, own) == g1 | r2
+    assert fdi._with_rotor_pair(3, g1, own) == g1 | r2
+    assert fdi._with_rotor_pair(3, g1 | r2, own) == g1 | r2

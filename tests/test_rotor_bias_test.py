@@ -89,6 +89,59 @@ def test_a_noise_free_bias_is_flagged_on_its_sensor_after_2h_over_m_times_mu_min
     assert first[0, sensor] == math.ceil(2.0 * test.h / (m * (abs(mu) - 0.5 * m)) - 1e-9)
 
 
+def _bank(n: int, rate: float = 0.01, bank: int = 3) -> RotorBiasTest:
+    return RotorBiasTest(n, np.array([[0, 1]]), np.ones((1, 2)), P.dt, rate, 1.5, bank=bank)
+
+
+def test_the_bank_s_threshold_is_the_budget_shared_by_its_2k_one_sided_tests():
+    test = _bank(1)
+    assert test.shifts.tolist() == [1.5, 3.0, 6.0]  # an octave apart from bias_shift
+    assert test.h == pytest.approx(math.log(2 * 3 * 1000.0 / (0.01 * P.dt)))  # ln 6e7 = 17.9
+
+
+@pytest.mark.parametrize("sensor", [0, 1])
+@pytest.mark.parametrize("mu", [1.1, 2.0, 3.0, -5.0, 8.0])
+def test_a_noise_free_bias_is_flagged_by_the_bank_s_fastest_cusum(mu, sensor):
+    """S_k grows by m_d,k (|μ|/√2 − m_d,k/2) per tick: the bank raises after min_k ⌈h / that⌉ ticks, on the biased
+    sensor."""
+    test = _bank(1)
+    e = np.zeros((400, 1, 2))
+    e[:, 0, sensor] = mu
+    first = _feed(test, e)
+    m = test.parity_shifts
+    growth = m * (abs(mu) / math.sqrt(2.0) - 0.5 * m)
+    expected = min(math.ceil(test.h / g - 1e-9) for g in growth if g > 0.0)
+    assert first[0, 1 - sensor] == -1
+    assert first[0, sensor] == expected
+
+
+def test_the_bank_finds_a_large_bias_in_half_the_single_cusum_s_time_near_lordens_bound():
+    """A bias of 5 σ_e (a 7.4 % gain at rated rotor speed): the single CUSUM (m = 1.5) needs ⌈2h₁/(m(μ − m/2))⌉ = 6
+    ticks; the bank's 6 σ_e shift ⌈2h/(6(5 − 3))⌉ = 3, and the optimal test for a known bias of 5 (Lorden:
+    h₁ / KL, KL = μ²/4 per tick of the parity) 16.8/6.25 = 2.7."""
+    e = np.zeros((50, 1, 2))
+    e[:, 0, 0] = 5.0
+    single, bank = _feed(_test(1), e.copy())[0, 0], _feed(_bank(1), e.copy())[0, 0]
+    assert (single, bank) == (6, 3)
+    assert bank <= math.ceil(_test(1).h / (5.0**2 / 4.0))
+
+
+def test_the_bank_s_false_alarms_on_white_noise_stay_within_lordens_bound():
+    """Budget 10 per 1000 s: h = ln(2·3·1e4) = 11.0 and the 2K one-sided tests of a row may raise at most
+    2K · ticks / e^h times on N(0, 1), the row's budget α = 1e-4 per tick."""
+    rng = np.random.default_rng(12)
+    rows, ticks = 400, 10_000
+    test = _bank(rows, rate=10.0)
+    raised = int(_count(test, rng.standard_normal((ticks, rows, 2))).sum())
+    assert raised <= 0.5 * rows * ticks * 6 / math.exp(test.h)
+
+
+def test_the_supervisor_runs_the_bank_by_default():
+    test = TurbineSupervisor(1).detector.fdi.bias
+    assert FDISettings().bias_bank == 3 and test.shifts.tolist() == [1.5, 3.0, 6.0]
+    assert TurbineSupervisor(1, options={"bias_bank": 1}).detector.fdi.bias.shifts.tolist() == [1.5]
+
+
 def test_a_bias_below_half_the_shift_is_never_flagged():
     test = _test(1)
     e = np.full((5000, 1, 2), 0.0)
@@ -198,6 +251,11 @@ def test_bad_designs_are_refused(shift, scale, rate):
         RotorBiasTest(1, np.array([[0, 1]]), scale, P.dt, rate, shift)
 
 
+def test_an_empty_bank_is_refused():
+    with pytest.raises(ValueError, match="bank"):
+        RotorBiasTest(1, np.array([[0, 1]]), np.ones((1, 2)), P.dt, 0.01, 1.5, bank=0)
+
+
 def test_a_row_whose_predictor_changes_starts_from_zero():
     test = RotorBiasTest(1, np.array([[0, 1], [2, 3]]), np.ones((2, 2)), P.dt, 0.01, 1.5)
     y, x_hat = np.zeros((1, 4)), np.zeros((1, WIDTH))
@@ -221,6 +279,8 @@ def test_bias_shift_must_exceed_the_clear_floor():
     [
         ({"bias_shift": 0.1}, "bias_shift"),
         ({"bias_shift": 11.0}, "bias_shift"),
+        ({"bias_bank": 0}, "bias_bank"),
+        ({"bias_bank": 7}, "bias_bank"),
         ({"rotor_bias_test": "yes"}, "rotor_bias_test"),
         ({"rotor_bias_tset": True}, "rotor_bias_tset"),
         ({"rotor_bias_test": True, "bias_shift": 1.2, "clear_floor": 1.2}, "bias_shift"),

@@ -3,6 +3,7 @@ needs no arbitration, and a pitch-sensor flag near its detection limit does not 
 
 from __future__ import annotations
 
+import math
 from types import SimpleNamespace
 
 import numpy as np
@@ -84,6 +85,27 @@ def test_a_doubtful_isolation_waits_and_names_the_whole_faulty_set_first():
     assert (k, first) == (2, BIT["omega_g_m1"])
 
 
+def test_a_double_fault_s_large_rotor_speed_offset_is_named_with_the_generator_speed_half():
+    """ω_r,m2 + 10 σ_r and ω_g,m1 faulty from tick 0, both rejecting every explanation that leaves them in: the
+    bias test's 6 σ_e CUSUM would reach h on the first tick (m_d (10/√2 − m_d/2) = 21 > 17.9, m_d = 6/√2) and
+    flag ω_r,m2 alone a tick before the isolation names both; it runs after the isolations start, so a row in
+    trouble is the isolation's and the first flag names the pair at the deadline."""
+    fdi = _fdi()
+    rng, x_hat = _healthy_history(fdi, 5)
+    x_hat[0, fdi.bias.column[0]] = 1.2  # the rotor-speed prediction the bias test reads: the true speed
+    masks = []
+    for _ in range(6):
+        stat = _healthy_chi2(fdi)
+        for j, left_out in enumerate(DESIGN.left_out):
+            if not {"omega_g_m1", "omega_r_m2"} <= left_out:
+                stat[0, j] = 1e4
+        y = _readings(rng)
+        y[0, 1] += 10.0 * SPEED_SIGMA[1]
+        fdi.step(y, stat, x_hat)
+        masks.append(int(fdi.flagged[0]))
+    assert _first_flag(masks) == (fdi.s.isolation_delay, BIT["omega_r_m2"] | BIT["omega_g_m1"])
+
+
 def test_patience_is_bounded():
     """Evidence that never grows: the decision is taken after isolation_delay + isolation_patience ticks."""
     fdi = _fdi(isolation_patience=3)
@@ -93,7 +115,8 @@ def test_patience_is_bounded():
 
 
 def test_a_clear_single_fault_is_not_delayed():
-    """With every witness of the chosen explanation at its mean, there is no doubt: flagged at the deadline."""
+    """With every witness of the chosen explanation at its mean and the rotor-speed pair in agreement (Λ < 0), there
+    is no doubt: flagged at the deadline."""
     fdi = _fdi()
     rng, x_hat = _healthy_history(fdi, 4)
     masks = []
@@ -102,9 +125,30 @@ def test_a_clear_single_fault_is_not_delayed():
         for j, left_out in enumerate(DESIGN.left_out):
             if "omega_g_m1" not in left_out:
                 stat[0, j] = 1e4
-        fdi.step(_readings(rng), stat, x_hat)
+        y = _readings(rng)
+        y[0, 1] = y[0, 0]  # the rotor-speed pair reads alike: no evidence of a rotor-speed fault beside it
+        fdi.step(y, stat, x_hat)
         masks.append(int(fdi.flagged[0]))
     assert _first_flag(masks) == (fdi.s.isolation_delay, BIT["omega_g_m1"])
+
+
+def test_a_healthy_rotor_pair_doubts_a_generator_only_explanation_as_often_as_its_likelihood_ratio_says():
+    """What the rotor-speed pair's doubt costs a single generator-speed fault: on its deadline (k = 3 ticks summed)
+    a healthy pair's Λ = m_d |Σd| − k m_d²/2 is positive with probability P(|Z| > m_d √k / 2) = 2Φ(−0.918) = 0.359
+    (m_d = 1.5/√2), and the decision then waits; the earlier rule (z > 1.96) waited in 5 %."""
+    rows = 20_000
+    fdi = SpeedSensorFDI(DESIGN, rows, P.dt, FDISettings(adapt_time_s=0.0, warmup_s=0.0))
+    rng = np.random.default_rng(41)
+    arbiter = fdi.arbiter
+    arbiter.reset(np.ones(rows, dtype=bool))
+    trusted = np.ones((rows, 2), dtype=bool)
+    for _ in range(3):
+        y = np.array([1.2, 1.2, 1.2 * P.N_g, 1.2 * P.N_g]) + SPEED_SIGMA * rng.standard_normal((rows, 4))
+        arbiter.step(y, None, None, trusted, np.zeros(rows, dtype=bool))
+    doubted = (arbiter.rotor_log_ratio(fdi.rotor_shift) > 0.0).mean()
+    expected = 2.0 * 0.5 * math.erfc(fdi.rotor_shift * math.sqrt(3.0) / 2.0 / math.sqrt(2.0))
+    assert expected == pytest.approx(0.359, abs=1e-3)
+    assert doubted == pytest.approx(expected, abs=4.0 * math.sqrt(expected * (1.0 - expected) / rows))
 
 
 def test_a_reading_frozen_near_the_truth_is_flagged_without_arbitration():

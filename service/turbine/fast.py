@@ -452,44 +452,54 @@ def any_differ(a, b):
 # -- rotor-speed bias CUSUM (``service.turbine.bias_test.RotorBiasTest.step``) ----------------------------------------
 @kernel
 def rotor_bias(y, x_hat, flagged, deadline, predictor_of_mask, column, scale, test, state, learning, over):
-    """One tick of the rotor-speed parity's CUSUM: each row's predictor j (``predictor_of_mask`` of its flags, −1
-    while an isolation is pending; a changed j starts the row from zero), e_s = (y_s − x̂[column[j, s]]) scale[j, s]
-    (j = 0 and scale 0 on rows not tested), raw = (e_1 − e_2)/√2, d = raw/ŝ, S± ← max(0, S± + m_d (±d − m_d/2)) on
-    tested rows (0 elsewhere), A± ← A± + (e_1 + e_2) while S± > 0, raised where S± ≥ h; then ``learn_spread`` of raw²
-    from the tested rows not raised, and ``over`` (n, 2) the sensor named at a raise. ``test`` = (m_d, h);
-    ``state`` = (S⁺, S⁻, A⁺, A⁻, predictor), in place; ``learning`` = (enabled, min_weight, s_max², state of ŝ's
+    """One tick of the rotor-speed parity's bank of CUSUMs: each row's predictor j (``predictor_of_mask`` of its
+    flags, −1 while an isolation is pending; a changed j starts the row from zero), e_s = (y_s − x̂[column[j, s]])
+    scale[j, s] (j = 0 and scale 0 on rows not tested), raw = (e_1 − e_2)/√2, d = raw/ŝ, for each shift m_k
+    S±_k ← max(0, S±_k + m_k (±d − m_k/2)) on tested rows (0 elsewhere), A±_k ← A±_k + (e_1 + e_2) while S±_k > 0,
+    raised where some S± ≥ h; then ``learn_spread`` of raw² from the tested rows not raised, and ``over`` (n, 2) the
+    sensor named at a raise by the largest statistic (the first of equals). ``test`` = (m (K,), h); ``state`` = (S⁺,
+    S⁻, A⁺, A⁻ (n, K), predictor), in place; ``learning`` = (enabled, min_weight, s_max², state of ŝ's
     ``HealthySpread``, (n,) each). Returns whether any row raised."""
     m, h = test
     up, down, run_up, run_down, predictor = state
     enabled, min_weight, max_scale2, spread = learning
-    n = y.shape[0]
+    n, bank = up.shape
     root_two = np.sqrt(2.0)
     squared, healthy = np.empty((n, 1)), np.empty((n, 1), dtype=np.bool_)
     any_over = False
     for r in range(n):
         j = predictor_of_mask[flagged[r]] if deadline[r] < 0 else -1
         if j != predictor[r]:
-            up[r], down[r], run_up[r], run_down[r] = 0.0, 0.0, 0.0, 0.0
+            for k in range(bank):
+                up[r, k], down[r, k], run_up[r, k], run_down[r, k] = 0.0, 0.0, 0.0, 0.0
         predictor[r] = j
         active = j >= 0
-        k = j if active else 0
-        e1 = (y[r, 0] - x_hat[r, column[k, 0]]) * (scale[k, 0] if active else 0.0)
-        e2 = (y[r, 1] - x_hat[r, column[k, 1]]) * (scale[k, 1] if active else 0.0)
+        c = j if active else 0
+        e1 = (y[r, 0] - x_hat[r, column[c, 0]]) * (scale[c, 0] if active else 0.0)
+        e2 = (y[r, 1] - x_hat[r, column[c, 1]]) * (scale[c, 1] if active else 0.0)
         raw = (e1 - e2) / root_two
         d = raw / spread[3][r]
         total = e1 + e2
-        s_up = maximum(0.0, up[r] + m * (d - 0.5 * m)) if active else 0.0
-        s_down = maximum(0.0, down[r] + m * (-d - 0.5 * m)) if active else 0.0
-        run_up[r] = run_up[r] + total if s_up > 0.0 else 0.0
-        run_down[r] = run_down[r] + total if s_down > 0.0 else 0.0
-        up[r], down[r] = s_up, s_down
-        raised_up, raised_down = s_up >= h, s_down >= h
+        raised_up, raised_down = False, False
+        top_up, top_down, best_up, best_down = 0.0, 0.0, 0, 0
+        for k in range(bank):
+            s_up = maximum(0.0, up[r, k] + m[k] * (d - 0.5 * m[k])) if active else 0.0
+            s_down = maximum(0.0, down[r, k] + m[k] * (-d - 0.5 * m[k])) if active else 0.0
+            run_up[r, k] = run_up[r, k] + total if s_up > 0.0 else 0.0
+            run_down[r, k] = run_down[r, k] + total if s_down > 0.0 else 0.0
+            up[r, k], down[r, k] = s_up, s_down
+            raised_up = raised_up or s_up >= h
+            raised_down = raised_down or s_down >= h
+            if k == 0 or s_up > top_up:
+                top_up, best_up = s_up, k
+            if k == 0 or s_down > top_down:
+                top_down, best_down = s_down, k
         squared[r, 0] = raw * raw
         healthy[r, 0] = active and not raised_up and not raised_down
-        # both signs on one tick cannot both be right: the larger statistic decides
-        use_up = raised_up and (not raised_down or s_up >= s_down)
+        # of each sign the largest statistic of the bank, and of the two signs, which cannot both be right, the larger
+        use_up = raised_up and (not raised_down or top_up >= top_down)
         use_down = raised_down and not use_up
-        first = (use_up and run_up[r] > 0.0) or (use_down and run_down[r] < 0.0)
+        first = (use_up and run_up[r, best_up] > 0.0) or (use_down and run_down[r, best_down] < 0.0)
         over[r, 0] = first
         over[r, 1] = (use_up or use_down) and not first
         any_over = any_over or use_up or use_down

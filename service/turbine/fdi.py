@@ -29,16 +29,21 @@ evidence that its sensor is healthy again.
   ticks beyond the deadline, with the explanations considered suspected (so the estimate already leaves them
   out): a first flag that names only part of the faulty set is a wrong isolation, and one more tick is cheaper.
   The rotor-speed pair's summed difference (``arbitration``) casts doubt too, on an explanation that names no
-  rotor-speed sensor, at the same level; once it passes the isolation level, the rotor-speed sensor whose
-  explanation's own observer has the smaller statistic joins the flag (a double fault's rotor-speed gain, which
-  the UIOs see only as their states drift, after the generator-speed half is settled on its first ticks).
-* **Persistent rotor-speed bias.** Beside the window tests, Page's CUSUM on the parity of the two rotor-speed
-  sensors' exclusion residuals against the generator-speed Kalman filter (``bias_test``; ``rotor_bias_test``,
-  ``bias_shift``) flags a bias of 1–2 σ that the UIOs take for aerodynamic torque, and the sum of the two residuals
-  names the sensor, on rows where no rotor-speed sensor is flagged and no isolation is under way; beside a flagged
-  generator-speed sensor it reads the filter on the other one. The filter's prediction error, coloured and three
-  times the design's near rated, is common to both residuals and cancels in the parity, so the threshold holds
-  at every wind. Its shift exceeds the clearing's floor, so between the two a flag neither drops nor rises again
+  rotor-speed sensor (a double fault's rotor-speed gain, which the UIOs see only as their states drift): while a bias
+  of the bias test's smallest design size on one of them is the likelier hypothesis (its log-likelihood ratio
+  Λ = m_d |Σd| − k m_d²/2 > 0, m_d = ``bias_shift``/√2 σ of the pair's difference), for at most the ticks a
+  sequential test at that size needs on average to reach the isolation level (Wald: ⌈2 ln(1/α_iso)/m_d²⌉ = 13);
+  once the sum's z passes the isolation level the decision is taken at once and the rotor-speed sensor whose
+  explanation's own observer has the smaller statistic joins the flag. A healthy pair doubts on the deadline with
+  probability 2Φ(−m_d √3/2) = 0.36, for a tick or two: the price of a first flag that names both halves.
+* **Persistent rotor-speed bias.** Beside the window tests, Page's CUSUMs (a bank of shifts ``bias_shift``·2^k,
+  k < ``bias_bank``) on the parity of the two rotor-speed sensors' exclusion residuals against the generator-speed
+  Kalman filter (``bias_test``; ``rotor_bias_test``, ``bias_shift``) flag a bias of 1–2 σ that the UIOs take for
+  aerodynamic torque, and the sum of the two residuals names the sensor, on rows where no rotor-speed sensor is
+  flagged and no isolation is under way (this tick's isolations start first); beside a flagged generator-speed
+  sensor they read the filter on the other one. The filter's prediction error, coloured and three times the
+  design's near rated, is common to both residuals and cancels in the parity, so the threshold holds at every wind.
+  The smallest shift exceeds the clearing's floor, so between the two a flag neither drops nor rises again
   (hysteresis).
 * **Fault end.** A flag drops only when its sensor's CUSUM (``clearing``) has gathered enough evidence that the
   exclusion residual (the sensor against the selected observer's prediction, which never uses it) is back at
@@ -75,6 +80,7 @@ design false-alarm rate.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from typing import Annotated
 
@@ -90,7 +96,7 @@ from service.turbine.frozen import FrozenReadings
 from service.turbine.uio import LAGS
 from wwcore.channels import SPEED_SENSORS
 from wwcore.options import Bounds
-from wwcore.quantiles import chi2_isf, norm_isf
+from wwcore.quantiles import chi2_isf
 from wwcore.scenario.mismatch import SENSOR_BIAS_TOLERANCE
 
 N_SPEED = len(SPEED_SENSORS)
@@ -139,6 +145,8 @@ class FDISettings:
     rotor_bias_test: bool = True  # on the rotor-speed parity: < 0.05 false alarms per 1000 s (docs/decisions.md)
     # the bias that CUSUM is designed for, m (it detects biases above m/2; > clear_floor, for hysteresis)
     bias_shift: Annotated[float, Bounds(ge=0.25, le=10.0, unit="σ")] = 1.5
+    # shifts in that CUSUM's bank: bias_shift·2^k, k < bias_bank (1: one CUSUM; more: larger biases found sooner)
+    bias_bank: Annotated[int, Bounds(ge=1, le=6)] = 3
 
     def __post_init__(self) -> None:
         if self.isolation_delay >= self.window:
@@ -198,9 +206,6 @@ class SpeedSensorFDI:
         self.h_confirm_window = np.array(
             [window_threshold(o.autocov, settings.window, confirm / 2.0) for o in observers]
         )
-        # the rotor-speed pair's summed difference (``arbitration``) at the confirmation level: a rotor-speed fault
-        # beside an explanation that names none (a double fault's rotor half, before the observers see it)
-        self.rotor_doubt = float(norm_isf(0.5 * confirm))
         self.h_clear = np.array(
             [window_threshold(o.autocov, settings.clear_window, settings.clear_alpha) for o in observers]
         )
@@ -232,6 +237,7 @@ class SpeedSensorFDI:
                 settings.adapt_time_s,
                 settings.max_noise_scale,
                 fast,
+                settings.bias_bank,
             )
             for mask in range(1 << N_SPEED):
                 if mask & rotor_bits:
@@ -281,6 +287,14 @@ class SpeedSensorFDI:
         self.deadline = np.full(n, -1, dtype=np.int64)  # tick at which a pending isolation is decided, −1 none
         self.started = np.zeros(n, dtype=np.int64)  # tick at which the pending isolation started
         self.arbiter = GeneratorArbiter(bank, n, iso, dt, fast)
+        # the rotor-speed pair's summed difference (``arbitration``) doubts an explanation that names no rotor-speed
+        # sensor (a double fault's rotor half, before the observers see it) while a bias of the smallest size the
+        # bias test is designed for (``bias_shift`` σ on one sensor, m_d σ_d of the pair's difference) is the likelier
+        # (its log-likelihood ratio Λ > 0), for at most the ticks a sequential test at that size needs on average to
+        # reach the isolation level (Wald: ln(1/α_iso) / (m_d²/2))
+        rotor_sigma = math.sqrt(self.arbiter.rotor_variance) / self.arbiter.gear_ratio  # σ_r1, rad/s
+        self.rotor_shift = settings.bias_shift * rotor_sigma / self.arbiter.parity_sigma
+        self.rotor_patience = math.ceil(2.0 * math.log(1.0 / iso) / self.rotor_shift**2)
         self.arbitration_ticks = round(settings.arbitration_s / dt)
         self.provisional = np.zeros(n, dtype=np.int64)  # the pending isolation's current explanation
         self._pending = False  # whether any row has a pending isolation
@@ -347,9 +361,9 @@ class SpeedSensorFDI:
             self.calibration.update_rows(None, healthy, deviation)  # offsets only
         if self.ticks <= self.warmup_ticks:
             return
-        if self.bias is not None:
-            self._rotor_bias(y, x_hat)
         if not (exceeded or any_frozen or self._maybe_flagged or self._pending):
+            if self.bias is not None:
+                self._rotor_bias(y, x_hat)
             return  # nothing inconsistent, frozen, flagged or pending: what the lines below conclude on such a tick
         frozen_mask = self.readings.frozen @ _BITS if any_frozen else self._no_frozen
         if self._maybe_flagged or self._pending:
@@ -360,6 +374,10 @@ class SpeedSensorFDI:
         trouble = inconsistent | ((frozen_mask & ~self.flagged) != 0) if any_frozen else inconsistent
         if self._pending or trouble.any():
             self._isolate(trouble, inconsistent, chi2_stat, ratio, frozen_mask, y, torque_band, power_speed)
+        if self.bias is not None:
+            # after the isolations: a row whose trouble starts on this tick is the isolation's (its bias statistics
+            # pause), so a double fault's rotor-speed half is not flagged alone a tick before the isolation names both
+            self._rotor_bias(y, x_hat)
         if self._maybe_flagged:
             if self.flagged.any():
                 self._clear(y, x_hat, frozen_mask, trouble | (self.deadline >= 0), torque_band)
@@ -423,7 +441,7 @@ class SpeedSensorFDI:
             )
             if self.ticks >= self.deadline[row]:
                 waited = self.ticks - self.started[row]
-                if waited < patience and self._doubtful(row, explanation, confirm[i]):
+                if self._doubtful(row, explanation, confirm[i], waited, patience, frozen):
                     self.deadline[row] = self.ticks + 1  # one more tick of evidence, distrusting what is suspected
                     if self._estimable[self.provisional[row] | explanation]:
                         self.provisional[row] |= explanation
@@ -454,17 +472,33 @@ class SpeedSensorFDI:
         self._pending = bool((self.deadline >= 0).any())
         self._maybe_flagged = True
 
-    def _doubtful(self, row: int, explanation: int, confirm: np.ndarray) -> bool:
-        """Whether a witness of the explanation chosen at the isolation level fails the laxer confirmation level
-        ``isolation_confirm_alpha``: evidence of a further fault that has not yet grown enough to reject it (a
-        rotor-speed gain beside a generator-speed fault shows in the UIOs only as their states drift from it over
-        several ticks), so that flagging it now would name a part of the faulty set first."""
+    def _doubtful(
+        self, row: int, explanation: int, confirm: np.ndarray, waited: int = 0, patience: int = 1, frozen: int = 0
+    ) -> bool:
+        """Whether the decision on an explanation chosen at the isolation level waits a tick (``waited`` ticks since
+        the isolation started):
+
+        * while ``waited`` < ``patience``, when a witness fails the laxer confirmation level
+          ``isolation_confirm_alpha``: evidence of a further fault that has not yet grown enough to reject it;
+        * while ``waited`` < ``rotor_patience``, when the explanation names no rotor-speed sensor, the rotor-speed
+          pair does not yet disagree at the isolation level (``_with_rotor_pair`` would add one) and a bias of the
+          bias test's smallest design size on one of them is the likelier (Λ > 0, ``arbitration.rotor_log_ratio``):
+          a rotor-speed gain beside a generator-speed fault shows in the pair's difference from its first tick but
+          in the UIOs only as their states drift, so that flagging now would name a part of the faulty set first.
+          Not for an explanation that names a ``frozen`` sensor: it is decided on the tick the frozen test fires,
+          when the pair's sum holds a tick or two and Λ says little."""
         j = self.observer_of_mask[explanation]
         if j < 0 or self.ambiguous[row]:
             return False
-        if not explanation & _ROTOR_BITS and self.arbiter.rotor_z[row] > self.rotor_doubt:
-            return True  # the rotor-speed pair disagrees beyond the confirmation level: a rotor-speed fault beside it
-        return bool((self.witnesses[j] * confirm).max() > 1.0)
+        if (
+            not explanation & _ROTOR_BITS
+            and not explanation & frozen
+            and waited < self.rotor_patience
+            and not self.arbiter.rotor_disagree[row]
+            and self.arbiter.rotor_log_ratio(self.rotor_shift)[row] > 0.0
+        ):
+            return True
+        return waited < patience and bool((self.witnesses[j] * confirm).max() > 1.0)
 
     def _with_rotor_pair(self, row: int, explanation: int, own: np.ndarray) -> int:
         """The explanation with a rotor-speed sensor added where it names none and the two rotor-speed sensors
