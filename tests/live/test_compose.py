@@ -168,7 +168,10 @@ def test_compose_services_run_locally_and_work(tmp_path):
                 def healthy(probe=probe, env=env) -> bool:
                     return subprocess.run(probe, env=env, capture_output=True, timeout=30).returncode == 0
 
-                assert wait_for(healthy, 60, 0.5), f"{name} never became healthy: {probe}"
+                if not wait_for(healthy, 60, 0.5):
+                    log.flush()
+                    tail = (tmp_path / "services.log").read_text(errors="replace")[-4000:]
+                    pytest.fail(f"{name} never became healthy: {probe}\nthe services' log ends:\n{tail}")
             assert procs[name].poll() is None, f"{name} exited"
         viewer = f"http://127.0.0.1:{ports[('viewer', 9090)]}/"
         assert wait_for(lambda: _ok(viewer), 30), "the web viewer does not serve"

@@ -6,14 +6,16 @@ from __future__ import annotations
 
 import json
 import os
+import socket
 import subprocess
 import sys
 
 import httpx
+import pytest
 
 from tests.live.helpers import wait_for
 from windwarden.live.finalize import recording_entities, verify_recording
-from windwarden.live.router import free_port
+from windwarden.live.router import EPHEMERAL_RANGE, LOWEST_LISTEN_PORT, free_port
 from windwarden.live.runfolder import EVENTS, RECORDING, read_events
 
 SCENARIO = """
@@ -118,3 +120,17 @@ def test_up_inject_detect_shutdown_recording(tmp_path):
     assert expected <= entities, expected - entities
     for child in ("plant", "supervisor", "api"):
         assert (run_dir / "logs" / f"{child}.log").exists()
+
+
+@pytest.mark.in_process
+def test_free_ports_are_drawn_below_the_ephemeral_range():
+    """``free_port`` leaves the kernel's ephemeral range to outgoing connections where it knows it (Linux), so no
+    connection of another process can take the port before the caller listens on it; each port is bindable."""
+    if not EPHEMERAL_RANGE.exists():
+        pytest.skip("no ephemeral port range to read on this system")
+    low = int(EPHEMERAL_RANGE.read_text().split()[0])
+    ports = [free_port() for _ in range(20)]
+    assert all(LOWEST_LISTEN_PORT <= p < low for p in ports), ports
+    for port in ports[:3]:
+        with socket.socket() as s:
+            s.bind(("127.0.0.1", port))

@@ -14,6 +14,7 @@ so ``zenohd -c`` and ``windwarden router --config`` enforce the same rules.
 from __future__ import annotations
 
 import json
+import random
 import socket
 import subprocess
 import sys
@@ -32,8 +33,30 @@ from wwcore.keys import KeyTree
 DEFAULT_PORT = 7447
 
 
+EPHEMERAL_RANGE = Path("/proc/sys/net/ipv4/ip_local_port_range")
+LOWEST_LISTEN_PORT = 10_000  # above the ports services are usually configured on
+
+
 def free_port(host: str = "127.0.0.1") -> int:
-    """A TCP port that was free a moment ago (for tests and ``up --listen auto``)."""
+    """A TCP port that was free a moment ago (for tests and ``up --listen auto``).
+
+    Drawn at random below the kernel's ephemeral range where it is known (Linux): a port the kernel hands out
+    (``bind`` to port 0) is one it also hands to outgoing connections, and another process's connection could take
+    it before the caller listens on it (seen: a service of the compose test failed with "address already in use" on
+    such a port while the other services connected to the router). Elsewhere, the kernel's choice."""
+    try:
+        low = int(EPHEMERAL_RANGE.read_text().split()[0])
+    except (OSError, ValueError, IndexError):
+        low = 0
+    rng = random.SystemRandom()
+    for _ in range(50 if low > LOWEST_LISTEN_PORT + 1000 else 0):
+        port = rng.randrange(LOWEST_LISTEN_PORT, low)
+        with socket.socket() as s:
+            try:
+                s.bind((host, port))
+            except OSError:
+                continue
+            return port
     with socket.socket() as s:
         s.bind((host, 0))
         return int(s.getsockname()[1])
