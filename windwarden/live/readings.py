@@ -30,17 +30,12 @@ class ReadingHold:
     observers restart within it)."""
 
     def __init__(self, schema: MessageSchema):
-        self.fields = tuple(
-            f.name for f in schema.fields if np.dtype(f.dtype).kind == "f" and f.name != "t"
-        )  # the float fields a frame's readings are in
-        self.columns = {f.name: f.columns for f in schema.fields if f.name in self.fields}
+        floats = [f for f in schema.fields if np.dtype(f.dtype).kind == "f"]
+        self.fields = tuple(f.name for f in floats if f.name != "t")  # the float fields a frame's readings are in
+        self.columns = {f.name: f.columns for f in floats}
         dtype = schema.dtype
         self._float_bytes = np.concatenate(  # where a record's floats are, ``t`` included: one gather checks them all
-            [
-                np.arange(dtype.fields[f.name][1], dtype.fields[f.name][1] + dtype[f.name].itemsize)
-                for f in schema.fields
-                if np.dtype(f.dtype).kind == "f"
-            ]
+            [np.arange(dtype.fields[f.name][1], dtype.fields[f.name][1] + dtype[f.name].itemsize) for f in floats]
         )
         self._itemsize = dtype.itemsize
         self.last: np.ndarray | None = None  # the last frame passed on (every float finite); None before the first

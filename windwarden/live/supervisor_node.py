@@ -311,13 +311,13 @@ class SupervisorNode:
     def _hold_non_finite(self, records: np.ndarray) -> np.ndarray | None:
         """``records`` with non-finite readings held (``readings.ReadingHold``), or None: refused and counted. The
         first hold of a channel in a run is logged as a ``stream`` event."""
-        seen = set(self.readings.held)
+        channels = len(self.readings.held)
         held = self.readings.take(records)
         if held is None:
             self.drops.add("sensors", DropReason.NON_FINITE)
             return None
-        new = [c for c in self.readings.held if c not in seen]
-        if new:
+        if len(self.readings.held) > channels:  # a channel held for the first time (the counter keeps its order)
+            new = list(self.readings.held)[channels:]
             t = float(held["t"][0])
             detail = {"stream": "sensors", "held_non_finite": new, "noticed_by": Process.SUPERVISOR.value}
             self._write([Event(t, EventType.STREAM, detail=detail)])
