@@ -222,7 +222,7 @@ class WindRecovery:
         (``converter_correction``)."""
         width, stacked = self._width, self._stacked
         if self._fast is not None:
-            self._fast.stack(x_hat, x_hat[:, :0], self._x_prev, stacked)
+            self._fast.stack(x_hat, self._no_columns, self._x_prev, stacked)
         else:
             stacked[:, :width] = x_hat
             stacked[:, width:] = self._x_prev
