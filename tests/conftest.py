@@ -9,7 +9,7 @@ module, class or function) is marked ``in_process``; a test elsewhere must be ma
 guard below holds both ways: a test not marked ``system`` that opens a Zenoh session, starts uvicorn or a child
 process fails, naming what it started, so a marker cannot be forgotten silently. The children allowed are
 one-shot readers that start nothing: a fresh interpreter running a snippet (``sys.executable -c``, the import
-checks) and ``rerun rrd`` reading a recording file.
+checks), ``rerun rrd`` reading a recording file and ``uname -p`` (``platform.processor()``).
 """
 
 from __future__ import annotations
@@ -73,7 +73,9 @@ class SystemGuard:
         argv = [os.fsdecode(a) for a in (args[1] if isinstance(args[1], list | tuple) else [args[1]])]
         fresh_interpreter = argv[:1] == [sys.executable] and argv[1:2] == ["-c"]
         reads_a_recording = bool(argv) and Path(argv[0]).name == "rerun" and argv[1:2] == ["rrd"]
-        if not (fresh_interpreter or reads_a_recording):
+        # platform.processor() asks `uname -p` once per process (a Dask worker does, as it starts)
+        asks_the_processor = argv == ["uname", "-p"]
+        if not (fresh_interpreter or reads_a_recording or asks_the_processor):
             self.refuse(f"a child process {argv[:3]}")
 
 

@@ -9,7 +9,8 @@ import pytest
 
 from tests.live.helpers import TURBINE_SHORT
 from windwarden.evaluation.parallel import Branch, chunk_runs
-from windwarden.evaluation.turbine import simulate_chunk
+from windwarden.evaluation.turbine import CLEAN_TURBINE, TWIN_TURBINE, simulate_chunk
+from windwarden.evaluation.turbine_scoring import WARMUP_S
 from wwcore.scenario import parse_scenario
 
 
@@ -65,16 +66,40 @@ def test_a_fault_free_twin_branches_off_its_window_from_the_runs_own_state():
     assert {e.turbine for e in result.events if e.type.value == "detection"} == {1}  # the twins raised none
 
 
+def _runs_own(events) -> list:
+    return [e for e in events if e.turbine not in (TWIN_TURBINE, CLEAN_TURBINE)]
+
+
 def test_fault_free_twins_add_nothing_to_the_runs_figures(runs_0_and_1_with_twins):
     scenario = parse_scenario(tomllib.loads(TURBINE_SHORT))
     with_twins = runs_0_and_1_with_twins
     without = simulate_chunk([0, 1], lambda s: None, scenario, 77, "benchmark", "uio-bank", {}, False)
-    assert _key(with_twins.events) == _key(without.events)
-    for name in ("fte", "nfte", "anemometer"):
-        np.testing.assert_array_equal(with_twins.sq_err[name], without.sq_err[name])
+    assert _key(_runs_own(with_twins.events)) == _key(without.events)
+    assert any(e.turbine == CLEAN_TURBINE for e in with_twins.events)  # the clean runs ran beside them
+    for name in ("fte", "nfte", "anemometer"):  # the clean runs' rows share the batch: equal to rounding, as a
+        # different split of the runs into chunks is (BLAS picks its blocking by the batch's size)
+        np.testing.assert_allclose(with_twins.sq_err[name], without.sq_err[name], rtol=1e-9, atol=1e-12)
     np.testing.assert_array_equal(with_twins.counts, without.counts)
     assert not without.sq_err["fte_fault_free"].any() and without.twin_seconds == 0.0
+    assert not without.sq_err["fte_clean"].any() and without.clean_seconds == 0.0
     assert with_twins.sq_err["fte_fault_free"][1:].all()
+
+
+def test_the_clean_run_is_the_same_run_without_any_fault(runs_0_and_1_with_twins):
+    """The clean run's FTE (traced for run 0) is the FTE of the scenario run with its faults taken out, its error
+    is scored in every metric window, the fault-free time included, and its flags are its own (``CLEAN_TURBINE``)."""
+    data = tomllib.loads(TURBINE_SHORT)
+    scenario = parse_scenario(data)
+    faultless = simulate_chunk(
+        [0, 1], lambda s: None, parse_scenario({**data, "faults": []}), 77, "benchmark", "uio-bank", {}, False
+    )
+    with_twins = runs_0_and_1_with_twins
+    np.testing.assert_allclose(with_twins.trace["fte_clean"], faultless.trace["fte"], rtol=1e-9, atol=1e-12)
+    assert not np.allclose(with_twins.trace["fte"], faultless.trace["fte"])  # the faults do move the runs' FTE
+    assert with_twins.sq_err["fte_clean"].all()
+    assert with_twins.clean_seconds == pytest.approx(scenario.duration_s - WARMUP_S)
+    clean_flags = sorted(k[:4] for k in _key(e for e in with_twins.events if e.turbine == CLEAN_TURBINE))
+    assert clean_flags == sorted(k[:4] for k in _key(faultless.events))
 
 
 def test_a_failing_branch_raises_in_the_parent_with_its_traceback():

@@ -19,7 +19,7 @@ from scipy import stats
 from windwarden.cli import main
 from windwarden.evaluation.fault_types import FAULT_TYPE_BY_NAME, WIND_RANGES
 from windwarden.evaluation.random_scenarios import CASES, SCHEDULES, SIZE_RANGES, generate, scenario_seed
-from windwarden.evaluation.random_summary import case_of, summarise
+from windwarden.evaluation.random_summary import case_of, fault_free_lines, summarise
 from windwarden.evaluation.scoring import windows_from_faults
 from wwcore.scenario import dump_scenario, parse_scenario
 
@@ -197,6 +197,43 @@ def test_the_set_summary_pools_windows_by_their_runs():
     assert s["cases"]["converter-offset"]["detected_pct"] == 50.0
     assert s["speed_sensors"]["window_runs"] == 6  # the converter is not a speed sensor
     assert s["false_alarms"]["per_1000s"] == pytest.approx(1.0)  # 1 in 1000 s
+
+
+def _window_entry(name: str) -> dict:
+    """A scorecard ``faults`` row of a window detected and isolated in every run after 0.02 s."""
+    figures = {"detected_pct": 100.0, "isolated_pct": 100.0, "isolated_time_pct": 100.0, "delay_s_mean": 0.02}
+    return {"name": name, **figures, "delay_s_max": 0.02, "wrong_isolation_pct": 0.0, "lost_pct": 0.0}
+
+
+def test_the_set_summary_judges_the_wind_estimate_against_the_twins_and_the_clean_runs():
+    """A window whose twin shares a broken estimate reads 1.0 against its twin and shows against the clean run; the
+    fault-free time's estimate is listed per scenario beside the clean run's and the anemometer's."""
+    fa = {"count": 0, "observed_s": 1000.0, "flagged_s": 0.0}
+    clean_fa = {"count": 1, "observed_s": 1700.0, "per_1000s": 1 / 1.7}
+    wind = {
+        "fault_free": {"fte": 3.4, "nfte": 3.4, "anemometer": 2.0, "fte_clean": 3.3},
+        "r0 speed-generator-gain 1.4%": {"fte": 6.0, "fte_fault_free": 6.0, "fte_clean": 5.0, "anemometer": 2.0},
+        "r1 speed-generator-gain 2%": {"fte": 0.33, "fte_fault_free": 0.3, "fte_clean": 0.3, "anemometer": 2.0},
+    }
+    card = {
+        "scenario": "random-turbine-1",
+        "runs": 4,
+        "duration_s": 1800.0,
+        "faults": [_window_entry(name) for name in wind if name != "fault_free"],
+        "false_alarms": fa,
+        "false_alarms_clean": clean_fa,
+        "metrics": {"wind_rmse": wind},
+    }
+    s = summarise("turbine", [card])
+    gain = s["cases"]["speed-generator-gain"]
+    assert gain["fte_ratio_mean"] == pytest.approx((1.0 + 1.1) / 2) and gain["fte_ratio_max"] == pytest.approx(1.1)
+    assert gain["fte_clean_ratio_max"] == pytest.approx(1.2)
+    assert s["speed_sensors"]["fte_ratio_max"] == pytest.approx(1.1)
+    assert s["speed_sensors"]["fte_clean_ratio_max"] == pytest.approx(1.2)
+    assert s["fault_free_wind"] == [{"scenario": "random-turbine-1", **wind["fault_free"], "ratio": 3.4 / 3.3}]
+    assert s["false_alarms_clean"]["count"] == 1 and s["false_alarms_clean"]["observed_s"] == 1700.0
+    (line,) = fault_free_lines(s)
+    assert "clean run 3.30 m/s" in line and "worse than the anemometer" in line
 
 
 def test_a_small_random_set_is_scored_end_to_end_and_written(tmp_path, monkeypatch):

@@ -128,7 +128,12 @@ def _case(**extra) -> dict:
 @pytest.mark.parametrize(
     "extra",
     [
-        {"fte_ratio_mean": 1.0012, "fte_ratio_max": 1.0571},
+        {
+            "fte_ratio_mean": 1.0012,
+            "fte_ratio_max": 1.0571,
+            "fte_clean_ratio_mean": 1.0123,
+            "fte_clean_ratio_max": 1.2801,
+        },
         {"reconstruction_error_pct_mean": 1.68, "reconstruction_error_pct_max": 2.21},
     ],
     ids=["turbine", "hydro"],
@@ -137,6 +142,9 @@ def test_the_random_scenario_summary_fits_100_columns(extra):
     fa = {"count": 3, "observed_s": 33720.0, "flagged_s": 4.2, "per_1000s": 0.089, "flagged_s_per_1000s": 0.12}
     summary = {"cases": {t.name: _case(**extra) for t in FAULT_TYPES}, "false_alarms": fa}
     summary["speed_sensors"] = _case(**extra)
+    if "fte_ratio_mean" in extra:
+        free = {"fte": 3.43, "nfte": 3.42, "anemometer": 2.0, "fte_clean": 3.41, "ratio": 1.006}
+        summary["fault_free_wind"] = [{"scenario": f"random-turbine-{3678731415 + i}", **free} for i in range(5)]
     card = {"scenario": "random:turbine", "scenarios": [{}] * 5, "runs": 20, "seed": 1, "summary": summary}
     assert_fits(random_table(card))
 

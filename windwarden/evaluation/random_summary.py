@@ -72,9 +72,12 @@ def summarise(kind: str, cards: Sequence[dict[str, Any]]) -> dict[str, Any]:
     alarms (and the farm's false positives of the three fault types per 1000 farm-seconds)."""
     by_case: dict[str, list[tuple[dict[str, Any], int]]] = defaultdict(list)
     ratios: dict[str, list[float]] = defaultdict(list)
+    clean_ratios: dict[str, list[float]] = defaultdict(list)
+    fault_free_wind: list[dict[str, Any]] = []
     errors: dict[str, list[float]] = defaultdict(list)
     fa = {"count": 0, "observed_s": 0.0, "flagged_s": 0.0}
     twin = {"count": 0, "observed_s": 0.0}
+    clean = {"count": 0, "observed_s": 0.0}
     fp = {"count": 0, "farm_s": 0.0}
     for card in cards:
         for entry in card["faults"]:
@@ -83,13 +86,18 @@ def summarise(kind: str, cards: Sequence[dict[str, Any]]) -> dict[str, Any]:
         for name, rmse in card.get("metrics", {}).get("wind_rmse", {}).items():
             if name != "fault_free" and rmse.get("fte_fault_free"):
                 ratios[case_of(name)].append(rmse["fte"] / rmse["fte_fault_free"])
+            if name != "fault_free" and rmse.get("fte_clean"):
+                clean_ratios[case_of(name)].append(rmse["fte"] / rmse["fte_clean"])
+            if name == "fault_free" and rmse.get("fte_clean"):
+                fault_free_wind.append({"scenario": card["scenario"], **rmse, "ratio": rmse["fte"] / rmse["fte_clean"]})
         for rec in card.get("metrics", {}).get("reconstruction", []):
             errors[case_of(rec["fault"])].append(rec["error_pct"])
         for key in fa:
             fa[key] += card["false_alarms"][key]
-        if "false_alarms_twin" in card:
-            twin["count"] += card["false_alarms_twin"]["count"]
-            twin["observed_s"] += card["false_alarms_twin"]["observed_s"]
+        for pooled, key in ((twin, "false_alarms_twin"), (clean, "false_alarms_clean")):
+            if key in card:
+                pooled["count"] += card[key]["count"]
+                pooled["observed_s"] += card[key]["observed_s"]
         if kind == "farm":
             fp["count"] += sum(row["false_positives"] for row in card["metrics"]["detection"].values())
             fp["farm_s"] += card["runs"] * max(card["duration_s"] - FARM_POLICY.warmup_s, 0.0)
@@ -99,6 +107,9 @@ def summarise(kind: str, cards: Sequence[dict[str, Any]]) -> dict[str, Any]:
         if ratios.get(case):
             row["fte_ratio_mean"] = sum(ratios[case]) / len(ratios[case])
             row["fte_ratio_max"] = max(ratios[case])
+        if clean_ratios.get(case):
+            row["fte_clean_ratio_mean"] = sum(clean_ratios[case]) / len(clean_ratios[case])
+            row["fte_clean_ratio_max"] = max(clean_ratios[case])
         if errors.get(case):
             row["reconstruction_error_pct_mean"] = sum(errors[case]) / len(errors[case])
             row["reconstruction_error_pct_max"] = max(errors[case])
@@ -107,18 +118,22 @@ def summarise(kind: str, cards: Sequence[dict[str, Any]]) -> dict[str, Any]:
     if kind == "turbine":
         speed = [x for case in SPEED_CASES for x in by_case.get(case, [])]
         out["speed_sensors"] = _pool(speed) if speed else None
-        speed_ratios = [x for case in SPEED_CASES for x in ratios.get(case, [])]
-        if out["speed_sensors"] and speed_ratios:
-            out["speed_sensors"]["fte_ratio_mean"] = sum(speed_ratios) / len(speed_ratios)
-            out["speed_sensors"]["fte_ratio_max"] = max(speed_ratios)
+        for key, by in (("fte_ratio", ratios), ("fte_clean_ratio", clean_ratios)):
+            speed_ratios = [x for case in SPEED_CASES for x in by.get(case, [])]
+            if out["speed_sensors"] and speed_ratios:
+                out["speed_sensors"][f"{key}_mean"] = sum(speed_ratios) / len(speed_ratios)
+                out["speed_sensors"][f"{key}_max"] = max(speed_ratios)
+        if fault_free_wind:
+            out["fault_free_wind"] = fault_free_wind
     observed = fa["observed_s"]
     out["false_alarms"] = {
         **fa,
         "per_1000s": 1000.0 * fa["count"] / observed if observed else 0.0,
         "flagged_s_per_1000s": 1000.0 * fa["flagged_s"] / observed if observed else 0.0,
     }
-    if twin["observed_s"]:
-        out["false_alarms_twin"] = {**twin, "per_1000s": 1000.0 * twin["count"] / twin["observed_s"]}
+    for pooled, key in ((twin, "false_alarms_twin"), (clean, "false_alarms_clean")):
+        if pooled["observed_s"]:
+            out[key] = {**pooled, "per_1000s": 1000.0 * pooled["count"] / pooled["observed_s"]}
     if kind == "farm":
         out["false_positives"] = {**fp, "per_1000_farm_s": 1000.0 * fp["count"] / fp["farm_s"] if fp["farm_s"] else 0.0}
     return out
@@ -142,12 +157,16 @@ COLUMNS = (
     "lost %",
     "flaps per window",
     "FTE / twin RMSE mean / max",
+    "FTE / clean run RMSE mean / max",
     "reconstruction error % mean / max",
 )
 
 
 def _cells(case: str, row: dict[str, Any]) -> list[str]:
     fte = "–" if "fte_ratio_mean" not in row else f"{row['fte_ratio_mean']:.3f} / {row['fte_ratio_max']:.3f}"
+    fte_clean = "–"
+    if "fte_clean_ratio_mean" in row:
+        fte_clean = f"{row['fte_clean_ratio_mean']:.3f} / {row['fte_clean_ratio_max']:.3f}"
     rec = "–"
     if "reconstruction_error_pct_mean" in row:
         rec = f"{row['reconstruction_error_pct_mean']:.2f} / {row['reconstruction_error_pct_max']:.2f}"
@@ -161,6 +180,7 @@ def _cells(case: str, row: dict[str, Any]) -> list[str]:
         _pct(row["lost_pct"]),
         _f(row["flaps_mean"], 2),
         fte,
+        fte_clean,
         rec,
     ]
 
@@ -182,15 +202,35 @@ def _caption(card: dict[str, Any]) -> str:
     )
     if "false_alarms_twin" in s:
         text += f"; fault-free twins {s['false_alarms_twin']['count']} in {s['false_alarms_twin']['observed_s']:.0f} s"
+    if "false_alarms_clean" in s:
+        text += f"; clean runs {s['false_alarms_clean']['count']} in {s['false_alarms_clean']['observed_s']:.0f} s"
     if "false_positives" in s:
         p = s["false_positives"]
         text += f"; false positives {p['per_1000_farm_s']:.3f} per 1000 farm-s ({p['count']} in {p['farm_s']:.0f} s)"
     return text + "."
 
 
+def fault_free_lines(summary: dict[str, Any]) -> list[str]:
+    """One line per scenario: the FTE's RMSE over the fault-free time, the clean run's and the anemometer's. A
+    clean run worse than the anemometer is an estimate that fails without any fault; FTE over clean above 1 is
+    what earlier faults left behind."""
+    lines = []
+    for row in summary.get("fault_free_wind", []):
+        worse = row["fte_clean"] > row["anemometer"]
+        warn = "  (the clean run's estimate is worse than the anemometer)" if worse else ""
+        lines.append(
+            f"{row['scenario']}: fault-free time, FTE {row['fte']:.2f} m/s, clean run {row['fte_clean']:.2f} m/s "
+            f"(× {row['ratio']:.3f}), anemometer {row['anemometer']:.2f} m/s{warn}"
+        )
+    return lines
+
+
 def markdown(card: dict[str, Any]) -> str:
     lines = [_caption(card), "", "| " + " | ".join(COLUMNS) + " |", "|" + "---|" * len(COLUMNS)]
     lines += ["| " + " | ".join(cells) + " |" for cells in _rows(card["summary"])]
+    free = fault_free_lines(card["summary"])
+    if free:
+        lines += ["", "Wind estimate RMSE over the fault-free time, per scenario:", ""] + [f"- {x}" for x in free]
     return "\n".join(lines) + "\n"
 
 
@@ -207,6 +247,7 @@ CONSOLE_HEADERS = dict(
             "lost %",
             "flaps per window",
             "FTE / twin RMSE mean / max",
+            "FTE / clean RMSE mean / max",
             "recon. error % mean / max",
         ),
         strict=True,
@@ -230,7 +271,8 @@ def console_table(card: dict[str, Any]) -> Group:
     the reconstruction error the hydrostatic turbine's)."""
     rows = _rows(card["summary"])
     legend = "det.: detected; isol.: isolated; windows (runs): fault windows (window-runs); recon.: reconstruction"
+    free = "\n".join(fault_free_lines(card["summary"]))
     return Group(
         _console_part(rows, [0, 1, 2, 3, 4, 5], title=f"random scenarios, {card['scenario']}"),
-        _console_part(rows, [0, 6, 7, 8, 9], caption=f"{_caption(card)}\n{legend}"),
+        _console_part(rows, [0, 6, 7, 8, 9, 10], caption=f"{_caption(card)}\n{legend}" + (f"\n{free}" if free else "")),
     )

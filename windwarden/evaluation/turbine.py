@@ -12,6 +12,15 @@ is the twins' FTE RMSE over the window: "the FTE's fault-free RMSE" that the win
 same wind, from the same state, the fault being the only difference. Their detections are counted as
 ``false_alarms_twin``. A twin costs its window's length, next to the runs; nothing outside a window is scored on
 one.
+
+A twin forked at its window shares whatever the run carries into the window: an estimate already off the truth
+there, or an earlier fault's lasting harm, is in the twin too, and FTE/twin reads 1. So with twins every run also
+has a *clean run*: the same run (wind, noise, plant) with no fault from the first tick, stepped in the same batch
+(``TurbineBatch(fault_free_twins=True)``, its second half of rows). ``fte_clean`` is its FTE RMSE over every metric
+window, the fault-free time included: FTE/clean in a window is the faults' whole cost up to and through it, and
+in the fault-free time what earlier faults left behind; the clean run's own RMSE against the anemometer's says
+whether the estimate is any good at all. Its detections are false alarms over the whole run
+(``false_alarms_clean``).
 """
 
 from __future__ import annotations
@@ -35,6 +44,7 @@ from wwcore.scenario import Scenario
 from wwcore.stepping import run_ticks
 
 TWIN_TURBINE = 0  # turbine number of the fault-free twin rows in events (no real turbine has it)
+CLEAN_TURBINE = -1  # turbine number of the clean runs' rows in events (no real turbine has it)
 TRACE_EVERY = 10  # ticks between stored trace samples of run 0 (10 Hz)
 PROGRESS_EVERY = 1000  # ticks between progress reports
 _ANEMOMETER = SENSOR_INDEX["v_hub_m"]
@@ -48,6 +58,7 @@ class ChunkResult:
     counts: np.ndarray  # (n_windows,) samples summed
     trace: dict[str, np.ndarray] = field(default_factory=dict)  # run 0 only
     twin_seconds: float = 0.0  # simulated time of the fault-free twins after the warm-up, per run
+    clean_seconds: float = 0.0  # simulated time of the clean runs after the warm-up, per run
 
 
 TURBINE_CHUNK = 50
@@ -73,8 +84,15 @@ def simulate_chunk(
     twins: bool = True,
 ) -> ChunkResult:
     """The runs ``run_ids``, and with ``twins`` the fault-free twin of each fault window (module docstring)."""
+    twins = twins and bool(scenario.faults)
     plant = TurbineBatch(
-        scenario.plant, scenario.wind, scenario.faults, seed=seed, runs=run_ids, mismatch=scenario.mismatch
+        scenario.plant,
+        scenario.wind,
+        scenario.faults,
+        seed=seed,
+        runs=run_ids,
+        mismatch=scenario.mismatch,
+        fault_free_twins=twins,
     )
     supervisor = TurbineSupervisor(
         plant.n,
@@ -83,15 +101,17 @@ def simulate_chunk(
         options=options,
         noise_convention=scenario.plant.noise_convention,
         run_of_row=plant.run_of_row,
-        turbine_of_row=plant.turbine_of_row,
+        turbine_of_row=np.where(plant.twin_of_row, CLEAN_TURBINE, plant.turbine_of_row),
     )
+    runs = len(run_ids)  # the runs' rows; with twins the clean runs' rows follow them
     n_steps = round(scenario.duration_s / plant.dt)
     which, labels = window_of_tick(scenario, n_steps, plant.dt)
-    errors = _ErrorSums(len(labels), PROGRESS_EVERY, plant.n)
+    errors = _ErrorSums(len(labels), PROGRESS_EVERY, runs)
+    clean_errors = _ErrorSums(len(labels), PROGRESS_EVERY, runs) if twins else None
     trace_row = run_ids.index(0) if 0 in run_ids else None
-    trace: dict[str, list] = {k: [] for k in ("t", "wind", "fte", "nfte", "anemometer", "selected")}
+    trace: dict[str, list] = {k: [] for k in ("t", "wind", "fte", "fte_clean", "nfte", "anemometer", "selected")}
     branch_at: dict[int, list[tuple[int, int]]] = {}
-    for i, first, end in _twin_spans(scenario, n_steps, plant.dt) if twins and scenario.faults else []:
+    for i, first, end in _twin_spans(scenario, n_steps, plant.dt) if twins else []:
         if first < end:
             branch_at.setdefault(first, []).append((i, end))
     branches: list[Branch] = []
@@ -99,18 +119,23 @@ def simulate_chunk(
 
     def fork_twins(k: int, refs) -> None:
         for i, end in branch_at.get(k, ()):
-            branches.append(Branch(partial(_fault_free_twin, plant, supervisor, refs, which, i, end, len(labels))))
+            branches.append(
+                Branch(partial(_fault_free_twin, plant, supervisor, refs, which, i, end, len(labels), runs))
+            )
 
     def record(k: int, frame, refs) -> None:
         truth_wind = plant.true_rotor_wind()
         est = supervisor.estimates
         if which[k] >= 0:
-            _record(errors, which[k], frame, truth_wind, est)
+            _record(errors, which[k], frame, truth_wind, est, slice(0, runs))
+            if clean_errors is not None:
+                _record(clean_errors, which[k], frame, truth_wind, est, slice(runs, None))
         if trace_row is not None and k % TRACE_EVERY == 0:
             r = trace_row
             trace["t"].append(frame.t)
             trace["wind"].append(truth_wind[r])
             trace["fte"].append(est.wind[r])
+            trace["fte_clean"].append(est.wind[r + runs] if twins else np.nan)
             trace["nfte"].append(np.nan if est.wind_reference is None else est.wind_reference[r])
             trace["anemometer"].append(frame.sensors[r, _ANEMOMETER])
             trace["selected"].append(est.selected[r])
@@ -130,6 +155,7 @@ def simulate_chunk(
     events += plant.drain_events() + supervisor.drain_events()
     progress((n_steps % PROGRESS_EVERY) * plant.dt)
     sq, counts = errors.totals()
+    sq["fte_clean"] = clean_errors.totals()[0]["fte"] if clean_errors is not None else np.zeros(len(labels))
     sq["fte_fault_free"] = np.zeros(len(labels))
     twin_s = 0.0
     for twin_sq, twin_events, seconds in (branch.result() for branch in branches):
@@ -143,6 +169,7 @@ def simulate_chunk(
         counts,
         {k: np.asarray(v) for k, v in trace.items()} if trace_row is not None else {},
         twin_s,
+        max(n_steps * plant.dt - WARMUP_S, 0.0) if twins else 0.0,
     )
 
 
@@ -154,30 +181,35 @@ def _fault_free_twin(
     window: int,
     end: int,
     n_windows: int,
+    runs: int,
 ) -> tuple[np.ndarray, list[Event], float]:
     """The chunk's runs from the start of fault window ``window`` to its end tick ``end`` without any fault: a
     forked copy of the chunk (``Branch``), so the twin starts from the runs' own state, with their wind and noise
     streams. Returns its FTE's summed squared wind error in the window's ticks (one entry per window), its
-    supervisor's events (labelled ``TWIN_TURBINE``) and its simulated seconds."""
+    supervisor's events (labelled ``TWIN_TURBINE``) and its simulated seconds. Only the first ``runs`` rows are
+    the twin's: the clean runs' rows after them step along unchanged and are counted by the parent."""
     plant.end_all_faults()
-    supervisor.turbine_of_row = np.full(plant.n, TWIN_TURBINE)
+    supervisor.turbine_of_row = np.where(np.arange(plant.n) < runs, TWIN_TURBINE, CLEAN_TURBINE)
     supervisor.drain_events()  # the runs' own, already counted by the parent
     plant.drain_events()
-    errors = _ErrorSums(n_windows, PROGRESS_EVERY, plant.n)
+    errors = _ErrorSums(n_windows, PROGRESS_EVERY, runs)
     first = plant.k
 
     def record(k: int, frame, refs) -> None:
         if which[k] == window:
-            _record(errors, window, frame, plant.true_rotor_wind(), supervisor.estimates)
+            _record(errors, window, frame, plant.true_rotor_wind(), supervisor.estimates, slice(0, runs))
 
     run_ticks(plant, supervisor, range(first, end), refs, stepped=record)
     sq, _ = errors.totals()
     observed = max(end - max(first, round(WARMUP_S / plant.dt)), 0) * plant.dt  # detections count after warm-up
-    return sq["fte"], supervisor.drain_events(), observed
+    twin_events = [e for e in supervisor.drain_events() if e.turbine == TWIN_TURBINE]
+    return sq["fte"], twin_events, observed
 
 
-def _record(errors: _ErrorSums, window: int, frame, truth_wind: np.ndarray, est) -> None:
-    errors.record(window, truth_wind, est.wind, est.wind_reference, frame.sensors[:, _ANEMOMETER])
+def _record(errors: _ErrorSums, window: int, frame, truth_wind: np.ndarray, est, rows: slice) -> None:
+    """One tick's wind errors of the batch's ``rows`` (the runs', or the clean runs')."""
+    nfte = None if est.wind_reference is None else est.wind_reference[rows]
+    errors.record(window, truth_wind[rows], est.wind[rows], nfte, frame.sensors[rows, _ANEMOMETER])
 
 
 class _ErrorSums:
@@ -266,13 +298,15 @@ def evaluate(scenario: Scenario, runs: int, seed: int, options: EvalOptions) -> 
         label=scenario.name,
     )
     all_events = sorted((e for r in results for e in r.events), key=lambda e: (e.run, e.t))
-    events = [e for e in all_events if e.turbine != TWIN_TURBINE]
+    events = [e for e in all_events if e.turbine not in (TWIN_TURBINE, CLEAN_TURBINE)]
     twin_events = [e for e in all_events if e.turbine == TWIN_TURBINE]
+    clean_events = [e for e in all_events if e.turbine == CLEAN_TURBINE]
     windows = windows_from_faults(scenario.faults, scenario.duration_s)
     labels = ["fault_free"] + [w.name for w in windows]
     counts = sum(r.counts for r in results)
-    # the twins cover the fault windows only
-    window_keys = (*WIND_KEYS, "fte_fault_free") if twins else WIND_KEYS
+    # the twins cover the fault windows only; the clean runs every metric window
+    window_keys = (*WIND_KEYS, "fte_fault_free", "fte_clean") if twins else WIND_KEYS
+    fault_free_keys = (*WIND_KEYS, "fte_clean") if twins else WIND_KEYS
     sq = {
         key: [sum(r.sq_err[key][i] for r in results if key in r.sq_err) for i in range(len(labels))]
         for key in window_keys
@@ -284,8 +318,9 @@ def evaluate(scenario: Scenario, runs: int, seed: int, options: EvalOptions) -> 
         detector=detector,
         estimator=estimator,
         score=detection(events, scenario.faults, scenario.duration_s, runs),
-        wind=wind_rmse(labels, sq, counts, window_keys),
+        wind=wind_rmse(labels, sq, counts, window_keys, fault_free_keys),
         twin=_twin_false_alarms(twin_events, runs, results[0].twin_seconds, windows) if twins else None,
+        clean=_clean_false_alarms(clean_events, runs, results[0].clean_seconds) if twins else None,
     )
     trace = next((r.trace for r in results if r.trace), {})
 
@@ -302,3 +337,9 @@ def _twin_false_alarms(events: list[Event], runs: int, duration_s: float, window
     false-alarm count on the fault windows' own wind."""
     spans = [(w.start_s, w.end_s) for w in windows]
     return twin_false_alarms(events, runs * duration_s, SCORING, spans)
+
+
+def _clean_false_alarms(events: list[Event], runs: int, duration_s: float) -> dict:
+    """Flags raised in the clean runs (no fault from the first tick), ``duration_s`` per run after the warm-up: a
+    false-alarm count over the scenario's whole wind (a flag up at the warm-up's end counts then, as in the runs)."""
+    return twin_false_alarms(events, runs * duration_s, SCORING, [(0.0, WARMUP_S + duration_s)])

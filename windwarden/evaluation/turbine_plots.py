@@ -33,6 +33,8 @@ def _overview(scenario: Scenario, trace: dict[str, np.ndarray], path: Path) -> P
     fig, ax = plt.subplots(figsize=(11, 4))
     ax.plot(trace["t"], trace["wind"], lw=0.6, label="true rotor-effective wind")
     ax.plot(trace["t"], trace["fte"], lw=0.6, label="FTE")
+    if np.isfinite(trace.get("fte_clean", [np.nan])).any():
+        ax.plot(trace["t"], trace["fte_clean"], lw=0.6, alpha=0.7, label="FTE of the clean run (no fault)")
     ax.set_xlabel("time [s]")
     ax.set_ylabel("wind speed [m/s]")
     ax.set_title(f"{scenario.name}: fault-tolerant wind speed estimate vs true wind (cf. seed 000 Fig. 2)")

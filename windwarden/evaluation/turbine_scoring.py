@@ -44,11 +44,13 @@ def wind_rmse(
     sq: Mapping[str, Sequence[float]],
     counts: Sequence[float],
     window_keys: Sequence[str] = WIND_KEYS,
+    fault_free_keys: Sequence[str] = WIND_KEYS,
 ) -> dict[str, dict[str, float]]:
     """√(Σ squared error / samples) per metric window with samples; the fault windows have ``window_keys`` (the
-    fault-free twins' ``fte_fault_free`` too, when there are twins), the fault-free time ``WIND_KEYS``."""
+    fault-free twins' ``fte_fault_free`` and the clean runs' ``fte_clean`` too, when there are twins), the
+    fault-free time ``fault_free_keys`` (``WIND_KEYS``, and ``fte_clean`` with twins)."""
     return {
-        label: {key: float(np.sqrt(sq[key][i] / counts[i])) for key in (window_keys if i > 0 else WIND_KEYS)}
+        label: {key: float(np.sqrt(sq[key][i] / counts[i])) for key in (window_keys if i > 0 else fault_free_keys)}
         for i, label in enumerate(labels)
         if counts[i] > 0
     }
@@ -64,8 +66,10 @@ def scorecard(
     score: DetectionScore,
     wind: dict[str, dict[str, float]],
     twin: dict[str, Any] | None = None,
+    clean: dict[str, Any] | None = None,
 ) -> dict[str, Any]:
-    """The turbine scorecard (``docs/scorecards.md``); ``twin``: the fault-free twins' false alarms, if any ran."""
+    """The turbine scorecard (``docs/scorecards.md``); ``twin`` and ``clean``: the fault-free twins' and the clean
+    runs' false alarms, if any ran."""
     return {
         "scenario": scenario.name,
         "runs": runs,
@@ -75,5 +79,6 @@ def scorecard(
         "estimator": estimator,
         **score.card_fields(),
         **({"false_alarms_twin": twin} if twin is not None else {}),
+        **({"false_alarms_clean": clean} if clean is not None else {}),
         "metrics": {"wind_rmse": wind},
     }
