@@ -24,6 +24,10 @@ P_held,h): (19) P_ref,farm,S < Σ_S P_avail, (18) P_ref,t = P_avail,t/Σ_S P_ava
 estimated on served turbines and cancelled by served ones. So the farm's references still add up to the demand
 while the served turbines can make up the rest. With no turbine held every step is the one above, value for value.
 
+With the compiled backend (``FarmContext.fast``) steps 2–5 but the pitch trim's and the ripple's own steps are one
+kernel, ``service.farm.fast.dispatch_shares``, and eqs. (20)–(22) three (``AvailablePower``), the same numbers; the
+rule objects below are the reference, and the hold-torque rule runs them in either backend.
+
 The reasons and the development runs behind each choice are in ``docs/farm.md`` §2.3. Options (declared with
 their ranges in ``service.farm.builtin``): ``accommodation_rule`` (``cancel``, ``hold-torque``, ``paper``),
 ``pitch_rule`` (``trim``, ``paper``), ``drivetrain_relief``, ``derate_floor``, ``hold_margin``, ``hold_reserve``,

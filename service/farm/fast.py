@@ -1,10 +1,14 @@
 """Compiled twin of the farm supervisor's per-sample arithmetic (``wwcore.backend``): the analytic detector's learnt
 levels and spread ratios (``service.farm.baseline.LearntLevel.update``) and its step around the lock-in: the
 residuals (``analytic_residuals``), the learning (``analytic_learn``: levels, rate gains, 3P scales) and the
-decisions (``analytic_decide``: the Page CUSUMs, fault 3's flag). The same operations in the reference's order, so
-the same numbers bit for bit (``tests/test_fast_backend_farm.py``); the lock-in (numpy's SIMD sines, cosines and
-complex products), the dispatch and the other algorithms stay numpy code, and the available power's wind inversion
-is ``wwcore.aero_fast``'s.
+decisions (``analytic_decide``: the Page CUSUMs, fault 3's flag); the available power around the aerodynamic fit's
+product and eq. (21)'s ``exp`` (``available_front``, ``available_back``, ``available_filter``) and the dispatch after
+it (``dispatch_shares``: the accommodation rules but the drive-train hold, eqs. (18)–(26), the farm-power trim, the
+modes). The same operations in the reference's order, numpy's pairwise sums (``row_sum``) and ``np.interp``'s
+arithmetic (``interp``) included, so the same numbers bit for bit (``tests/test_fast_backend_farm.py``); the lock-in
+(numpy's SIMD sines, cosines and complex products), the products and ``exp`` between the kernels, the pitch trim's and
+the ripple's steps and the other algorithms stay numpy code, and the wind inversion's Newton steps are
+``wwcore.aero_fast``'s.
 """
 
 from __future__ import annotations
