@@ -236,6 +236,7 @@ DISPATCH_OPTIONS = [
     {"accommodation_rule": "paper", "pitch_rule": "paper", "derate_floor": 0.3, "ripple_compensation": False},
     {"drivetrain_relief": 0.0, "trim_kp": 0.0, "trim_ki": 0.0, "ripple_share": 0.5},
     {"accommodation_rule": "paper", "pitch_rule": "trim", "trim_limit": 0.02},
+    {"accommodation_rule": "hold-torque"},  # the hold's rule stays numpy's; the available power's kernels run
 ]
 
 
@@ -246,12 +247,15 @@ def test_the_dispatch_kernels_equal_the_reference(options, held_rows):
     (``available_front``, ``available_back``, ``available_filter``, ``dispatch_shares``) on two farms of random
     SCADA means around operating points from 5 to 20 m/s: flags of every type raised and dropped on random turbines
     (several per farm, so eq. (26) shares the headroom in turbine order), demands below and above the farms'
-    maximum, and (``held_rows``) turbines held for stretches; every reference, mode, P_avail, wind, filter state,
+    maximum, and (``held_rows``) turbines held for stretches (the hold-torque rule: the available power's kernels
+    under its numpy lines); every reference, mode, P_avail, wind, filter state,
     integral, pitch trim and ripple phasor equal to the last bit."""
     site, n = FarmPlant().site(), 18
     p = BENCHMARK
     dispatches = [Dispatch(context=FarmContext(site, n, backend=b), options=options) for b in ("numpy", "numba")]
-    assert dispatches[0]._kernels is None and dispatches[1]._kernels is not None
+    hold = options.get("accommodation_rule") == "hold-torque"
+    assert dispatches[0]._kernels is None and (dispatches[1]._kernels is None) == hold
+    assert dispatches[1].available._kernels is not None
     # the numpy lines with the compiled wind inversion (``wwcore.aero_fast``, whose exp may differ from numpy's in
     # the last bit): the kernels' reference to the bit
     dispatches[0] = Dispatch(context=FarmContext(site, n, backend="numba"), options=options)
