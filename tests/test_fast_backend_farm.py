@@ -17,7 +17,9 @@ import pytest
 
 from service.farm.analytic import AnalyticDetector
 from service.farm.baseline import LearntLevel
+from service.farm.dispatch import Dispatch
 from service.farm.interfaces import BETA, OMEGA_G, OMEGA_R, P_G, TAU_G, FarmContext, FarmSample
+from service.farm.power_curve import WINDS, available_power, available_power_table
 from tests.test_fast_backend import SEED, assert_close
 from windwarden.bench import farm_pair
 from wwcore.backend import fast_module
@@ -227,3 +229,99 @@ def test_the_analytic_detector_kernels_equal_the_reference():
             raised |= numpy_d.faulty
             previous = numpy_d.faulty.copy()
         assert raised[[2, 11, 5], [0, 1, 2]].all() and cleared[[2, 11, 5], [0, 1, 2]].all(), (raised, cleared)
+
+
+DISPATCH_OPTIONS = [
+    {},  # the defaults: the 3P cancellation with its relief, the pitch trim, the power trim, the ripple compensation
+    {"accommodation_rule": "paper", "pitch_rule": "paper", "derate_floor": 0.3, "ripple_compensation": False},
+    {"drivetrain_relief": 0.0, "trim_kp": 0.0, "trim_ki": 0.0, "ripple_share": 0.5},
+    {"accommodation_rule": "paper", "pitch_rule": "trim", "trim_limit": 0.02},
+    {"accommodation_rule": "hold-torque"},  # the hold's rule stays numpy's; the available power's kernels run
+]
+
+
+@pytest.mark.parametrize("options", DISPATCH_OPTIONS)
+@pytest.mark.parametrize("held_rows", [False, True])
+def test_the_dispatch_kernels_equal_the_reference(options, held_rows):
+    """``Dispatch.step`` with its numpy lines (the wind inverted by ``wwcore.aero_fast``) and with the kernels
+    (``available_front``, ``available_back``, ``available_filter``, ``dispatch_shares``) on two farms of random
+    SCADA means around operating points from 5 to 20 m/s: flags of every type raised and dropped on random turbines
+    (several per farm, so eq. (26) shares the headroom in turbine order), demands below and above the farms'
+    maximum, and (``held_rows``) turbines held for stretches (the hold-torque rule: the available power's kernels
+    under its numpy lines); every reference, mode, P_avail, wind, filter state,
+    integral, pitch trim and ripple phasor equal to the last bit."""
+    site, n = FarmPlant().site(), 18
+    p = BENCHMARK
+    dispatches = [Dispatch(context=FarmContext(site, n, backend=b), options=options) for b in ("numpy", "numba")]
+    hold = options.get("accommodation_rule") == "hold-torque"
+    assert dispatches[0]._kernels is None and (dispatches[1]._kernels is None) == hold
+    assert dispatches[1].available._kernels is not None
+    # the numpy lines with the compiled wind inversion (``wwcore.aero_fast``, whose exp may differ from numpy's in
+    # the last bit): the kernels' reference to the bit
+    dispatches[0] = Dispatch(context=FarmContext(site, n, backend="numba"), options=options)
+    dispatches[0]._kernels = dispatches[0].available._kernels = None
+    rng = np.random.default_rng(SEED)
+    wind = rng.uniform(5.0, 20.0, n)
+    faulty = np.zeros((n, 3), dtype=bool)
+    held = np.zeros(n, dtype=bool)
+    modes, flagged = set(), 0
+    for j in range(1, 400):
+        wind = np.clip(wind + rng.normal(0.0, 0.2, n), 4.0, 24.0)
+        omega_g = np.minimum(p.N_g * 7.5 * wind / p.radius, p.omega_nom) * rng.normal(1.0, 0.01, n)
+        y = np.zeros((n, 24))
+        y[:, OMEGA_G] = omega_g[:, None] + rng.normal(0.0, 0.5, (n, 2))
+        y[:, OMEGA_R] = (omega_g / p.N_g)[:, None] + rng.normal(0.0, 0.005, (n, 2))
+        y[:, TAU_G] = np.minimum(p.k_opt * omega_g**2, p.rated_power / p.eta_gc / omega_g) * rng.normal(1.0, 0.02, n)
+        y[:, P_G] = p.eta_gc * y[:, OMEGA_G].mean(axis=1) * y[:, TAU_G] + rng.normal(0.0, 2e4, n)
+        y[:, BETA] = np.maximum(wind - 12.0, 0.0)[:, None, None] * 2.0 + rng.normal(0.0, 0.3, (n, 3, 2))
+        if j % 25 == 0:  # flags of every type come and go, several per farm
+            faulty = rng.random((n, 3)) < 0.12
+            flagged += faulty.sum()
+        if held_rows and j % 40 == 0:
+            held = rng.random(n) < 0.2
+        demand = rng.uniform(0.3, 1.3, 2) * 9 * p.rated_power * (0.5 if j % 3 else 1.0)
+        sample = FarmSample(
+            j=j,
+            t=j * 0.1,
+            scada=y,
+            zone=np.zeros(n, dtype=np.int8),
+            power_ref_used=np.zeros(n),
+            mast=np.full(2, 10.0),
+            demand=demand,
+            held=held.copy() if held_rows else None,
+        )
+        reference, twin = dispatches
+        expected, refs = reference.step(sample, faulty), twin.step(sample, faulty)
+        np.testing.assert_array_equal(refs, expected, f"{options} {j}: references")
+        for name in ("mode", "p_avail", "held_power", "served_demand", "wind", "pitch_trim", "ripple_power"):
+            np.testing.assert_array_equal(getattr(twin, name), getattr(reference, name), f"{options} {j}: {name}")
+        for name in ("wind", "slow_wind", "p_a_hat"):
+            a, b = getattr(twin.available, name), getattr(reference.available, name)
+            np.testing.assert_array_equal(a, b, f"{options} {j}: {name}")
+        np.testing.assert_array_equal(twin.power_trim.integral, reference.power_trim.integral, f"{j}: integral")
+        modes |= set(reference.mode.tolist())
+    assert flagged > 50 and len(modes) >= 3, modes  # the rules acted (the paper's make modes 0–2 only)
+
+
+def test_the_sum_and_interpolation_kernels_equal_numpy():
+    """``row_sum`` against ``ndarray.sum`` on rows of 1–128 values of mixed signs and magnitudes (numpy's pairwise
+    order: a sequential sum would differ on most of them), and ``interp`` against ``np.interp`` on the available
+    power's table, inside, at and beyond its knots and on nan; equal to the last bit."""
+    fast = fast_module("service.farm.fast")
+    rng = np.random.default_rng(SEED)
+    sequential_differs = 0
+    for n in (*range(1, 20), 63, 64, 65, 80, 127, 128):
+        for _ in range(20):
+            a = rng.random(n) * 10.0 ** rng.integers(-3, 7, n) * np.where(rng.random(n) < 0.3, -1.0, 1.0)
+            assert fast.row_sum(a, 0, n) == a.sum(), n
+            row = np.concatenate([rng.random(3), a])  # a row that starts inside its array
+            assert fast.row_sum(row, 3, n) == a.sum(), n
+            total = 0.0
+            for value in a:
+                total += value
+            sequential_differs += total != a.sum()
+    assert sequential_differs > 100
+    table = available_power_table(BENCHMARK)
+    x = np.concatenate([rng.uniform(0.0, 45.0, 5000), WINDS[::7], [2.0, 40.0, 1.999, 40.001, np.nan, -np.inf, np.inf]])
+    got = np.array([fast.interp(v, WINDS, table) for v in x])
+    np.testing.assert_array_equal(got, available_power(BENCHMARK, x))

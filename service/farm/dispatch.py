@@ -24,6 +24,10 @@ P_held,h): (19) P_ref,farm,S < Σ_S P_avail, (18) P_ref,t = P_avail,t/Σ_S P_ava
 estimated on served turbines and cancelled by served ones. So the farm's references still add up to the demand
 while the served turbines can make up the rest. With no turbine held every step is the one above, value for value.
 
+With the compiled backend (``FarmContext.fast``) steps 2–5 but the pitch trim's and the ripple's own steps are one
+kernel, ``service.farm.fast.dispatch_shares``, and eqs. (20)–(22) three (``AvailablePower``), the same numbers; the
+rule objects below are the reference, and the hold-torque rule runs them in either backend.
+
 The reasons and the development runs behind each choice are in ``docs/farm.md`` §2.3. Options (declared with
 their ranges in ``service.farm.builtin``): ``accommodation_rule`` (``cancel``, ``hold-torque``, ``paper``),
 ``pitch_rule`` (``trim``, ``paper``), ``drivetrain_relief``, ``derate_floor``, ``hold_margin``, ``hold_reserve``,
@@ -37,8 +41,10 @@ from __future__ import annotations
 import numpy as np
 
 from service.farm.accommodation import (
+    DEBRIS_FACTOR,
     DRIVETRAIN,
     DRIVETRAIN_RELIEF,
+    P_MIN_W,
     PITCH,
     AccommodationPlan,
     CancelRule,
@@ -51,10 +57,13 @@ from service.farm.accommodation import (
 )
 from service.farm.available import AvailablePower
 from service.farm.hold import HOLD_MARGIN, HOLD_RESERVE, RELEASE_AFTER_S, HoldTorqueRule
-from service.farm.interfaces import FarmContext, FarmSample
+from service.farm.interfaces import P_G, FarmContext, FarmSample
 from service.farm.power_loop import TRIM_KI, TRIM_KP, TRIM_LIMIT, FarmPowerTrim
 from service.farm.ripple import RippleCompensation
 from service.plugins import AlgorithmOptionError
+from wwcore.scenario.farm import FARM_DT_S
+
+ROW_SUM_MAX = 128  # turbines per farm whose sums ``service.farm.fast.row_sum`` adds in numpy's order
 
 ACCOMMODATION_RULES = ("cancel", "hold-torque", "paper")  # drive train; the first is the default
 PITCH_RULES = ("trim", "paper")  # the first is the default
@@ -92,7 +101,7 @@ class Dispatch:
         self.relief = _share_option(options, "drivetrain_relief", DRIVETRAIN_RELIEF)  # D-32
         self.rule = _choice(options, "accommodation_rule", ACCOMMODATION_RULES)
         self.pitch_rule = _choice(options, "pitch_rule", PITCH_RULES)
-        self.available = AvailablePower(self.p, fast=context.fast_aero)
+        self.available = AvailablePower(self.p, fast=context.fast_aero, kernels=context.fast)
         self.pitch = PitchTrimRule(self.n) if self.pitch_rule == "trim" else PitchDerateRule(self.n)
         self.drivetrain: DrivetrainRule
         if self.rule == "cancel":
@@ -123,6 +132,30 @@ class Dispatch:
         self.mode = np.zeros(self.n, dtype=np.int8)
         self.held_power = np.zeros(context.farms)  # W, Σ_H P_held: the held turbines' references per farm
         self.served_demand = np.zeros(context.farms)  # W, P_ref,farm,S: the demand less theirs, shared over S
+        # the compiled twin of ``step`` after P_avail (``service.farm.fast.dispatch_shares``; the hold-torque rule's
+        # state stays numpy's, and so do farms of over 128 turbines, whose sums numpy splits): the rules by code,
+        # 1 the default (cancel, trim), 2 the paper's
+        compiled = self.rule != "hold-torque" and context.turbines <= ROW_SUM_MAX
+        self._kernels = context.fast if compiled else None
+        if self._kernels is not None:
+            trim = self.power_trim
+            self._consts = (
+                context.turbines,
+                self.derate_floor,
+                self.relief,
+                1 if self.rule == "cancel" else 2,
+                1 if self.pitch_rule == "trim" else 2,
+                float(self.p.rated_power),
+                trim.enabled,
+                trim.kp,
+                trim.ki,
+                trim.limit,
+                FARM_DT_S,
+                P_G,
+                DEBRIS_FACTOR,
+                P_MIN_W,
+            )
+            self._none_held = np.zeros(self.n, dtype=bool)
 
     def estimate_available(self, sample: FarmSample) -> np.ndarray:
         """Eqs. (20)–(22): P_avail,t (n,) in W."""
@@ -134,6 +167,8 @@ class Dispatch:
         if self.ripple is not None:
             sample = self.ripple.without_ripple(sample)
         self.p_avail = self.estimate_available(sample)
+        if self._kernels is not None:
+            return self._compiled_step(measured, sample, faulty)
         held = np.zeros(self.n, dtype=bool) if sample.held is None else sample.held
         held_farm = sample.per_farm(held)
         # the held turbines: fixed producers at the references sent them last, outside the sharing
@@ -165,6 +200,34 @@ class Dispatch:
         if self.ripple is not None:  # D-29: the cancelling turbines' 3P power ripple, cancelled by the free ones
             sources = (plan.hold | plan.cancelled) & ~held_farm  # a held turbine's power is not seen: not estimated
             self.ripple.step(measured, sources.reshape(-1), ~(sources | plan.derate | held_farm).reshape(-1))
+        self.p_ref = refs
+        return refs
+
+    def _compiled_step(self, measured: FarmSample, sample: FarmSample, faulty: np.ndarray) -> np.ndarray:
+        """``step`` after P_avail by ``dispatch_shares`` (``__init__``), the pitch trim's and the ripple's steps
+        numpy's as in ``step``: the same numbers (``tests/test_fast_backend_farm.py``)."""
+        n, farms = self.n, len(sample.demand)
+        refs, mode = np.empty(n), np.empty(n, dtype=np.int8)
+        self.held_power, self.served_demand = np.empty(farms), np.empty(farms)
+        sources, free = np.empty(n, dtype=bool), np.empty(n, dtype=bool)
+        held = self._none_held if sample.held is None else np.ascontiguousarray(sample.held, dtype=bool)
+        self._kernels.dispatch_shares(
+            self.p_avail,
+            self.p_ref,
+            held,
+            sample.held is not None,
+            np.ascontiguousarray(faulty, dtype=bool),
+            np.ascontiguousarray(sample.demand, dtype=float),
+            np.ascontiguousarray(sample.scada, dtype=float),
+            self.power_trim.integral,
+            self._consts,
+            (refs, mode, self.held_power, self.served_demand, sources, free),
+        )
+        if self.pitch_rule == "trim":
+            self.pitch.trim.step(sample, faulty[:, PITCH])
+        self.mode = mode
+        if self.ripple is not None:
+            self.ripple.step(measured, sources, free)
         self.p_ref = refs
         return refs
 

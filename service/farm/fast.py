@@ -1,10 +1,14 @@
 """Compiled twin of the farm supervisor's per-sample arithmetic (``wwcore.backend``): the analytic detector's learnt
 levels and spread ratios (``service.farm.baseline.LearntLevel.update``) and its step around the lock-in: the
 residuals (``analytic_residuals``), the learning (``analytic_learn``: levels, rate gains, 3P scales) and the
-decisions (``analytic_decide``: the Page CUSUMs, fault 3's flag). The same operations in the reference's order, so
-the same numbers bit for bit (``tests/test_fast_backend_farm.py``); the lock-in (numpy's SIMD sines, cosines and
-complex products), the dispatch and the other algorithms stay numpy code, and the available power's wind inversion
-is ``wwcore.aero_fast``'s.
+decisions (``analytic_decide``: the Page CUSUMs, fault 3's flag); the available power around the aerodynamic fit's
+product and eq. (21)'s ``exp`` (``available_front``, ``available_back``, ``available_filter``) and the dispatch after
+it (``dispatch_shares``: the accommodation rules but the drive-train hold, eqs. (18)–(26), the farm-power trim, the
+modes). The same operations in the reference's order, numpy's pairwise sums (``row_sum``) and ``np.interp``'s
+arithmetic (``interp``) included, so the same numbers bit for bit (``tests/test_fast_backend_farm.py``); the lock-in
+(numpy's SIMD sines, cosines and complex products), the products and ``exp`` between the kernels, the pitch trim's and
+the ripple's steps and the other algorithms stay numpy code, and the wind inversion's Newton steps are
+``wwcore.aero_fast``'s.
 """
 
 from __future__ import annotations
@@ -13,7 +17,8 @@ import math
 
 import numpy as np
 
-from wwcore.aero_fast import maximum, minimum
+from wwcore.aero_fast import _newton, maximum, minimum, pitch_features
+from wwcore.farm_frames import CANCEL_3P_MODE, DEBRIS_MODE, DERATED_MODE, PITCH_TRIM_MODE
 from wwcore.jit import kernel
 
 
@@ -243,3 +248,228 @@ def analytic_learn(residuals, rate, last_rate, amplitude, settling, tests, level
         scale = s / design_s
         noise_ratio[r, 0], noise_ratio[r, 1], noise_ratio[r, 2] = rho1, largest, scale * scale
     return z1_out, var1_out, z2_out, var2_out, h3, noise_ratio
+
+
+# -- the available power (eqs. (20)–(22)) and the dispatch (eqs. (18)–(26)) ------------------------------------
+
+
+@kernel
+def np_maximum(a, b):
+    """np.maximum of two floats as numpy's SIMD loop gives it: nan if either is nan, ``b`` where they are equal."""
+    if a != a:
+        return a
+    if b != b:
+        return b
+    return a if a > b else b
+
+
+@kernel
+def np_minimum(a, b):
+    """np.minimum of two floats as numpy's SIMD loop gives it: nan if either is nan, ``b`` where they are equal."""
+    if a != a:
+        return a
+    if b != b:
+        return b
+    return a if a < b else b
+
+
+@kernel
+def np_clip(x, low, high):
+    """np.clip of a float between two floats (nan stays nan; ``x`` where it equals a bound)."""
+    return minimum(maximum(x, low), high)
+
+
+@kernel
+def _block_sum(a, start, n):
+    """numpy's pairwise sum of a[start : start + n] for n ≤ 128 (``PW_BLOCKSIZE``): sequential below 8, else
+    eight strided partial sums added in pairs, then the remainder in order."""
+    if n < 8:
+        res = 0.0
+        for i in range(start, start + n):
+            res += a[i]
+        return res
+    r0, r1, r2, r3 = a[start], a[start + 1], a[start + 2], a[start + 3]
+    r4, r5, r6, r7 = a[start + 4], a[start + 5], a[start + 6], a[start + 7]
+    i = 8
+    while i < n - (n % 8):
+        j = start + i
+        r0 += a[j]
+        r1 += a[j + 1]
+        r2 += a[j + 2]
+        r3 += a[j + 3]
+        r4 += a[j + 4]
+        r5 += a[j + 5]
+        r6 += a[j + 6]
+        r7 += a[j + 7]
+        i += 8
+    res = ((r0 + r1) + (r2 + r3)) + ((r4 + r5) + (r6 + r7))
+    while i < n:
+        res += a[start + i]
+        i += 1
+    return res
+
+
+@kernel
+def row_sum(a, start, n):
+    """``a[start : start + n].sum()`` for n ≤ 128 in numpy's order (``np.add.reduce`` of a contiguous row: 0 plus
+    the pairwise sum of one block; numpy splits longer rows, which the callers leave to numpy)."""
+    return 0.0 + _block_sum(a, start, n)
+
+
+@kernel
+def interp(x, xp, fp):
+    """np.interp of one float on increasing ``xp`` (held at the ends; nan stays nan), numpy's arithmetic."""
+    m = xp.size
+    if x != x:
+        return x
+    if x < xp[0]:
+        return fp[0]
+    if x >= xp[m - 1]:
+        return fp[m - 1]
+    lo, hi = 0, m - 1  # xp[lo] ≤ x < xp[hi]
+    while hi - lo > 1:
+        mid = (lo + hi) // 2
+        if xp[mid] <= x:
+            lo = mid
+        else:
+            hi = mid
+    if xp[lo] == x:
+        return fp[lo]
+    slope = (fp[lo + 1] - fp[lo]) / (xp[lo + 1] - xp[lo])
+    value = slope * (x - xp[lo]) + fp[lo]
+    if value != value:  # numpy tries the other end, then a flat segment's value
+        value = slope * (x - xp[lo + 1]) + fp[lo + 1]
+        if value != value and fp[lo] == fp[lo + 1]:
+            value = fp[lo]
+    return value
+
+
+@kernel
+def available_front(y, columns, beta, consts, f):
+    """Eq. (20)'s inputs from the SCADA means ``y`` (n, sensors) (``AvailablePower.step``): ω̄_g of the two
+    encoders (``columns`` = (ω_g,m1, ω_g,m2, τ_g)), ω̂_r = ω̄_g/N_g, β̄ the mean of the six pitch encoders (``beta``
+    (3, 2), summed in order), τ̂_r = N_g (τ̄_g + B_g ω̄_g)/η_dt + B_r ω̂_r; the pitch features of β̄ into ``f``
+    (6, n) (``aero_fast.pitch_features``). ``consts`` = (N_g, B_g, η_dt, B_r, R). Returns (τ̂_r, ω̂_r R)."""
+    n_g, b_g, eta_dt, b_r, radius = consts
+    wg1, wg2, tau_col = columns
+    n = y.shape[0]
+    tau_r, rw, pitch = np.empty(n), np.empty(n), np.empty(n)
+    for r in range(n):
+        omega_g = (y[r, wg1] + y[r, wg2]) / 2.0
+        omega_r = omega_g / n_g
+        total = 0.0
+        for b in range(3):
+            for s in range(2):
+                total += y[r, beta[b, s]]
+        pitch[r] = total / 6.0
+        tau_r[r] = n_g * (y[r, tau_col] + b_g * omega_g) / eta_dt + b_r * omega_r
+        rw[r] = omega_r * radius
+    pitch_features(pitch, f)
+    return tau_r, rw
+
+
+@kernel
+def available_back(tau_r, rw, wind, f, g, slow_wind, winds, table, consts):
+    """Eq. (20)'s Newton steps on ``wind`` (n,) in place (``aero_fast._newton``, g = Mᵀ f), w̄ += (w − w̄) c in
+    place, P_a(w) (``power_curve.available_power``: np.interp on ``winds``, ``table``) and the exponent of eq. (21)'s
+    filter, −max(w, 1)/D Δt. ``consts`` = (aerodynamic gain, iterations, c, D, Δt). Returns (P_a, exponent)."""
+    gain, iterations, slow_gain, diameter, dt = consts
+    _newton(tau_r, rw, wind, f, g, gain, iterations)
+    n = wind.size
+    p_a, exponent = np.empty(n), np.empty(n)
+    for r in range(n):
+        slow_wind[r] = slow_wind[r] + (wind[r] - slow_wind[r]) * slow_gain
+        p_a[r] = interp(wind[r], winds, table)
+        exponent[r] = -np_maximum(wind[r], 1.0) / diameter * dt
+    return p_a, exponent
+
+
+@kernel
+def available_filter(a, p_a, p_a_hat, p_ref, y, power_col):
+    """Eq. (21) P̂_a ← a P̂_a + (1 − a) P_a in place (a = e^{exponent}, numpy's) and eq. (22): returns
+    P_avail = pos(P̂_a − P_ref) + P_m (n,), P_m the SCADA column ``power_col`` of ``y``."""
+    n = a.size
+    out = np.empty(n)
+    for r in range(n):
+        p_a_hat[r] = a[r] * p_a_hat[r] + (1.0 - a[r]) * p_a[r]
+        out[r] = np_maximum(p_a_hat[r] - p_ref[r], 0.0) + y[r, power_col]
+    return out
+
+
+@kernel
+def dispatch_shares(p_avail, p_ref, held, held_given, faulty, demand, y, integral, consts, out):
+    """``Dispatch.step`` after P_avail for the drive-train rules ``cancel`` (1) and ``paper`` (2) and the pitch
+    rules ``trim`` (1) and ``paper`` (2), farm by farm in the reference's order: the held turbines' power Σ_H
+    P_held and the served demand, the plan (debris (23), the pitch rule, the drive-train rule with its relief),
+    (25), (26) with the headroom shared in turbine order, (19), (18), (24), the farm-power trim (D-27; its integral
+    ``integral`` (farms,) in place), the clip to [0, rated], the modes and the ripple's sources and free rows (D-29).
+
+    ``p_avail``, ``p_ref``, ``held`` (n,); ``held_given``: the sample has a ``held`` array (the trim's error is then
+    the served turbines'); ``faulty`` (n, 3) the flags to accommodate; ``demand`` (farms,); ``y`` the SCADA means.
+    ``consts`` = (N, derate floor share, relief r, drive-train rule, pitch rule, rated power, trim on, K_p, K_i,
+    limit, Δt, P_g column, debris factor, P_min). ``out`` = (references (n,), mode (n,) int8, Σ_H P_held (farms,),
+    P_ref,farm,S (farms,), ripple sources (n,), ripple free rows (n,)), filled."""
+    per_farm, kept_share, relief, drivetrain, pitch_rule, rated, trim_on, kp, ki, limit, dt, power_col = consts[:12]
+    debris_factor, p_min = consts[12:]
+    refs, mode, held_power, served, sources, free_rows = out
+    avail = np.empty(per_farm)
+    values = np.empty(per_farm)
+    for farm in range(demand.size):
+        base = farm * per_farm
+        for t in range(per_farm):
+            values[t] = p_ref[base + t] if held[base + t] else 0.0
+        held_sum = row_sum(values, 0, per_farm)
+        held_power[farm] = held_sum
+        share_of = np_maximum(demand[farm] - held_sum, 0.0)  # P_ref,farm,S
+        served[farm] = share_of
+        for t in range(per_farm):
+            avail[t] = 0.0 if held[base + t] else p_avail[base + t]
+        most = row_sum(avail, 0, per_farm)  # Σ_S P_avail (19)
+        for t in range(per_farm):
+            r = base + t
+            if faulty[r, 0] and not (faulty[r, 1] or faulty[r, 2]):
+                avail[t] = debris_factor * avail[t]  # eq. (23)
+        over = row_sum(avail, 0, per_farm) - share_of  # eq. (25)
+        for t in range(per_farm):  # eq. (26), turbine order (D-26)
+            r = base + t
+            derate = (pitch_rule == 2 and faulty[r, 1]) or (drivetrain == 2 and faulty[r, 2])
+            relieved = drivetrain == 1 and faulty[r, 2] and relief > 0.0
+            if (derate or relieved) and not held[r]:
+                kept = 1.0 - relief if relieved else kept_share
+                reduced = np_maximum(np_maximum(avail[t] - np_maximum(over, 0.0), 0.0), p_min)
+                reduced = np_maximum(reduced, np_minimum(kept * avail[t], avail[t]))
+                taken = avail[t] - reduced
+                avail[t] = reduced
+                over = over - taken
+        active = share_of < most
+        total = np_maximum(row_sum(avail, 0, per_farm), 1.0)
+        u = 0.0
+        if trim_on:  # ``power_loop.farm_power_pi``
+            for t in range(per_farm):
+                values[t] = 0.0 if held_given and held[base + t] else y[base + t, power_col]
+            target = np_maximum(demand[farm] - held_sum, 0.0) if held_given else demand[farm]
+            farm_power = row_sum(values, 0, per_farm)
+            target = np_maximum(target, 1.0)
+            error = (target - farm_power) / target
+            now = np_clip(integral[farm] + ki * error * dt, -limit, limit)
+            u = np_clip(kp * error + now, -limit, limit)
+            integral[farm] = now if active else 0.0
+        for t in range(per_farm):
+            r = base + t
+            debris = faulty[r, 0] and not (faulty[r, 1] or faulty[r, 2])
+            trimmed = pitch_rule == 1 and faulty[r, 1]
+            derate = (pitch_rule == 2 and faulty[r, 1]) or (drivetrain == 2 and faulty[r, 2])
+            cancelled = drivetrain == 1 and faulty[r, 2]
+            share = avail[t] / total * share_of  # eq. (18)
+            if debris:
+                share = share / debris_factor  # eq. (24)
+            ref = share if active else rated
+            if trim_on and active and not (derate or held[r]):
+                ref = ref * (1.0 + u)
+            refs[r] = p_ref[r] if held[r] else np_clip(ref, 0.0, rated)
+            m = DEBRIS_MODE if debris else 0
+            m = PITCH_TRIM_MODE if trimmed else m
+            m = DERATED_MODE if derate else m
+            mode[r] = CANCEL_3P_MODE if cancelled else m
+            sources[r] = cancelled and not held[r]
+            free_rows[r] = not (sources[r] or derate or held[r])

@@ -84,14 +84,19 @@ class TrimInReadings:
         self.state = np.zeros((n, 3, 2))  # the trim's part of each blade's (position, rate)
         self.applied = np.zeros((n, 3))  # deg, the trim the blades' commands carry at the end of the last sample
         self.read = np.zeros((n, 3))  # deg, the trim in the last sample's readings
+        self._idle = True  # no trim applied or dying out, ``read`` zeros: a sample without a command reads none
 
     def step(self, commanded: np.ndarray | None) -> np.ndarray:
         """The trim in this sample's readings; ``commanded`` (n, 3) deg the trim sent with the last sample (None:
         none)."""
+        if commanded is None and self._idle:
+            return self.read
         commanded = np.zeros_like(self.applied) if commanded is None else np.asarray(commanded, dtype=float)
         if not (commanded.any() or self.applied.any() or self.state.any()):
             self.read = np.zeros_like(self.applied)
+            self._idle = True
             return self.read
+        self._idle = False
         total = np.zeros_like(self.applied)
         trim = self.applied
         for _ in range(self.ticks):
