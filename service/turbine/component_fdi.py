@@ -400,14 +400,18 @@ class ComponentFDI:
                 s1, s2 = b1e[k] - a1 * wk + s2, b2e[k] - a2 * wk
             self._w_state = (s1, s2)
             z2 = np.add.accumulate(w * w, axis=0)[-1]  # Σ_k w_k², added in tick order
-        z1 = w.sum(axis=0)  # Σ over the block of w (n, 3)
+        if self._fast is not None:  # the signatures and the block's sums below by one kernel
+            block_correlation, block_energy, block_sums = self._fast_signatures(w)
+            z1 = block_sums[:, :3].copy()
+        else:
+            z1 = w.sum(axis=0)  # Σ over the block of w (n, 3)
+            s = self.signatures.block(self._ref_block)  # s_θ[k] (ticks, n, K), eq. 1
+            block_correlation = np.einsum("knb,knc->nbc", w, s)
+            block_energy = np.einsum("knc,knc->nc", s, s)
+            block_sums = np.concatenate([z1, s.sum(axis=0)], axis=1)
         b = self.actuator_spread.offset  # w's learnt offset b̂ (``adaptive``), deg
         # Σ over the block of (w − b̂)², in units of its design variance
         z2 = (z2 - 2.0 * b * z1 + self.s.block * b * b) * (1.0 / (0.75 * self.sigma_beta**2))
-        s = self.signatures.block(self._ref_block)  # s_θ[k] (ticks, n, K), eq. 1
-        block_correlation = np.einsum("knb,knc->nbc", w, s)
-        block_energy = np.einsum("knc,knc->nc", s, s)
-        block_sums = np.concatenate([z1, s.sum(axis=0)], axis=1)
         if self._fast is not None and self.actuator_short:  # the lines below by one kernel
             self._fast_actuator_test(z1, z2, block_correlation, block_energy, block_sums)
             return
@@ -459,6 +463,11 @@ class ComponentFDI:
         kept = flagged & ~clear & (self._actuator_rest == 0)[:, None]
         self._actuator_cleared_rest = np.where(flagged & ~kept, rest, np.maximum(self._actuator_cleared_rest - 1, 0))
         self.flags[:, ACTUATOR_TARGET] = kept
+
+    def _fast_signatures(self, w: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The signatures of the block and its sums Σ w s_θ, Σ s_θ², [Σ w | Σ s_θ], by one kernel (the numpy lines
+        of ``_actuators`` in their order: ``SignatureBank.block_sums``)."""
+        return self.signatures.block_sums(self._ref_block, w, self._fast_actuator.signature_block)
 
     def _fast_actuator_test(self, z1, z2, block_correlation, block_energy, block_sums) -> None:
         """``_actuators`` from the block's sums on, by ``service.turbine.fast_actuator.actuator_test`` (the same
