@@ -21,6 +21,7 @@ import pytest
 
 from plant_sim.turbine import TurbineBatch
 from service.turbine.adaptive import HealthySpread
+from service.turbine.bank import ObserverBank
 from service.turbine.component_fdi import ACTUATOR_TARGET, CONVERTER_TARGET, M1_TARGET
 from service.turbine.supervisor import TurbineSupervisor
 from tests.live.helpers import TURBINE_SHORT
@@ -379,6 +380,29 @@ def test_the_arbiter_history_kernels_equal_the_reference():
         for name in ("_means", "_parities", "jump_covariance", "total", "total_power", "jump", "_onset"):
             np.testing.assert_array_equal(getattr(arbiters[1], name), getattr(arbiters[0], name), f"{k}: {name}")
     assert started >= 4 and (arbiters[0].jump != 0.0).sum() >= 2
+
+
+@pytest.mark.parametrize("n", [1, 2, 100])
+def test_the_bank_kernel_equals_the_reference(n):
+    # ``ObserverBank.step``'s numpy lines against ``fast.bank_step`` (its products by BLAS from inside the kernel),
+    # through the transient gains into the steady ones, for one row, a run with its twin and a wide batch; every
+    # array equal to the last bit
+    rng = np.random.default_rng(SEED + n)
+    design = TurbineSupervisor(n).context.bank_design
+    banks = [ObserverBank(design, n), ObserverBank(design, n, fast=fast_module("service.turbine.fast"))]
+    inputs = banks[0].d.H_blk.shape[1]
+    scale = np.array([1.6, 1.6, 150.0, 150.0, 150.0][:inputs] + [1.0] * max(0, inputs - 5))
+    x0, y0 = rng.normal(1.0, 0.3, (n, 4)), scale * rng.normal(1.0, 0.01, (n, inputs))
+    for bank in banks:
+        bank.initialise(x0, y0)
+    for k in range(len(banks[0]._update_transient) + 30):
+        y = scale * rng.normal(1.0, 0.01, (n, inputs))
+        u = rng.normal(2e4, 500.0, n)
+        for bank in banks:
+            bank.step(y, u)
+        for name in ("z", "x_hat", "chi2", "steps"):
+            np.testing.assert_array_equal(getattr(banks[1], name), getattr(banks[0], name), f"tick {k}: {name}")
+    assert banks[0].steps > len(banks[0]._update_transient) and banks[0].chi2.max() > 0.0
 
 
 @pytest.mark.parametrize("n", [1, 3, 40])

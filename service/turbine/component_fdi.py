@@ -263,7 +263,8 @@ class ComponentFDI:
         j = self.ticks % self.s.block
         self._ref_block[j] = frame.beta_ref
         if self._fast is not None:
-            self._fast_tick(frame, j)
+            self._fast_tick(frame, j)  # the converter's tick included
+            self.ticks += 1
         else:
             beta = y[:, M12]  # [β_i,m1 | β_i,m2], one gather
             m1, m2 = beta[:, :3], beta[:, 3:]
@@ -271,8 +272,8 @@ class ComponentFDI:
             np.matmul(0.5 * (m1 + m2), CROSS_BLADE, out=self._e_block[j])
             self._tau_block[j, 0] = y[:, TAU_G_M]
             self._tau_block[j, 1] = frame.tau_g_ref
-        self.ticks += 1
-        self._converter(self._tau_block[j, 0], self._tau_block[j, 1])
+            self.ticks += 1
+            self._converter(self._tau_block[j, 0], self._tau_block[j, 1])
         if j == self.s.block - 1:
             self._actuators()
             self._converter_spread()
@@ -282,24 +283,33 @@ class ComponentFDI:
         return self.flags
 
     def _fast_tick(self, frame: TurbineFrame, j: int) -> None:
-        """The gathers, the parity statistics and the block's inputs of ``step`` by one kernel
-        (``service.turbine.fast.component_tick``, the same operations), then the pitch-sensor decisions."""
-        n, w, o = self.n, self.parity, self.outlier
-        beta, parity, window = np.empty((n, 6)), np.empty((n, 3)), np.empty((n, 3))
+        """The gathers, the parity statistics, the block's inputs, the frozen readings' repeat test, the parity's
+        adaptive normalisation and the converter's tick of ``step`` by one kernel
+        (``service.turbine.fast.component_step``, the same operations), then the pitch-sensor decisions."""
+        n, w, o, spread = self.n, self.parity, self.outlier, self.parity_spread
+        beta, parity, window = np.empty((n, 3 * 2)), np.empty((n, 3)), np.empty((n, 3))
+        parity_n, window_n = (np.empty((n, 3)), np.empty((n, 3))) if spread.enabled else (parity, window)
         ring = (w.ring, w.count % w.size, w.total)
         outlier = (o.ring, o.count % o.size, o.total)
         scales = (self._parity_scale, self._window_scale, self.z_single)
-        inputs = (frame.sensors, M12, TAU_G_M, frame.tau_g_ref, j, CROSS_BLADE)
-        outputs = (beta, parity, window)
-        blocks = (self._e_block, self._tau_block)
-        any_suspicious = self._fast.component_tick(*inputs, *blocks, ring, outlier, scales, *outputs)
+        tick = (frame.sensors, M12, TAU_G_M, frame.tau_g_ref, j, CROSS_BLADE)
+        learning = (spread.min_weight, spread.max_scale2, spread.state)
+        adapt = (spread.enabled, self.flags, M1_TARGET, M2_TARGET, self._root_parity_window, self.z_single, learning)
+        first = self._tau_hat is None
+        if first:
+            self._tau_hat = np.empty(n)
+        converter = (self._tau_hat, first, self._converter_block_sum, self.ticks + 1 > self.warmup_ticks)
+        state = (self.converter_statistic, self._converter_run, self._converter_count, self._converter_mean)
+        state += (self.converter_clear_statistic,)
+        converter += (self._converter_spread_state, self._converter_test, state)
+        any_suspicious, repeated = self._fast.component_step(
+            tick, (self._e_block, self._tau_block), ring, outlier, scales, (beta, parity, window),
+            self.readings.previous, (*adapt, parity_n, window_n), converter,
+        )  # fmt: skip
         w.count += 1
         o.count += 1
-        self.readings.push(beta)
-        if self.parity_spread.enabled:  # the kernel's ``any_suspicious`` is on the unadapted parity
-            self._pitch_flags(*self._adapt_parity(parity, window))
-        else:
-            self._pitch_flags(parity, window, any_suspicious)
+        self.readings.push(beta, repeated)
+        self._pitch_flags(parity_n, window_n, any_suspicious)
 
     # -- pitch sensors ------------------------------------------------------------------------------------------
     def _pitch_sensors(self, beta: np.ndarray, m1: np.ndarray, m2: np.ndarray) -> None:
