@@ -148,8 +148,9 @@ class TurbineBatch:
         self._error_active = False
         self._wind_sample = None
         # the whole measurement by one kernel where the plant samples its own ``WindField`` (``_fast_measure_frame``)
-        own_wind = self._fast is not None and isinstance(self.wind, WindField) and self.wind._fast is not None
-        self._fast_measure = self._fast.measure if own_wind else None
+        # (not a farm's ``FarmWindField``, a ``WindField`` whose ``sample`` adds the wakes' means)
+        own_wind = self._fast is not None and wind_field is None
+        self._one_measure_kernel = own_wind
         if own_wind:
             self._wind_table, self._m_t = self.wind.interpolation(), self._fast.M_T
 
@@ -211,7 +212,7 @@ class TurbineBatch:
         """Sensor readings y_k with noise and sensor faults (PARAMETERS.md a.3)."""
         self._update_faults()
         x = self.x
-        if self._fast_measure is not None and self._tsr_shift is None and self.bias.ndim == 1:
+        if self._one_measure_kernel and self._tsr_shift is None and self.bias.ndim == 1:
             return self._fast_measure_frame(x)
         ws = self.wind.sample(self.k, x[:, AZIMUTH])
         self._wind_sample = ws
@@ -271,7 +272,7 @@ class TurbineBatch:
         aero = (self._m_t, self.dynamics.blade_gain, f.aero_factor, f.pitch_offset, self.p.radius)
         sensors = (self.p.eta_gc, f.power_factor, _PICK, noise, self.bias, _BETA_M1, _BETA_M2)
         outputs = (blades, rotor, torque, tau_aero, self._quantities, y, pitch_error)
-        self._fast_measure(x, (*self._wind_table, base, u3, hub), aero, sensors, *outputs)
+        self._fast.measure(x, (*self._wind_table, base, u3, hub), aero, sensors, *outputs)
         self._wind_sample = WindSample(blades=blades, hub=hub, rotor=rotor, mean=mean)
         self.blade_torque, self.tau_aero, self._pitch_error = torque, tau_aero, pitch_error
         if f.sensor_faults_active:
