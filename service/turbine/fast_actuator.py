@@ -31,7 +31,7 @@ def signature_block(reference, x, a_t, b, c, d, w, correlation, energy, block_su
     add along the ticks."""
     ticks, n = reference.shape
     k_count = c.shape[0]
-    s = np.empty(k_count)
+    s, moved = np.empty(k_count), np.empty(6)
     for r in range(n):
         for q in range(k_count):
             energy[r, q] = 0.0
@@ -45,7 +45,7 @@ def signature_block(reference, x, a_t, b, c, d, w, correlation, energy, block_su
                 p0, p1, p2 = xv[0] * c[q, 0], xv[1] * c[q, 1], xv[2] * c[q, 2]
                 p3, p4, p5 = xv[3] * c[q, 3], xv[4] * c[q, 4], xv[5] * c[q, 5]
                 s[q] = (((p0 + p2) + p4) + ((p1 + p3) + p5)) + rk * d[q]
-                moved = xv @ a_t[q]
+                np.dot(xv, a_t[q], moved)
                 for j in range(6):
                     xv[j] = moved[j] + rk * b[q, j]
             for q in range(k_count):
