@@ -139,12 +139,12 @@ def actuator_whitener(p: TurbineParams) -> tuple[np.ndarray, np.ndarray]:
 
 
 CROSS_BLADE = np.array([[1.0, -0.5, -0.5], [-0.5, 1.0, -0.5], [-0.5, -0.5, 1.0]])
+"""e = m̄ @ CROSS_BLADE: each blade's pair mean minus the mean of the other two blades' (symmetric)."""
 SIGNATURE_KERNEL_ROWS = 12
 """Batches of at most this many rows compute the pitch-actuator signatures by ``fast_actuator.signature_block``,
 wider ones by numpy (the same numbers): the kernel makes one BLAS call per row and candidate where numpy's stacked
 ``matmul`` makes them without leaving C, and was the slower above 12–16 rows (measured: 2 rows 60–100 µs per block
 against numpy's 130–250, 100 rows 2.9–3.3 ms against 2.4)."""
-"""e = m̄ @ CROSS_BLADE: each blade's pair mean minus the mean of the other two blades' (symmetric)."""
 
 
 class ComponentFDI:
