@@ -315,14 +315,28 @@ class WindField:
             shared.flags.writeable = False
         self._chunk_start, self._chunk_end = int(ticks[0]), k_end
 
-    def sample(self, k: int, azimuth: np.ndarray) -> WindSample:
-        """Wind at tick k (t = k·dt) for blade-1 azimuth ``azimuth`` (n,) in rad; k must be 0, 1, 2, … in turn."""
+    def advance(self, k: int) -> int:
+        """Move on to tick k (0, 1, 2, … in turn), the next chunk filtered when k needs it; k's row in the chunk's
+        arrays (``fields``)."""
         if k != self._next_k:
             raise ValueError(f"WindField.sample expects tick {self._next_k}, got {k}")
         self._next_k = k + 1
         if k >= self._chunk_end:
             self._refill()
-        j = k - self._chunk_start
+        return k - self._chunk_start
+
+    def fields(self, j: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """(v_m + u_0, u_3, v_hub, v_m) (n,) each at row j of the chunk (``advance``), for a compiled ``sample``."""
+        return self._base[j], self._u3[j], self._hub[j], self._mean[j]
+
+    def interpolation(self) -> tuple[np.ndarray, np.ndarray, float, np.ndarray]:
+        """(F's table, its slope per grid step, grid steps per rad, the blades' offsets in grid steps): ``sample``'s
+        azimuth interpolation, for a compiled ``sample``."""
+        return self._table, self._slope, self._per_rad, self._offsets
+
+    def sample(self, k: int, azimuth: np.ndarray) -> WindSample:
+        """Wind at tick k (t = k·dt) for blade-1 azimuth ``azimuth`` (n,) in rad; k must be 0, 1, 2, … in turn."""
+        j = self.advance(k)
         if self._fast is not None:
             blades, rotor = np.empty((self.n, 3)), np.empty(self.n)
             azimuth = np.ascontiguousarray(azimuth, dtype=float)

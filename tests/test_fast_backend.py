@@ -21,6 +21,7 @@ import pytest
 
 from plant_sim.turbine import TurbineBatch
 from service.turbine.adaptive import HealthySpread
+from service.turbine.bank import ObserverBank
 from service.turbine.component_fdi import ACTUATOR_TARGET, CONVERTER_TARGET, M1_TARGET
 from service.turbine.supervisor import TurbineSupervisor
 from tests.live.helpers import TURBINE_SHORT
@@ -381,6 +382,58 @@ def test_the_arbiter_history_kernels_equal_the_reference():
     assert started >= 4 and (arbiters[0].jump != 0.0).sum() >= 2
 
 
+@pytest.mark.parametrize("n", [1, 2, 100])
+def test_the_bank_kernel_equals_the_reference(n):
+    # ``ObserverBank.step``'s numpy lines against ``fast.bank_step`` (its products by BLAS from inside the kernel),
+    # through the transient gains into the steady ones, for one row, a run with its twin and a wide batch; every
+    # array equal to the last bit
+    rng = np.random.default_rng(SEED + n)
+    design = TurbineSupervisor(n).context.bank_design
+    banks = [ObserverBank(design, n), ObserverBank(design, n, fast=fast_module("service.turbine.fast"))]
+    inputs = banks[0].d.H_blk.shape[1]
+    scale = np.array([1.6, 1.6, 150.0, 150.0, 150.0][:inputs] + [1.0] * max(0, inputs - 5))
+    x0, y0 = rng.normal(1.0, 0.3, (n, 4)), scale * rng.normal(1.0, 0.01, (n, inputs))
+    for bank in banks:
+        bank.initialise(x0, y0)
+    for k in range(len(banks[0]._update_transient) + 30):
+        y = scale * rng.normal(1.0, 0.01, (n, inputs))
+        u = rng.normal(2e4, 500.0, n)
+        for bank in banks:
+            bank.step(y, u)
+        for name in ("z", "x_hat", "chi2", "steps"):
+            np.testing.assert_array_equal(getattr(banks[1], name), getattr(banks[0], name), f"tick {k}: {name}")
+    assert banks[0].steps > len(banks[0]._update_transient) and banks[0].chi2.max() > 0.0
+
+
+@pytest.mark.parametrize("n", [1, 3, 40])
+def test_the_signature_kernel_equals_the_reference(n):
+    # ``SignatureBank.block`` and ``_actuators``' block sums (``einsum``, ``sum(axis=0)``) against
+    # ``fast_actuator.signature_block``, block after block from rest through ramps, steps and noise, the states
+    # carried over; every array equal to the last bit (a sequential six-term sum or a loop product fails this)
+    rng = np.random.default_rng(SEED + n)
+    components = TurbineSupervisor(n, backend="numpy").detector.components
+    ticks = components._ref_block.shape[0]
+    reference_bank, fast_bank = components.signatures, copy.deepcopy(components.signatures)
+    kernel = fast_module("service.turbine.fast_actuator").signature_block
+    level = np.full(n, 6.0)
+    for block in range(30):
+        steps = rng.normal(0.0, 0.5, (ticks, n)) if block % 3 else np.zeros((ticks, n))
+        reference = level + np.cumsum(steps, axis=0) + (rng.normal(0.0, 3.0, n) if block % 5 == 4 else 0.0)
+        level = reference[-1]
+        w = rng.normal(0.0, 10.0 ** rng.uniform(-3, 1), (ticks, n, 3))
+        s = reference_bank.block(reference)
+        expected = (
+            np.einsum("knb,knc->nbc", w, s),
+            np.einsum("knc,knc->nc", s, s),
+            np.concatenate([w.sum(axis=0), s.sum(axis=0)], axis=1),
+        )
+        got = fast_bank.block_sums(reference, w, kernel)
+        for name, a, b in zip(("correlation", "energy", "sums"), got, expected, strict=True):
+            np.testing.assert_array_equal(a, b, f"block {block}: {name}")
+        np.testing.assert_array_equal(fast_bank.x, reference_bank.x, f"block {block}: state")
+    assert np.abs(reference_bank.x).max() > 0.01  # the signatures moved
+
+
 def test_the_pitch_actuator_kernel_equals_the_reference():
     # ``ComponentFDI._actuators`` with its numpy lines and with ``actuator_test``, block after block through the
     # windows filling, raises, clearings on the shorter and the full windows and a pitch-sensor flag's rest; the
@@ -409,6 +462,7 @@ def test_the_pitch_actuator_kernel_equals_the_reference():
         np.testing.assert_array_equal(detectors[1].actuator_glr, detectors[0].actuator_glr, f"block {k}")
         for name in ("_actuator_rest", "_actuator_cleared_rest", "_w_block"):
             np.testing.assert_array_equal(getattr(detectors[1], name), getattr(detectors[0], name), f"{k}: {name}")
+        np.testing.assert_array_equal(detectors[1].signatures.x, detectors[0].signatures.x, f"block {k}")
         windows = [[d.actuator, d.actuator_energy, d.actuator_sums, *sum(d.actuator_short, ())] for d in detectors]
         for fast, numpy_window in zip(*windows, strict=True):
             assert fast.count == numpy_window.count

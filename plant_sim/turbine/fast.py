@@ -18,6 +18,7 @@ from wwcore.aero_fast import cq_inside, features, maximum, minimum
 from wwcore.jit import kernel
 
 TWO_PI = 2.0 * math.pi
+M_T = _M_T  # (6, 6): Mᵀ of the aerodynamic fit, g = Mᵀ f (``measure``'s argument)
 
 
 # -- wind (``plant_sim.wind.WindField.sample``) -------------------------------------------------------------------
@@ -91,6 +92,35 @@ def readings(x, hub, power_gain, pick, noise, bias, beta_m1, beta_m2, quantities
             y[r, s] = quantities[r, pick[s]] + (noise[r, s] + bias[s])
         for b in range(3):
             pitch_error[r, b] = 0.5 * (y[r, beta_m1[b]] + y[r, beta_m2[b]]) - x[r, 5 + 2 * b]
+
+
+# -- the whole measurement (``TurbineBatch.measure`` with its own ``WindField``, nominal plant) ----------------------
+@kernel
+def measure(x, wind, aero, sensors, blades, rotor, torque, tau_aero, quantities, y, pitch_error):
+    """``measure``'s common tick in one call: the blades' wind (``blade_winds``), the blade torques
+    (``blade_torques``: the pitch with its offsets, the gain ρπR³/6 f_aero, Mᵀ f by BLAS as numpy's product) and the
+    readings without sensor faults (``readings``, P_g's gain η_gc f_P), each kernel's operations in its order.
+
+    ``wind`` = (table, slope, per_rad, offsets, v_m + u_0, u_3, v_hub) of the tick; ``aero`` = (Mᵀ, ρπR³/6, f_aero
+    (n,), pitch offsets (n, 3), R); ``sensors`` = (η_gc, f_P (n,), pick, noise (n, sensors), bias, β_m1, β_m2)."""
+    table, slope, per_rad, offsets, base, u3, hub = wind
+    m_t, blade_gain, aero_factor, pitch_offset, radius = aero
+    eta_gc, power_factor, pick, noise, bias, beta_m1, beta_m2 = sensors
+    n = x.shape[0]
+    azimuth, omega_r, gain, power_gain = np.empty(n), np.empty(n), np.empty(n), np.empty(n)
+    pitch = np.empty((n, 3))
+    for r in range(n):
+        azimuth[r] = x[r, 4]
+        omega_r[r] = x[r, 0]
+        gain[r] = blade_gain * aero_factor[r]
+        power_gain[r] = eta_gc * power_factor[r]
+        for b in range(3):
+            pitch[r, b] = x[r, 5 + 2 * b] + pitch_offset[r, b]
+    blade_winds(azimuth, table, slope, per_rad, offsets, base, u3, blades, rotor)
+    tsr, lam, f = np.empty(3 * n), np.empty(3 * n), np.empty((6, 3 * n))
+    _blade_features(omega_r, radius, blades, pitch, tsr, lam, f)
+    _blade_torques(tsr, lam, f, m_t @ f, blades, gain, torque, tau_aero)
+    readings(x, hub, power_gain, pick, noise, bias, beta_m1, beta_m2, quantities, y, pitch_error)
 
 
 # -- controller (``BenchmarkController.step``) ------------------------------------------------------------------

@@ -31,7 +31,7 @@ from plant_sim.turbine.dynamics import (
 from plant_sim.turbine.faults import FaultState, ScheduledFault
 from plant_sim.turbine.mismatch import resolve
 from plant_sim.turbine.trim import PlantAero, trim
-from plant_sim.wind import WindField
+from plant_sim.wind import WindField, WindSample
 from wwcore.backend import fast_module, resolve_backend
 from wwcore.channels import SENSOR_INDEX, SENSORS, noise_std
 from wwcore.events import Event, EventType
@@ -147,6 +147,12 @@ class TurbineBatch:
         self._error_stage = np.zeros(self.n)  # rad, first stage of its onset filter
         self._error_active = False
         self._wind_sample = None
+        # the whole measurement by one kernel where the plant samples its own ``WindField`` (``_fast_measure_frame``)
+        # (not a farm's ``FarmWindField``, a ``WindField`` whose ``sample`` adds the wakes' means)
+        own_wind = self._fast is not None and wind_field is None
+        self._one_measure_kernel = own_wind
+        if own_wind:
+            self._wind_table, self._m_t = self.wind.interpolation(), self._fast.M_T
 
     # -- set-up -----------------------------------------------------------------------------------------------
     def _trim(self, wind0: float, power_reference: float) -> None:
@@ -206,6 +212,8 @@ class TurbineBatch:
         """Sensor readings y_k with noise and sensor faults (PARAMETERS.md a.3)."""
         self._update_faults()
         x = self.x
+        if self._one_measure_kernel and self._tsr_shift is None and self.bias.ndim == 1:
+            return self._fast_measure_frame(x)
         ws = self.wind.sample(self.k, x[:, AZIMUTH])
         self._wind_sample = ws
         pitch = x[:, PITCH]
@@ -251,6 +259,29 @@ class TurbineBatch:
     def _frame(self, y: np.ndarray) -> TurbineFrame:
         c = self.controller
         return TurbineFrame(self.k, self.t, y, c.tau_g_ref.copy(), c.beta_ref.copy(), c.power_ref.copy(), c.zone.copy())
+
+    def _fast_measure_frame(self, x: np.ndarray) -> TurbineFrame:
+        """``measure`` with the plant's own ``WindField`` by one kernel (``plant_sim.turbine.fast.measure``: the wind
+        sample, the blade torques and the readings, the same operations as ``sample``, ``blade_torques`` and
+        ``_fast_frame``), then with a sensor fault active ``faulty_readings`` in the readings' place."""
+        wind, f, n = self.wind, self.faults, self.n
+        base, u3, hub, mean = wind.fields(wind.advance(self.k))
+        blades, rotor, torque, tau_aero = np.empty((n, 3)), np.empty(n), np.empty((n, 3)), np.empty(n)
+        y, pitch_error = np.empty((n, len(SENSORS))), np.empty((n, 3))
+        noise = self._next_noise()
+        aero = (self._m_t, self.dynamics.blade_gain, f.aero_factor, f.pitch_offset, self.p.radius)
+        sensors = (self.p.eta_gc, f.power_factor, _PICK, noise, self.bias, _BETA_M1, _BETA_M2)
+        outputs = (blades, rotor, torque, tau_aero, self._quantities, y, pitch_error)
+        self._fast.measure(x, (*self._wind_table, base, u3, hub), aero, sensors, *outputs)
+        self._wind_sample = WindSample(blades=blades, hub=hub, rotor=rotor, mean=mean)
+        self.blade_torque, self.tau_aero, self._pitch_error = torque, tau_aero, pitch_error
+        if f.sensor_faults_active:
+            faults = (f.noise_scale, f.gain, f.offset, f.drift_rate, f.drift_start, f.fixed, f.fixed_value)
+            faults += (f.stuck, f.stuck_value)
+            readings = (self._quantities, _PICK, noise, self.bias, _BETA_M1, _BETA_M2)
+            self._fast.faulty_readings(*readings, x, faults, self.t, f.drift_active, y, pitch_error)
+        self.last_reading = y
+        return self._frame(y)
 
     def _fast_frame(self, fast, x: np.ndarray, ws, pitch: np.ndarray) -> TurbineFrame:
         """``measure``'s readings, by ``plant_sim.turbine.fast``: ``readings``, then with a sensor fault active

@@ -323,18 +323,19 @@ class ObserverBank:
         self._y_prev = y
 
     def _fast_step(self, y: np.ndarray, u_prev: np.ndarray) -> None:
-        """``step`` with the stacking and the χ² sums compiled (``service.turbine.fast``), the products numpy's."""
-        fast, width = self._fast, self._width
-        if self._y_prev is not None:
-            update = self._update_transient[self.steps] if self.steps < len(self._update_transient) else self._update
-            fast.stack(self.z, u_prev.reshape(-1, 1), self._y_prev, self._update_in)
-            self.z = self._update_in @ update
-            self.steps += 1
-        fast.stack(self.z, y[:, :0], y, self._output_in)
-        out = self._output_in @ self._output
-        self.x_hat = out[:, :width]
+        """``step`` by one kernel (``service.turbine.fast.bank_step``: the stacking, the two products by BLAS as
+        numpy's, the χ² sums)."""
+        advance = self._y_prev is not None
+        update = self._update
+        if advance and self.steps < len(self._update_transient):
+            update = self._update_transient[self.steps]
         self.chi2 = np.empty((self.n, len(self.d.names)))
-        fast.chi2(out, width, self._terms, self._squares.shape[1] - 1, self.chi2)
+        self.z, out = self._fast.bank_step(
+            self.z, u_prev, self._y_prev if advance else y, update, self._update_in, y, self._output,
+            self._output_in, self._terms, self._squares.shape[1] - 1, advance, self.chi2,
+        )  # fmt: skip
+        self.steps += advance
+        self.x_hat = out[:, : self._width]
         self._y_prev = y
 
     def restart(self, rows: np.ndarray, target: np.ndarray, source: np.ndarray) -> None:

@@ -140,6 +140,11 @@ def actuator_whitener(p: TurbineParams) -> tuple[np.ndarray, np.ndarray]:
 
 CROSS_BLADE = np.array([[1.0, -0.5, -0.5], [-0.5, 1.0, -0.5], [-0.5, -0.5, 1.0]])
 """e = m̄ @ CROSS_BLADE: each blade's pair mean minus the mean of the other two blades' (symmetric)."""
+SIGNATURE_KERNEL_ROWS = 12
+"""Batches of at most this many rows compute the pitch-actuator signatures by ``fast_actuator.signature_block``,
+wider ones by numpy (the same numbers): the kernel makes one BLAS call per row and candidate where numpy's stacked
+``matmul`` makes them without leaving C, and was the slower above 12–16 rows (measured: 2 rows 60–100 µs per block
+against numpy's 130–250, 100 rows 2.9–3.3 ms against 2.4)."""
 
 
 class ComponentFDI:
@@ -166,6 +171,7 @@ class ComponentFDI:
         self._fast = fast  # ``service.turbine.fast`` (``wwcore.backend``) or None
         self._fast_actuator = fast_module("service.turbine.fast_actuator") if fast is not None else None
         self._fast_converter = fast_module("service.turbine.fast_converter") if fast is not None else None
+        self._compiled_signatures = fast is not None and n <= SIGNATURE_KERNEL_ROWS
         alpha = settings.false_alarms_per_1000s * p.dt / 1000.0
         self.sigma_beta = sigma["beta_1_m1"]
         self.sigma_tau = sigma["tau_g_m"]
@@ -263,7 +269,8 @@ class ComponentFDI:
         j = self.ticks % self.s.block
         self._ref_block[j] = frame.beta_ref
         if self._fast is not None:
-            self._fast_tick(frame, j)
+            self._fast_tick(frame, j)  # the converter's tick included
+            self.ticks += 1
         else:
             beta = y[:, M12]  # [β_i,m1 | β_i,m2], one gather
             m1, m2 = beta[:, :3], beta[:, 3:]
@@ -271,8 +278,8 @@ class ComponentFDI:
             np.matmul(0.5 * (m1 + m2), CROSS_BLADE, out=self._e_block[j])
             self._tau_block[j, 0] = y[:, TAU_G_M]
             self._tau_block[j, 1] = frame.tau_g_ref
-        self.ticks += 1
-        self._converter(self._tau_block[j, 0], self._tau_block[j, 1])
+            self.ticks += 1
+            self._converter(self._tau_block[j, 0], self._tau_block[j, 1])
         if j == self.s.block - 1:
             self._actuators()
             self._converter_spread()
@@ -282,24 +289,33 @@ class ComponentFDI:
         return self.flags
 
     def _fast_tick(self, frame: TurbineFrame, j: int) -> None:
-        """The gathers, the parity statistics and the block's inputs of ``step`` by one kernel
-        (``service.turbine.fast.component_tick``, the same operations), then the pitch-sensor decisions."""
-        n, w, o = self.n, self.parity, self.outlier
-        beta, parity, window = np.empty((n, 6)), np.empty((n, 3)), np.empty((n, 3))
+        """The gathers, the parity statistics, the block's inputs, the frozen readings' repeat test, the parity's
+        adaptive normalisation and the converter's tick of ``step`` by one kernel
+        (``service.turbine.fast.component_step``, the same operations), then the pitch-sensor decisions."""
+        n, w, o, spread = self.n, self.parity, self.outlier, self.parity_spread
+        beta, parity, window = np.empty((n, 3 * 2)), np.empty((n, 3)), np.empty((n, 3))
+        parity_n, window_n = (np.empty((n, 3)), np.empty((n, 3))) if spread.enabled else (parity, window)
         ring = (w.ring, w.count % w.size, w.total)
         outlier = (o.ring, o.count % o.size, o.total)
         scales = (self._parity_scale, self._window_scale, self.z_single)
-        inputs = (frame.sensors, M12, TAU_G_M, frame.tau_g_ref, j, CROSS_BLADE)
-        outputs = (beta, parity, window)
-        blocks = (self._e_block, self._tau_block)
-        any_suspicious = self._fast.component_tick(*inputs, *blocks, ring, outlier, scales, *outputs)
+        tick = (frame.sensors, M12, TAU_G_M, frame.tau_g_ref, j, CROSS_BLADE)
+        learning = (spread.min_weight, spread.max_scale2, spread.state)
+        adapt = (spread.enabled, self.flags, M1_TARGET, M2_TARGET, self._root_parity_window, self.z_single, learning)
+        first = self._tau_hat is None
+        if first:
+            self._tau_hat = np.empty(n)
+        converter = (self._tau_hat, first, self._converter_block_sum, self.ticks + 1 > self.warmup_ticks)
+        state = (self.converter_statistic, self._converter_run, self._converter_count, self._converter_mean)
+        state += (self.converter_clear_statistic,)
+        converter += (self._converter_spread_state, self._converter_test, state)
+        any_suspicious, repeated = self._fast.component_step(
+            tick, (self._e_block, self._tau_block), ring, outlier, scales, (beta, parity, window),
+            self.readings.previous, (*adapt, parity_n, window_n), converter,
+        )  # fmt: skip
         w.count += 1
         o.count += 1
-        self.readings.push(beta)
-        if self.parity_spread.enabled:  # the kernel's ``any_suspicious`` is on the unadapted parity
-            self._pitch_flags(*self._adapt_parity(parity, window))
-        else:
-            self._pitch_flags(parity, window, any_suspicious)
+        self.readings.push(beta, repeated)
+        self._pitch_flags(parity_n, window_n, any_suspicious)
 
     # -- pitch sensors ------------------------------------------------------------------------------------------
     def _pitch_sensors(self, beta: np.ndarray, m1: np.ndarray, m2: np.ndarray) -> None:
@@ -400,14 +416,18 @@ class ComponentFDI:
                 s1, s2 = b1e[k] - a1 * wk + s2, b2e[k] - a2 * wk
             self._w_state = (s1, s2)
             z2 = np.add.accumulate(w * w, axis=0)[-1]  # Σ_k w_k², added in tick order
-        z1 = w.sum(axis=0)  # Σ over the block of w (n, 3)
+        if self._compiled_signatures:  # the signatures and the block's sums below by one kernel
+            block_correlation, block_energy, block_sums = self._fast_signatures(w)
+            z1 = block_sums[:, :3].copy()
+        else:
+            z1 = w.sum(axis=0)  # Σ over the block of w (n, 3)
+            s = self.signatures.block(self._ref_block)  # s_θ[k] (ticks, n, K), eq. 1
+            block_correlation = np.einsum("knb,knc->nbc", w, s)
+            block_energy = np.einsum("knc,knc->nc", s, s)
+            block_sums = np.concatenate([z1, s.sum(axis=0)], axis=1)
         b = self.actuator_spread.offset  # w's learnt offset b̂ (``adaptive``), deg
         # Σ over the block of (w − b̂)², in units of its design variance
         z2 = (z2 - 2.0 * b * z1 + self.s.block * b * b) * (1.0 / (0.75 * self.sigma_beta**2))
-        s = self.signatures.block(self._ref_block)  # s_θ[k] (ticks, n, K), eq. 1
-        block_correlation = np.einsum("knb,knc->nbc", w, s)
-        block_energy = np.einsum("knc,knc->nc", s, s)
-        block_sums = np.concatenate([z1, s.sum(axis=0)], axis=1)
         if self._fast is not None and self.actuator_short:  # the lines below by one kernel
             self._fast_actuator_test(z1, z2, block_correlation, block_energy, block_sums)
             return
@@ -459,6 +479,11 @@ class ComponentFDI:
         kept = flagged & ~clear & (self._actuator_rest == 0)[:, None]
         self._actuator_cleared_rest = np.where(flagged & ~kept, rest, np.maximum(self._actuator_cleared_rest - 1, 0))
         self.flags[:, ACTUATOR_TARGET] = kept
+
+    def _fast_signatures(self, w: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The signatures of the block and its sums Σ w s_θ, Σ s_θ², [Σ w | Σ s_θ], by one kernel (the numpy lines
+        of ``_actuators`` in their order: ``SignatureBank.block_sums``)."""
+        return self.signatures.block_sums(self._ref_block, w, self._fast_actuator.signature_block)
 
     def _fast_actuator_test(self, z1, z2, block_correlation, block_energy, block_sums) -> None:
         """``_actuators`` from the block's sums on, by ``service.turbine.fast_actuator.actuator_test`` (the same

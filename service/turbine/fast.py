@@ -4,15 +4,17 @@ pitch-actuator test's kernels: ``service.turbine.fast_actuator``).
 
 Each kernel performs the numpy reference's operations in its order, row by row, so its results equal the
 reference's bit for bit (``tests/test_fast_backend.py``). The matrix products (the bank's two, the recovery's
-map) stay numpy's (BLAS): a compiled loop would sum in another order. Decisions (isolation, clearing, events)
-stay in Python: they run on the rare ticks where something is suspected. ``wind_from_torque`` is
-``wwcore.aero_fast``'s, for the wind recovery.
+map) stay BLAS's: a compiled loop would sum in another order; ``bank_step`` calls BLAS from inside the kernel
+(numba's product calls the routine numpy's does, with the same numbers: the tests compare them bit for bit).
+Decisions (isolation, clearing, events) stay in Python: they run on the rare ticks where something is suspected.
+``wind_from_torque`` is ``wwcore.aero_fast``'s, for the wind recovery.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
+from service.turbine.fast_converter import converter_tick
 from wwcore.aero_fast import maximum, wind_from_torque  # noqa: F401 (the wind recovery's inversion)
 from wwcore.jit import kernel
 
@@ -55,6 +57,30 @@ def chi2(out, width, terms, n_res, stat):
             acc = _square(out, r, width, terms[j], n_res)
             acc += _square(out, r, width, terms[m + j], n_res) + _square(out, r, width, terms[2 * m + j], n_res)
             stat[r, j] = acc
+
+
+@kernel
+def bank_step(z, u_prev, y_prev, update, update_in, y, output, output_in, terms, n_res, advance, stat):
+    """``ObserverBank.step`` in one call: when ``advance``, z ← [z | u[n−1] | y[n−1]] · update (eq. 11), then
+    out = [z | y[n]] · output (eq. 12) and χ² into ``stat`` (``chi2``); (z, out). The stacking as ``stack``, the two
+    products by BLAS (numba's product calls the BLAS routine numpy's does, with the same numbers: the tests)."""
+    n, width = z.shape
+    if advance:
+        for r in range(n):
+            for c in range(width):
+                update_in[r, c] = z[r, c]
+            update_in[r, width] = u_prev[r]
+            for c in range(y_prev.shape[1]):
+                update_in[r, width + 1 + c] = y_prev[r, c]
+        z = update_in @ update
+    for r in range(n):
+        for c in range(width):
+            output_in[r, c] = z[r, c]
+        for c in range(y.shape[1]):
+            output_in[r, width + c] = y[r, c]
+    out = output_in @ output
+    chi2(out, width, terms, n_res, stat)
+    return z, out
 
 
 @kernel
@@ -274,6 +300,34 @@ def component_tick(y, m12, tau_col, tau_g_ref, j, cross, e_block, tau_block, rin
             if maximum(abs(x), abs(w)) > z_single:
                 suspicious = True
     return suspicious
+
+
+@kernel
+def component_step(tick, blocks, ring, outlier, scales, outputs, previous, adapt, converter):
+    """``ComponentFDI.step``'s kernels of a tick in one call, in the order of their effects: ``component_tick``
+    (``tick`` = (y, m12, τ_g,m column, τ_g,r, j, cross); ``outputs`` = (β, parity, window)); whether any reading of
+    β equals ``previous``'s (``any_equal``, the frozen readings' repeat test; ``previous`` None: not tested);
+    ``adapt_parity`` when ``adapt`` = (learning, flags, m1 targets, m2 targets, √W, z, the spread's learning,
+    parity_n, window_n) says the parity's spread learns; ``converter_tick`` on the block's [τ_g,m, τ_g,r] of tick j
+    (``converter`` = (τ̂_g, first, block sum, warm, spread, test, state), flags ``adapt[1]``: it reads and writes
+    only the converter's column, the parity only the pitch sensors'). (any suspicious, repeated)."""
+    y, m12, tau_col, tau_g_ref, j, cross = tick
+    e_block, tau_block = blocks
+    beta, parity, window = outputs
+    suspicious = component_tick(
+        y, m12, tau_col, tau_g_ref, j, cross, e_block, tau_block, ring, outlier, scales, beta, parity, window
+    )
+    repeated = previous is not None and any_equal(beta, previous)
+    learning, flags, m1_target, m2_target, root_window, z_single, spread, parity_n, window_n = adapt
+    if learning:
+        suspicious = adapt_parity(
+            parity, window, flags, m1_target, m2_target, root_window, z_single, spread, parity_n, window_n
+        )
+    tau_hat, first, block_sum, warm, converter_spread, test, state = converter
+    converter_tick(
+        tau_block[j, 0], tau_block[j, 1], tau_hat, first, block_sum, warm, converter_spread, test, flags, state
+    )
+    return suspicious, repeated
 
 
 @kernel

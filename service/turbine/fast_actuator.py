@@ -3,8 +3,10 @@
 the shorter windows, the learnt spread, the raise and the clearing.
 
 As in ``service.turbine.fast``, each kernel performs the numpy reference's operations in its order, so its results
-equal the reference's bit for bit (``tests/test_fast_backend.py``). The signature bank and the block's sums stay
-numpy's (their summation order, ``docs/decisions.md`` N-5).
+equal the reference's bit for bit (``tests/test_fast_backend.py``). ``signature_block`` computes the signature bank
+and the block's sums in the order numpy's ``einsum`` and ``matmul`` give them on this numpy build (``einsum``'s
+two-lane inner loop for the six-term contraction, tick order for the block's sums; the state update's product by
+BLAS, as numpy's stacked ``matmul`` calls it); the tests compare them with the numpy lines bit for bit.
 """
 
 from __future__ import annotations
@@ -14,6 +16,51 @@ import numpy as np
 from service.turbine.fast import learn_spread
 from wwcore.aero_fast import maximum
 from wwcore.jit import kernel
+
+
+# -- signature bank and block sums (``pitch_actuator.SignatureBank.block``, ``ComponentFDI._actuators``) --------------
+@kernel
+def signature_block(reference, x, a_t, b, c, d, w, correlation, energy, block_sums):
+    """``SignatureBank.block`` of the block's references (ticks, n) from the states x (n, K, 6), in place, and the
+    block's sums of ``ComponentFDI._actuators``: Σ_k w s_θ (n, 3, K), Σ_k s_θ² (n, K) and [Σ_k w | Σ_k s_θ]
+    (n, 3 + K), with w (ticks, n, 3) the whitened residual.
+
+    s_θ[k] = C x + r D, the six products added as numpy's ``einsum("nkj,kj->nk")`` adds them (two lanes:
+    ((p0 + p2) + p4) + ((p1 + p3) + p5)); x ← x Aᵀ + r B, the product by BLAS (the vector-matrix product numpy's
+    stacked ``matmul`` makes); the block's sums in tick order from the first tick, as ``einsum`` and ``sum(axis=0)``
+    add along the ticks."""
+    ticks, n = reference.shape
+    k_count = c.shape[0]
+    s, moved = np.empty(k_count), np.empty(6)
+    for r in range(n):
+        for q in range(k_count):
+            energy[r, q] = 0.0
+            for i in range(3):
+                correlation[r, i, q] = 0.0
+    for k in range(ticks):
+        for r in range(n):
+            rk = reference[k, r]
+            for q in range(k_count):
+                xv = x[r, q]
+                p0, p1, p2 = xv[0] * c[q, 0], xv[1] * c[q, 1], xv[2] * c[q, 2]
+                p3, p4, p5 = xv[3] * c[q, 3], xv[4] * c[q, 4], xv[5] * c[q, 5]
+                s[q] = (((p0 + p2) + p4) + ((p1 + p3) + p5)) + rk * d[q]
+                np.dot(xv, a_t[q], moved)
+                for j in range(6):
+                    xv[j] = moved[j] + rk * b[q, j]
+            for q in range(k_count):
+                energy[r, q] += s[q] * s[q]
+                for i in range(3):
+                    correlation[r, i, q] += w[k, r, i] * s[q]
+                if k == 0:
+                    block_sums[r, 3 + q] = s[q]
+                else:
+                    block_sums[r, 3 + q] += s[q]
+            for i in range(3):
+                if k == 0:
+                    block_sums[r, i] = w[k, r, i]
+                else:
+                    block_sums[r, i] += w[k, r, i]
 
 
 # -- pitch-actuator test (``service.turbine.component_fdi.ComponentFDI._actuators``, after the block's sums) -----------

@@ -21,12 +21,20 @@ class FrozenReadings:
         self.counting = False  # False only while every count is 0
         self._prev: np.ndarray | None = None
 
-    def push(self, y: np.ndarray) -> bool:
-        """Take this tick's readings; True when any reading is frozen now."""
+    @property
+    def previous(self) -> np.ndarray | None:
+        """The last readings taken (None before the first)."""
+        return self._prev
+
+    def push(self, y: np.ndarray, repeated: bool | None = None) -> bool:
+        """Take this tick's readings; True when any reading is frozen now. ``repeated``: whether any reading equals
+        ``previous``'s, where the caller has tested it already (a compiled tick); None: tested here."""
         any_frozen = False
         if self._prev is not None:
             quiet = self._fast is not None and not (self.counting or self.ticks < 2)
-            if quiet and not self._fast.any_equal(y, self._prev):  # the common tick: nothing repeated or counting
+            if repeated is None and quiet:
+                repeated = self._fast.any_equal(y, self._prev)
+            if quiet and not repeated:  # the common tick: nothing repeated or counting
                 self._prev = y
                 return False
             same = y == self._prev
