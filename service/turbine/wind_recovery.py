@@ -30,7 +30,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from service.turbine.bank import GENERATOR, BankDesign
+from service.turbine.bank import GENERATOR, ROTOR, BankDesign
 from wwcore import aero
 from wwcore.lti import biquad_steady_state, butter2_lowpass, zoh
 from wwcore.turbine_params import TurbineParams
@@ -66,6 +66,33 @@ class Biquad:
         np.subtract(twice, np.multiply(self._a1, y, out=s1), out=s1)
         np.subtract(bx, np.multiply(self._a2, y, out=s2), out=s2)
         return y
+
+
+def torque_cutoffs(bank: BankDesign, wind_cutoff_hz: float) -> np.ndarray:
+    """Cutoff (Hz) of the wind filter on each observer's τ̂_r (n_obs,): ``wind_cutoff_hz``, scaled for the rigid
+    observers on fewer generator-speed sensors than observer 4 by (σ²_4 / σ²_j)^(1/4), σ²_j the variance of
+    their ω̂_g (``state_error_cov``): 2^(−1/4) (0.252 Hz of 0.3) for ``4-g1`` and ``4-g2``.
+
+    A rigid observer's τ̂_r is J_eq dω̂_g/dt through the filter (``uio.design_rigid``), and with the aerodynamic
+    torque a random walk (the bank's model of it, ``DESIGN_Q_UNKNOWN``) that is the steady-state Kalman filter of
+    the rigid drive train: a second-order Butterworth on ω̂_g whose bandwidth is (q / (J_eq² r Ts²))^(1/4) for
+    sensor variance r, differentiated. The filter's error is the sensors' noise, variance ∝ r f_c³ (white noise
+    differentiated, then low-passed), plus its lag on the torque, variance ∝ q / f_c. The design's f_c is set for
+    observer 4 (two encoders, r = σ_g²/2); with one encoder left, r doubles, and f_c × 2^(−1/4) scales both terms
+    by the same 2^(1/4): the estimate on one encoder then stands to its own optimum exactly as observer 4 stands to
+    its own, whatever the wind makes q, and its torque error is 2^(1/8) = 1.09 × observer 4's. Kept at f_c, the
+    noise term alone doubles: √2 × where the noise dominates (below about 5 m/s, where a torque error moves the wind
+    estimate most, ``docs/turbine.md``). Every other observer (UIOs, Kalman filters, 5-pe) keeps ``wind_cutoff_hz``.
+    """
+    cutoffs = np.full(len(bank.observers), float(wind_cutoff_hz))
+    reference = bank.observers[bank.index(frozenset(ROTOR))]  # observer 4: every generator-speed sensor
+    if reference.kind != "rigid":
+        return cutoffs
+    reference_variance = reference.state_error_cov[1, 1]
+    for j, o in enumerate(bank.observers):
+        if o.kind == "rigid" and set(o.sensors) <= set(GENERATOR):
+            cutoffs[j] *= (reference_variance / o.state_error_cov[1, 1]) ** 0.25
+    return cutoffs
 
 
 class PitchModel:
@@ -141,7 +168,8 @@ class WindRecovery:
         self._rigid_converter_states = np.array([c for _, c in rigid], dtype=np.int64)
         self._converter_gain = p.N_g / p.eta_dt
         self._groups = (torque, speed_r, speed_g)
-        cutoffs = np.r_[np.full(m, wind_cutoff_hz), np.full(2 * m, speed_cutoff_hz), wind_cutoff_hz]
+        self.torque_cutoffs_hz = torque_cutoffs(bank, wind_cutoff_hz)
+        cutoffs = np.r_[self.torque_cutoffs_hz, np.full(2 * m, speed_cutoff_hz), wind_cutoff_hz]
         self.filter = Biquad(cutoffs, p.dt)  # columns: τ, ω_r, ω_g, β
         self.pitch = PitchModel(p, n)
         self.n_obs = m
@@ -191,10 +219,18 @@ class WindRecovery:
         """Observer ``target[i]`` of row ``rows[i]`` takes over observer ``source[i]``'s filtered torque and speeds
         and its change over this tick (x̂ the bank's estimates of this tick, after ``ObserverBank.restart``): its
         columns then go on as the source's would have, without the history it had before."""
+        zi = self.filter.zi
         for group in self._groups:
             t_col, s_col = group.start + target, group.start + source
             for state in (self.filter.s1, self.filter.s2, self._filtered):
                 state[rows, t_col] = state[rows, s_col]
+            # A state means the same output only under the same coefficients: where the two columns' cutoffs
+            # differ (``torque_cutoffs``), the target's rest state for the source's output replaces the source's
+            # (s = zi y at rest, unit DC gain), so the target starts from the source's output and its departure
+            # from rest, not from a state its own coefficients read as another output.
+            output = self._filtered[rows, t_col]
+            self.filter.s1[rows, t_col] += (zi[0, t_col] - zi[0, s_col]) * output
+            self.filter.s2[rows, t_col] += (zi[1, t_col] - zi[1, s_col]) * output
         for row, t, s in zip(rows, target, source, strict=True):
             width = min(bank.observers[t].n_states, bank.observers[s].n_states)
             tb = slice(bank.offsets[t], bank.offsets[t] + width)
