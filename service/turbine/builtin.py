@@ -61,7 +61,8 @@ class EstimatorSettings:
 
     # the torque the wind inversion uses is low-pass filtered at this frequency
     wind_cutoff_hz: Annotated[float, Bounds(gt=0.0, le=5.0, unit="Hz")] = 0.3
-    speed_cutoff_hz: Annotated[float, Bounds(gt=0.0, le=50.0, unit="Hz")] = 2.0  # low-pass of the speed estimates
+    # low-pass of the speed estimates (sent to the controller in region 3, or without a generator-speed sensor)
+    speed_cutoff_hz: Annotated[float, Bounds(gt=0.0, le=50.0, unit="Hz")] = 2.0
     warmup_s: Annotated[float, Bounds(ge=0.0, le=600.0, unit="s")] = 5.0  # estimates not valid before this
     wind_every: Annotated[int, Bounds(ge=1, le=1000, unit="ticks")] = 20  # the wind is inverted every this many ticks
     power_speed: bool = True  # both generator-speed sensors flagged: use observer 5-pe
@@ -299,6 +300,8 @@ class UIOBankEstimator:
                 recovery.step(bank.x_hat, frame.beta_ref, pitch_m1, pitch_m2, None, None)
                 healthy = int(columns[0])
                 omega_r, omega_g = recovery.omega_r[:, healthy].copy(), recovery.omega_g[:, healthy].copy()
+        # region 2: the encoders' unfiltered speed, which lets the controller damp the torsion mode (the method's note)
+        omega_g = recovery.region2_generator_speed(bank.x_hat, selected, frame.zone, omega_g)
         if self.ticks % self.wind_every == 0:
             self._winds = recovery.wind(np.stack([columns, self._reference_columns]), self._winds)
         self.ticks += 1

@@ -23,7 +23,10 @@ both flagged falls back to the collective reference through the nominal actuator
 modelled, because a faulty pitch sensor really moves its blade (the benchmark's pitch loop), and a faulty
 actuator really lags. The published speed estimates pass through a second-order Butterworth filter
 (``speed_cutoff_hz``) that removes the torsion mode, which is unobservable once the unknown input is decoupled
-in observers without a generator-speed sensor; there ω̂_g = N_g ω̂_r.
+in observers without a generator-speed sensor; there ω̂_g = N_g ω̂_r. The generator speed sent to the controller
+is that filtered ω̂_g except in region 2 from an observer with a generator-speed sensor, which sends its unfiltered
+ω̂_g: there the filter's lag at the torsion mode turns the controller's torque law into a negative damper of the
+shaft (``WindRecovery.region2_generator_speed``).
 """
 
 from __future__ import annotations
@@ -138,10 +141,13 @@ class WindRecovery:
         prev = np.zeros((width, 3 * m))
         torque, speed_r, speed_g = (slice(i * m, (i + 1) * m) for i in range(3))
         rigid = []  # (observer, column of its τ̂_g in x̂) of the rigid observers, whose τ̂_r uses τ̂_g
+        encoder_speed = np.full(m, -1, dtype=np.int64)  # column of ω̂_g in x̂ where the observer has an encoder
         for j, o in enumerate(bank.observers):
             i0 = bank.offsets[j]
             uses_generator = any(s.startswith("omega_g") for s in o.sensors)
             encoder = any(s in GENERATOR for s in o.sensors)  # a generator-speed sensor, not the power-speed channel
+            if encoder:
+                encoder_speed[j] = i0 + 1
             col = torque.start + j
             if o.kind == "kalman" and not encoder:  # τ_r from the filter's fifth state (observers 5 and 5-pe)
                 now[i0 + 4, col] = 1.0
@@ -164,6 +170,7 @@ class WindRecovery:
             else:
                 now[i0, speed_g.start + j] = p.N_g
         self._map = np.vstack([now, prev])
+        self._encoder_speed_state = encoder_speed
         self._rigid_torque_columns = np.array([j for j, _ in rigid], dtype=np.int64)
         self._rigid_converter_states = np.array([c for _, c in rigid], dtype=np.int64)
         self._converter_gain = p.N_g / p.eta_dt
@@ -316,6 +323,33 @@ class WindRecovery:
             pitch._coef_array, (f._b0, f._a1, f._a2, f.s1, f.s2), self._filtered, speeds, selected,
         )  # fmt: skip
         self._x_prev = x_hat
+
+    def region2_generator_speed(
+        self, x_hat: np.ndarray, selected: np.ndarray, zone: np.ndarray, omega_g: np.ndarray
+    ) -> np.ndarray:
+        """The generator speed to send the controller: ``omega_g`` (n,), the selected observers' low-passed ω̂_g,
+        replaced by their unfiltered ω̂_g (x̂'s column) on the rows in region 2 (``zone`` 0, the controller's zone
+        of the last tick) whose observer ``selected`` has a generator-speed sensor.
+
+        Why (docs/turbine.md, "The speed sent to the controller"): the controller's law sets τ_g,r from this speed,
+        and the generator torque then acts on the drive train's 4.5 Hz torsion mode, which moves mostly the
+        generator, like a damper of coefficient Re{g H(jω_t) C(jω_t) e^(−jω_t T_s)}: g = ∂τ_g,r/∂ω_g, H the
+        speed's filter, C the converter. In region 2 g = 2 K_opt ω_g > 0 and the low-pass's 142 deg of lag at
+        4.5 Hz (2 Hz cutoff), with the converter's 30 deg and the tick's 16 deg, turn that damper negative: from
+        ω_g ≈ 120 rad/s up it outweighs the generator friction (the mode's ζ 0.0019 → −0.0006 at 150 rad/s) and the
+        shaft rings up over minutes. Unfiltered, as the benchmark controller reads its own sensor, the mode's ζ is
+        0.006–0.011 in region 2. In region 3 g = −P_r/(η_gc ω_g²) < 0 and the low-pass's lag is what makes the
+        damper positive (ζ 0.003–0.009 against −0.002…−0.02 unfiltered), so the filtered speed stays there. An
+        observer without a generator-speed sensor (5, 5-pe) does not see the generator side of the mode; its
+        filtered ω̂_g stays in both regions."""
+        state = self._encoder_speed_state[np.maximum(selected, 0)]
+        unfiltered = (zone == 0) & (selected >= 0) & (state >= 0)
+        if not unfiltered.any():
+            return omega_g
+        rows = np.flatnonzero(unfiltered)
+        out = omega_g.copy()
+        out[rows] = x_hat[rows, state[rows]]
+        return out
 
     def converter_correction(self, raw: np.ndarray, x_hat: np.ndarray, measured_torque: np.ndarray) -> None:
         """Add (N_g/η_dt)(τ_g,m − τ̂_g) to the rigid observers' raw τ̂_r on the rows where ``measured_torque`` is
