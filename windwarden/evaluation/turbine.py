@@ -83,7 +83,8 @@ def simulate_chunk(
     options: dict,
     twins: bool = True,
 ) -> ChunkResult:
-    """The runs ``run_ids``, and with ``twins`` the fault-free twin of each fault window (module docstring)."""
+    """The runs ``run_ids``, and with ``twins`` (when the scenario has faults) the fault-free twin of each fault
+    window and the clean runs (module docstring)."""
     twins = twins and bool(scenario.faults)
     plant = TurbineBatch(
         scenario.plant,
