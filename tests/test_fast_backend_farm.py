@@ -1,8 +1,8 @@
 """The farm's compiled backend (``wwcore.backend``, ``numba``) against the numpy reference: the farm detector's learnt
 levels, the farm's turbines and supervisor tick by tick, and the farm plant stepped a sample at a time.
 
-As in ``tests/test_fast_backend.py`` (its tolerance and its ``assert_close``): equality within 1e-12 of each
-quantity's scale, in practice to the last bit.
+As in ``tests/test_fast_backend.py`` (the tolerance and ``assert_close`` of ``tests/fast_compare.py``): equality
+within 1e-12 of each quantity's scale, in practice to the last bit.
 """
 
 from __future__ import annotations
@@ -20,7 +20,7 @@ from service.farm.baseline import LearntLevel
 from service.farm.dispatch import Dispatch
 from service.farm.interfaces import BETA, OMEGA_G, OMEGA_R, P_G, TAU_G, FarmContext, FarmSample
 from service.farm.power_curve import WINDS, available_power, available_power_table
-from tests.test_fast_backend import SEED, assert_close
+from tests.fast_compare import SEED, assert_close
 from windwarden.bench import farm_pair
 from wwcore.backend import fast_module
 from wwcore.scenario import load_scenario, parse_scenario

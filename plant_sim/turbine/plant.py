@@ -147,11 +147,13 @@ class TurbineBatch:
         self._error_stage = np.zeros(self.n)  # rad, first stage of its onset filter
         self._error_active = False
         self._wind_sample = None
-        # the whole measurement by one kernel where the plant samples its own ``WindField`` (``_fast_measure_frame``)
-        # (not a farm's ``FarmWindField``, a ``WindField`` whose ``sample`` adds the wakes' means)
-        own_wind = self._fast is not None and wind_field is None
-        self._one_measure_kernel = own_wind
-        if own_wind:
+        # the whole measurement by one kernel (``_fast_measure_frame``) where the plant samples its own ``WindField``
+        # (not a farm's ``FarmWindField``, a ``WindField`` whose ``sample`` adds the wakes' means) with the design's
+        # tip-speed ratios and one calibration bias per sensor
+        self._one_measure_kernel = (
+            self._fast is not None and wind_field is None and self._tsr_shift is None and self.bias.ndim == 1
+        )
+        if self._one_measure_kernel:
             self._wind_table, self._m_t = self.wind.interpolation(), self._fast.M_T
 
     # -- set-up -----------------------------------------------------------------------------------------------
@@ -212,7 +214,7 @@ class TurbineBatch:
         """Sensor readings y_k with noise and sensor faults (PARAMETERS.md a.3)."""
         self._update_faults()
         x = self.x
-        if self._one_measure_kernel and self._tsr_shift is None and self.bias.ndim == 1:
+        if self._one_measure_kernel:
             return self._fast_measure_frame(x)
         ws = self.wind.sample(self.k, x[:, AZIMUTH])
         self._wind_sample = ws
@@ -275,13 +277,7 @@ class TurbineBatch:
         self._fast.measure(x, (*self._wind_table, base, u3, hub), aero, sensors, *outputs)
         self._wind_sample = WindSample(blades=blades, hub=hub, rotor=rotor, mean=mean)
         self.blade_torque, self.tau_aero, self._pitch_error = torque, tau_aero, pitch_error
-        if f.sensor_faults_active:
-            faults = (f.noise_scale, f.gain, f.offset, f.drift_rate, f.drift_start, f.fixed, f.fixed_value)
-            faults += (f.stuck, f.stuck_value)
-            readings = (self._quantities, _PICK, noise, self.bias, _BETA_M1, _BETA_M2)
-            self._fast.faulty_readings(*readings, x, faults, self.t, f.drift_active, y, pitch_error)
-        self.last_reading = y
-        return self._frame(y)
+        return self._fast_faulty_frame(self._fast, x, noise, y)
 
     def _fast_frame(self, fast, x: np.ndarray, ws, pitch: np.ndarray) -> TurbineFrame:
         """``measure``'s readings, by ``plant_sim.turbine.fast``: ``readings``, then with a sensor fault active
@@ -290,10 +286,15 @@ class TurbineBatch:
         self._pitch_error = np.empty((self.n, 3))
         power_gain = self.p.eta_gc * self.faults.power_factor
         noise = self._next_noise()
-        f = self.faults
         fast.readings(
             x, ws.hub, power_gain, _PICK, noise, self.bias, _BETA_M1, _BETA_M2, self._quantities, y, self._pitch_error
         )
+        return self._fast_faulty_frame(fast, x, noise, y)
+
+    def _fast_faulty_frame(self, fast, x: np.ndarray, noise: np.ndarray, y: np.ndarray) -> TurbineFrame:
+        """The frame of the healthy readings ``y``, with a sensor fault active ``faulty_readings`` in their place
+        first (in place, from the tick's quantities and ``noise``)."""
+        f = self.faults
         if f.sensor_faults_active:
             faults = (f.noise_scale, f.gain, f.offset, f.drift_rate, f.drift_start, f.fixed, f.fixed_value)
             faults += (f.stuck, f.stuck_value)

@@ -1,0 +1,293 @@
+"""The compiled turbine kernels (``wwcore.backend``, ``numba``) one by one against their numpy lines: the aerodynamic
+inversion, the adaptive thresholds, the pitch parity, the rotor-speed bias test, the converter, the arbiter's
+history, the observer bank's step, the pitch-actuator signatures and test; every array equal to the last bit. The
+whole tick, scorecards and backend choice: ``tests/test_fast_backend.py``.
+"""
+
+from __future__ import annotations
+
+import copy
+
+import numpy as np
+import pytest
+
+from service.turbine.adaptive import HealthySpread
+from service.turbine.bank import ObserverBank
+from service.turbine.component_fdi import ACTUATOR_TARGET, CONVERTER_TARGET, M1_TARGET
+from service.turbine.supervisor import TurbineSupervisor
+from tests.fast_compare import FAULTY, SEED, assert_close, at_half_speed
+from wwcore import aero, aero_fast
+from wwcore.backend import fast_module
+from wwcore.scenario import parse_scenario
+from wwcore.turbine_params import BENCHMARK
+
+
+def test_aero_kernels_equal_the_reference_inside_and_outside_the_table():
+    rng = np.random.default_rng(SEED)
+    for shape in [(1, 3), (9, 3), (2, 5)]:
+        tsr, pitch = rng.uniform(-1.0, 16.0, shape), rng.uniform(-5.0, 100.0, shape)
+        assert_close(aero_fast.torque_coefficient(tsr, pitch), aero.torque_coefficient(tsr, pitch), "C_q")
+        tau, omega = rng.uniform(-1e5, 3e6, shape), rng.uniform(0.3, 2.5, shape)
+        guess = rng.uniform(0.5, 45.0, shape)
+        for iterations in (3, 8):
+            assert_close(
+                aero_fast.wind_from_torque(tau, omega, pitch, guess, BENCHMARK, iterations),
+                aero.wind_from_torque(tau, omega, pitch, guess, BENCHMARK, iterations),
+                "wind",
+            )
+
+
+def spread_pair(shape: tuple[int, ...], limit: float | None) -> tuple[HealthySpread, HealthySpread]:
+    """A ``HealthySpread`` of the numpy reference and its compiled twin, T_a 0.05 s: both weights matter."""
+    fast = fast_module("service.turbine.fast")
+    return HealthySpread(shape, 0.01, 0.05, 2.0, limit), HealthySpread(shape, 0.01, 0.05, 2.0, limit, fast=fast)
+
+
+def assert_same_spread(fast: HealthySpread, reference: HealthySpread, what: str) -> None:
+    for name in ("count", "estimate", "scale2", "scale", "mean", "offset"):
+        np.testing.assert_array_equal(getattr(fast, name), getattr(reference, name), f"{what}: {name}")
+
+
+def test_the_adaptive_thresholds_kernel_equals_the_reference():
+    # per element and per row, (n, m) and (n,), with no row healthy, rows healthy then not, a nan and an inf where
+    # a sample is not learnt (numpy's 0 × inf carries them), values beyond both clips; every array equal to the
+    # last bit
+    rng = np.random.default_rng(SEED)
+    for shape, limit in (((4, 3), 0.3), ((4, 3), None), ((12,), 0.3)):  # (n,): the converter's
+        reference, fast = spread_pair(shape, limit)
+        for k in range(40):
+            q, x = rng.uniform(0.0, 6.0, (4, 3)) * [0.2, 1.0, 2.0], rng.normal(0.3, 0.5, (4, 3))
+            healthy = rng.random((4, 3)) < (0.0 if k % 7 == 3 else 0.7)
+            if k == 30:
+                q[0, 0], x[1, 2] = np.nan, np.inf
+                healthy[0, 0] = healthy[1, 2] = False
+            q, x, healthy = q.reshape(shape), x.reshape(shape), healthy.reshape(shape)
+            with np.errstate(invalid="ignore"):  # 0 × inf
+                reference.update(q, healthy, x)
+            fast.update(q, healthy, x)
+            assert_same_spread(fast, reference, f"limit {limit}, sample {k}")
+        assert np.isnan(reference.estimate.flat[0]) and np.nanmin(reference.scale2) == 1.0
+        assert np.nanmax(reference.scale2) == 4.0 and (np.nanmax(reference.offset) == 0.3 if limit else True)
+        for k in range(20 if len(shape) == 2 else 0):
+            rows = rng.random(4) < 0.6
+            q, x = rng.uniform(0.0, 6.0, (4, 3)), rng.normal(0.0, 0.5, (4, 3))
+            reference.update_rows(q if k % 2 else None, rows, x)
+            fast.update_rows(q if k % 2 else None, rows, x)
+            assert_same_spread(fast, reference, f"limit {limit}, rows, sample {k}")
+    with pytest.raises(AssertionError):  # the comparison can fail: one more sample on one side
+        reference.update(np.full(12, 5.0), np.ones(12, dtype=bool))
+        assert_same_spread(fast, reference, "one side updated")
+
+
+def test_the_pitch_parity_kernel_equals_the_reference():
+    # ``ComponentFDI._adapt_parity`` with its numpy lines and with the kernel, through flags, outliers and learning
+    scenario = parse_scenario(at_half_speed(FAULTY))
+    rng = np.random.default_rng(SEED)
+    detectors = [
+        TurbineSupervisor(3, backend=backend, noise_convention=scenario.plant.noise_convention).detector.components
+        for backend in ("numpy", "numba")
+    ]
+    detectors[0].parity_spread.min_weight = detectors[1].parity_spread.min_weight = 0.05
+    for k in range(60):
+        parity, window = rng.normal(0.0, 1.5, (3, 3)), rng.normal(0.0, 1.5, (3, 3))
+        flags = rng.random((3, detectors[0].flags.shape[1])) < 0.1
+        outs = []
+        for detector in detectors:
+            detector.flags[:] = flags
+            outs.append(detector._adapt_parity(parity, window))
+        for a, b in zip(outs[1][:2], outs[0][:2], strict=True):
+            np.testing.assert_array_equal(a, b, f"sample {k}")
+        suspicious = np.maximum(np.abs(outs[0][0]), np.abs(outs[0][1])) > detectors[0].z_single
+        assert outs[0][2] is None and outs[1][2] == suspicious.any()
+        assert_same_spread(detectors[1].parity_spread, detectors[0].parity_spread, f"sample {k}")
+    assert detectors[0].parity_spread.count.min() > 0 and detectors[0].parity_spread.count.max() < 60
+
+
+def test_the_rotor_bias_kernel_equals_the_reference():
+    # ``RotorBiasTest.step_flags`` with its numpy lines and with the kernel: predictors changing with the flags and
+    # pending isolations, biases of either sign on either sensor (raises, both signs at once), a nan reading on a
+    # row not tested (numpy's 0 × nan carries it into the learnt spread), the spread learning; every array equal
+    rng = np.random.default_rng(SEED)
+    fdis = [TurbineSupervisor(4, backend=backend).detector.fdi for backend in ("numpy", "numba")]
+    tests = [fdi.bias for fdi in fdis]
+    for test in tests:
+        test.spread.min_weight = 0.05
+    table, width = fdis[0]._bias_predictor, fdis[0].bank.F_blk.shape[0]
+    raised = 0
+    for k in range(400):
+        if k % 25 == 0:  # the flags hold for a while: the statistics run between the predictor's changes
+            flagged = rng.choice([0, 0, 0, 4, 8, 12, 1], 4)
+        deadline = np.where(rng.random(4) < 0.01, 7, -1)
+        x_hat = rng.normal(1.2, 0.1, (4, width))
+        predictor = np.maximum(table[flagged], 0)
+        y = x_hat[np.arange(4)[:, None], tests[0].column[predictor]] + rng.normal(0.0, 0.03, (4, 2))
+        y[:, 0] += (0.2 if k // 40 % 2 else -0.2) if k % 40 > 25 else 0.0  # a bias on a sensor for a while: raises
+        y[:, 1] -= 0.2 if k % 60 > 50 else 0.0
+        if k == 150:
+            y[2, 0], flagged[2] = np.nan, 1  # row 2 not tested this tick
+        outs = [test.step_flags(y, x_hat, flagged, deadline, table) for test in tests]
+        assert (outs[0] is None) == (outs[1] is None), f"tick {k}"
+        if outs[0] is not None:
+            np.testing.assert_array_equal(outs[1], outs[0], f"tick {k}")
+            for test, out in zip(tests, outs, strict=True):
+                test.reset(out.any(axis=1))
+            raised += 1
+        for name in ("up", "down", "run_up", "run_down", "predictor"):
+            np.testing.assert_array_equal(getattr(tests[1], name), getattr(tests[0], name), f"tick {k}: {name}")
+        assert_same_spread(tests[1].spread, tests[0].spread, f"tick {k}")
+    assert raised >= 3 and np.isnan(tests[0].spread.estimate[2]) and (tests[0].spread.count > 10).all()
+
+
+def test_the_converter_kernel_equals_the_reference():
+    # ``ComponentFDI._converter`` and ``_converter_clearing`` with their numpy lines and with ``converter_tick``:
+    # the warm-up, offsets of either sign (raises on small and large shifts, clearings once they end), a learnt
+    # offset and scale, a nan reading on one row (numpy's 0 × nan carries it into the clearing's mean); every
+    # array equal to the last bit
+    rng = np.random.default_rng(SEED)
+    detectors = [TurbineSupervisor(4, backend=backend).detector.components for backend in ("numpy", "numba")]
+    sigma = detectors[0].sigma_tau
+    for detector in detectors:
+        detector.warmup_ticks = 20
+        detector.converter_spread.offset[:] = [0.0, 0.3, -0.2, 0.1]
+        detector.converter_spread.scale[:] = [1.0, 1.2, 1.0, 1.5]
+    raised = cleared = 0
+    for k in range(1200):
+        offset = np.array([4.0, -1.0, 0.6, -8.0]) * sigma if k % 300 > 150 else np.zeros(4)
+        tau_g_m = 2.0e4 + rng.normal(0.0, sigma, 4) + offset
+        if k == 700:
+            tau_g_m[3] = np.nan
+        tau_g_ref = np.full(4, 2.0e4)
+        before = detectors[0].flags[:, CONVERTER_TARGET].copy()
+        for detector in detectors:
+            detector.ticks += 1
+            detector._converter(tau_g_m, tau_g_ref)
+        after = detectors[0].flags[:, CONVERTER_TARGET]
+        raised += (after & ~before).sum()
+        cleared += (before & ~after).sum()
+        np.testing.assert_array_equal(detectors[1].flags, detectors[0].flags, f"tick {k}")
+        for name in (
+            "converter_statistic",
+            "_converter_run",
+            "converter_clear_statistic",
+            "_converter_mean",
+            "_converter_count",
+        ):
+            np.testing.assert_array_equal(getattr(detectors[1], name), getattr(detectors[0], name), f"{k}: {name}")
+        for name in ("_tau_hat", "_converter_block_sum"):
+            np.testing.assert_array_equal(getattr(detectors[1], name), getattr(detectors[0], name), f"{k}: {name}")
+    assert raised >= 8 and cleared >= 4 and np.isnan(detectors[0]._converter_mean[3])
+
+
+def test_the_arbiter_history_kernels_equal_the_reference():
+    # ``GeneratorArbiter.observe`` with its numpy lines and with ``arbiter_push``/``arbiter_learn``: rows learning
+    # and not, jumps of either sensor that start an isolation (ℓ_J grown over the next ticks from the change point);
+    # every array equal to the last bit
+    rng = np.random.default_rng(SEED)
+    arbiters = [TurbineSupervisor(4, backend=backend).detector.fdi.arbiter for backend in ("numpy", "numba")]
+    sigma = np.sqrt(arbiters[0].generator_variance)
+    started = 0
+    for k in range(400):
+        y = 150.0 + np.cumsum(rng.normal(0.0, 0.02, (4, 1)), axis=0) + rng.normal(0.0, sigma, (4, 4))
+        if k % 50 > 30:
+            y[k // 50 % 4, 2 + k // 100 % 2] += 8.0 * sigma
+        learn = rng.random(4) < 0.7
+        for arbiter in arbiters:
+            arbiter.observe(y, learn)
+        if k % 50 == 33:
+            rows, jump = rng.random(4) < 0.5, rng.random(4) < 0.8
+            started += (rows & jump).sum()
+            for arbiter in arbiters:
+                arbiter.reset(rows, jump)
+        for name in ("_means", "_parities", "jump_covariance", "total", "total_power", "jump", "_onset"):
+            np.testing.assert_array_equal(getattr(arbiters[1], name), getattr(arbiters[0], name), f"{k}: {name}")
+    assert started >= 4 and (arbiters[0].jump != 0.0).sum() >= 2
+
+
+@pytest.mark.parametrize("n", [1, 2, 100])
+def test_the_bank_kernel_equals_the_reference(n):
+    # ``ObserverBank.step``'s numpy lines against ``fast.bank_step`` (its products by BLAS from inside the kernel),
+    # through the transient gains into the steady ones, for one row, a run with its twin and a wide batch; every
+    # array equal to the last bit
+    rng = np.random.default_rng(SEED + n)
+    design = TurbineSupervisor(n).context.bank_design
+    banks = [ObserverBank(design, n), ObserverBank(design, n, fast=fast_module("service.turbine.fast"))]
+    inputs = banks[0].d.H_blk.shape[1]
+    scale = np.array([1.6, 1.6, 150.0, 150.0, 150.0][:inputs] + [1.0] * max(0, inputs - 5))
+    x0, y0 = rng.normal(1.0, 0.3, (n, 4)), scale * rng.normal(1.0, 0.01, (n, inputs))
+    for bank in banks:
+        bank.initialise(x0, y0)
+    for k in range(len(banks[0]._update_transient) + 30):
+        y = scale * rng.normal(1.0, 0.01, (n, inputs))
+        u = rng.normal(2e4, 500.0, n)
+        for bank in banks:
+            bank.step(y, u)
+        for name in ("z", "x_hat", "chi2", "steps"):
+            np.testing.assert_array_equal(getattr(banks[1], name), getattr(banks[0], name), f"tick {k}: {name}")
+    assert banks[0].steps > len(banks[0]._update_transient) and banks[0].chi2.max() > 0.0
+
+
+@pytest.mark.parametrize("n", [1, 3, 40])
+def test_the_signature_kernel_equals_the_reference(n):
+    # ``SignatureBank.block`` and ``_actuators``' block sums (``einsum``, ``sum(axis=0)``) against
+    # ``fast_actuator.signature_block``, block after block from rest through ramps, steps and noise, the states
+    # carried over; every array equal to the last bit (a sequential six-term sum or a loop product fails this)
+    rng = np.random.default_rng(SEED + n)
+    components = TurbineSupervisor(n, backend="numpy").detector.components
+    ticks = components._ref_block.shape[0]
+    reference_bank, fast_bank = components.signatures, copy.deepcopy(components.signatures)
+    kernel = fast_module("service.turbine.fast_actuator").signature_block
+    level = np.full(n, 6.0)
+    for block in range(30):
+        steps = rng.normal(0.0, 0.5, (ticks, n)) if block % 3 else np.zeros((ticks, n))
+        reference = level + np.cumsum(steps, axis=0) + (rng.normal(0.0, 3.0, n) if block % 5 == 4 else 0.0)
+        level = reference[-1]
+        w = rng.normal(0.0, 10.0 ** rng.uniform(-3, 1), (ticks, n, 3))
+        s = reference_bank.block(reference)
+        expected = (
+            np.einsum("knb,knc->nbc", w, s),
+            np.einsum("knc,knc->nc", s, s),
+            np.concatenate([w.sum(axis=0), s.sum(axis=0)], axis=1),
+        )
+        got = fast_bank.block_sums(reference, w, kernel)
+        for name, a, b in zip(("correlation", "energy", "sums"), got, expected, strict=True):
+            np.testing.assert_array_equal(a, b, f"block {block}: {name}")
+        np.testing.assert_array_equal(fast_bank.x, reference_bank.x, f"block {block}: state")
+    assert np.abs(reference_bank.x).max() > 0.01  # the signatures moved
+
+
+def test_the_pitch_actuator_kernel_equals_the_reference():
+    # ``ComponentFDI._actuators`` with its numpy lines and with ``actuator_test``, block after block through the
+    # windows filling, raises, clearings on the shorter and the full windows and a pitch-sensor flag's rest; the
+    # thresholds lowered so that random blocks cross them both ways; every array equal to the last bit
+    rng = np.random.default_rng(SEED)
+    detectors = [TurbineSupervisor(3, backend=backend).detector.components for backend in ("numpy", "numba")]
+    for detector in detectors:
+        detector.h_actuator, detector.h_actuator_clear = -90.0, 90.0  # Λ of these blocks: −20 to −170
+        detector.actuator_spread.min_weight = 0.05
+    raised = cleared = 0
+    for k in range(4 * detectors[0].actuator.size + 10):
+        e = rng.normal(0.0, 0.3, detectors[0]._e_block.shape) + (
+            0.4 * rng.normal(0.0, 1.0, (1, 3, 3)) if k % 7 < 3 else 0
+        )
+        reference = 8.0 + np.cumsum(rng.normal(0.0, 0.5, detectors[0]._ref_block.shape), axis=0)
+        sensor_flag = rng.random(3) < 0.01
+        before = detectors[0].flags[:, ACTUATOR_TARGET].copy()
+        for detector in detectors:
+            detector._e_block[:], detector._ref_block[:] = e, reference
+            detector.flags[:, M1_TARGET[0]] = sensor_flag
+            detector._actuators()
+        after = detectors[0].flags[:, ACTUATOR_TARGET]
+        raised += (after & ~before).sum()
+        cleared += (before & ~after).sum()
+        np.testing.assert_array_equal(detectors[1].flags, detectors[0].flags, f"block {k}")
+        np.testing.assert_array_equal(detectors[1].actuator_glr, detectors[0].actuator_glr, f"block {k}")
+        for name in ("_actuator_rest", "_actuator_cleared_rest", "_w_block"):
+            np.testing.assert_array_equal(getattr(detectors[1], name), getattr(detectors[0], name), f"{k}: {name}")
+        np.testing.assert_array_equal(detectors[1].signatures.x, detectors[0].signatures.x, f"block {k}")
+        windows = [[d.actuator, d.actuator_energy, d.actuator_sums, *sum(d.actuator_short, ())] for d in detectors]
+        for fast, numpy_window in zip(*windows, strict=True):
+            assert fast.count == numpy_window.count
+            np.testing.assert_array_equal(fast.total, numpy_window.total, f"block {k}")
+            np.testing.assert_array_equal(fast.ring, numpy_window.ring, f"block {k}")
+        assert_same_spread(detectors[1].actuator_spread, detectors[0].actuator_spread, f"block {k}")
+    assert raised >= 5 and cleared >= 3 and detectors[0].actuator_spread.count.max() > 5
