@@ -193,6 +193,16 @@ def window_test(raw, scale2, history, slot, window_sum, h_detect, h_window, colu
 
 
 @kernel
+def window_test_learn(raw, scale2, history, slot, window_sum, h_detect, h_window, column, chi2_stat, ratio, learn):
+    """``window_test``, then ``fdi_learn`` of its ratios with ``learn`` = (flagged, deadline, rank, y, gear ratio,
+    spread, calibration): ``SpeedSensorFDI.step``'s two kernels in one call; returns ``window_test``'s answer."""
+    exceeded = window_test(raw, scale2, history, slot, window_sum, h_detect, h_window, column, chi2_stat, ratio)
+    flagged, deadline, rank, y, gear_ratio, spread, calibration = learn
+    fdi_learn(flagged, deadline, ratio, raw, rank, y, gear_ratio, spread, calibration)
+    return exceeded
+
+
+@kernel
 def fdi_learn(flagged, deadline, ratio, raw, rank, y, gear_ratio, spread, calibration):
     """``fdi_learning_inputs``, then ``learn_spread`` of the χ² scales from q and of the calibration offsets from
     the deviations (``SpeedSensorFDI.step``); ``spread``, ``calibration`` = (min_weight, s_max², state) of each
