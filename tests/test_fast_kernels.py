@@ -203,6 +203,27 @@ def test_the_arbiter_history_kernels_equal_the_reference():
     assert started >= 4 and (arbiters[0].jump != 0.0).sum() >= 2
 
 
+def test_the_region2_speed_kernel_equals_the_reference():
+    # ``WindRecovery.region2_generator_speed``'s numpy lines against ``fast.region2_speed``: rows in region 2 and 3,
+    # no observer selected (−1), observers with and without a generator-speed sensor (5, 5-pe: none); the speeds
+    # equal, and rows left alone keep the filtered speed (the kernel writes in place)
+    rng = np.random.default_rng(SEED)
+    recoveries = [TurbineSupervisor(12, backend=backend).estimator.recovery for backend in ("numpy", "numba")]
+    encoder = recoveries[0]._encoder_speed_state
+    assert (encoder >= 0).any() and (encoder < 0).any()
+    replaced = 0
+    for _ in range(50):
+        x_hat = rng.normal(150.0, 5.0, (12, int(encoder.max()) + 3))
+        selected = rng.integers(-1, len(encoder), 12)
+        zone = rng.integers(0, 2, 12).astype(np.int8)
+        omega_g = rng.normal(150.0, 5.0, 12)
+        reference = recoveries[0].region2_generator_speed(x_hat, selected, zone, omega_g.copy())
+        fast = recoveries[1].region2_generator_speed(x_hat, selected, zone, omega_g.copy())
+        np.testing.assert_array_equal(fast, reference)
+        replaced += (reference != omega_g).sum()
+    assert replaced > 50
+
+
 @pytest.mark.parametrize("n", [1, 2, 100])
 def test_the_bank_kernel_equals_the_reference(n):
     # ``ObserverBank.step``'s numpy lines against ``fast.bank_step`` (its products by BLAS from inside the kernel),

@@ -59,7 +59,8 @@ class BenchmarkController:
         if fresh:
             # The fault-tolerant estimate replaces the raw generator-speed sensor while it is valid.
             self.using_estimates = refs.valid.copy()
-            omega_g = np.where(refs.valid, refs.omega_g, omega_g_m)
+            if self._fast is None:  # the kernel below makes this choice row by row
+                omega_g = np.where(refs.valid, refs.omega_g, omega_g_m)
             if refs.power_ref is not None:
                 self.power_ref = np.where(refs.valid, refs.power_ref, self.power_ref)
         else:
@@ -68,9 +69,11 @@ class BenchmarkController:
             zone, integrator = self.zone.copy(), self.integrator.copy()
             self.beta_ref, self.tau_g_ref = np.empty(self.n), np.empty(self.n)
             power_ref = np.ascontiguousarray(self.power_ref, dtype=float)
+            estimate = refs.omega_g if fresh else omega_g_m
             self._fast.control(
-                omega_g, p_g_m, power_ref, zone, integrator, self.beta_ref, self.tau_g_ref, self._constants
-            )
+                omega_g_m, self.using_estimates, estimate, p_g_m, power_ref, zone, integrator, self.beta_ref,
+                self.tau_g_ref, self._constants,
+            )  # fmt: skip
             self.zone, self.integrator = zone, integrator
             return
         # Zone logic with the previous zone held (unit delay).

@@ -125,11 +125,13 @@ def measure(x, wind, aero, sensors, blades, rotor, torque, tau_aero, quantities,
 
 # -- controller (``BenchmarkController.step``) ------------------------------------------------------------------
 @kernel
-def control(omega_g, p_g_m, power_ref, zone, integrator, beta_ref, tau_g_ref, consts):
-    """Zone logic, the region-3 PI (saturated integrator and output) and the two torque laws, in place."""
+def control(omega_g_m, estimated, omega_g_est, p_g_m, power_ref, zone, integrator, beta_ref, tau_g_ref, consts):
+    """Zone logic, the region-3 PI (saturated integrator and output) and the two torque laws, in place, on the
+    generator speed ω_g = ``omega_g_est`` where ``estimated`` (the supervisor's fresh, valid estimate), else the
+    sensor's ``omega_g_m`` (``np.where``'s choice: the value itself)."""
     omega_nom, omega_delta, dt, lo, hi, k_p, k_i, eta_gc, k_opt = consts
-    for r in range(omega_g.size):
-        w = omega_g[r]
+    for r in range(omega_g_m.size):
+        w = omega_g_est[r] if estimated[r] else omega_g_m[r]
         # the previous zone held: region 3 stays above Ω_nom − Ω_Δ, is entered at P_r or Ω_nom
         stay, enter = w >= omega_nom - omega_delta, (p_g_m[r] >= power_ref[r]) or (w >= omega_nom)
         region3 = stay if zone[r] != 0 else enter

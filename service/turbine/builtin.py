@@ -295,13 +295,17 @@ class UIOBankEstimator:
             columns = self._all_healthy
             if fast is not None:  # the recovery's step and the speeds' gather below, by one kernel after the map
                 omega_r, omega_g = np.empty(self.context.n), np.empty(self.context.n)
-                recovery.step_healthy(bank.x_hat, frame.beta_ref, frame.sensors, PITCH_M12, selected, omega_r, omega_g)
+                recovery.step_healthy(
+                    bank.x_hat, frame.beta_ref, frame.sensors, PITCH_M12, selected, frame.zone, omega_r, omega_g
+                )  # fmt: skip
             else:
                 recovery.step(bank.x_hat, frame.beta_ref, pitch_m1, pitch_m2, None, None)
                 healthy = int(columns[0])
                 omega_r, omega_g = recovery.omega_r[:, healthy].copy(), recovery.omega_g[:, healthy].copy()
-        # region 2: the encoders' unfiltered speed, which lets the controller damp the torsion mode (the method's note)
-        omega_g = recovery.region2_generator_speed(bank.x_hat, selected, frame.zone, omega_g)
+        if fast is None or distrusting:  # the common compiled tick did this in its kernel
+            # region 2: the encoders' unfiltered speed, which lets the controller damp the torsion mode (the
+            # method's note)
+            omega_g = recovery.region2_generator_speed(bank.x_hat, selected, frame.zone, omega_g)
         if self.ticks % self.wind_every == 0:
             self._winds = recovery.wind(np.stack([columns, self._reference_columns]), self._winds)
         self.ticks += 1

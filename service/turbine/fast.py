@@ -136,10 +136,13 @@ def recovery_tick(raw, pitch_m1, pitch_m2, healthy, pitch, reference, coef, biqu
 
 
 @kernel
-def recovery_healthy_tick(raw, sensors, pitch_columns, pitch, reference, coef, biquads, filtered, speeds, selected):
+def recovery_healthy_tick(
+    raw, sensors, pitch_columns, pitch, reference, coef, biquads, filtered, speeds, selected, region2
+):
     """``recovery_tick`` with every pitch sensor healthy, the readings [β_i,m1 | β_i,m2] gathered from ``sensors``
     (columns ``pitch_columns``), then ``gather_speeds`` of ``selected`` with ``speeds`` = (rotor start, generator
-    start, ω̂_r out, ω̂_g out) (``UIOBankEstimator.step``'s common tick). Returns the new (β, β̇)."""
+    start, ω̂_r out, ω̂_g out), then ``region2_speed`` with ``region2`` = (x̂, zone, encoder state)
+    (``UIOBankEstimator.step``'s common tick). Returns the new (β, β̇)."""
     n = sensors.shape[0]
     pitch_m1, pitch_m2 = np.empty((n, 3)), np.empty((n, 3))
     for r in range(n):
@@ -149,7 +152,21 @@ def recovery_healthy_tick(raw, sensors, pitch_columns, pitch, reference, coef, b
     new_pitch = recovery_tick(raw, pitch_m1, pitch_m2, None, pitch, reference, coef, biquads, filtered)
     rotor_start, generator_start, omega_r, omega_g = speeds
     gather_speeds(filtered, rotor_start, generator_start, selected, omega_r, omega_g)
+    x_hat, zone, encoder_state = region2
+    region2_speed(x_hat, selected, zone, encoder_state, omega_g)
     return new_pitch
+
+
+@kernel
+def region2_speed(x_hat, selected, zone, encoder_state, omega_g):
+    """``WindRecovery.region2_generator_speed`` in place: ω̂_g ← x̂[r, encoder_state[selected]] on the rows in
+    region 2 (``zone`` 0) whose selected observer (≥ 0) has a generator-speed state (≥ 0); a copy of a value."""
+    for r in range(selected.size):
+        j = selected[r]
+        if zone[r] == 0 and j >= 0:
+            state = encoder_state[j]
+            if state >= 0:
+                omega_g[r] = x_hat[r, state]
 
 
 # -- speed-sensor FDI (``service.turbine.fdi.SpeedSensorFDI.step``) -----------------------------------------------
@@ -173,6 +190,16 @@ def window_test(raw, scale2, history, slot, window_sum, h_detect, h_window, colu
             chi2_stat[r, j] = raw[r, j] / scale2[r, j]
     window_ratio(chi2_stat, history, slot, window_sum, h_detect, h_window, ratio)
     return any_above(ratio, column, 1.0)
+
+
+@kernel
+def window_test_learn(raw, scale2, history, slot, window_sum, h_detect, h_window, column, chi2_stat, ratio, learn):
+    """``window_test``, then ``fdi_learn`` of its ratios with ``learn`` = (flagged, deadline, rank, y, gear ratio,
+    spread, calibration): ``SpeedSensorFDI.step``'s two kernels in one call; returns ``window_test``'s answer."""
+    exceeded = window_test(raw, scale2, history, slot, window_sum, h_detect, h_window, column, chi2_stat, ratio)
+    flagged, deadline, rank, y, gear_ratio, spread, calibration = learn
+    fdi_learn(flagged, deadline, ratio, raw, rank, y, gear_ratio, spread, calibration)
+    return exceeded
 
 
 @kernel

@@ -327,15 +327,7 @@ class SpeedSensorFDI:
         channel (n,) (NaN where it is only the rotor-speed mean; ``arbitration``)."""
         raw = chi2_stat[:, : self.bank.n_isolating]
         slot = self.ticks % self.s.window
-        exceeded = True  # whether a ratio of the all-sensor observer is above 1 (computed on the fast path)
-        if self._fast is not None:  # the lines below by one kernel (ŝ² is 1 where nothing is learnt: x/1 is x)
-            chi2_stat, ratio = np.empty_like(self._window_sum), np.empty_like(self._window_sum)
-            exceeded = self._fast.window_test(
-                raw, self.spread.scale2, self._history, slot, self._window_sum, self.h_detect, self.h_window,
-                self._all_healthy, chi2_stat, ratio,
-            )  # fmt: skip
-            self.ratio = ratio
-        else:
+        if self._fast is None:
             chi2_stat = raw / self.spread.scale2 if self.spread.enabled else raw  # χ²_j / ŝ²_j (``adaptive``)
             self._window_sum += chi2_stat - self._history[slot]
             self._history[slot] = chi2_stat
@@ -346,14 +338,25 @@ class SpeedSensorFDI:
         self.ticks += 1
         # the pair mean's history and its prediction error, for the onset's log-likelihood ratio (``arbitration``)
         self.arbiter.observe(y, (self.flagged == 0) & (self.deadline < 0))
-        if self._fast is None:
+        exceeded = True  # whether a ratio of the all-sensor observer is above 1 (computed on the fast path)
+        if self._fast is not None:
+            # the window lines above and the learning below by one kernel (ŝ² is 1 where nothing is learnt: x/1 is
+            # x); neither reads what the frozen readings' test or the arbiter changes, nor the other way round
+            chi2_stat, ratio = np.empty_like(self._window_sum), np.empty_like(self._window_sum)
+            window = (raw, self.spread.scale2, self._history, slot, self._window_sum, self.h_detect, self.h_window)
+            window += (self._all_healthy, chi2_stat, ratio)
+            if self.spread.enabled:
+                spread, calibration = self.spread, self.calibration
+                learning = (self.flagged, self.deadline, self._rank, y_raw, self._gear_ratio)
+                learning += ((spread.min_weight, spread.max_scale2, spread.state),)
+                learning += ((calibration.min_weight, calibration.max_scale2, calibration.state),)
+                exceeded = self._fast.window_test_learn(*window, learning)
+            else:
+                exceeded = self._fast.window_test(*window)
+            self.ratio = ratio
+        else:
             self.ratio = ratio = np.maximum(chi2_stat / self.h_detect, self._window_sum / self.h_window)
-        if self.spread.enabled and self._fast is not None:  # the lines below by one kernel
-            learning = [(a.min_weight, a.max_scale2, a.state) for a in (self.spread, self.calibration)]
-            self._fast.fdi_learn(
-                self.flagged, self.deadline, ratio, raw, self._rank, y_raw, self._gear_ratio, *learning
-            )
-        elif self.spread.enabled:  # learn from rows with nothing flagged, pending or inconsistent
+        if self.spread.enabled and self._fast is None:  # learn from rows with nothing flagged, pending or inconsistent
             healthy = (self.flagged == 0) & (self.deadline < 0) & (ratio <= 1.0).all(axis=1)
             self.spread.update_rows(raw / self._rank, healthy)
             generator = 0.5 * (y_raw[:, 2] + y_raw[:, 3])

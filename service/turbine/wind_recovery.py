@@ -306,13 +306,16 @@ class WindRecovery:
         sensors: np.ndarray,
         pitch_columns: np.ndarray,
         selected: np.ndarray,
+        zone: np.ndarray,
         omega_r: np.ndarray,
         omega_g: np.ndarray,
     ) -> None:
         """``step`` with every pitch sensor healthy and no converter correction, on the compiled backend only: the
         pitch readings gathered from ``sensors`` (columns ``pitch_columns``: β_i,m1 then β_i,m2), then each row's
-        ω̂_r and ω̂_g of observer ``selected`` written to ``omega_r`` and ``omega_g`` (n,): one kernel after the
-        map (``fast.recovery_healthy_tick``, the same operations as ``step`` and the estimator's gather)."""
+        ω̂_r and ω̂_g of observer ``selected`` written to ``omega_r`` and ``omega_g`` (n,), ω̂_g already
+        ``region2_generator_speed``'s for the controller's ``zone``: one kernel after the map
+        (``fast.recovery_healthy_tick``, the same operations as ``step``, the estimator's gather and
+        ``region2_generator_speed``)."""
         self._fast.stack(x_hat, self._no_columns, self._x_prev, self._stacked)
         raw = self._stacked @ self._map
         f, pitch = self.filter, self.pitch
@@ -321,6 +324,7 @@ class WindRecovery:
         pitch.x = self._fast.recovery_healthy_tick(
             raw, sensors, pitch_columns, pitch.x, np.ascontiguousarray(beta_ref_prev, dtype=float),
             pitch._coef_array, (f._b0, f._a1, f._a2, f.s1, f.s2), self._filtered, speeds, selected,
+            (x_hat, zone, self._encoder_speed_state),
         )  # fmt: skip
         self._x_prev = x_hat
 
@@ -341,7 +345,13 @@ class WindRecovery:
         0.006–0.011 in region 2. In region 3 g = −P_r/(η_gc ω_g²) < 0 and the low-pass's lag is what makes the
         damper positive (ζ 0.003–0.009 against −0.002…−0.02 unfiltered), so the filtered speed stays there. An
         observer without a generator-speed sensor (5, 5-pe) does not see the generator side of the mode; its
-        filtered ω̂_g stays in both regions."""
+        filtered ω̂_g stays in both regions.
+
+        On the compiled backend ``omega_g`` (a fresh array of the caller's) is changed in place and returned
+        (``fast.region2_speed``: the same values)."""
+        if self._fast is not None:
+            self._fast.region2_speed(x_hat, selected, zone, self._encoder_speed_state, omega_g)
+            return omega_g
         state = self._encoder_speed_state[np.maximum(selected, 0)]
         unfiltered = (zone == 0) & (selected >= 0) & (state >= 0)
         if not unfiltered.any():
