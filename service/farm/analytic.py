@@ -188,7 +188,7 @@ class AnalyticDetector:
         self.last_rate = np.zeros(n)
         self.cusum1 = PageCusum((n,), self.h1, self.h1)
         self.cusum2 = PageCusum((n, 6), self.h2, self.h2)
-        self.lockin = LockIn3P(n, LOCKIN_TAU_S)
+        self.lockin = LockIn3P(n, LOCKIN_TAU_S, fast=context.fast)
         self.flag3 = np.zeros(n, dtype=bool)
         self.quiet3 = np.zeros(n)  # s that A has been below h_3/2 while flagged
         self.samples = 0
