@@ -240,7 +240,8 @@ class AnalyticDetector:
         if self.whiten:
             amplitude = self.lockin.whitened
         self.samples += 1
-        self.residuals = np.column_stack([z1, worst2, amplitude])
+        self.residuals = residuals = np.empty((n, 3))  # the three columns, as ``np.column_stack`` would stack them
+        residuals[:, 0], residuals[:, 1], residuals[:, 2] = z1, worst2, amplitude
         warming = self.samples <= self.warmup
         rate = (collective - (collective if self.last_pitch is None else self.last_pitch)) / FARM_DT_S  # deg/s
         self.last_pitch = collective
