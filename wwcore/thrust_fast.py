@@ -114,8 +114,9 @@ def thrust_coefficient(tsr: np.ndarray, pitch_deg: np.ndarray) -> np.ndarray:
     shape = np.shape(tsr)
     tsr = np.ascontiguousarray(tsr, dtype=float).reshape(-1)
     m = tsr.size
-    lam, upper, knee, u, x, exponent, e, out = (np.empty(m) for _ in range(8))
-    f, g = np.empty((6, m)), np.empty((6, m))
+    lam, upper, knee, u, x, exponent, e = np.empty((7, m))
+    out = np.empty(m)
+    f, g = np.empty((2, 6, m))
     thrust_front(tsr, np.ascontiguousarray(pitch_deg, dtype=float).reshape(-1), lam, upper, f, knee, u, x)
     np.arcsinh(f[1], out=f[1])  # h = asinh(β/β_h)
     np.sin(f[3], out=f[3])

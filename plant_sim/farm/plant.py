@@ -452,11 +452,11 @@ class FarmBatch:
             hysteresis = np.broadcast_to(c._hysteresis, (count, n)).copy()
         references = (c.power_ref, power_refs, setpoints, hysteresis, c.hold)
         pitch_add = f.pitch_command_offset if f.command_offset_active else None
-        blades, torque, pitch_error = np.empty((n, 3)), np.empty((n, 3)), np.empty((n, 3))
-        hub, mean, tau_aero, omega_g, damper = (np.empty(n) for _ in range(5))
+        blades, torque, pitch_error = np.empty((3, n, 3))  # new arrays (rows of one): the objects keep them
+        hub, mean, tau_aero, omega_g, damper, *frame = np.empty((8, n))
         y = np.empty((n, len(SENSORS)))
         last = (blades, hub, mean, torque, tau_aero, y, pitch_error, tb._quantities, omega_g, damper)
-        frame = (np.empty(n), np.empty(n), np.empty(n), np.empty(n, dtype=np.int8))
+        frame = (*frame, np.empty(n, dtype=np.int8))
         shaft_args = None
         if shaft is not None:
             shaft_args = (shaft, p.K_dt * f.stiffness_factor, p.B_dt * f.damping_factor, p.N_g)
