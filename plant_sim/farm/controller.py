@@ -138,7 +138,8 @@ RELEASE_FADE_S = 5.0  # s, a stalled hold hands its torque over to the normal la
 def speed_setpoint(params: TurbineParams, power_ref: np.ndarray) -> np.ndarray:
     """ω_set = clip(Ω_nom (P_r/P_rated)^{1/3}, ω_min, Ω_nom) in rad/s for references P_r in W."""
     ratio = np.maximum(power_ref, 0.0) / params.rated_power
-    return np.clip(params.omega_nom * np.cbrt(ratio), MIN_SPEED_FRACTION * params.omega_nom, params.omega_nom)
+    speed = np.maximum(params.omega_nom * np.cbrt(ratio), MIN_SPEED_FRACTION * params.omega_nom)  # np.clip's two
+    return np.minimum(speed, params.omega_nom)
 
 
 class FarmTurbineController(BenchmarkController):
@@ -213,8 +214,9 @@ class FarmTurbineController(BenchmarkController):
         (the hold asks for it too); ``pitch_trim`` (n, 3) deg is added to each blade's pitch command;
         ``ripple`` = (C (n,) complex W, ω (n,) rad/s, t_0 s) asks each turbine to add Re{C e^{jω(t − t_0)}} to
         its power (module docstring). None clears the last two."""
-        self.pitch_trim = None if pitch_trim is None or not np.any(pitch_trim) else np.array(pitch_trim, dtype=float)
-        if ripple is None or not np.any(ripple[0]):
+        trimmed = pitch_trim is not None and np.asarray(pitch_trim).any()
+        self.pitch_trim = np.array(pitch_trim, dtype=float) if trimmed else None
+        if ripple is None or not np.asarray(ripple[0]).any():
             self._extra = None
         else:  # the converter's lag α_gc/(s + α_gc) is taken out in advance: C (1 + jω/α_gc)
             phasor, rate, since = ripple

@@ -1,9 +1,9 @@
 """Compiled twin of the farm plant's per-tick arithmetic (``wwcore.backend``): the turbines' wind on the row means
 (``FarmWindField.sample``) and the farm controller's zone logic, PI, drive-train damper and torque laws
 (``FarmTurbineController.step``), and the wakes' 10-Hz step at a fixed direction (``wake_step``, with the FLORIS
-tables' combination ``wake_combine``). The same operations in the reference's order, so the same numbers bit for bit
-(``tests/test_fast_backend_farm.py``); the mean over the blades stays numpy's product, and the controller's hold, fade
-and 3P cancellation stay numpy code around the kernel.
+tables' combination ``wake_combine``, after the thrust coefficients of ``wwcore.thrust_fast``). The same operations
+in the reference's order, so the same numbers bit for bit (``tests/test_fast_backend_farm.py``); the mean over the
+blades stays numpy's product, and the controller's hold, fade and 3P cancellation stay numpy code around the kernel.
 
 ``sub_steps`` runs a farm sample's ten ticks (``FarmBatch.run_sample``) in one call: the kernels above and the
 turbine's (``plant_sim.turbine.fast``) tick after tick, the followed reference's ramp computed ahead (``ramp``; it
@@ -22,6 +22,7 @@ import numpy as np
 from plant_sim.turbine.fast import _blade_features, _blade_torques, readings, step_inputs
 from wwcore.aero_fast import maximum, minimum
 from wwcore.jit import kernel
+from wwcore.thrust_fast import thrust_coefficient  # noqa: F401 (the wakes' C_T, ``TableWakes.advance``)
 
 TWO_PI = 2.0 * math.pi
 

@@ -293,9 +293,9 @@ class FarmBatch:
         """The first tick of a farm sample: the wind field takes the turbines' operating points and moves the wakes
         on; the block's sums start again."""
         k, tb = self.k, self.turbines
-        self.field.update(
-            k // self.ticks_per_sample, tb.tau_aero * tb.x[:, OMEGA_R], tb.x[:, OMEGA_R], tb.x[:, PITCH].mean(axis=1)
-        )
+        pitch = tb.x[:, PITCH]
+        collective = np.add.reduce(pitch, axis=1) / pitch.shape[1]  # ``pitch.mean(axis=1)``'s sum and division
+        self.field.update(k // self.ticks_per_sample, tb.tau_aero * tb.x[:, OMEGA_R], tb.x[:, OMEGA_R], collective)
         self._scada_sum[:] = 0.0
         self._power_ref_sum[:] = 0.0
         self._opened = k
@@ -386,10 +386,16 @@ class FarmBatch:
         return frame
 
     def _sub_steps_apply(self, count: int) -> bool:
-        """Whether the next ``count`` ticks (a sample's, opened) are common ticks ``sub_steps`` runs."""
+        """Whether the next ``count`` ticks (a sample's, opened) are common ticks ``sub_steps`` runs. A sample that
+        starts a turbulence chunk or a noise block has it made first, as its first tick would (the turbulence chunk
+        in any case: the tick refills only past the chunk's end; the noise block only when the sample is common: the
+        tick draws at the block's start)."""
         tb, c, field, f = self.turbines, self.controller, self.field, self.turbines.faults
         k, chunk = self.k, tb.noise_chunk
-        return (
+        if field._farm_fast is not None and field._next_k == k == field._chunk_end:
+            field._refill()
+        block_start = k % chunk == 0
+        common = (
             tb._fast is not None
             and field._farm_fast is not None
             and c._farm_fast is not None
@@ -402,8 +408,7 @@ class FarmBatch:
             and field._next_k == k
             and field._chunk_start <= k
             and k + count <= field._chunk_end  # the turbulence chunk holds every tick
-            and tb._noise_drawn
-            and k % chunk > 0
+            and (tb._noise_drawn or block_start)
             and k % chunk + count <= chunk  # so does the noise block
             and c._bp_ready
             and c._extra is None
@@ -411,6 +416,9 @@ class FarmBatch:
             and not c.hold.any()
             and not (c.cancel_3p and (c._ripple_running or c._any_asked))
         )
+        if common and block_start:
+            tb._draw_noise()
+        return common
 
     def _sub_steps(self, states: np.ndarray, power: np.ndarray, shaft: np.ndarray | None) -> FarmFrame:
         """``len(power)`` common ticks by ``plant_sim.farm.fast.sub_steps``; the last tick's frame."""
@@ -444,11 +452,11 @@ class FarmBatch:
             hysteresis = np.broadcast_to(c._hysteresis, (count, n)).copy()
         references = (c.power_ref, power_refs, setpoints, hysteresis, c.hold)
         pitch_add = f.pitch_command_offset if f.command_offset_active else None
-        blades, torque, pitch_error = np.empty((n, 3)), np.empty((n, 3)), np.empty((n, 3))
-        hub, mean, tau_aero, omega_g, damper = (np.empty(n) for _ in range(5))
+        blades, torque, pitch_error = np.empty((3, n, 3))  # new arrays (rows of one): the objects keep them
+        hub, mean, tau_aero, omega_g, damper, *frame = np.empty((8, n))
         y = np.empty((n, len(SENSORS)))
         last = (blades, hub, mean, torque, tau_aero, y, pitch_error, tb._quantities, omega_g, damper)
-        frame = (np.empty(n), np.empty(n), np.empty(n), np.empty(n, dtype=np.int8))
+        frame = (*frame, np.empty(n, dtype=np.int8))
         shaft_args = None
         if shaft is not None:
             shaft_args = (shaft, p.K_dt * f.stiffness_factor, p.B_dt * f.damping_factor, p.N_g)

@@ -193,10 +193,11 @@ class TableWakes:
     ) -> None:
         """Record each turbine's C_T at farm sample j (from ``tsr`` and ``pitch_deg``, (n,), low-passed; ``p_aero``
         and ``area_power`` are the row model's inputs, not used); set the free streams and winds of sample j + 1."""
-        ct = thrust.thrust_coefficient(tsr, pitch_deg).reshape(self.farms, self.n_turbines)
-        if self._fast is not None:
+        if self._fast is not None:  # the C_T by ``wwcore.thrust_fast`` (the same numbers)
+            ct = self._fast.thrust_coefficient(tsr, pitch_deg).reshape(self.farms, self.n_turbines)
             self._fast_advance(j + 1, ct)
             return
+        ct = thrust.thrust_coefficient(tsr, pitch_deg).reshape(self.farms, self.n_turbines)
         self._ct_filtered = self._a_ct * self._ct_filtered + (1.0 - self._a_ct) * ct
         self._ct[:, :, j % self._history] = self._ct_filtered
         nxt = j + 1

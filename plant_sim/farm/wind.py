@@ -331,6 +331,7 @@ class FarmWindField(WindField):
         self.turbine_wind = self.wakes.turbine_wind  # (farms, N) m/s, mean wind of each turbine at the last sample
         self.free_wind = self.wakes.free_wind  # (farms, N) m/s, the free stream each turbine sees
         self._offset_now = self.turbine_wind.reshape(-1) - float(mean_wind(spec, 0.0))
+        self._mean_knots = tuple(np.array(knots, dtype=float) for knots in zip(*spec.mean, strict=True))
         self._offset_step = np.zeros(self.n)
         self.rotor_wind = self.turbine_wind.reshape(-1)  # (n,) m/s, rotor-averaged wind of the last tick
         self.turbulence_gain = self._gain()  # (n,) TI_t / TI_0 of each turbine, None: the ambient's for all
@@ -377,7 +378,7 @@ class FarmWindField(WindField):
         tsr = omega_r * self.params.radius / np.maximum(self.rotor_wind, 1.0)
         self.wakes.advance(j, self._p_aero, self._area_power, tsr, pitch_deg)
         mean_next = self.wakes.turbine_wind
-        target = mean_next.reshape(-1) - float(mean_wind(self.spec, (j + 1) * FARM_DT_S))
+        target = mean_next.reshape(-1) - float(np.interp((j + 1) * FARM_DT_S, *self._mean_knots))  # ``mean_wind``
         start = self._offset_now + self._offset_step * self.ticks_per_sample
         self._offset_now = start
         self._offset_step = (target - start) / self.ticks_per_sample

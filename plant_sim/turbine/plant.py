@@ -385,16 +385,20 @@ class TurbineBatch:
         stiffness = p.K_dt * f.stiffness_factor
         return stiffness * twist + (p.B_dt * f.damping_factor) * (x[:, OMEGA_R] - x[:, OMEGA_G] / p.N_g)
 
+    def _draw_noise(self) -> None:
+        """The noise block of the ticks from this one: each row with its own stream draws (noise_chunk, N_SENSORS)
+        numbers, as one standard_normal call of that size would, σ-scaled. Twin rows (second half) share their run's
+        streams, hence its numbers."""
+        for i, rng in enumerate(self._noise_rngs[: self._noise_rows]):
+            rng.standard_normal(out=self._draws[i])
+        self._draws *= self.sigma
+        self._noise_drawn = True
+
     def _next_noise(self) -> np.ndarray:
         """σ-scaled sensor noise of the current tick (n, N_SENSORS): a view, valid for this tick only."""
         j = self.k % self.noise_chunk
         if j == 0 or not self._noise_drawn:
-            # Each row with its own stream draws (noise_chunk, N_SENSORS) numbers, as one standard_normal call of
-            # that size would. Twin rows (second half) share their run's streams, hence its numbers.
-            for i, rng in enumerate(self._noise_rngs[: self._noise_rows]):
-                rng.standard_normal(out=self._draws[i])
-            self._draws *= self.sigma
-            self._noise_drawn = True
+            self._draw_noise()
         noise = self._draws[:, j]
         if self._noise_rows == self.n:
             return noise

@@ -188,7 +188,7 @@ class AnalyticDetector:
         self.last_rate = np.zeros(n)
         self.cusum1 = PageCusum((n,), self.h1, self.h1)
         self.cusum2 = PageCusum((n, 6), self.h2, self.h2)
-        self.lockin = LockIn3P(n, LOCKIN_TAU_S)
+        self.lockin = LockIn3P(n, LOCKIN_TAU_S, fast=context.fast)
         self.flag3 = np.zeros(n, dtype=bool)
         self.quiet3 = np.zeros(n)  # s that A has been below h_3/2 while flagged
         self.samples = 0
@@ -240,7 +240,8 @@ class AnalyticDetector:
         if self.whiten:
             amplitude = self.lockin.whitened
         self.samples += 1
-        self.residuals = np.column_stack([z1, worst2, amplitude])
+        self.residuals = residuals = np.empty((n, 3))  # the three columns, as ``np.column_stack`` would stack them
+        residuals[:, 0], residuals[:, 1], residuals[:, 2] = z1, worst2, amplitude
         warming = self.samples <= self.warmup
         rate = (collective - (collective if self.last_pitch is None else self.last_pitch)) / FARM_DT_S  # deg/s
         self.last_pitch = collective

@@ -5,10 +5,12 @@ decisions (``analytic_decide``: the Page CUSUMs, fault 3's flag); the available 
 product and eq. (21)'s ``exp`` (``available_front``, ``available_back``, ``available_filter``) and the dispatch after
 it (``dispatch_shares``: the accommodation rules but the drive-train hold, eqs. (18)–(26), the farm-power trim, the
 modes). The same operations in the reference's order, numpy's pairwise sums (``row_sum``) and ``np.interp``'s
-arithmetic (``interp``) included, so the same numbers bit for bit (``tests/test_fast_backend_farm.py``); the lock-in
-(numpy's SIMD sines, cosines and complex products), the products and ``exp`` between the kernels, the pitch trim's and
-the ripple's steps and the other algorithms stay numpy code, and the wind inversion's Newton steps are
-``wwcore.aero_fast``'s.
+arithmetic (``interp``, ``wwcore.thrust_fast``'s) included, so the same numbers bit for bit
+(``tests/test_fast_backend_farm.py``); the 3P lock-in (``lockin_step``), with numpy's complex arithmetic as its
+loops do it on this build (a product with two fused multiply-adds, ``abs`` as larger · √(ratio² + 1), ``exp`` of an
+imaginary number as the C library's cosine and sine, which numpy's float64 ``cos`` and ``sin`` are too). The
+products and ``exp`` between the kernels, the pitch trim's and the ripple's steps and the other algorithms stay numpy
+code, and the wind inversion's Newton steps are ``wwcore.aero_fast``'s.
 """
 
 from __future__ import annotations
@@ -16,10 +18,14 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from llvmlite import ir
+from numba.core import cgutils, types
+from numba.extending import intrinsic
 
 from wwcore.aero_fast import _newton, maximum, minimum, pitch_features
 from wwcore.farm_frames import CANCEL_3P_MODE, DEBRIS_MODE, DERATED_MODE, PITCH_TRIM_MODE
 from wwcore.jit import kernel
+from wwcore.thrust_fast import interp
 
 
 @kernel
@@ -317,34 +323,6 @@ def row_sum(a, start, n):
 
 
 @kernel
-def interp(x, xp, fp):
-    """np.interp of one float on increasing ``xp`` (held at the ends; nan stays nan), numpy's arithmetic."""
-    m = xp.size
-    if x != x:
-        return x
-    if x < xp[0]:
-        return fp[0]
-    if x >= xp[m - 1]:
-        return fp[m - 1]
-    lo, hi = 0, m - 1  # xp[lo] ≤ x < xp[hi]
-    while hi - lo > 1:
-        mid = (lo + hi) // 2
-        if xp[mid] <= x:
-            lo = mid
-        else:
-            hi = mid
-    if xp[lo] == x:
-        return fp[lo]
-    slope = (fp[lo + 1] - fp[lo]) / (xp[lo + 1] - xp[lo])
-    value = slope * (x - xp[lo]) + fp[lo]
-    if value != value:  # numpy tries the other end, then a flat segment's value
-        value = slope * (x - xp[lo + 1]) + fp[lo + 1]
-        if value != value and fp[lo] == fp[lo + 1]:
-            value = fp[lo]
-    return value
-
-
-@kernel
 def available_front(y, columns, beta, consts, f):
     """Eq. (20)'s inputs from the SCADA means ``y`` (n, sensors) (``AvailablePower.step``): ω̄_g of the two
     encoders (``columns`` = (ω_g,m1, ω_g,m2, τ_g)), ω̂_r = ω̄_g/N_g, β̄ the mean of the six pitch encoders (``beta``
@@ -473,3 +451,84 @@ def dispatch_shares(p_avail, p_ref, held, held_given, faulty, demand, y, integra
             mode[r] = CANCEL_3P_MODE if cancelled else m
             sources[r] = cancelled and not held[r]
             free_rows[r] = not (sources[r] or derate or held[r])
+
+
+@intrinsic
+def fma(typingctx, a, b, c):
+    """a·b + c rounded once (IEEE fused multiply-add, LLVM's ``llvm.fma``): what numpy's SIMD complex loops use."""
+    signature = types.float64(types.float64, types.float64, types.float64)
+
+    def codegen(context, builder, sig, args):
+        double = ir.DoubleType()
+        function = cgutils.get_or_insert_function(
+            builder.module, ir.FunctionType(double, [double, double, double]), "llvm.fma.f64"
+        )
+        return builder.call(function, args)
+
+    return signature, codegen
+
+
+@kernel
+def np_mod(a, b):
+    """np.mod of two floats (numpy's ``npy_divmod``): fmod, moved to b's sign; an exact zero takes b's sign."""
+    mod = np.fmod(a, b)
+    if b == 0.0:
+        return mod
+    if mod != 0.0:
+        if (b < 0.0) != (mod < 0.0):
+            mod += b
+    else:
+        mod = math.copysign(0.0, b)
+    return mod
+
+
+@kernel
+def complex_abs(re, im):
+    """np.abs of a complex number as numpy's SIMD loop gives it: larger · √(ratio² + 1) with ratio = smaller/larger
+    (a fused multiply-add; 0 where larger is 0), inf where either part is infinite, else nan where either is nan."""
+    re, im = abs(re), abs(im)
+    if re == math.inf or im == math.inf:
+        return math.inf
+    if re != re or im != im:
+        return math.nan
+    larger, smaller = (re, im) if re > im else (im, re)
+    ratio = 0.0 if larger == 0.0 else smaller / larger
+    return math.sqrt(fma(ratio, ratio, 1.0)) * larger
+
+
+@kernel
+def lockin_step(x, omega_r, state, consts, amplitude, whitened):
+    """``signals.LockIn3P.step`` after its first sample: the high-pass mean, the phase, I and Q, A (``amplitude``)
+    and the whitened Ã (``whitened``) of each row; ``state`` = (mean, phase, I, Q, Re W, Im W) in place, ``consts``
+    = (a_hp, 1 − a_hp, Δt, a, 1 − a, a², (1 − a)², V_k of this sample, the bound on |ρ|). numpy's complex
+    arithmetic as its loops do it: a product (a + jb)(c + jd) is (fma(a, c, −bd), fma(a, d, bc)), a real factor or
+    divisor acts on each part (the divisor as a product with its inverse), e^{jy} = cos y + j sin y, |z| by
+    ``complex_abs``; numpy's float64 ``cos`` and ``sin`` are the C library's, as numba's are."""
+    mean, phase, i_state, q_state, w_re, w_im = state
+    a_hp, one_minus_hp, dt, a, gain, a2, gain2, v, bound = consts
+    inverse_v = 1.0 / v
+    for r in range(x.size):
+        mean[r] = a_hp * mean[r] + one_minus_hp * x[r]
+        phase[r] = np_mod(phase[r] + 3.0 * omega_r[r] * dt, 2.0 * math.pi)
+        xt = x[r] - mean[r]
+        i = a * i_state[r] + gain * xt * math.cos(phase[r])
+        q = a * q_state[r] + gain * xt * math.sin(phase[r])
+        i_state[r], q_state[r] = i, q
+        amplitude[r] = 2.0 * math.sqrt(i * i + q * q)
+        twice = 2.0 * phase[r]
+        w_re[r] = a2 * w_re[r] + gain2 * math.cos(twice)
+        w_im[r] = a2 * w_im[r] + gain2 * math.sin(twice)
+        rho_re, rho_im = w_re[r] * inverse_v, w_im[r] * inverse_v
+        size = complex_abs(rho_re, rho_im)
+        if size > bound:
+            shrink = bound / np_maximum(size, 1e-300)
+            rho_re, rho_im = rho_re * shrink, rho_im * shrink
+        jq_re, jq_im = fma(0.0, q, -(1.0 * 0.0)), fma(0.0, 0.0, 1.0 * q)  # 1j · Q
+        z_re, z_im = i + jq_re, 0.0 + jq_im
+        c_re, c_im = rho_re, -rho_im  # conj(ρ)
+        p_re, p_im = fma(c_re, z_re, -(c_im * z_im)), fma(c_re, z_im, c_im * z_re)  # conj(ρ) z
+        pz_re = fma(p_re, z_re, -(p_im * z_im))  # Re(conj(ρ) z z)
+        size_z = complex_abs(z_re, z_im)
+        size_rho = complex_abs(rho_re, rho_im)
+        form = (size_z * size_z - pz_re) / (1.0 - size_rho * size_rho)
+        whitened[r] = 2.0 * math.sqrt(np_maximum(form, 0.0))

@@ -62,7 +62,7 @@ def lockin_iq_std(sigma: float | np.ndarray, tau_s: float, dt: float = FARM_DT_S
 class LockIn3P:
     """3P lock-in amplitude A and whitened amplitude Ã of n signals (module docstring)."""
 
-    def __init__(self, n: int, tau_s: float, hp_s: float = 10.0, dt: float = FARM_DT_S):
+    def __init__(self, n: int, tau_s: float, hp_s: float = 10.0, dt: float = FARM_DT_S, fast=None):
         self.dt = dt
         self.a = math.exp(-dt / tau_s)
         self.a_hp = math.exp(-dt / hp_s)
@@ -72,14 +72,32 @@ class LockIn3P:
         self.q = np.zeros(n)
         self.amplitude = np.zeros(n)
         self.v = 0.0  # V_k: E|Z|² per unit input variance
-        self.w = np.zeros(n, dtype=complex)  # W_k: E[Z²] per unit input variance
+        self._w = np.zeros(n, dtype=complex)  # W_k: E[Z²] per unit input variance (``w``)
         self.whitened = np.zeros(n)
+        # ``service.farm.fast`` or None: with it, a step after the first is one kernel (``lockin_step``, the same
+        # numbers); W is then kept as its real and imaginary parts (``w`` still gives it as a complex array)
+        self._fast = fast
+        self._w_parts: tuple[np.ndarray, np.ndarray] | None = (np.zeros(n), np.zeros(n)) if fast is not None else None
+
+    @property
+    def w(self) -> np.ndarray:
+        """W_k (n,) complex: E[Z²] per unit input variance."""
+        return self._w if self._w_parts is None else self._w_parts[0] + 1j * self._w_parts[1]
+
+    @w.setter
+    def w(self, value: np.ndarray) -> None:
+        if self._w_parts is None:
+            self._w = value
+        else:
+            self._w_parts = (value.real.copy(), value.imag.copy())
 
     def step(self, x: np.ndarray, omega_r: np.ndarray) -> np.ndarray:
         """Take x (n,) and the rotor speed ω_r (n,) rad/s of this sample; return the amplitude A (n,) (the whitened
         Ã is left in ``whitened``)."""
         if self.mean is None:
             self.mean = x.astype(float).copy()
+        elif self._fast is not None:
+            return self._fast_step(x, omega_r)
         self.mean = self.a_hp * self.mean + (1.0 - self.a_hp) * x
         self.phase = np.mod(self.phase + 3.0 * omega_r * self.dt, 2.0 * math.pi)
         xt = x - self.mean
@@ -96,6 +114,20 @@ class LockIn3P:
         z = self.i + 1j * self.q
         form = (np.abs(z) ** 2 - (np.conj(rho) * z * z).real) / (1.0 - np.abs(rho) ** 2)
         self.whitened = 2.0 * np.sqrt(np.maximum(form, 0.0))
+        return self.amplitude
+
+    def _fast_step(self, x: np.ndarray, omega_r: np.ndarray) -> np.ndarray:
+        """``step``'s lines by ``service.farm.fast.lockin_step``: the state in place, A and Ã new arrays."""
+        gain = 1.0 - self.a
+        a2 = self.a * self.a
+        self.v = a2 * self.v + gain * gain
+        consts = (self.a_hp, 1.0 - self.a_hp, self.dt, self.a, gain, a2, gain * gain, self.v, MAX_IMPROPERNESS)
+        state = (self.mean, self.phase, self.i, self.q, *self._w_parts)
+        n = len(self.phase)
+        self.amplitude, self.whitened = np.empty(n), np.empty(n)
+        x = np.ascontiguousarray(x, dtype=float)
+        omega_r = np.ascontiguousarray(omega_r, dtype=float)
+        self._fast.lockin_step(x, omega_r, state, consts, self.amplitude, self.whitened)
         return self.amplitude
 
 

@@ -117,11 +117,16 @@ class FarmSupervisor:
     def _refs(self, tick: int, power_ref: np.ndarray) -> FarmRefs:
         """The power references with what the controller asks of the turbines besides (``interfaces``)."""
 
-        def asked(name: str) -> np.ndarray | None:  # a copy of a controller attribute, None when it asks nothing
-            value = getattr(self.controller, name, None)
-            return value.copy() if value is not None and np.any(value) else None
+        controller = self.controller
 
-        mode = None if getattr(self.controller, "mode", None) is None else self.mode  # as ``_record`` kept it
+        def asked(name: str) -> np.ndarray | None:  # a copy of a controller attribute, None when it asks nothing
+            value = getattr(controller, name, None)
+            if value is None:
+                return None
+            value = np.asarray(value)
+            return value.copy() if value.any() else None
+
+        mode = None if getattr(controller, "mode", None) is None else self.mode  # as ``_record`` kept it
         hold = None if mode is None else mode == HOLD_TORQUE_MODE
         cancel = None if mode is None else mode == CANCEL_3P_MODE
         ripple = asked("ripple_power")
@@ -177,7 +182,8 @@ class FarmSupervisor:
             if held is not None:
                 mode = np.where(held, self.mode, mode).astype(np.int8)
             switched = mode != self.mode
-            for row in np.flatnonzero(switched):
-                detail = {"from": DISPATCH_MODES[int(self.mode[row])], "to": DISPATCH_MODES[int(mode[row])]}
-                self._events.append(row_event(t, EventType.DISPATCH, row, *rows, None, detail))
-            self.mode = mode.copy()
+            if switched.any():  # else ``self.mode`` (a copy) holds the same modes already
+                for row in np.flatnonzero(switched):
+                    detail = {"from": DISPATCH_MODES[int(self.mode[row])], "to": DISPATCH_MODES[int(mode[row])]}
+                    self._events.append(row_event(t, EventType.DISPATCH, row, *rows, None, detail))
+                self.mode = mode.copy()
