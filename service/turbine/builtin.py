@@ -164,11 +164,12 @@ class UIOBankEstimator:
     it inverts is low-pass filtered at ``wind_cutoff_hz``, far below the 5 Hz this resolves. ``power_speed``
     (true): with both generator-speed sensors flagged, use observer 5-pe (the rotor-speed sensors and the
     power-speed channel, ``docs/turbine.md``), the design for the torque reference and zone, instead of seed 000's
-    observer 5. ``estimate_from`` (``"generator"``): the estimate comes from observer 4, the rigid drive train on the
-    healthy generator-speed sensors (4 with both, 4-g1 or 4-g2 with one), which never uses a rotor-speed sensor,
-    so a rotor-speed fault cannot reach it whether or not it is flagged; only with both generator-speed sensors
-    flagged does it fall back to the rotor-speed sensors (5-pe or 5). ``"seed000"``: the observer whose sensor set
-    matches the healthy sensors, as published (observer 1 when nothing is flagged).
+    observer 5, except below the channel's threshold (region 1), where the channel is the rotor-speed sensors' mean
+    and observer 5 serves (``_region1``). ``estimate_from`` (``"generator"``): the estimate comes from observer 4,
+    the rigid drive train on the healthy generator-speed sensors (4 with both, 4-g1 or 4-g2 with one), which never
+    uses a rotor-speed sensor, so a rotor-speed fault cannot reach it whether or not it is flagged; only with both
+    generator-speed sensors flagged does it fall back to the rotor-speed sensors (5-pe or 5). ``"seed000"``: the
+    observer whose sensor set matches the healthy sensors, as published (observer 1 when nothing is flagged).
     """
 
     def __init__(self, *, context: TurbineContext, options: dict | None = None):

@@ -11,8 +11,9 @@
    the two shaft equations summed instead, τ̂_r = (J_r/N_g + N_g J_g/η) dω̂_g/dt + (N_g/η)(τ̂_g + B_g ω̂_g) +
    B_r ω̂_g/N_g, exact but for the torsion's own 4.5 Hz motion. Observers 5 and 5-pe's Kalman designs have no
    generator encoder; their fifth state is τ̂_r.
-2. τ̂_r and the pitch are low-pass filtered by the same second-order Butterworth filter (cutoff
-   ``wind_cutoff_hz``), so both carry the same delay, then
+2. τ̂_r and the pitch are low-pass filtered by second-order Butterworth filters (cutoff ``wind_cutoff_hz``), so
+   both carry the same delay, except the torque of the observers on noisier speed channels than observer 4's
+   (4-g1, 4-g2, 5), whose cutoff follows their noise (``torque_cutoffs``), then
 3. v̂ solves τ̂_r = ½ρπR³ C_q(ω̂_r R / v, β̂) v² (``wwcore.aero.wind_from_torque``), started from the previous
    estimate; the anemometer only provides the start value at the first tick. ω̂_r here is the published speed
    estimate (filtered at ``speed_cutoff_hz``): the rotor's inertia makes it change too slowly for the two
@@ -99,10 +100,11 @@ def torque_cutoffs(bank: BankDesign, wind_cutoff_hz: float) -> np.ndarray:
     2 280^(1/8) = 2.63 on the rotor-speed sensors. Kept at f_c, the noise term alone grows r_j/r_4-fold: √2 × on one
     encoder and up to 48 × on the rotor-speed sensors where the noise dominates (region 1, where a torque error moves
     the wind estimate most, ``docs/turbine.md``). Observer 5's Kalman τ̂_r has its own bandwidth, 0.156 Hz for its
-    random walk (the same law with its q), 3.6 × above 0.0434 Hz: the cascade's noise is the Butterworth's within a
-    few per cent. The 5-pe designs and every other observer keep ``wind_cutoff_hz``: where 5-pe serves (the
-    power-speed channel live, region 2 from about 5 m/s, region 3) the twin's error is mostly what no torque filter
-    touches, and the lower cutoff's lag cost more than its noise saved (docs/turbine.md, "The floor").
+    random walk (the same law with its q), 3.6 × above 0.0434 Hz: the cascade passes 0.83 × the noise (σ) of the
+    Butterworth alone on J_eq dω̂_g/dt, at a little more lag. The 5-pe designs and every other observer keep
+    ``wind_cutoff_hz``: where 5-pe serves (the power-speed channel live, region 2 from about 5 m/s, region 3) the
+    twin's error is mostly what no torque filter touches, and the law's cutoffs (0.056–0.083 Hz) cost more lag than
+    they saved noise (docs/turbine.md, "Estimates").
     """
     cutoffs = np.full(len(bank.observers), float(wind_cutoff_hz))
     reference = bank.observers[bank.index(frozenset(ROTOR))]  # observer 4: every generator-speed sensor
