@@ -1,7 +1,8 @@
-"""The wind filter of the observers on one generator-speed sensor (``wind_recovery.torque_cutoffs``): after a double
-fault that leaves one encoder, the torque estimate the wind is inverted from stands to what the healthy sensors
-allow (the steady-state Kalman filter of the rigid drive train on them, ``scipy.linalg.solve_discrete_are``) as the
-fault-free estimate stands to what all sensors allow (docs/turbine.md, "A double fault that leaves one encoder")."""
+"""The wind filter of the observers on noisier speed channels than observer 4's (``wind_recovery.torque_cutoffs``):
+after a double fault that leaves one encoder, or both encoders faulty in region 1 (observer 5, the rotor-speed
+sensors), the torque estimate the wind is inverted from stands to what the healthy sensors allow (the steady-state
+Kalman filter of the rigid drive train on them, ``scipy.linalg.solve_discrete_are``) as the fault-free estimate stands
+to what all sensors allow (docs/turbine.md, "A double fault that leaves one encoder", "Both encoders in region 1")."""
 
 from __future__ import annotations
 
@@ -10,8 +11,9 @@ import pytest
 from scipy.linalg import solve_discrete_are
 
 from service.turbine.bank import GENERATOR, ObserverBank, estimate_observers
-from service.turbine.interfaces import TurbineContext
-from service.turbine.wind_recovery import WindRecovery, torque_cutoffs
+from service.turbine.builtin import UIOBankEstimator
+from service.turbine.interfaces import POWER_SPEED_MIN_TORQUE, TurbineContext
+from service.turbine.wind_recovery import WindRecovery, speed_noise_variance, torque_cutoffs
 from wwcore.channels import SPEED_SENSORS
 from wwcore.turbine_params import BENCHMARK as P
 
@@ -49,11 +51,65 @@ def test_one_encoder_filter_is_the_kalman_bandwidth_law():
     assert cutoffs[four] == 0.3
     for j in DESIGN.single_generator:
         assert cutoffs[j] == pytest.approx(0.3 * 2.0**-0.25, rel=1e-12)
-    others = [j for j in range(len(DESIGN.names)) if j not in DESIGN.single_generator]
+    five = DESIGN.index(frozenset(GENERATOR))
+    others = [j for j in range(len(DESIGN.names)) if j not in (*DESIGN.single_generator, five)]
     assert np.all(cutoffs[others] == 0.3)
     q = 1e4
     ratio = kalman_torque_std(q, SIGMA_G**2) / kalman_torque_std(q, SIGMA_G**2 / 2)
     assert ratio == pytest.approx(2.0**0.125, rel=2e-3)
+
+
+def kalman_bandwidth_hz(q: float, r: float) -> float:
+    """Bandwidth (Hz) of the steady-state Kalman filter of ``_rigid_model`` (random-walk variance q per tick, ω_g
+    measured with variance r): the natural frequency of its error dynamics' poles, A − A K C."""
+    A, G = _rigid_model()
+    C = np.array([[1.0, 0.0]])
+    predicted = solve_discrete_are(A.T, C.T, q * np.outer(G, G), np.array([[r]]))
+    gain = predicted @ C.T / (C @ predicted @ C.T + r)
+    poles = np.linalg.eigvals(A - A @ gain @ C)
+    return float(np.abs(np.log(poles)).max() / (2.0 * np.pi * P.dt))
+
+
+def test_rotor_speed_filter_is_the_riccati_bandwidth():
+    """Observer 5 (the rotor-speed sensors, r_5 = N_g² σ_r²/2 on the generator side, 2 280 × observer 4's σ_g²/2)
+    filters its torque at the design's cutoff × the ratio of the two sensor sets' Kalman bandwidths (Riccati), for
+    the random walk that puts observer 4's at the design's 0.3 Hz: 0.0434 Hz. The optimum's torque error on the
+    rotor-speed sensors is then 2 280^(1/8) = 2.63 × on the encoders: the floor of a double generator-speed fault
+    where the torque estimate's noise is its error (region 1). The 5-pe designs keep the design's cutoff."""
+    r4, r5 = SIGMA_G**2 / 2.0, (P.N_g * SIGMA_R) ** 2 / 2.0
+    five = DESIGN.index(frozenset(GENERATOR))
+    assert speed_noise_variance(DESIGN.observers[five], DESIGN.gear_ratio) == pytest.approx(r5, rel=1e-12)
+    four = DESIGN.index(frozenset({"omega_r_m1", "omega_r_m2"}))
+    assert speed_noise_variance(DESIGN.observers[four], DESIGN.gear_ratio) == pytest.approx(r4, rel=1e-12)
+    q = (2.0 * np.pi * 0.3) ** 4 * J_EQ**2 * r4 * P.dt**2  # the closed form's random walk for 0.3 Hz on r4
+    assert kalman_bandwidth_hz(q, r4) == pytest.approx(0.3, rel=1e-4)
+    cutoffs = torque_cutoffs(DESIGN, 0.3)
+    assert cutoffs[five] == pytest.approx(0.3 * kalman_bandwidth_hz(q, r5) / kalman_bandwidth_hz(q, r4), rel=1e-6)
+    assert cutoffs[five] == pytest.approx(0.0434, abs=5e-5)
+    assert kalman_torque_std(q, r5) / kalman_torque_std(q, r4) == pytest.approx((r5 / r4) ** 0.125, rel=0.01)
+    assert np.all(cutoffs[list(DESIGN.power_speed)] == 0.3)
+
+
+def test_region1_estimate_with_both_encoders_flagged_is_observer_5():
+    """Below the power-speed channel's threshold that channel is the rotor-speed sensors' mean, so with both
+    generator-speed sensors flagged the estimate comes from observer 5 (and its filter) instead of a 5-pe design;
+    above it, and with ``power_speed = false``, nothing changes."""
+    context = TurbineContext(P, 4)
+    estimator = UIOBankEstimator(context=context)
+    five = DESIGN.index(frozenset(GENERATOR))
+    pe15, pe_r3, four = (
+        DESIGN.power_speed[0],
+        DESIGN.power_speed[-1],
+        DESIGN.index(frozenset({"omega_r_m1", "omega_r_m2"})),
+    )
+    selected = np.array([pe15, pe15, four, pe_r3])
+    threshold = POWER_SPEED_MIN_TORQUE * P.rated_torque
+    torque = np.array([0.5, 1.5, 0.5, 1.5]) * threshold
+    assert estimator._region1(selected, torque).tolist() == [five, pe15, four, pe_r3]
+    assert estimator._region1(selected, np.full(4, 0.5 * threshold)).tolist() == [five, five, four, five]
+    published = UIOBankEstimator(context=TurbineContext(P, 4), options={"power_speed": False})
+    with_five = np.array([five, five, four, five])
+    assert published._region1(with_five, torque).tolist() == with_five.tolist()
 
 
 def _run(q: float, ticks: int, rows: int, seed: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

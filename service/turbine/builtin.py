@@ -18,7 +18,7 @@ from typing import Annotated, Literal
 import numpy as np
 
 from service.plugins import TURBINE_DETECTORS, TURBINE_ESTIMATORS
-from service.turbine.bank import estimate_observers
+from service.turbine.bank import GENERATOR, estimate_observers
 from service.turbine.component_fdi import ComponentFDI, ComponentSettings
 from service.turbine.fdi import FDISettings, SpeedSensorFDI
 from service.turbine.interfaces import (
@@ -164,11 +164,12 @@ class UIOBankEstimator:
     it inverts is low-pass filtered at ``wind_cutoff_hz``, far below the 5 Hz this resolves. ``power_speed``
     (true): with both generator-speed sensors flagged, use observer 5-pe (the rotor-speed sensors and the
     power-speed channel, ``docs/turbine.md``), the design for the torque reference and zone, instead of seed 000's
-    observer 5. ``estimate_from`` (``"generator"``): the estimate comes from observer 4, the rigid drive train on the
-    healthy generator-speed sensors (4 with both, 4-g1 or 4-g2 with one), which never uses a rotor-speed sensor,
-    so a rotor-speed fault cannot reach it whether or not it is flagged; only with both generator-speed sensors
-    flagged does it fall back to the rotor-speed sensors (5-pe or 5). ``"seed000"``: the observer whose sensor set
-    matches the healthy sensors, as published (observer 1 when nothing is flagged).
+    observer 5, except below the channel's threshold (region 1), where the channel is the rotor-speed sensors' mean
+    and observer 5 serves (``_region1``). ``estimate_from`` (``"generator"``): the estimate comes from observer 4,
+    the rigid drive train on the healthy generator-speed sensors (4 with both, 4-g1 or 4-g2 with one), which never
+    uses a rotor-speed sensor, so a rotor-speed fault cannot reach it whether or not it is flagged; only with both
+    generator-speed sensors flagged does it fall back to the rotor-speed sensors (5-pe or 5). ``"seed000"``: the
+    observer whose sensor set matches the healthy sensors, as published (observer 1 when nothing is flagged).
     """
 
     def __init__(self, *, context: TurbineContext, options: dict | None = None):
@@ -190,6 +191,10 @@ class UIOBankEstimator:
         self._power_speed = np.array(design.power_speed if settings.power_speed else (), dtype=np.int64)
         torques = np.asarray(POWER_SPEED_DESIGN_TORQUES)  # the edges of ``power_speed_band``, for the fast path
         self._band_edges = np.sqrt(np.multiply(torques[:-1], torques[1:])) * context.params.rated_torque
+        # Below the power-speed channel's threshold (region 1) that channel is N_g × the rotor-speed sensors' mean
+        # (``interfaces.power_speed``): 5-pe holds nothing observer 5 lacks, and observer 5's wind filter is the one
+        # consistent with the rotor-speed sensors' noise (``wind_recovery.torque_cutoffs``): the estimate uses it there
+        self._rotor_only = design.index(frozenset(GENERATOR)) if len(self._power_speed) else -1
         self._previous: np.ndarray | None = None  # ``selected`` of the last tick
         self._previous_mask = np.zeros(context.n, dtype=np.int64)  # the distrusted speed sensors of the last tick
         # the distrusted speed sensors that were flagged (not only suspected) at some tick since they were distrusted
@@ -232,6 +237,16 @@ class UIOBankEstimator:
             bank.restart(rows, selected[rows], previous[rows])
             self.recovery.transfer(rows, selected[rows], previous[rows], self.context.bank_design, bank.x_hat)
 
+    def _region1(self, selected: np.ndarray, torque_reference: np.ndarray) -> np.ndarray:
+        """``selected`` with observer 5 instead of a 5-pe design on the rows whose torque reference is below the
+        power-speed channel's threshold (``TurbineContext.power_speed_min_torque``), where that channel is the
+        rotor-speed sensors' mean."""
+        if self._rotor_only < 0:
+            return selected
+        low = (torque_reference < self.context.power_speed_min_torque) & (selected >= self._power_speed[0])
+        low &= selected <= self._power_speed[-1]
+        return np.where(low, self._rotor_only, selected) if low.any() else selected
+
     @staticmethod
     def _flagged_mask(flagged: np.ndarray | None, mask: np.ndarray) -> np.ndarray:
         """The flagged speed sensors among the distrusted ones (``mask``), as bitmasks; all of them without
@@ -263,6 +278,7 @@ class UIOBankEstimator:
                 faulty, SPEED_TARGETS, _MASK_WEIGHTS, self.observer_of_mask, self._power_speed, frame.tau_g_ref,
                 frame.zone, self._band_edges, mask, selected,
             )  # fmt: skip
+            selected = self._region1(selected, frame.tau_g_ref)
             self._take_over(bank, selected, mask, self._flagged_mask(flagged, mask))
             recovery.step(
                 bank.x_hat, frame.beta_ref, pitch_m1, pitch_m2, ~faulty[:, PITCH_M1_T], ~faulty[:, PITCH_M2_T],
@@ -279,6 +295,7 @@ class UIOBankEstimator:
                 if on_pe.any():
                     band = power_speed_band(frame.tau_g_ref, self.context.params, frame.zone)
                     selected = np.where(on_pe, self._power_speed[band], selected)
+                    selected = self._region1(selected, frame.tau_g_ref)
             self._take_over(bank, selected, mask, self._flagged_mask(flagged, mask))
             recovery.step(
                 bank.x_hat, frame.beta_ref, pitch_m1, pitch_m2, ~faulty[:, PITCH_M1_T], ~faulty[:, PITCH_M2_T],

@@ -11,8 +11,9 @@
    the two shaft equations summed instead, τ̂_r = (J_r/N_g + N_g J_g/η) dω̂_g/dt + (N_g/η)(τ̂_g + B_g ω̂_g) +
    B_r ω̂_g/N_g, exact but for the torsion's own 4.5 Hz motion. Observers 5 and 5-pe's Kalman designs have no
    generator encoder; their fifth state is τ̂_r.
-2. τ̂_r and the pitch are low-pass filtered by the same second-order Butterworth filter (cutoff
-   ``wind_cutoff_hz``), so both carry the same delay, then
+2. τ̂_r and the pitch are low-pass filtered by second-order Butterworth filters (cutoff ``wind_cutoff_hz``), so
+   both carry the same delay, except the torque of the observers on noisier speed channels than observer 4's
+   (4-g1, 4-g2, 5), whose cutoff follows their noise (``torque_cutoffs``), then
 3. v̂ solves τ̂_r = ½ρπR³ C_q(ω̂_r R / v, β̂) v² (``wwcore.aero.wind_from_torque``), started from the previous
    estimate; the anemometer only provides the start value at the first tick. ω̂_r here is the published speed
    estimate (filtered at ``speed_cutoff_hz``): the rotor's inertia makes it change too slowly for the two
@@ -71,30 +72,51 @@ class Biquad:
         return y
 
 
+def speed_noise_variance(observer, gear_ratio: float) -> float:
+    """Variance (rad/s)² of the best linear unbiased estimate of ω_g from one tick of ``observer``'s speed channels
+    alone, the r of the rigid drive train's Kalman filter on them: 1/(cᵀ R⁻¹ c), c_i = 1/N_g for a rotor-speed
+    channel and 1 for a generator-side one (a generator-speed sensor, the power-speed channel). For a rigid observer
+    it is its ω̂_g's variance (``state_error_cov[1, 1]``): σ_g²/2 for observer 4, N_g² σ_r²/2 for observer 5."""
+    refer = np.where(observer.C[:, 0] > 0, 1.0 / gear_ratio, 1.0)
+    return float(1.0 / (refer @ np.linalg.solve(observer.R, refer)))
+
+
 def torque_cutoffs(bank: BankDesign, wind_cutoff_hz: float) -> np.ndarray:
-    """Cutoff (Hz) of the wind filter on each observer's τ̂_r (n_obs,): ``wind_cutoff_hz``, scaled for the rigid
-    observers on fewer generator-speed sensors than observer 4 by (σ²_4 / σ²_j)^(1/4), σ²_j the variance of
-    their ω̂_g (``state_error_cov``): 2^(−1/4) (0.252 Hz of 0.3) for ``4-g1`` and ``4-g2``.
+    """Cutoff (Hz) of the wind filter on each observer's τ̂_r (n_obs,): ``wind_cutoff_hz``, scaled by (r_4 / r_j)^(1/4)
+    for the observers whose speed channels are noisier than observer 4's (r_j: ``speed_noise_variance``) and that the
+    estimate uses where the torque estimate's noise is what its error is made of: ``4-g1`` and ``4-g2`` (one
+    generator-speed sensor: 2^(−1/4), 0.252 Hz of 0.3) and observer 5 (the rotor-speed sensors, r_5/r_4 = N_g² σ_r² /
+    σ_g² = 2 280: 0.0434 Hz), which the estimate uses with both generator-speed sensors flagged below
+    ``POWER_SPEED_MIN_TORQUE`` (region 1, ``builtin.UIOBankEstimator``) or at every torque with ``power_speed = false``.
 
     A rigid observer's τ̂_r is J_eq dω̂_g/dt through the filter (``uio.design_rigid``), and with the aerodynamic
     torque a random walk (the bank's model of it, ``DESIGN_Q_UNKNOWN``) that is the steady-state Kalman filter of
     the rigid drive train: a second-order Butterworth on ω̂_g whose bandwidth is (q / (J_eq² r Ts²))^(1/4) for
-    sensor variance r, differentiated. The filter's error is the sensors' noise, variance ∝ r f_c³ (white noise
+    speed variance r, differentiated. The filter's error is the sensors' noise, variance ∝ r f_c³ (white noise
     differentiated, then low-passed), plus its lag on the torque, variance ∝ q / f_c. The design's f_c is set for
-    observer 4 (two encoders, r = σ_g²/2); with one encoder left, r doubles, and f_c × 2^(−1/4) scales both terms
-    by the same 2^(1/4): the estimate on one encoder then stands to its own optimum exactly as observer 4 stands to
-    its own, whatever the wind makes q, and its torque error is 2^(1/8) = 1.09 × observer 4's. Kept at f_c, the
-    noise term alone doubles: √2 × where the noise dominates (below about 5 m/s, where a torque error moves the wind
-    estimate most, ``docs/turbine.md``). Every other observer (UIOs, Kalman filters, 5-pe) keeps ``wind_cutoff_hz``.
+    observer 4 (two encoders, r_4 = σ_g²/2); on channels of variance r_j, f_c (r_4/r_j)^(1/4) scales both terms by
+    the same (r_j/r_4)^(1/4): the estimate then stands to its own optimum exactly as observer 4 stands to its own,
+    whatever the wind makes q, and its torque error is (r_j/r_4)^(1/8) × observer 4's: 2^(1/8) = 1.09 on one encoder,
+    2 280^(1/8) = 2.63 on the rotor-speed sensors. Kept at f_c, the noise term alone grows r_j/r_4-fold: √2 × on one
+    encoder and up to 48 × on the rotor-speed sensors where the noise dominates (region 1, where a torque error moves
+    the wind estimate most, ``docs/turbine.md``). Observer 5's Kalman τ̂_r has its own bandwidth, 0.156 Hz for its
+    random walk (the same law with its q), 3.6 × above 0.0434 Hz: the cascade passes 0.83 × the noise (σ) of the
+    Butterworth alone on J_eq dω̂_g/dt, at a little more lag. The 5-pe designs and every other observer keep
+    ``wind_cutoff_hz``: where 5-pe serves (the power-speed channel live, region 2 from about 5 m/s, region 3) the
+    twin's error is mostly what no torque filter touches, and the law's cutoffs (0.056–0.083 Hz) cost more lag than
+    they saved noise (docs/turbine.md, "Estimates").
     """
     cutoffs = np.full(len(bank.observers), float(wind_cutoff_hz))
     reference = bank.observers[bank.index(frozenset(ROTOR))]  # observer 4: every generator-speed sensor
     if reference.kind != "rigid":
         return cutoffs
-    reference_variance = reference.state_error_cov[1, 1]
-    for j, o in enumerate(bank.observers):
-        if o.kind == "rigid" and set(o.sensors) <= set(GENERATOR):
-            cutoffs[j] *= (reference_variance / o.state_error_cov[1, 1]) ** 0.25
+    reference_variance = speed_noise_variance(reference, bank.gear_ratio)
+    scaled = [j for j, o in enumerate(bank.observers) if o.kind == "rigid" and set(o.sensors) <= set(GENERATOR)]
+    rotor_only = bank.observers[bank.index(frozenset(GENERATOR))]  # observer 5: every rotor-speed sensor
+    if rotor_only.kind == "kalman":
+        scaled.append(bank.index(frozenset(GENERATOR)))
+    for j in scaled:
+        cutoffs[j] *= (reference_variance / speed_noise_variance(bank.observers[j], bank.gear_ratio)) ** 0.25
     return cutoffs
 
 
