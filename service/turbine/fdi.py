@@ -28,14 +28,17 @@ evidence that its sensor is healthy again.
   ``isolation_confirm_alpha`` (default 0.05), the decision waits one more tick, up to ``isolation_patience``
   ticks beyond the deadline, with the explanations considered suspected (so the estimate already leaves them
   out): a first flag that names only part of the faulty set is a wrong isolation, and one more tick is cheaper.
-  The rotor-speed pair's summed difference (``arbitration``) casts doubt too, on an explanation that names no
-  rotor-speed sensor (a double fault's rotor-speed gain, which the UIOs see only as their states drift): while a bias
-  of the bias test's smallest design size on one of them is the likelier hypothesis (its log-likelihood ratio
-  Λ = m_d |Σd| − k m_d²/2 > 0, m_d = ``bias_shift``/√2 σ of the pair's difference), for at most the ticks a
-  sequential test at that size needs on average to reach the isolation level (Wald: ⌈2 ln(1/α_iso)/m_d²⌉ = 13);
-  once the sum's z passes the isolation level the decision is taken at once and the rotor-speed sensor whose
-  explanation's own observer has the smaller statistic joins the flag. A healthy pair doubts on the deadline with
-  probability 2Φ(−m_d √3/2) = 0.36, for a tick or two: the price of a first flag that names both halves.
+  The rotor-speed pair's summed difference (``arbitration``) judges an explanation that names no rotor-speed sensor
+  (a double fault's rotor-speed gain, which the UIOs see only as their states drift) by Wald's sequential test of
+  "both healthy" against "one biased by the bias test's smallest design size": Λ = m_d |Σd| − k m_d²/2 over the k
+  ticks since the isolation started, m_d = ``bias_shift``/√2 σ of the pair's difference. The decision waits while
+  −ln(1/α_confirm) < Λ < ln(2/α_iso), looked at on every tick: at the upper level the rotor-speed sensor whose
+  explanation's own observer has the smaller statistic joins the flag (a healthy pair ever gets there with
+  probability ≤ α_iso, however many ticks are looked at: Ville's inequality), at the lower one the explanation is
+  decided as it is (a rotor-speed bias of the design size ever gets there with probability ≤ α_confirm, larger ones
+  far less often). Λ falls by at most m_d²/2 = 0.56 a tick, so a generator-speed explanation waits 6 ticks at least,
+  about 10 on a healthy pair: the price of a first flag whose partial-set risk is bounded. An explanation naming a
+  frozen sensor is decided on one look (the sum's z beyond the isolation level).
 * **Persistent rotor-speed bias.** Beside the window tests, Page's CUSUMs (a bank of shifts ``bias_shift``·2^k,
   k < ``bias_bank``) on the parity of the two rotor-speed sensors' exclusion residuals against the generator-speed
   Kalman filter (``bias_test``; ``rotor_bias_test``, ``bias_shift``) flag a bias of 1–2 σ that the UIOs take for
