@@ -491,33 +491,40 @@ def test_the_onset_jump_is_silent_without_a_fault_and_absent_when_not_asked():
     assert (quiet.total == 0.0).all() and (quiet.jump == 0.0).all()
 
 
-def test_a_rotor_speed_sensor_joins_the_first_flag_when_the_rotor_pair_disagrees():
+def test_a_rotor_speed_sensor_joins_the_first_flag_by_the_rotor_pair_s_sequential_test():
     """A double fault's rotor-speed half (a gain of a few percent) shows in the rotor pair's summed difference from
-    its first tick, in the UIOs only as their states drift: an explanation that names no rotor-speed sensor is
-    doubted while a bias of the bias test's smallest design size (1.5 σ_r on one sensor, m_d = 1.5/√2 σ_d of the
-    pair's difference) is the likelier, Λ = m_d |Σd| − k m_d²/2 > 0, for at most ⌈2 ln(1/α_iso)/m_d²⌉ = 13 ticks,
-    and takes the rotor-speed sensor whose explanation's own observer has the smaller statistic once the sum's z
-    exceeds the isolation level 3.29, deciding at once. Before, the doubt needed z > 1.96 (a 3 % gain at 16 m/s,
-    z ≈ 2.5 ± 1 on the deadline's tick, went undoubted in a third of the runs) and held on past 3.29."""
+    its first tick, in the UIOs only as their states drift: an explanation that names no rotor-speed sensor waits
+    on Wald's test of "both healthy" against "one biased by the bias test's smallest design size" (1.5 σ_r on one
+    sensor, m_d = 1.5/√2 σ_d of the pair's difference), Λ = m_d |Σd| − k m_d²/2: the rotor-speed sensor whose
+    explanation's own observer has the smaller statistic joins once Λ ≥ ln(2/α_iso), the explanation is decided
+    alone once Λ ≤ −ln(1/α_confirm), and it waits in between. An explanation naming a frozen sensor is decided on
+    one look, where the sum's z beyond the isolation level 3.29 suffices."""
     fdi = SpeedSensorFDI(DESIGN, 4, P.dt)
     m_d = 1.5 / math.sqrt(2.0)
     assert fdi.rotor_shift == pytest.approx(m_d)
-    assert fdi.rotor_patience == math.ceil(2.0 * math.log(1e3) / m_d**2) == 13
+    assert fdi.rotor_join_level == pytest.approx(math.log(2000.0))
+    assert fdi.rotor_healthy_level == pytest.approx(-math.log(20.0))
+    assert fdi.rotor_patience == fdi.arbitration_ticks == 500
     assert fdi.arbiter.parity_level == pytest.approx(3.290527, abs=1e-6)
     sigma_d = fdi.arbiter.parity_sigma
-    fdi.arbiter.count[:] = 4.0
-    z = np.array([0.5, 1.5, 2.5, 4.0])  # Λ = 2 m_d z − 4 m_d²/2 = −1.19, 0.93, 3.05; z = 4 > 3.29 disagrees
-    fdi.arbiter.parity[:] = z * sigma_d * 2.0
-    np.testing.assert_allclose(fdi.arbiter.rotor_log_ratio(m_d), 2.0 * m_d * z - 2.0 * m_d**2)
+    k = 8.0
+    fdi.arbiter.count[:] = k
+    evidence = np.array([-3.5, -1.0, 5.5, 8.0])  # healthy, open, open (z = 3.33 > 3.29), biased
+    fdi.arbiter.parity[:] = (evidence + k * m_d**2 / 2.0) / m_d * sigma_d
+    np.testing.assert_allclose(fdi.arbiter.rotor_log_ratio(m_d), evidence)
+    assert [fdi._rotor_pair_verdict(row) for row in range(4)] == [-1, 0, 0, 1]
+    assert fdi.arbiter.rotor_disagree.tolist() == [False, False, True, True]
     g1 = 1 << G1
     r1, r2 = 1 << R1, 1 << SPEED_SENSORS.index("omega_r_m2")
     own = np.ones(DESIGN.n_isolating)
     own[fdi.observer_of_mask[g1 | r1]] = 0.5  # {r1, g1}'s own observer explains the data best
     confirm = np.zeros(DESIGN.n_isolating)  # every witness at ease: only the rotor pair casts doubt
     assert [fdi._doubtful(row, g1, confirm, waited=3) for row in range(4)] == [False, True, True, False]
-    assert not fdi._doubtful(2, g1, confirm, waited=13)  # the rotor patience has run out
+    assert not fdi._doubtful(2, g1, confirm, waited=500)  # the rotor patience has run out
     assert not fdi._doubtful(2, g1 | r2, confirm, waited=3)  # the explanation names a rotor-speed sensor already
+    assert not fdi._doubtful(2, g1, confirm, waited=3, frozen=g1)  # a frozen sensor's explanation: one look
     assert [fdi._with_rotor_pair(row, g1, own) for row in range(4)] == [g1, g1, g1, g1 | r1]
+    assert fdi._with_rotor_pair(2, g1, own, frozen=g1) == g1 | r1  # one look: z = 3.33 > 3.29
     own[fdi.observer_of_mask[g1 | r2]] = 0.1
     assert fdi._with_rotor_pair(3, g1, own) == g1 | r2
     assert fdi._with_rotor_pair(3, g1 | r2, own) == g1 | r2

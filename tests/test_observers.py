@@ -181,6 +181,12 @@ def test_fdi_isolates_the_faulty_sensors_and_recognises_the_end(faulty, bias):
         fdi.step(y[k : k + 1], bank.chi2, bank.x_hat)
         flags.append(tuple(np.array(SPEED_SENSORS)[fdi.faulty[0]]))
     assert all(f == () for f in flags[:start]), "no false alarm before the fault"
-    assert flags[start + 3] == tuple(s for s in SPEED_SENSORS if s in faulty)
-    assert all(f == flags[start + 3] for f in flags[start + 3 : end])
+    expected = tuple(s for s in SPEED_SENSORS if s in faulty)
+    first = next(k for k in range(start, end) if flags[k])
+    assert flags[first] == expected, "the first flag names exactly the faulty set"
+    if any(s.startswith("omega_r") for s in faulty):
+        assert first <= start + 3
+    else:  # the rotor-speed pair's sequential test must first say "healthy": 6 ticks at least, about 10 on average
+        assert start + 5 <= first <= start + 20
+    assert all(f == expected for f in flags[first:end])
     assert flags[end + 7] == (), "fault end recognised within 0.07 s (on the plant: 0.08 s, docs/turbine.md)"

@@ -28,14 +28,17 @@ evidence that its sensor is healthy again.
   ``isolation_confirm_alpha`` (default 0.05), the decision waits one more tick, up to ``isolation_patience``
   ticks beyond the deadline, with the explanations considered suspected (so the estimate already leaves them
   out): a first flag that names only part of the faulty set is a wrong isolation, and one more tick is cheaper.
-  The rotor-speed pair's summed difference (``arbitration``) casts doubt too, on an explanation that names no
-  rotor-speed sensor (a double fault's rotor-speed gain, which the UIOs see only as their states drift): while a bias
-  of the bias test's smallest design size on one of them is the likelier hypothesis (its log-likelihood ratio
-  Λ = m_d |Σd| − k m_d²/2 > 0, m_d = ``bias_shift``/√2 σ of the pair's difference), for at most the ticks a
-  sequential test at that size needs on average to reach the isolation level (Wald: ⌈2 ln(1/α_iso)/m_d²⌉ = 13);
-  once the sum's z passes the isolation level the decision is taken at once and the rotor-speed sensor whose
-  explanation's own observer has the smaller statistic joins the flag. A healthy pair doubts on the deadline with
-  probability 2Φ(−m_d √3/2) = 0.36, for a tick or two: the price of a first flag that names both halves.
+  The rotor-speed pair's summed difference (``arbitration``) judges an explanation that names no rotor-speed sensor
+  (a double fault's rotor-speed gain, which the UIOs see only as their states drift) by Wald's sequential test of
+  "both healthy" against "one biased by the bias test's smallest design size": Λ = m_d |Σd| − k m_d²/2 over the k
+  ticks since the isolation started, m_d = ``bias_shift``/√2 σ of the pair's difference. The decision waits while
+  −ln(1/α_confirm) < Λ < ln(2/α_iso), looked at on every tick: at the upper level the rotor-speed sensor whose
+  explanation's own observer has the smaller statistic joins the flag (a healthy pair ever gets there with
+  probability ≤ α_iso, however many ticks are looked at: Ville's inequality), at the lower one the explanation is
+  decided as it is (a rotor-speed bias of the design size ever gets there with probability ≤ α_confirm, larger ones
+  far less often). Λ falls by at most m_d²/2 = 0.56 a tick, so a generator-speed explanation waits 6 ticks at least,
+  about 10 on a healthy pair: the price of a first flag whose partial-set risk is bounded. An explanation naming a
+  frozen sensor is decided on one look (the sum's z beyond the isolation level).
 * **Persistent rotor-speed bias.** Beside the window tests, Page's CUSUMs (a bank of shifts ``bias_shift``·2^k,
   k < ``bias_bank``) on the parity of the two rotor-speed sensors' exclusion residuals against the generator-speed
   Kalman filter (``bias_test``; ``rotor_bias_test``, ``bias_shift``) flag a bias of 1–2 σ that the UIOs take for
@@ -287,15 +290,21 @@ class SpeedSensorFDI:
         self.deadline = np.full(n, -1, dtype=np.int64)  # tick at which a pending isolation is decided, −1 none
         self.started = np.zeros(n, dtype=np.int64)  # tick at which the pending isolation started
         self.arbiter = GeneratorArbiter(bank, n, iso, dt, fast)
-        # the rotor-speed pair's summed difference (``arbitration``) doubts an explanation that names no rotor-speed
-        # sensor (a double fault's rotor half, before the observers see it) while a bias of the smallest size the
-        # bias test is designed for (``bias_shift`` σ on one sensor, m_d σ_d of the pair's difference) is the likelier
-        # (its log-likelihood ratio Λ > 0), for at most the ticks a sequential test at that size needs on average to
-        # reach the isolation level (Wald: ln(1/α_iso) / (m_d²/2))
+        # the rotor-speed pair's summed difference (``arbitration``) judges an explanation that names no rotor-speed
+        # sensor by Wald's sequential test of "both healthy" against "one biased by the bias test's smallest design
+        # size" (``bias_shift`` σ on one sensor, m_d σ_d of the pair's difference), Λ = m_d |Σd| − k m_d²/2, looked at
+        # on every tick the isolation waits (``_rotor_pair_verdict``)
         rotor_sigma = math.sqrt(self.arbiter.rotor_variance) / self.arbiter.gear_ratio  # σ_r1, rad/s
         self.rotor_shift = settings.bias_shift * rotor_sigma / self.arbiter.parity_sigma
-        self.rotor_patience = math.ceil(2.0 * math.log(1.0 / iso) / self.rotor_shift**2)
         self.arbitration_ticks = round(settings.arbitration_s / dt)
+        # a rotor-speed sensor joins once Λ ≥ ln(2/α_iso): ½(e^Λ⁺ + e^Λ⁻) is a martingale of mean 1 on a healthy
+        # pair, so it ever gets there with probability ≤ α_iso however many ticks are looked at (Ville)
+        self.rotor_join_level = math.log(2.0 / iso)
+        # the pair is judged healthy once Λ ≤ −ln(1/α_confirm): a bias of at least the design size ever gets there
+        # with probability ≤ α_confirm (e^−Λ is a martingale under it), larger ones far less often
+        self.rotor_healthy_level = -math.log(1.0 / confirm)
+        # the longest the test may hold an isolation open: the generator-speed arbitration's
+        self.rotor_patience = self.arbitration_ticks
         self.provisional = np.zeros(n, dtype=np.int64)  # the pending isolation's current explanation
         self._pending = False  # whether any row has a pending isolation
         self._all_healthy = int(self.observer_of_mask[0])  # the observer that leaves nothing out
@@ -459,7 +468,7 @@ class SpeedSensorFDI:
                         continue
                     if (self.arbiter.log_ratio[row] > 0.0) != bool(explanation & _BITS[2]):
                         explanation = other
-                explanation = self._with_rotor_pair(row, explanation, isolate[i])
+                explanation = self._with_rotor_pair(row, explanation, isolate[i], frozen)
                 self.flagged[row] = explanation
                 self.deadline[row] = -1
                 self.provisional[row] = explanation
@@ -483,13 +492,12 @@ class SpeedSensorFDI:
 
         * while ``waited`` < ``patience``, when a witness fails the laxer confirmation level
           ``isolation_confirm_alpha``: evidence of a further fault that has not yet grown enough to reject it;
-        * while ``waited`` < ``rotor_patience``, when the explanation names no rotor-speed sensor, the rotor-speed
-          pair does not yet disagree at the isolation level (``_with_rotor_pair`` would add one) and a bias of the
-          bias test's smallest design size on one of them is the likelier (Λ > 0, ``arbitration.rotor_log_ratio``):
-          a rotor-speed gain beside a generator-speed fault shows in the pair's difference from its first tick but
-          in the UIOs only as their states drift, so that flagging now would name a part of the faulty set first.
-          Not for an explanation that names a ``frozen`` sensor: it is decided on the tick the frozen test fires,
-          when the pair's sum holds a tick or two and Λ says little."""
+        * while ``waited`` < ``rotor_patience``, when the explanation names no rotor-speed sensor and the rotor-speed
+          pair's sequential test has not yet decided (``_rotor_pair_verdict`` 0): a rotor-speed gain beside a
+          generator-speed fault shows in the pair's difference from its first tick but in the UIOs only as their
+          states drift, so that flagging before the test says "healthy" would name a part of the faulty set first,
+          and joining before it says "biased" would name a healthy sensor. Not for an explanation that names a
+          ``frozen`` sensor: it is decided on the tick the frozen test fires."""
         j = self.observer_of_mask[explanation]
         if j < 0 or self.ambiguous[row]:
             return False
@@ -497,19 +505,33 @@ class SpeedSensorFDI:
             not explanation & _ROTOR_BITS
             and not explanation & frozen
             and waited < self.rotor_patience
-            and not self.arbiter.rotor_disagree[row]
-            and self.arbiter.rotor_log_ratio(self.rotor_shift)[row] > 0.0
+            and self._rotor_pair_verdict(row) == 0
         ):
             return True
         return waited < patience and bool((self.witnesses[j] * confirm).max() > 1.0)
 
-    def _with_rotor_pair(self, row: int, explanation: int, own: np.ndarray) -> int:
-        """The explanation with a rotor-speed sensor added where it names none and the two rotor-speed sensors
-        disagree at the isolation level (their summed difference, ``arbitration``): a rotor-speed gain of a few
-        percent shows in the pair's difference from the fault's first tick, while the UIOs see it only as their
-        states drift from it, after the generator-speed half of a double fault has been decided. Of the two, the
-        one whose explanation's own observer has the smaller statistic (``own``, at the isolation level)."""
-        if explanation & _ROTOR_BITS or not self.arbiter.rotor_disagree[row]:
+    def _rotor_pair_verdict(self, row: int) -> int:
+        """The rotor-speed pair's sequential test on ``row`` since its isolation started (``arbitration``:
+        Λ = m_d |Σd| − k m_d²/2, d = (y_r1 − y_r2)/σ_d): +1 when Λ ≥ ``rotor_join_level`` (one of them is biased; a
+        healthy pair gets there with probability ≤ α_iso over any number of looks), −1 when Λ ≤
+        ``rotor_healthy_level`` (both healthy; a bias of the design size gets there with probability
+        ≤ ``isolation_confirm_alpha``), 0 while the evidence is between the two."""
+        evidence = float(self.arbiter.rotor_log_ratio(self.rotor_shift)[row])
+        if evidence >= self.rotor_join_level:
+            return 1
+        return -1 if evidence <= self.rotor_healthy_level else 0
+
+    def _with_rotor_pair(self, row: int, explanation: int, own: np.ndarray, frozen: int = 0) -> int:
+        """The explanation with a rotor-speed sensor added where it names none and the rotor-speed pair's
+        sequential test says one of them is biased (``_rotor_pair_verdict`` +1): a rotor-speed gain of a few percent
+        shows in the pair's difference from the fault's first tick, while the UIOs see it only as their states drift
+        from it. An explanation naming a ``frozen`` sensor is decided on the frozen test's tick, one look at the
+        pair's sum: there the sum's z beyond the isolation's two-sided level suffices (``arbitration``). Of the two,
+        the one whose explanation's own observer has the smaller statistic (``own``, at the isolation level)."""
+        if explanation & _ROTOR_BITS:
+            return explanation
+        one_look = bool(explanation & frozen) and bool(self.arbiter.rotor_disagree[row])
+        if not one_look and self._rotor_pair_verdict(row) <= 0:
             return explanation
         candidates = [explanation | _BITS[r] for r in ROTOR if self.observer_of_mask[explanation | _BITS[r]] >= 0]
         if not candidates:
