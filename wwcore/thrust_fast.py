@@ -51,8 +51,9 @@ def interp(x, xp, fp):
 
 
 @kernel
-def _np_maximum(a, b):
-    """np.maximum of two floats: nan if either is nan; b where they are equal (signed zeros)."""
+def np_maximum(a, b):
+    """np.maximum of two floats as numpy's SIMD loop gives it: nan if either is nan, ``b`` where they are equal
+    (signed zeros)."""
     if a != a:
         return a
     if b != b:
@@ -61,8 +62,9 @@ def _np_maximum(a, b):
 
 
 @kernel
-def _np_minimum(a, b):
-    """np.minimum of two floats: nan if either is nan; b where they are equal (signed zeros)."""
+def np_minimum(a, b):
+    """np.minimum of two floats as numpy's SIMD loop gives it: nan if either is nan, ``b`` where they are equal
+    (signed zeros)."""
     if a != a:
         return a
     if b != b:
@@ -76,10 +78,10 @@ def thrust_front(tsr, pitch_deg, lam, upper, f, knee, u, x):
     features' transcendental functions: β/β_h into f[1], β·DEG into f[3], β/w_k − β_k/w_k into ``knee``; u = 1/λ
     and x = u − x_ref. All (m,) but f (6, m)."""
     for i in range(tsr.size):
-        up = _np_minimum(tsr[i], TSR_MAX)
+        up = np_minimum(tsr[i], TSR_MAX)
         upper[i] = up
-        lam[i] = _np_maximum(up, TSR_MIN)
-        beta = _np_minimum(_np_maximum(pitch_deg[i], PITCH_MIN_DEG), PITCH_MAX_DEG)
+        lam[i] = np_maximum(up, TSR_MIN)
+        beta = np_minimum(np_maximum(pitch_deg[i], PITCH_MIN_DEG), PITCH_MAX_DEG)
         f[0, i] = 1.0
         f[1, i] = beta * _INV_BETA_H
         f[3, i] = beta * DEG
@@ -106,7 +108,7 @@ def thrust_back(lam, upper, u, x, e, g, cp_max, out):
         q = (g[0, i] * x[i] + g[1, i]) * u[i] + g[5, i]
         cq = q * e[i] + g[2, i] + lam[i] * (g[3, i] + lam[i] * g[4, i])
         cp = upper[i] * cq
-        h = _np_minimum(_np_maximum(THRUST_LOADING_K * cp / cp_max, 0.0), H_MAX)
+        h = np_minimum(np_maximum(THRUST_LOADING_K * cp / cp_max, 0.0), H_MAX)
         out[i] = interp(h, _H_GRID, _CT_GRID)
 
 

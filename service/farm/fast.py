@@ -25,7 +25,7 @@ from numba.extending import intrinsic
 from wwcore.aero_fast import _newton, maximum, minimum, pitch_features
 from wwcore.farm_frames import CANCEL_3P_MODE, DEBRIS_MODE, DERATED_MODE, PITCH_TRIM_MODE
 from wwcore.jit import kernel
-from wwcore.thrust_fast import interp
+from wwcore.thrust_fast import interp, np_maximum, np_minimum
 
 
 @kernel
@@ -257,26 +257,6 @@ def analytic_learn(residuals, rate, last_rate, amplitude, settling, tests, level
 
 
 # -- the available power (eqs. (20)–(22)) and the dispatch (eqs. (18)–(26)) ------------------------------------
-
-
-@kernel
-def np_maximum(a, b):
-    """np.maximum of two floats as numpy's SIMD loop gives it: nan if either is nan, ``b`` where they are equal."""
-    if a != a:
-        return a
-    if b != b:
-        return b
-    return a if a > b else b
-
-
-@kernel
-def np_minimum(a, b):
-    """np.minimum of two floats as numpy's SIMD loop gives it: nan if either is nan, ``b`` where they are equal."""
-    if a != a:
-        return a
-    if b != b:
-        return b
-    return a if a < b else b
 
 
 @kernel
