@@ -359,7 +359,9 @@ def test_the_lockin_kernel_equals_the_reference():
     """``LockIn3P`` with ``service.farm.fast.lockin_step`` against its numpy lines (numpy's complex products with
     fused multiply-adds, its complex ``abs`` and ``exp``, ``np.mod``): 1 to 45 signals over 3 000 samples, tones,
     noise and steps, rotors from standstill (|ρ| clipped at its bound) to above rated; A, Ã and every state equal
-    to the last bit."""
+    within ``RTOL`` of their scale. On the development machine (AVX-512) they are equal to the last bit; numpy's
+    complex loops differ between CPUs (fused multiply-adds, the SIMD ``abs``), so the test asks for the tolerance
+    every compiled twin is held to, which a wrong formula misses by many orders."""
     fast = fast_module("service.farm.fast")
     rng = np.random.default_rng(SEED)
     bounded = 0
@@ -371,10 +373,11 @@ def test_the_lockin_kernel_equals_the_reference():
             speed = np.abs(omega + rng.normal(0.0, 0.05, n)) * (0.05 if 2000 < k < 2500 else 1.0)
             phase += 3.0 * speed * 0.1
             x = rng.normal(0.0, 0.3, n) + 0.4 * np.sin(phase) * (k > 1000) + 5.0 * (k % 700 == 5)
-            np.testing.assert_array_equal(twin.step(x, speed), reference.step(x, speed), f"{n} {k}: A")
+            assert_close(twin.step(x, speed), reference.step(x, speed), f"{n} {k}: A")
             for name in ("whitened", "phase", "i", "q", "mean", "w"):
-                a, b = getattr(twin, name), getattr(reference, name)
-                np.testing.assert_array_equal(a.view(np.int64), b.view(np.int64), f"{n} {k}: {name}")
-            assert twin.v == reference.v
+                a, b = np.asarray(getattr(twin, name)), np.asarray(getattr(reference, name))
+                assert_close(a.real, b.real, f"{n} {k}: {name}")
+                assert_close(a.imag, b.imag, f"{n} {k}: {name} (imaginary part)")
+            assert_close(np.asarray(twin.v), np.asarray(reference.v), f"{n} {k}: v")
             bounded += int(np.sum(np.abs(reference.w / reference.v) > MAX_IMPROPERNESS))
     assert bounded > 100  # the whitening's bound on |ρ| acted
