@@ -214,11 +214,11 @@ class GeneratorArbiter:
         N(0, 1) in magnitude while both are healthy (0 before anything is summed)."""
         return np.abs(self.parity) / (self.parity_sigma * np.sqrt(np.maximum(self.count, 1.0)))
 
-    def rotor_log_ratio(self, shift: float) -> np.ndarray:
-        """(n,) Λ = shift·|Σd| − k·shift²/2, d = (y_r1 − y_r2)/σ_d over the k ticks summed: the log-likelihood ratio of
-        "one rotor-speed sensor is biased by ±shift σ_d of their difference" (the sign that fits) against "both
-        are healthy" (0 before anything is summed)."""
-        return shift * np.abs(self.parity) / self.parity_sigma - 0.5 * shift**2 * self.count
+    def rotor_log_ratio(self, shift: float, rows=slice(None)) -> np.ndarray:
+        """Λ = shift·|Σd| − k·shift²/2 of ``rows`` (all: (n,); one row index: a scalar), d = (y_r1 − y_r2)/σ_d over
+        the k ticks summed: the log-likelihood ratio of "one rotor-speed sensor is biased by ±shift σ_d of their
+        difference" (the sign that fits) against "both are healthy" (0 before anything is summed)."""
+        return shift * np.abs(self.parity[rows]) / self.parity_sigma - 0.5 * shift**2 * self.count[rows]
 
     @property
     def rotor_disagree(self) -> np.ndarray:
