@@ -16,6 +16,7 @@ import numpy as np
 import pytest
 
 import plant_sim.wind
+from plant_sim.farm import FarmBatch
 from service.farm.analytic import AnalyticDetector
 from service.farm.baseline import LearntLevel
 from service.farm.dispatch import Dispatch
@@ -432,7 +433,18 @@ def test_the_noise_draws_equal_numpys():
     for name in ("farm-case1", "farm-case1-mismatch"):
         blocks = {}
         for backend in ("numpy", "numba"):
-            plant, _ = farm_pair(name, 2, SEED, True, backend, 5.0)
+            scenario = load_scenario(name)
+            plant = FarmBatch(
+                scenario.plant,
+                scenario.wind,
+                scenario.faults,
+                seed=SEED,
+                duration_s=5.0,
+                runs=[0, 1],
+                fault_free_twins=True,
+                mismatch=scenario.mismatch,
+                backend=backend,
+            )
             plant.turbines._draw_noise()
             first = plant.turbines._draws.copy()
             plant.turbines._draw_noise()  # the next block: the streams' states followed on
