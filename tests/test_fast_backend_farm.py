@@ -458,8 +458,10 @@ def test_the_noise_draws_equal_numpys():
 
 def test_the_power_phasor_kernel_equals_the_controllers():
     """``plant_sim.farm.fast.phasor_power`` against ``FarmTurbineController._extra_power`` (numpy's complex ``exp``
-    and product) on random phasors, rates and ages: equal to the last bit (a product without the fused multiply-add
-    differs on about a quarter of them)."""
+    and product) on random phasors, rates and ages, within ``RTOL`` of their scale. On the development machine
+    (AVX-512) they are equal to the last bit, where a product without the fused multiply-add differs on about a
+    quarter of them; numpy's complex loops differ between CPUs, so the test asks for the tolerance every compiled
+    twin is held to, which a wrong formula misses by many orders."""
     fast = fast_module("plant_sim.farm.fast")
     rng = np.random.default_rng(SEED)
     n = 20_000
@@ -477,4 +479,4 @@ def test_the_power_phasor_kernel_equals_the_controllers():
         expected = controller._extra_power(k)
         got = np.empty(n)
         fast.phasor_power(phasor.real.copy(), phasor.imag.copy(), rate, age, got)
-        np.testing.assert_array_equal(got, expected)
+        assert_close(got, expected, "Re{C e^{jω age}}")
