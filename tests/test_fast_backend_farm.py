@@ -16,6 +16,7 @@ import numpy as np
 import pytest
 
 import plant_sim.wind
+from plant_sim.farm import FarmBatch
 from service.farm.analytic import AnalyticDetector
 from service.farm.baseline import LearntLevel
 from service.farm.dispatch import Dispatch
@@ -95,12 +96,15 @@ def farm_with_early_faults() -> dict:
     return data
 
 
-@pytest.mark.parametrize("name", ["early-faults", "farm-3x3-veer"])  # FLORIS wakes; a moving direction, rows
+@pytest.mark.parametrize("name", ["early-faults", "cancel-phasor", "farm-3x3-veer"])  # FLORIS wakes; moving, rows
 def test_a_farm_sample_at_a_time_equals_the_numpy_ticks(name, monkeypatch):
     """``FarmBatch.run_sample`` with the compiled backend (``sub_steps`` for a sample's common ticks, the calls for
     the rest) against the numpy reference stepped tick by tick: every tick's state, power and shaft torque, every
-    sample's frame and references, the events; with fault-free twins (their noise is their run's)."""
-    scenario = parse_scenario(farm_with_early_faults()) if name == "early-faults" else load_scenario(name)
+    sample's frame and references, the events; with fault-free twins (their noise is their run's). "cancel-phasor"
+    adds the 3P cancellation and a power phasor to the references (``trimmed``) while the drive-train wear acts:
+    the samples with the wear's torque pair, the cancellation and the phasor are compiled too."""
+    early = name in ("early-faults", "cancel-phasor")
+    scenario = parse_scenario(farm_with_early_faults()) if early else load_scenario(name)
     if name == "farm-3x3-veer":  # turbulence chunks of 5 s instead of 20: three start inside the 20 s
         monkeypatch.setattr(plant_sim.wind, "CHUNK_SAMPLES", 100)
     ticks = round(20.0 / BENCHMARK.dt)
@@ -108,10 +112,10 @@ def test_a_farm_sample_at_a_time_equals_the_numpy_ticks(name, monkeypatch):
     for backend in ("numpy", "numba"):
         plant, supervisor = farm_pair(scenario, 1, SEED, True, backend, 20.0)  # 20 s of one run and its twin
         # the wakes' step compiled at a fixed direction (``wake_step``), numpy's along a moving one
-        assert (plant.wakes._fast is not None) == (backend == "numba" and name == "early-faults")
-        compiled = []
+        assert (plant.wakes._fast is not None) == (backend == "numba" and early)
+        compiled, acting = [], []
         if backend == "numba":
-            monkeypatch.setattr(plant, "_sub_steps_apply", recording(plant._sub_steps_apply, compiled))
+            monkeypatch.setattr(plant, "_sub_steps_apply", recording(plant._sub_steps_apply, compiled, plant, acting))
         per_tick, samples, refs = [], [], None
         if backend == "numpy":  # the reference: the step contract's calls, tick by tick
             for _ in range(ticks):
@@ -135,8 +139,10 @@ def test_a_farm_sample_at_a_time_equals_the_numpy_ticks(name, monkeypatch):
             # one starts, ends or needs the per-tick code; a sample that starts a noise block (t = 10 s) or a
             # turbulence chunk (every 5 s on the moving direction's farm) has it made ahead and is compiled
             calls = compiled.count(False)
-            assert (calls > 2) if name == "early-faults" else (calls == 1 and len(compiled) == 200)
-            assert (plant.controller.pitch_trim is not None) == (name == "early-faults")  # the trims were taken
+            assert (2 < calls < 10) if early else (calls == 1 and len(compiled) == 200)
+            assert (plant.controller.pitch_trim is not None) == early  # the trims were taken
+            if name == "cancel-phasor":  # compiled samples ran the cancellation, the phasor and the wear's pair
+                assert {"cancel", "phasor", "wear"} <= set(acting)
         events = [(e.t, e.type, e.turbine, e.run) for e in plant.drain_events() + supervisor.drain_events()]
         traces[backend] = np.array(per_tick), np.array(samples), events, plant.truth()
     fast, reference = traces["numba"], traces["numpy"]
@@ -149,20 +155,39 @@ def test_a_farm_sample_at_a_time_equals_the_numpy_ticks(name, monkeypatch):
 
 
 def trimmed(refs, name: str):
-    """``refs`` with a pitch trim on turbine 3's first blade from 5 s on (the early-faults farm only), as a farm
-    supervisor's pitch accommodation would send it: the trim reaches the pitch commands inside the compiled sample."""
-    if name != "early-faults" or refs is None or refs.source_tick < 500:
+    """``refs`` with a pitch trim on turbine 3's first blade from 5 s on (the early-faults farms), as a farm
+    supervisor's pitch accommodation would send it: the trim reaches the pitch commands inside the compiled sample.
+    "cancel-phasor" also asks turbines 5 and 6 for the 3P cancellation from 3 s to 14 s (it then fades out) and
+    turbines 2 and 6 for a power phasor from 4 s to 15 s, as a drive-train accommodation would."""
+    if name not in ("early-faults", "cancel-phasor") or refs is None or refs.source_tick < 300:
         return refs
-    trim = np.zeros((len(refs.power_ref), 3))
+    n, tick = len(refs.power_ref), refs.source_tick
+    if name == "cancel-phasor" and tick < 1400:
+        cancel = np.zeros(n, dtype=bool)
+        cancel[4::9] = cancel[5::9] = True
+        refs = replace(refs, cancel_3p=cancel)
+    if name == "cancel-phasor" and 400 <= tick < 1500:
+        power = np.zeros(n, dtype=complex)
+        power[1::9], power[5::9] = 2.0e4 * np.exp(0.3j), -1.5e4 + 7.0e3j
+        refs = replace(refs, ripple_power=power, ripple_rate=np.full(n, 3.0 * 1.267 + 0.01 * tick / 1400))
+    if tick < 500:
+        return refs
+    trim = np.zeros((n, 3))
     trim[2::9, 0] = 0.25
     return replace(refs, pitch_trim=trim)
 
 
-def recording(method, answers: list):
-    """``method`` that also appends each answer to ``answers``."""
+def recording(method, answers: list, plant=None, acting: list | None = None):
+    """``method`` that also appends each answer to ``answers``; with ``plant``, what acts in each compiled sample
+    to ``acting`` (the 3P cancellation, a power phasor, the drive-train wear's torque pair)."""
 
     def recorded(*args):
         answers.append(method(*args))
+        if plant is not None and answers[-1]:
+            c, tb = plant.controller, plant.turbines
+            acting.extend(["cancel"] * (c.cancel_3p and (c._ripple_running or c._any_asked)))
+            acting.extend(["phasor"] * (c._extra is not None))
+            acting.extend(["wear"] * (tb.faults.mesh_active or tb._error_active))
         return answers[-1]
 
     return recorded
@@ -381,3 +406,77 @@ def test_the_lockin_kernel_equals_the_reference():
             assert_close(np.asarray(twin.v), np.asarray(reference.v), f"{n} {k}: v")
             bounded += int(np.sum(np.abs(reference.w / reference.v) > MAX_IMPROPERNESS))
     assert bounded > 100  # the whitening's bound on |ρ| acted
+
+
+def test_the_noise_draws_equal_numpys():
+    """``wwcore.random_fast``: a compiled loop of ``Generator.standard_normal`` gives numpy's numbers for the same
+    generator, in the same order, and leaves its state where numpy's call does (so the next block's draws follow on),
+    the ziggurat's tail branch included (|x| beyond its last layer, 3.654…, on 2 million draws per seed); the scaled
+    block equals the draws times σ; and a farm batch's noise block is the numpy reference's with and without a
+    ``[mismatch]`` noise scale (σ per row)."""
+    random_fast = fast_module("wwcore.random_fast")
+    scale = np.array([0.5, 2.0, 1e-3, 90.0])
+    for seed in (SEED, 1, 2):
+        reference, compiled = np.random.default_rng(seed), np.random.default_rng(seed)
+        expected = reference.standard_normal(2_000_000)
+        got = np.empty(2_000_000)
+        random_fast.standard_normals(compiled, got)
+        np.testing.assert_array_equal(got, expected)
+        assert np.abs(expected).max() > 3.6541528853610088  # the tail was drawn
+        assert compiled.bit_generator.state == reference.bit_generator.state
+        block, scaled = np.empty((1000, scale.size)), np.empty((1000, scale.size))
+        reference.standard_normal(out=block)
+        block *= scale
+        random_fast.scaled_normals(compiled, scaled, scale)
+        np.testing.assert_array_equal(scaled, block)
+        assert compiled.bit_generator.state == reference.bit_generator.state
+    for name in ("farm-case1", "farm-case1-mismatch"):
+        blocks = {}
+        for backend in ("numpy", "numba"):
+            scenario = load_scenario(name)
+            plant = FarmBatch(
+                scenario.plant,
+                scenario.wind,
+                scenario.faults,
+                seed=SEED,
+                duration_s=5.0,
+                runs=[0, 1],
+                fault_free_twins=True,
+                mismatch=scenario.mismatch,
+                backend=backend,
+            )
+            plant.turbines._draw_noise()
+            first = plant.turbines._draws.copy()
+            plant.turbines._draw_noise()  # the next block: the streams' states followed on
+            blocks[backend] = first, plant.turbines._draws.copy()
+        assert blocks["numba"][0].shape == (18, plant.turbines.noise_chunk, 13)
+        assert plant.turbines.sigma.ndim == (3 if name.endswith("mismatch") else 1)  # σ per row, or one per sensor
+        for got, expected in zip(blocks["numba"], blocks["numpy"], strict=True):
+            np.testing.assert_array_equal(got, expected, name)
+        assert not np.array_equal(blocks["numpy"][0], blocks["numpy"][1])
+
+
+def test_the_power_phasor_kernel_equals_the_controllers():
+    """``plant_sim.farm.fast.phasor_power`` against ``FarmTurbineController._extra_power`` (numpy's complex ``exp``
+    and product) on random phasors, rates and ages, within ``RTOL`` of their scale. On the development machine
+    (AVX-512) they are equal to the last bit, where a product without the fused multiply-add differs on about a
+    quarter of them; numpy's complex loops differ between CPUs, so the test asks for the tolerance every compiled
+    twin is held to, which a wrong formula misses by many orders."""
+    fast = fast_module("plant_sim.farm.fast")
+    rng = np.random.default_rng(SEED)
+    n = 20_000
+    controller = farm_pair("farm-case1", 1, SEED, False, "numpy", 2.0)[0].controller
+    controller.n = n
+    for _ in range(5):
+        phasor = (rng.standard_normal(n) + 1j * rng.standard_normal(n)) * 10.0 ** rng.uniform(2, 5)
+        rate = rng.uniform(1.0, 6.0, n)
+        since, k = rng.uniform(0.0, 100.0), int(rng.integers(10_000, 20_000))
+        controller._extra = (phasor, rate, since)
+        age = (k + 0.5) * BENCHMARK.dt - since
+        if age > 0.5:  # within the phasor's life: k moved to a tick after t_0
+            k = int(since / BENCHMARK.dt) + 10
+            age = (k + 0.5) * BENCHMARK.dt - since
+        expected = controller._extra_power(k)
+        got = np.empty(n)
+        fast.phasor_power(phasor.real.copy(), phasor.imag.copy(), rate, age, got)
+        assert_close(got, expected, "Re{C e^{jω age}}")

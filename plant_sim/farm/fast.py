@@ -20,7 +20,7 @@ import math
 import numpy as np
 
 from plant_sim.turbine.fast import _blade_features, _blade_torques, readings, step_inputs
-from wwcore.aero_fast import maximum, minimum
+from wwcore.aero_fast import fma, maximum, minimum
 from wwcore.jit import kernel
 from wwcore.thrust_fast import thrust_coefficient  # noqa: F401 (the wakes' C_T, ``TableWakes.advance``)
 
@@ -99,6 +99,15 @@ def ramp(power_ref, target, step, ticks, out):
 
 
 @kernel
+def phasor_power(lead_re, lead_im, rate, age, out):
+    """Re{C e^{jω age}} (``FarmTurbineController._extra_power``) into ``out``: numpy's ``exp`` of the imaginary
+    jω·age is (cos, sin) of ω·age, and the real part of its complex product with C = a + jb is fma(a, cos, −b sin)."""
+    for r in range(out.size):
+        turn = rate[r] * age
+        out[r] = fma(lead_re[r], math.cos(turn), -(lead_im[r] * math.sin(turn)))
+
+
+@kernel
 def sub_steps(
     x,
     shared,
@@ -116,6 +125,9 @@ def sub_steps(
     states,
     power,
     shaft,
+    mesh,
+    cancel,
+    extra,
 ):
     """Ticks k … k + T − 1 of the farm plant inside one farm sample, its wakes moved on already: per tick the
     turbines' wind (``blade_winds``), blade torques (``plant_sim.turbine.fast.blade_torques``), readings with the
@@ -135,7 +147,16 @@ def sub_steps(
     y, pitch error, quantities, ω_g read, damper torque) of the last tick and ``frame`` = (τ_g,r, β_ref, P_r,
     zone) its frame carries (the controller's before the tick's control). ``states`` (T, n, 11) receives x at
     each tick, ``power`` (T, n) P_g = η_gc f_P ω_g τ_g, and ``shaft`` = (out (T, n), K_dt f_K, B_dt f_B, N_g),
-    unless None, the shaft torque K θ_Δ + B (ω_r − ω_g/N_g). ``x`` (in place) ends at tick k + T."""
+    unless None, the shaft torque K (θ_Δ − e(ψ)) + B (ω_r − ω_g/N_g). ``x`` (in place) ends at tick k + T.
+
+    The three the controller and the faults may add, each acting where its flag says (``TurbineBatch.advance``,
+    ``FarmTurbineController.step``, ``_ripple``, ``_extra_power``, the same operations): ``mesh`` = (flags [mesh
+    active, error active (updated)], e stage, e level (both in place), e_0, K_dt f_K, η_dt, Γ_ext (n, mechanical
+    states), (Δt/T_onset, N_g, ½Δt)), the drive-train wear's torque pair; ``cancel`` = (flags [cancel 3P, asked,
+    running (updated)], SOGI states (4, n), ω̄ mean, engagement, age (the last three in place), asked level, τ_ripple
+    (out), (Δt, Δt/T_mean, 3/N_g, T_narrow, k_SOGI, k_track − k_SOGI, Δt/T_engage, −J_g, η_gc)), the 3P
+    cancellation; ``extra`` = (flags [on], Re C, Im C, ω, (first tick k, Δt, t_0, η_gc), P_extra (out)), the power
+    phasor Re{C e^{jω(t − t_0)}} (numpy's complex product, with fused multiply-adds)."""
     table, slope, per_rad, offsets, base, hub, u3, vm, offset_now, offset_step, first_j, first_m = wind
     m_t, blade_gain, pitch_offset, radius = aero
     draws, first_noise, power_gain, pick, bias, beta_m1, beta_m2, torque_offset, omega_col, power_col = sensors
@@ -144,6 +165,12 @@ def sub_steps(
     scada_sum, power_ref_sum = sums
     blades, hub_out, mean_out, torque, tau_aero, y, pitch_error, quantities, omega_g, damper = last
     frame_tau_g, frame_beta, frame_power_ref, frame_zone = frame
+    mesh_flags, stage, level, error_target, stiffness_e, eta_dt, gamma_ext, mesh_consts = mesh
+    onset_gain, n_g_mesh, half_dt = mesh_consts
+    cancel_flags, ripple_state, ripple_mean, ripple_on, ripple_age, asked_level, ripple_torque, ripple_consts = cancel
+    r_dt, mean_gain, w3_gain, narrow_s, sogi_gain, track_step, engage_rate, minus_j_g, eta_gc = ripple_consts
+    extra_on, lead_re, lead_im, extra_rate, extra_consts, extra_power = extra
+    extra_k0, extra_dt, extra_since, extra_eta_gc = extra_consts
     n, n_states = x.shape
     own = draws.shape[0]  # rows with their own noise stream; twin rows repeat their run's
     azimuth, omega_r, p_g_m = np.empty(n), np.empty(n), np.empty(n)
@@ -151,7 +178,9 @@ def sub_steps(
     tsr, lam, f = np.empty(3 * n), np.empty(3 * n), np.empty((6, 3 * n))
     noise = np.empty((n, pick.size))
     base_torque = np.empty(n)
+    omega_raw, pair = np.empty(n), np.empty(n)
     z = np.empty((n, shared.shape[0]))
+    n_mech = gamma_ext.shape[1]
     for i in range(states.shape[0]):
         j = first_j + i
         for r in range(n):
@@ -165,7 +194,8 @@ def sub_steps(
         if shaft is not None:
             stiffness, damping, n_g = shaft[1], shaft[2], shaft[3]
             for r in range(n):
-                shaft[0][i, r] = stiffness[r] * x[r, 2] + damping[r] * (x[r, 0] - x[r, 1] / n_g)
+                twist = x[r, 2] - level[r] * math.cos(3.0 * x[r, 4]) if mesh_flags[1] else x[r, 2]
+                shaft[0][i, r] = stiffness[r] * twist + damping[r] * (x[r, 0] - x[r, 1] / n_g)
         fields = (base[j], hub[j], u3[j], vm[j])
         blade_winds(
             azimuth,
@@ -195,13 +225,64 @@ def sub_steps(
             frame_beta[r] = beta_ref[r]
             frame_power_ref[r] = now[r]
             frame_zone[r] = zone[r]
-            omega_g[r] = y[r, omega_col]
+            omega_raw[r] = y[r, omega_col]
+            omega_g[r] = omega_raw[r]
             p_g_m[r] = y[r, power_col]
+        cancelling = cancel_flags[0] != 0 and (cancel_flags[2] != 0 or cancel_flags[1] != 0)
+        if cancelling:  # ``_ripple``: the 3P filter, its engagement and τ_ripple; the laws read ω_g,m without them
+            if cancel_flags[2] == 0:  # started from the filter's steady state for a constant speed
+                ripple_state[:, :] = 0.0
+                for r in range(n):
+                    ripple_mean[r] = omega_raw[r]
+                cancel_flags[2] = 1
+            running = False
+            for r in range(n):
+                w = omega_raw[r]
+                ripple_mean[r] = ripple_mean[r] + (w - ripple_mean[r]) * mean_gain
+                w3 = w3_gain * maximum(w, 1.0)
+                narrowed = minimum(ripple_age[r] / narrow_s, 1.0)
+                kw = (sogi_gain + track_step * narrowed) * w3
+                v1 = ripple_state[0, r] + r_dt * (
+                    kw * ((w - ripple_mean[r]) - ripple_state[0, r]) - w3 * ripple_state[1, r]
+                )
+                q1 = ripple_state[1, r] + r_dt * w3 * v1
+                dv2 = kw * (v1 - ripple_state[2, r]) - w3 * ripple_state[3, r]
+                v2 = ripple_state[2, r] + r_dt * dv2
+                q2 = ripple_state[3, r] + r_dt * w3 * v2
+                ripple_state[0, r], ripple_state[1, r], ripple_state[2, r], ripple_state[3, r] = v1, q1, v2, q2
+                on = minimum(maximum(asked_level[r], ripple_on[r] - engage_rate), ripple_on[r] + engage_rate)
+                ripple_on[r] = on
+                ripple_age[r] = ripple_age[r] + r_dt if (on > 0.0 or asked_level[r] > 0.0) else 0.0
+                ripple_torque[r] = minus_j_g * on * dv2
+                running = running or on != 0.0
+                omega_g[r] = w - on * v2
+                p_g_m[r] = p_g_m[r] - (eta_gc * w) * ripple_torque[r]
+            cancel_flags[2] = 1 if running else 0
+        if extra_on[0]:  # ``_extra_power``: Re{C e^{jω age}}, taken at the tick's middle
+            age = ((extra_k0 + i) + 0.5) * extra_dt - extra_since
+            phasor_power(lead_re, lead_im, extra_rate, age, extra_power)
+            for r in range(n):
+                p_g_m[r] = p_g_m[r] - extra_power[r]
         state = (zone, integrator, beta_ref, bp_state, damper, base_torque)
-        control(omega_g, omega_g, p_g_m, state, (power_refs[i], setpoints[i], hysteresis[i], hold), consts)
+        control(omega_g, omega_raw, p_g_m, state, (power_refs[i], setpoints[i], hysteresis[i], hold), consts)
         for r in range(n):
             tau_g_ref[r] = base_torque[r] + damper[r]
+            if cancelling:
+                tau_g_ref[r] = tau_g_ref[r] + ripple_torque[r]
+            if extra_on[0]:
+                tau_g_ref[r] = tau_g_ref[r] + extra_power[r] / (extra_eta_gc * maximum(omega_raw[r], 1.0))
         step_inputs(x, tau_aero, tau_g_ref, torque_offset, beta_ref, pitch_error, z)
+        meshing = mesh_flags[0] != 0 or mesh_flags[1] != 0
+        if meshing:  # drive-train wear: the torque pair K_dt e(ψ) at the step's mid-azimuth (``advance``)
+            residue = False
+            for r in range(n):
+                stage[r] = stage[r] + (error_target[r] - stage[r]) * onset_gain
+                level[r] = level[r] + (stage[r] - level[r]) * onset_gain
+                residue = residue or (abs(level[r]) + abs(stage[r])) > 1e-9
+                mid_step = x[r, 4] + half_dt * x[r, 0]
+                pair[r] = stiffness_e[r] * level[r] * math.cos(3.0 * mid_step)
+                z[r, n_states] = tau_aero[r] + pair[r]
+            mesh_flags[1] = 1 if (mesh_flags[0] != 0 or residue) else 0
         if pitch_add is not None:
             for r in range(n):
                 for b in range(3):
@@ -211,6 +292,11 @@ def sub_steps(
                 for b in range(3):
                     z[r, n_states + 2 + b] = z[r, n_states + 2 + b] + trim[r, b]
         x[:, :] = z @ shared
+        if meshing:
+            for r in range(n):
+                tau_ext = -eta_dt[r] * pair[r] / n_g_mesh
+                for c in range(n_mech):
+                    x[r, c] = x[r, c] + gamma_ext[r, c] * tau_ext
 
 
 @kernel

@@ -30,13 +30,22 @@ from pathlib import Path
 import numpy as np
 from scipy import signal
 
-from plant_sim.farm.controller import FarmTurbineController, speed_setpoint
+from plant_sim.farm.controller import (
+    EXTRA_MAX_AGE_S,
+    RIPPLE_ENGAGE_S,
+    RIPPLE_MEAN_S,
+    RIPPLE_NARROW_S,
+    RIPPLE_SOGI_GAIN,
+    RIPPLE_TRACK_GAIN,
+    FarmTurbineController,
+    speed_setpoint,
+)
 from plant_sim.farm.direction import DirectionSeries
 from plant_sim.farm.wakes import TableWakes, plant_wake_tables
 from plant_sim.farm.wind import _THIRDS, HISTORY_S, MIN_MEAN_WIND, FarmWakes, FarmWindField, MastSeries, RowWakes
 from plant_sim.turbine import TurbineBatch
 from plant_sim.turbine.dynamics import N_STATES, OMEGA_G, OMEGA_R, PITCH, TAU_G, THETA
-from plant_sim.turbine.plant import _BETA_M1, _BETA_M2, _OMEGA_G_M1, _P_G_M, _PICK, row_streams
+from plant_sim.turbine.plant import _BETA_M1, _BETA_M2, _OMEGA_G_M1, _P_G_M, _PICK, ERROR_ONSET_S, row_streams
 from plant_sim.turbine.trim import PlantAero, trim
 from plant_sim.wind import WindSample
 from wwcore.aero import _M_T
@@ -404,17 +413,15 @@ class FarmBatch:
             and k + count <= tb._next_change  # no fault starts or ends (``TurbineBatch._update_faults``)
             and not f.sensor_faults_active
             and tb.discrete.shared is not None
-            and not (f.mesh_active or tb._error_active)  # a transmission error's torque pair (farm fault 3)
             and field._next_k == k
             and field._chunk_start <= k
             and k + count <= field._chunk_end  # the turbulence chunk holds every tick
             and (tb._noise_drawn or block_start)
             and k % chunk + count <= chunk  # so does the noise block
             and c._bp_ready
-            and c._extra is None
+            and (c._extra is None or (k + count - 0.5) * self.dt - c._extra[2] <= EXTRA_MAX_AGE_S)  # kept throughout
             and not c._handing_over
             and not c.hold.any()
-            and not (c.cancel_3p and (c._ripple_running or c._any_asked))
         )
         if common and block_start:
             tb._draw_noise()
@@ -463,6 +470,25 @@ class FarmBatch:
         x = tb.x.copy()
         sums = (self._scada_sum, self._power_ref_sum)
         gain = field.turbulence_gain
+        mesh_flags = np.array([f.mesh_active, tb._error_active], dtype=np.int8)
+        mesh = (mesh_flags, tb._error_stage, tb._error_level, f.transmission_error, p.K_dt * f.stiffness_factor)
+        mesh += (f.eta_dt, tb.discrete.gamma_ext, (self.dt / ERROR_ONSET_S, p.N_g, 0.5 * self.dt))
+        cancel_flags = np.array([c.cancel_3p, c._any_asked, c._ripple_running], dtype=np.int8)
+        cancelled = c.cancel_3p and (c._ripple_running or c._any_asked)
+        ripple_on, ripple_age, ripple_torque = c._ripple_on.copy(), c._ripple_age.copy(), c.ripple_torque.copy()
+        ripple_consts = (self.dt, self.dt / RIPPLE_MEAN_S, 3.0 / p.N_g, RIPPLE_NARROW_S, RIPPLE_SOGI_GAIN)
+        ripple_consts += (RIPPLE_TRACK_GAIN - RIPPLE_SOGI_GAIN, self.dt / RIPPLE_ENGAGE_S, -p.J_g, p.eta_gc)
+        ripple_mean = c._ripple_mean if c._ripple_running else np.empty(n)
+        cancel = (cancel_flags, c._ripple_state, ripple_mean, ripple_on, ripple_age, c._asked_level, ripple_torque)
+        cancel += (ripple_consts,)
+        extra_power = np.empty(n)
+        if c._extra is None:
+            extra = (np.zeros(1, dtype=np.int8), extra_power, extra_power, extra_power)
+            extra += ((float(k), self.dt, 0.0, p.eta_gc), extra_power)
+        else:
+            lead, rate, since = c._extra
+            extra = (np.ones(1, dtype=np.int8), lead.real.copy(), lead.imag.copy(), rate)
+            extra += ((float(k), self.dt, since, p.eta_gc), extra_power)
         fast.sub_steps(
             x,
             tb.discrete.shared,
@@ -480,7 +506,16 @@ class FarmBatch:
             states,
             power,
             shaft_args,
+            mesh,
+            cancel,
+            extra,
         )
+        tb._error_active = bool(mesh_flags[1])
+        if cancelled:  # the cancellation ran (from the first tick on): its filter's state and outputs
+            c._ripple_mean, c._ripple_on, c._ripple_age = ripple_mean, ripple_on, ripple_age
+            c.ripple_torque, c._ripple_running = ripple_torque, bool(cancel_flags[2])
+        if c._extra is not None:
+            c.extra_power = extra_power
         # the state every object would hold after the last tick's advance
         k_last = k + count - 1
         tb.x, tb.k, self.k = x, k + count, k + count

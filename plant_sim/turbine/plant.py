@@ -92,6 +92,8 @@ class TurbineBatch:
         self.p = params
         self.backend = resolve_backend(backend)
         self._fast = fast_module("plant_sim.turbine.fast") if self.backend == "numba" else None
+        # the noise blocks' draws: numpy's numbers from a compiled loop (``wwcore.random_fast``) with numba
+        self._random = fast_module("wwcore.random_fast") if self.backend == "numba" else None
         self.dt = params.dt
         self.k = 0
         run_of_row = np.repeat(np.asarray(runs, dtype=int), len(turbines))
@@ -389,6 +391,12 @@ class TurbineBatch:
         """The noise block of the ticks from this one: each row with its own stream draws (noise_chunk, N_SENSORS)
         numbers, as one standard_normal call of that size would, σ-scaled. Twin rows (second half) share their run's
         streams, hence its numbers."""
+        if self._random is not None:  # numpy's numbers and σ-scaling in one compiled pass per row, the same values
+            sigma = self.sigma
+            for i, rng in enumerate(self._noise_rngs[: self._noise_rows]):
+                self._random.scaled_normals(rng, self._draws[i], sigma if sigma.ndim == 1 else sigma[i, 0])
+            self._noise_drawn = True
+            return
         for i, rng in enumerate(self._noise_rngs[: self._noise_rows]):
             rng.standard_normal(out=self._draws[i])
         self._draws *= self.sigma
