@@ -14,7 +14,7 @@ from service.turbine.bank import GENERATOR, ObserverBank, estimate_observers
 from service.turbine.builtin import UIOBankEstimator
 from service.turbine.interfaces import POWER_SPEED_MIN_TORQUE, TurbineContext
 from service.turbine.wind_recovery import WindRecovery, speed_noise_variance, torque_cutoffs
-from wwcore.channels import SPEED_SENSORS
+from wwcore.channels import DIAGNOSIS_TARGETS, SPEED_SENSORS, TARGET_INDEX
 from wwcore.turbine_params import BENCHMARK as P
 
 DESIGN = TurbineContext(P, 1).bank_design
@@ -92,24 +92,24 @@ def test_rotor_speed_filter_is_the_riccati_bandwidth():
 
 def test_region1_estimate_with_both_encoders_flagged_is_observer_5():
     """Below the power-speed channel's threshold that channel is the rotor-speed sensors' mean, so with both
-    generator-speed sensors flagged the estimate comes from observer 5 (and its filter) instead of a 5-pe design;
-    above it, and with ``power_speed = false``, nothing changes."""
-    context = TurbineContext(P, 4)
-    estimator = UIOBankEstimator(context=context)
+    generator-speed sensors distrusted the estimate comes from observer 5 (and its filter) instead of a 5-pe design,
+    in either zone; above it, and with ``power_speed = false``, nothing changes (the selection's region-1 band)."""
     five = DESIGN.index(frozenset(GENERATOR))
-    pe15, pe_r3, four = (
-        DESIGN.power_speed[0],
-        DESIGN.power_speed[-1],
-        DESIGN.index(frozenset({"omega_r_m1", "omega_r_m2"})),
-    )
-    selected = np.array([pe15, pe15, four, pe_r3])
+    pe15, pe_r3 = DESIGN.power_speed[0], DESIGN.power_speed[-1]
+    faulty = np.zeros((4, len(DIAGNOSIS_TARGETS)), dtype=bool)
+    faulty[:, [TARGET_INDEX[s] for s in GENERATOR]] = True
+    faulty[2, TARGET_INDEX[GENERATOR[0]]] = False  # one encoder left: observer 4 on it
+    zone = np.array([0, 0, 0, 1])
     threshold = POWER_SPEED_MIN_TORQUE * P.rated_torque
     torque = np.array([0.5, 1.5, 0.5, 1.5]) * threshold
-    assert estimator._region1(selected, torque).tolist() == [five, pe15, four, pe_r3]
-    assert estimator._region1(selected, np.full(4, 0.5 * threshold)).tolist() == [five, five, four, five]
-    published = UIOBankEstimator(context=TurbineContext(P, 4), options={"power_speed": False})
-    with_five = np.array([five, five, four, five])
-    assert published._region1(with_five, torque).tolist() == with_five.tolist()
+    for backend in ("numpy", "numba"):
+        estimator = UIOBankEstimator(context=TurbineContext(P, 4, backend=backend))
+        one = DESIGN.single_generator[GENERATOR.index(GENERATOR[1])]
+        assert estimator.select(faulty, torque, zone)[1].tolist() == [five, pe15, one, pe_r3]
+        low = np.full(4, 0.5 * threshold)
+        assert estimator.select(faulty, low, zone)[1].tolist() == [five, five, one, five]
+        published = UIOBankEstimator(context=TurbineContext(P, 4, backend=backend), options={"power_speed": False})
+        assert published.select(faulty, torque, zone)[1].tolist() == [five, five, one, five]
 
 
 def _run(q: float, ticks: int, rows: int, seed: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
