@@ -206,6 +206,8 @@ class UIOBankEstimator:
         self.names = design.names
         self.ticks = 0
         self._winds: np.ndarray | None = None  # (2, n): FTE, NFTE
+        self._inverted: np.ndarray | None = None  # (n,) the FTE's observer at the last inversion
+        self._no_move = np.zeros(context.n, dtype=bool)  # the NFTE's observer never changes
 
     def _take_over(self, bank, selected: np.ndarray, mask: np.ndarray, flagged: np.ndarray) -> None:
         """Where a speed sensor that was flagged is trusted again (``mask``: the distrusted speed sensors, ``flagged``:
@@ -326,7 +328,10 @@ class UIOBankEstimator:
             # method's note)
             omega_g = recovery.region2_generator_speed(bank.x_hat, selected, frame.zone, omega_g)
         if self.ticks % self.wind_every == 0:
-            self._winds = recovery.wind(np.stack([columns, self._reference_columns]), self._winds)
+            # an estimate whose observer changed since the last inversion is inverted afresh (``WindRecovery.wind``)
+            moved = None if self._inverted is None else np.stack([columns != self._inverted, self._no_move])
+            self._winds = recovery.wind(np.stack([columns, self._reference_columns]), self._winds, moved)
+            self._inverted = columns.copy()
         self.ticks += 1
         return Estimates(
             valid=(selected >= 0) & (self.ticks > self.warmup_ticks),
