@@ -15,7 +15,8 @@
    both carry the same delay, except the torque of the observers on noisier speed channels than observer 4's
    (4-g1, 4-g2, 5), whose cutoff follows their noise (``torque_cutoffs``), then
 3. v̂ solves τ̂_r = ½ρπR³ C_q(ω̂_r R / v, β̂) v² (``wwcore.aero.wind_from_torque``), started from the previous
-   estimate; the anemometer only provides the start value at the first tick. ω̂_r here is the published speed
+   estimate (after a change of the estimate's observer, iterated on to the new torque's root: ``WindRecovery.wind``);
+   the anemometer only provides the start value at the first tick. ω̂_r here is the published speed
    estimate (filtered at ``speed_cutoff_hz``): the rotor's inertia makes it change too slowly for the two
    filters' different delays to matter in λ.
 
