@@ -12,13 +12,17 @@ import numpy as np
 import pytest
 
 from service.turbine.adaptive import HealthySpread
-from service.turbine.bank import ObserverBank
+from service.turbine.bank import GENERATOR, ObserverBank
+from service.turbine.builtin import SPEED_TARGETS, BenchmarkDetector, UIOBankEstimator
 from service.turbine.component_fdi import ACTUATOR_TARGET, CONVERTER_TARGET, M1_TARGET
+from service.turbine.interfaces import POWER_SPEED_MIN_TORQUE, TurbineContext
 from service.turbine.supervisor import TurbineSupervisor
 from tests.fast_compare import FAULTY, SEED, assert_close, at_half_speed
 from wwcore import aero, aero_fast
 from wwcore.backend import fast_module
+from wwcore.channels import DIAGNOSIS_TARGETS, SENSOR_INDEX, SENSORS
 from wwcore.scenario import parse_scenario
+from wwcore.turbine_frames import TurbineFrame
 from wwcore.turbine_params import BENCHMARK
 
 
@@ -222,6 +226,43 @@ def test_the_region2_speed_kernel_equals_the_reference():
         np.testing.assert_array_equal(fast, reference)
         replaced += (reference != omega_g).sum()
     assert replaced > 50
+
+
+def test_the_observer_selection_kernels_equal_the_reference():
+    # ``UIOBankEstimator.select`` (the estimator's observer of each row) and ``UIOBankDetector.power_speed_inputs``
+    # (the detector's 5-pe design and power-speed channel) with their numpy lines against ``fast.select_observers``
+    # and ``fast.power_speed_test``: every distrusted set, torque references in every band of
+    # ``interfaces.power_speed_band`` (region 1, the design bands and their edges, NaN) in both zones
+    n = 64
+    rng = np.random.default_rng(SEED)
+    rated = BENCHMARK.rated_torque
+    bands_seen, selected_seen = set(), set()
+    for options in ({}, {"power_speed": False}, {"estimate_from": "seed000"}):
+        contexts = [TurbineContext(BENCHMARK, n, backend=backend) for backend in ("numpy", "numba")]
+        estimators = [UIOBankEstimator(context=c, options=options) for c in contexts]
+        detectors = [BenchmarkDetector(context=c) for c in contexts]
+        for _ in range(20):
+            faulty = np.zeros((n, len(DIAGNOSIS_TARGETS)), dtype=bool)
+            faulty[:, SPEED_TARGETS] = rng.random((n, len(SPEED_TARGETS))) < 0.6
+            torque = rated * np.exp(rng.uniform(np.log(1e-3), np.log(1.5), n))
+            torque[:4] = [POWER_SPEED_MIN_TORQUE * rated, np.nan, 0.0, np.sqrt(0.15 * 0.35) * rated]
+            zone = rng.integers(0, 2, n).astype(np.int8)
+            reference = estimators[0].select(faulty, torque, zone)
+            compiled = estimators[1].select(faulty, torque, zone)
+            np.testing.assert_array_equal(compiled[0], reference[0])
+            np.testing.assert_array_equal(compiled[1], reference[1])
+            selected_seen |= set(reference[1].tolist())
+            sensors = rng.normal(1.0, 0.1, (n, len(SENSORS))) * 1e3
+            sensors[:, SENSOR_INDEX["tau_g_m"]] = torque * rng.normal(1.0, 0.5, n)
+            frame = TurbineFrame(0, 0.0, sensors, torque, np.zeros(n), np.zeros(n), zone)
+            band, channel = detectors[0].power_speed_inputs(frame)
+            fast_band, fast_channel = detectors[1].power_speed_inputs(frame)
+            np.testing.assert_array_equal(fast_band, band)
+            np.testing.assert_array_equal(fast_channel, channel)
+            bands_seen |= set(band.tolist())
+    design = contexts[0].bank_design
+    assert bands_seen == set(range(len(design.power_speed)))
+    assert {*design.power_speed, design.index(frozenset(GENERATOR))} <= selected_seen
 
 
 @pytest.mark.parametrize("n", [1, 2, 100])

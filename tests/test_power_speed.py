@@ -9,9 +9,13 @@ import numpy as np
 import pytest
 
 from plant_sim.turbine import TurbineBatch
-from service.turbine.bank import GENERATOR, POWER_SPEED, ObserverBank
+from service.turbine.bank import GENERATOR, POWER_SPEED, ObserverBank, power_speed_estimate_observers
 from service.turbine.interfaces import (
     POWER_SPEED_DESIGN_TORQUES,
+    POWER_SPEED_DETECTOR_DESIGNS,
+    POWER_SPEED_MIN_TORQUE,
+    POWER_SPEED_REGION1_BAND,
+    POWER_SPEED_REGION3_BAND,
     TurbineContext,
     power_speed,
     power_speed_band,
@@ -55,11 +59,33 @@ def test_each_torque_picks_the_design_nearest_it_on_a_log_scale():
     edges = np.sqrt(designs[:-1] * designs[1:]) * P.rated_torque
     np.testing.assert_array_equal(power_speed_band(edges * 0.999, P), np.arange(len(edges)))
     np.testing.assert_array_equal(power_speed_band(edges * 1.001, P), np.arange(1, len(designs)))
-    assert power_speed_band(np.array([0.0, 2.0 * P.rated_torque]), P).tolist() == [0, len(designs) - 1]
-    # in region 3 (zone 1) the rigid design that follows the torque bands, whatever the torque
+    low = POWER_SPEED_MIN_TORQUE * P.rated_torque
+    last = len(designs) - 1
+    assert power_speed_band(np.array([low, 2.0 * P.rated_torque, np.nan]), P).tolist() == [0, last, last]
+    # in region 3 (zone 1) the band after the design bands, whatever the torque above region 1's
     zone = np.array([0, 1, 1])
     torque = np.array([0.1, 0.1, 1.0]) * P.rated_torque
     assert power_speed_band(torque, P, zone).tolist() == [0, len(designs), len(designs)]
+    # region 1: the torque reference below the power-speed channel's threshold, in either zone
+    below = np.array([0.0, 0.999 * low, 0.999 * low])
+    assert power_speed_band(below, P, np.array([0, 0, 1])).tolist() == [POWER_SPEED_REGION1_BAND] * 3
+    assert (len(designs), len(designs) + 1) == (POWER_SPEED_REGION3_BAND, POWER_SPEED_REGION1_BAND)
+
+
+def test_the_selection_table_names_the_observer_of_every_band():
+    """With both generator-speed sensors distrusted the estimate comes from the observer of the torque band: each
+    5-pe design in its own band, observer 5 in region 1 (the channel there is the rotor-speed sensors' mean); the
+    detector keeps 5-pe15 there. ``power_speed = false``: no table, observer 5 everywhere."""
+    names = [DESIGN.names[j] for j in power_speed_estimate_observers(DESIGN)]
+    assert names == ["5-pe15", "5-pe35", "5-pe80", "5-pe-r3", "5"]
+    assert [DESIGN.names[PE[d]] for d in POWER_SPEED_DETECTOR_DESIGNS] == [
+        "5-pe15",
+        "5-pe35",
+        "5-pe80",
+        "5-pe-r3",
+        "5-pe15",
+    ]
+    assert len(power_speed_estimate_observers(DESIGN, power_speed=False)) == 0
 
 
 def test_observers_5pe_read_no_generator_speed_sensor():
@@ -104,7 +130,8 @@ def test_both_generator_sensors_flagged_selects_5pe_unless_switched_off(power_sp
     estimator = TurbineSupervisor(1, options={"power_speed": power_speed_option}).estimator
     both = sum(1 << SPEED_SENSORS.index(s) for s in GENERATOR)
     assert estimator.names[estimator.observer_of_mask[both]] == ("5-pe15" if power_speed_option else "5")
-    assert list(estimator._power_speed) == (list(PE) if power_speed_option else [])
+    five = DESIGN.index(frozenset(GENERATOR))
+    assert list(estimator._observer_of_band) == ([*PE, five] if power_speed_option else [])
     # every other flag pattern keeps its observer of seed 000 (5-pe is never selected for anything else)
     others = np.delete(estimator.observer_of_mask, both)
     assert not set(PE) & set(others.tolist())
@@ -129,7 +156,7 @@ def test_5pe_wind_estimate_is_close_to_observer_1_and_better_than_observer_5(sta
         plant.control(refs)
         refs = supervisor.step(frame)
         if k >= 6000 and k % 20 == 0:  # after a minute: observers and filters settled
-            pe = np.array(PE)[power_speed_band(frame.tau_g_ref, P)]
+            pe = np.array(PE)[np.array(POWER_SPEED_DETECTOR_DESIGNS)[power_speed_band(frame.tau_g_ref, P)]]
             columns = np.array([[names.index("1")] * plant.n, [names.index("5")] * plant.n, pe])
             wind = supervisor.estimator.recovery.wind(columns, np.tile(supervisor.estimates.wind, (3, 1)))
             errors.append(wind - plant.true_rotor_wind())

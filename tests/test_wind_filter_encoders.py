@@ -6,15 +6,21 @@ to what all sensors allow (docs/turbine.md, "A double fault that leaves one enco
 
 from __future__ import annotations
 
+import tomllib
+
 import numpy as np
 import pytest
 from scipy.linalg import solve_discrete_are
 
+from plant_sim.turbine import TurbineBatch
 from service.turbine.bank import GENERATOR, ObserverBank, estimate_observers
 from service.turbine.builtin import UIOBankEstimator
 from service.turbine.interfaces import POWER_SPEED_MIN_TORQUE, TurbineContext
-from service.turbine.wind_recovery import WindRecovery, speed_noise_variance, torque_cutoffs
-from wwcore.channels import SPEED_SENSORS
+from service.turbine.supervisor import TurbineSupervisor
+from service.turbine.wind_recovery import SETTLE_ITERATIONS, WindRecovery, speed_noise_variance, torque_cutoffs
+from wwcore import aero
+from wwcore.channels import DIAGNOSIS_TARGETS, SPEED_SENSORS, TARGET_INDEX
+from wwcore.scenario import parse_scenario
 from wwcore.turbine_params import BENCHMARK as P
 
 DESIGN = TurbineContext(P, 1).bank_design
@@ -92,24 +98,24 @@ def test_rotor_speed_filter_is_the_riccati_bandwidth():
 
 def test_region1_estimate_with_both_encoders_flagged_is_observer_5():
     """Below the power-speed channel's threshold that channel is the rotor-speed sensors' mean, so with both
-    generator-speed sensors flagged the estimate comes from observer 5 (and its filter) instead of a 5-pe design;
-    above it, and with ``power_speed = false``, nothing changes."""
-    context = TurbineContext(P, 4)
-    estimator = UIOBankEstimator(context=context)
+    generator-speed sensors distrusted the estimate comes from observer 5 (and its filter) instead of a 5-pe design,
+    in either zone; above it, and with ``power_speed = false``, nothing changes (the selection's region-1 band)."""
     five = DESIGN.index(frozenset(GENERATOR))
-    pe15, pe_r3, four = (
-        DESIGN.power_speed[0],
-        DESIGN.power_speed[-1],
-        DESIGN.index(frozenset({"omega_r_m1", "omega_r_m2"})),
-    )
-    selected = np.array([pe15, pe15, four, pe_r3])
+    pe15, pe_r3 = DESIGN.power_speed[0], DESIGN.power_speed[-1]
+    faulty = np.zeros((4, len(DIAGNOSIS_TARGETS)), dtype=bool)
+    faulty[:, [TARGET_INDEX[s] for s in GENERATOR]] = True
+    faulty[2, TARGET_INDEX[GENERATOR[0]]] = False  # one encoder left: observer 4 on it
+    zone = np.array([0, 0, 0, 1])
     threshold = POWER_SPEED_MIN_TORQUE * P.rated_torque
     torque = np.array([0.5, 1.5, 0.5, 1.5]) * threshold
-    assert estimator._region1(selected, torque).tolist() == [five, pe15, four, pe_r3]
-    assert estimator._region1(selected, np.full(4, 0.5 * threshold)).tolist() == [five, five, four, five]
-    published = UIOBankEstimator(context=TurbineContext(P, 4), options={"power_speed": False})
-    with_five = np.array([five, five, four, five])
-    assert published._region1(with_five, torque).tolist() == with_five.tolist()
+    for backend in ("numpy", "numba"):
+        estimator = UIOBankEstimator(context=TurbineContext(P, 4, backend=backend))
+        one = DESIGN.single_generator[GENERATOR.index(GENERATOR[1])]
+        assert estimator.select(faulty, torque, zone)[1].tolist() == [five, pe15, one, pe_r3]
+        low = np.full(4, 0.5 * threshold)
+        assert estimator.select(faulty, low, zone)[1].tolist() == [five, five, one, five]
+        published = UIOBankEstimator(context=TurbineContext(P, 4, backend=backend), options={"power_speed": False})
+        assert published.select(faulty, torque, zone)[1].tolist() == [five, five, one, five]
 
 
 def _run(q: float, ticks: int, rows: int, seed: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -202,3 +208,59 @@ def test_take_over_between_different_cutoffs_starts_from_the_source_output():
         bank.step(y, np.zeros(1))
         recovery.step(bank.x_hat, np.zeros(1), no_pitch, no_pitch, None, None)
         assert recovery.filtered[0, four] == pytest.approx(tau_r, rel=1e-9)
+
+
+AT_4_MS = """
+name = "region-1"
+duration_s = 40.0
+[plant]
+kind = "turbine"
+[wind]
+mean = [[0.0, 4.0]]
+turbulence_intensity = 0.12
+"""
+
+
+def test_a_change_of_observer_inverts_the_new_torque_afresh():
+    """The wind is inverted every 0.2 s by 3 iterations from the previous estimate, which suffice where the torque
+    moved little since. A change of observer breaks that: the guess belongs to the old observer's torque, which a
+    fault not yet caught may have taken far off (a −2σ/s encoder drift took the estimate 1.3 m/s low in 2 s at
+    4 m/s, and 3 iterations from there, in region 1's stall, went 2.8 m/s low). The estimate is then the new
+    observer's own root (``WindRecovery.wind``'s ``moved``), whatever the guess; an unmoved estimate is untouched."""
+    scenario = parse_scenario(tomllib.loads(AT_4_MS))
+    plant = TurbineBatch(scenario.plant, scenario.wind, [], seed=5, runs=[0, 1])
+    supervisor = TurbineSupervisor(plant.n)
+    estimator = supervisor.estimator
+    refs = None
+    for _ in range(3000):  # 30 s: observer 5's start (its Kalman filter and 0.0434 Hz wind filter) has died out
+        frame = plant.measure()
+        plant.control(refs)
+        refs = supervisor.step(frame)
+        plant.advance()
+    while estimator.ticks % estimator.wind_every:  # up to the tick before the next inversion
+        frame = plant.measure()
+        plant.control(refs)
+        refs = supervisor.step(frame)
+        plant.advance()
+    fault_free = supervisor.estimates.wind.copy()
+    estimator._winds[0, 0] = 0.3 * fault_free[0]  # row 0: an estimate a fault took far off before it was suspected
+    frame = plant.measure()
+    faulty = np.zeros((plant.n, len(DIAGNOSIS_TARGETS)), dtype=bool)
+    faulty[0, [TARGET_INDEX[s] for s in GENERATOR]] = True  # row 0: both encoders suspected; row 1 unchanged
+    estimates = estimator.step(frame, faulty)
+    five = DESIGN.index(frozenset(GENERATOR))
+    assert estimates.selected[0] == five  # region 1: observer 5 (the selection's region-1 band)
+    recovery = estimator.recovery
+    column = np.array([five, estimates.selected[1]])
+    args = (
+        recovery.filtered[[0, 1], column],
+        recovery.omega_r[[0, 1], column],
+        recovery.pitch_filtered,
+    )
+    root = aero.wind_from_torque(*args, fault_free, P, iterations=60)
+    warm = aero.wind_from_torque(*args, 0.3 * fault_free, P, iterations=3)  # row 0's, on main
+    assert abs(warm[0] - root[0]) > 0.2  # the warm start alone: still far from the new observer's root
+    assert estimates.wind[0] == pytest.approx(root[0], rel=1e-9)
+    unmoved = aero.wind_from_torque(*(a[1] for a in args), fault_free[1], P, iterations=3)
+    assert estimates.wind[1] == pytest.approx(unmoved, rel=1e-12)  # the warm start's 3 iterations
+    assert np.log(aero.WIND_MAX / aero.WIND_MIN) / np.log(1.0 + aero._AWAY_STEP) <= SETTLE_ITERATIONS

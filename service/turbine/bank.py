@@ -215,7 +215,7 @@ def estimate_observers(design: BankDesign, from_generator: bool = True, power_sp
     4-g2 with one), whatever the rotor-speed sensors' flags, so no rotor-speed reading ever reaches the estimate
     while a generator-speed sensor is healthy; otherwise (seed 000) the observer of the healthy set. With both
     generator-speed sensors flagged: the first 5-pe design if ``power_speed`` and the bank has it (the caller
-    picks the design for the torque, ``interfaces.power_speed_band``), else observer 5.
+    picks the observer of the torque band, ``power_speed_estimate_observers``), else observer 5.
     """
     choice = np.full(1 << len(SPEED_SENSORS), -1)
     bit = {s: 1 << SPEED_SENSORS.index(s) for s in SPEED_SENSORS}
@@ -236,6 +236,18 @@ def estimate_observers(design: BankDesign, from_generator: bool = True, power_sp
         elif len(flagged) == 1:
             choice[mask] = design.single_generator[GENERATOR.index(flagged[0])]
     return choice
+
+
+def power_speed_estimate_observers(design: BankDesign, power_speed: bool = True) -> np.ndarray:
+    """The observer the estimate comes from with both generator-speed sensors distrusted, for each torque band of
+    ``interfaces.power_speed_band`` (empty without ``power_speed`` or 5-pe designs: observer 5 serves every band,
+    ``estimate_observers``): 5-pe15, 5-pe35, 5-pe80 (region 2, the design nearest the torque), 5-pe-r3 (region 3),
+    and observer 5 in region 1, below the power-speed channel's threshold, where that channel is N_g × the
+    rotor-speed sensors' mean: 5-pe holds nothing observer 5 lacks there, and observer 5's wind filter is the one
+    consistent with the rotor-speed sensors' noise (``wind_recovery.torque_cutoffs``; decision N-15)."""
+    if not (power_speed and design.power_speed):
+        return np.zeros(0, dtype=np.int64)
+    return np.array([*design.power_speed, design.index(frozenset(GENERATOR))], dtype=np.int64)
 
 
 class ObserverBank:

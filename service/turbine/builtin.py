@@ -18,11 +18,12 @@ from typing import Annotated, Literal
 import numpy as np
 
 from service.plugins import TURBINE_DETECTORS, TURBINE_ESTIMATORS
-from service.turbine.bank import GENERATOR, estimate_observers
+from service.turbine.bank import estimate_observers, power_speed_estimate_observers
 from service.turbine.component_fdi import ComponentFDI, ComponentSettings
 from service.turbine.fdi import FDISettings, SpeedSensorFDI
 from service.turbine.interfaces import (
     POWER_SPEED_DESIGN_TORQUES,
+    POWER_SPEED_DETECTOR_DESIGNS,
     POWER_SPEED_MIN_TORQUE,
     SPEED_COLUMNS,
     Diagnosis,
@@ -89,30 +90,31 @@ class UIOBankDetector:
         self._margin_names = tuple(f"observer {name}" for name in design.names[: design.n_isolating])
         torques = np.asarray(POWER_SPEED_DESIGN_TORQUES)  # the edges of ``power_speed_band``, for the fast path
         self._band_edges = np.sqrt(np.multiply(torques[:-1], torques[1:])) * context.params.rated_torque
+        self._design_of_band = np.array(POWER_SPEED_DETECTOR_DESIGNS, dtype=np.int64)
+
+    def power_speed_inputs(self, frame: TurbineFrame) -> tuple[np.ndarray, np.ndarray]:
+        """The 5-pe design of each row's torque band for the isolation, clearing and arbitration
+        (``POWER_SPEED_DETECTOR_DESIGNS`` of ``power_speed_band``) and the power-speed channel P_g,m/(η_gc τ_g,m),
+        NaN where τ_g,m is below the channel's threshold: (n,) each."""
+        p = self.context.params
+        if self.context.fast is not None:  # the same, by one kernel
+            channel, band = np.empty(self.context.n), np.empty(self.context.n, dtype=np.int64)
+            self.context.fast.power_speed_test(
+                frame.sensors, _P_G_M, _TAU_G_M, self.context.power_speed_min_torque, p.eta_gc, frame.tau_g_ref,
+                frame.zone, self._band_edges, self._design_of_band, channel, band,
+            )  # fmt: skip
+            return band, channel
+        power, torque = frame.sensors[:, _P_G_M], frame.sensors[:, _TAU_G_M]
+        usable = torque >= POWER_SPEED_MIN_TORQUE * p.rated_torque
+        band = self._design_of_band[power_speed_band(frame.tau_g_ref, p, frame.zone)]
+        return band, np.where(usable, power / (p.eta_gc * np.where(usable, torque, 1.0)), np.nan)
 
     def step(self, frame: TurbineFrame) -> Diagnosis:
         bank = self.context.bank(frame)
         speed = self.context.speed_readings(frame)
-        p = self.context.params
         fast = self.context.fast
-        if fast is not None:  # the channel and the design band below, by one kernel
-            channel, band = np.empty(self.context.n), np.empty(self.context.n, dtype=np.int64)
-            threshold = self.context.power_speed_min_torque
-            fast.power_speed_test(
-                frame.sensors, _P_G_M, _TAU_G_M, threshold, p.eta_gc, frame.tau_g_ref, frame.zone, self._band_edges,
-                len(POWER_SPEED_DESIGN_TORQUES), channel, band,
-            )  # fmt: skip
-            self.fdi.step(speed, bank.chi2, bank.x_hat, band, channel)
-        else:
-            power, torque = frame.sensors[:, _P_G_M], frame.sensors[:, _TAU_G_M]
-            usable = torque >= POWER_SPEED_MIN_TORQUE * p.rated_torque
-            self.fdi.step(
-                speed,
-                bank.chi2,
-                bank.x_hat,
-                power_speed_band(frame.tau_g_ref, p, frame.zone),
-                np.where(usable, power / (p.eta_gc * np.where(usable, torque, 1.0)), np.nan),
-            )
+        band, channel = self.power_speed_inputs(frame)
+        self.fdi.step(speed, bank.chi2, bank.x_hat, band, channel)
         # = empty_diagnosis with the speed-sensor columns set to fdi.faulty, and margins = fdi.margins(bank.chi2)
         fdi = self.fdi
         suspect = None  # read only while an isolation is pending; the fast path skips it otherwise
@@ -162,10 +164,11 @@ class UIOBankEstimator:
     Options (``EstimatorSettings``): ``wind_cutoff_hz`` (default 0.3), ``speed_cutoff_hz`` (2.0), ``warmup_s``
     (5.0), ``wind_every`` (20): the wind is inverted every that many ticks (5 Hz) and held in between; the torque
     it inverts is low-pass filtered at ``wind_cutoff_hz``, far below the 5 Hz this resolves. ``power_speed``
-    (true): with both generator-speed sensors flagged, use observer 5-pe (the rotor-speed sensors and the
-    power-speed channel, ``docs/turbine.md``), the design for the torque reference and zone, instead of seed 000's
-    observer 5, except below the channel's threshold (region 1), where the channel is the rotor-speed sensors' mean
-    and observer 5 serves (``_region1``). ``estimate_from`` (``"generator"``): the estimate comes from observer 4,
+    (true): with both generator-speed sensors flagged, use the observer of the torque band
+    (``interfaces.power_speed_band``, ``bank.power_speed_estimate_observers``): observer 5-pe (the rotor-speed
+    sensors and the power-speed channel, ``docs/turbine.md``), the design for the torque reference and zone, instead
+    of seed 000's observer 5, except in region 1, below the channel's threshold, where the channel is the rotor-speed
+    sensors' mean and observer 5 serves. ``estimate_from`` (``"generator"``): the estimate comes from observer 4,
     the rigid drive train on the healthy generator-speed sensors (4 with both, 4-g1 or 4-g2 with one), which never
     uses a rotor-speed sensor, so a rotor-speed fault cannot reach it whether or not it is flagged; only with both
     generator-speed sensors flagged does it fall back to the rotor-speed sensors (5-pe or 5). ``"seed000"``: the
@@ -187,14 +190,10 @@ class UIOBankEstimator:
         self.warmup_ticks = round(settings.warmup_s / context.dt)
         self.wind_every = settings.wind_every
         self.observer_of_mask = estimate_observers(design, settings.estimate_from == "generator", settings.power_speed)
-        # With both generator-speed sensors flagged: the 5-pe observer designed nearest the torque (step)
-        self._power_speed = np.array(design.power_speed if settings.power_speed else (), dtype=np.int64)
+        # With both generator-speed sensors flagged: the observer of the row's torque band (``select``)
+        self._observer_of_band = power_speed_estimate_observers(design, settings.power_speed)
         torques = np.asarray(POWER_SPEED_DESIGN_TORQUES)  # the edges of ``power_speed_band``, for the fast path
         self._band_edges = np.sqrt(np.multiply(torques[:-1], torques[1:])) * context.params.rated_torque
-        # Below the power-speed channel's threshold (region 1) that channel is N_g × the rotor-speed sensors' mean
-        # (``interfaces.power_speed``): 5-pe holds nothing observer 5 lacks, and observer 5's wind filter is the one
-        # consistent with the rotor-speed sensors' noise (``wind_recovery.torque_cutoffs``): the estimate uses it there
-        self._rotor_only = design.index(frozenset(GENERATOR)) if len(self._power_speed) else -1
         self._previous: np.ndarray | None = None  # ``selected`` of the last tick
         self._previous_mask = np.zeros(context.n, dtype=np.int64)  # the distrusted speed sensors of the last tick
         # the distrusted speed sensors that were flagged (not only suspected) at some tick since they were distrusted
@@ -207,6 +206,8 @@ class UIOBankEstimator:
         self.names = design.names
         self.ticks = 0
         self._winds: np.ndarray | None = None  # (2, n): FTE, NFTE
+        self._inverted: np.ndarray | None = None  # (n,) the FTE's observer at the last inversion
+        self._no_move = np.zeros(context.n, dtype=bool)  # the NFTE's observer never changes
 
     def _take_over(self, bank, selected: np.ndarray, mask: np.ndarray, flagged: np.ndarray) -> None:
         """Where a speed sensor that was flagged is trusted again (``mask``: the distrusted speed sensors, ``flagged``:
@@ -237,15 +238,30 @@ class UIOBankEstimator:
             bank.restart(rows, selected[rows], previous[rows])
             self.recovery.transfer(rows, selected[rows], previous[rows], self.context.bank_design, bank.x_hat)
 
-    def _region1(self, selected: np.ndarray, torque_reference: np.ndarray) -> np.ndarray:
-        """``selected`` with observer 5 instead of a 5-pe design on the rows whose torque reference is below the
-        power-speed channel's threshold (``TurbineContext.power_speed_min_torque``), where that channel is the
-        rotor-speed sensors' mean."""
-        if self._rotor_only < 0:
-            return selected
-        low = (torque_reference < self.context.power_speed_min_torque) & (selected >= self._power_speed[0])
-        low &= selected <= self._power_speed[-1]
-        return np.where(low, self._rotor_only, selected) if low.any() else selected
+    def select(
+        self, faulty: np.ndarray, torque_reference: np.ndarray, zone: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """The bitmask of the distrusted speed sensors (``faulty``: (n, targets) bool) and the observer each row's
+        estimate comes from (n,) each: ``observer_of_mask``'s, and with both generator-speed sensors distrusted the
+        observer of the row's torque band (``power_speed_band`` of the torque reference and the controller's zone,
+        ``bank.power_speed_estimate_observers``). Compiled: ``fast.select_observers``, the same numbers."""
+        fast = self.context.fast
+        if fast is not None:
+            n = len(faulty)
+            mask, selected = np.empty(n, dtype=np.int64), np.empty(n, dtype=np.int64)
+            fast.select_observers(
+                faulty, SPEED_TARGETS, _MASK_WEIGHTS, self.observer_of_mask, self._observer_of_band, torque_reference,
+                zone, self._band_edges, self.context.power_speed_min_torque, mask, selected,
+            )  # fmt: skip
+            return mask, selected
+        mask = faulty[:, SPEED_TARGETS] @ _MASK_WEIGHTS
+        selected = self.observer_of_mask[mask]
+        if len(self._observer_of_band):
+            on_band = selected == self._observer_of_band[0]
+            if on_band.any():
+                band = power_speed_band(torque_reference, self.context.params, zone)
+                selected = np.where(on_band, self._observer_of_band[band], selected)
+        return mask, selected
 
     @staticmethod
     def _flagged_mask(flagged: np.ndarray | None, mask: np.ndarray) -> np.ndarray:
@@ -273,12 +289,7 @@ class UIOBankEstimator:
             pitch_m1, pitch_m2 = pitch[:, :3], pitch[:, 3:]
         if fast is not None and distrusting:
             n = self.context.n
-            mask, selected = np.empty(n, dtype=np.int64), np.empty(n, dtype=np.int64)
-            fast.select_observers(
-                faulty, SPEED_TARGETS, _MASK_WEIGHTS, self.observer_of_mask, self._power_speed, frame.tau_g_ref,
-                frame.zone, self._band_edges, mask, selected,
-            )  # fmt: skip
-            selected = self._region1(selected, frame.tau_g_ref)
+            mask, selected = self.select(faulty, frame.tau_g_ref, frame.zone)
             self._take_over(bank, selected, mask, self._flagged_mask(flagged, mask))
             recovery.step(
                 bank.x_hat, frame.beta_ref, pitch_m1, pitch_m2, ~faulty[:, PITCH_M1_T], ~faulty[:, PITCH_M2_T],
@@ -288,14 +299,7 @@ class UIOBankEstimator:
             omega_r, omega_g = np.empty(n), np.empty(n)
             fast.gather_speeds(recovery.filtered, *recovery.speed_starts, selected, omega_r, omega_g)
         elif distrusting:
-            mask = faulty[:, SPEED_TARGETS] @ _MASK_WEIGHTS
-            selected = self.observer_of_mask[mask]
-            if len(self._power_speed):
-                on_pe = selected == self._power_speed[0]
-                if on_pe.any():
-                    band = power_speed_band(frame.tau_g_ref, self.context.params, frame.zone)
-                    selected = np.where(on_pe, self._power_speed[band], selected)
-                    selected = self._region1(selected, frame.tau_g_ref)
+            mask, selected = self.select(faulty, frame.tau_g_ref, frame.zone)
             self._take_over(bank, selected, mask, self._flagged_mask(flagged, mask))
             recovery.step(
                 bank.x_hat, frame.beta_ref, pitch_m1, pitch_m2, ~faulty[:, PITCH_M1_T], ~faulty[:, PITCH_M2_T],
@@ -324,7 +328,10 @@ class UIOBankEstimator:
             # method's note)
             omega_g = recovery.region2_generator_speed(bank.x_hat, selected, frame.zone, omega_g)
         if self.ticks % self.wind_every == 0:
-            self._winds = recovery.wind(np.stack([columns, self._reference_columns]), self._winds)
+            # an estimate whose observer changed since the last inversion is inverted afresh (``WindRecovery.wind``)
+            moved = None if self._inverted is None else np.stack([columns != self._inverted, self._no_move])
+            self._winds = recovery.wind(np.stack([columns, self._reference_columns]), self._winds, moved)
+            self._inverted = columns.copy()
         self.ticks += 1
         return Estimates(
             valid=(selected >= 0) & (self.ticks > self.warmup_ticks),

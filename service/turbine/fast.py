@@ -384,23 +384,32 @@ def adapt_parity(parity, window, flags, m1_target, m2_target, root_window, z_sin
 
 
 @kernel
-def power_speed_test(sensors, power_col, torque_col, threshold, eta_gc, tau_g_ref, zone, edges, region3, channel, band):
+def torque_band(torque, zone, edges, region1_torque):
+    """``interfaces.power_speed_band`` of one row: region 1 (``edges.size + 2``) below ``region1_torque``, region 3
+    (``edges.size + 1``) in zone 1, else the edges below the torque reference (NaN: after every edge, as
+    searchsorted puts it)."""
+    if torque < region1_torque:
+        return edges.size + 2
+    if zone == 1:
+        return edges.size + 1
+    if torque != torque:
+        return edges.size
+    below = 0
+    for e in edges:
+        if e < torque:
+            below += 1
+    return below
+
+
+@kernel
+def power_speed_test(sensors, power_col, torque_col, threshold, eta_gc, tau_g_ref, zone, edges, designs, channel, band):
     """The detector's power-speed channel P_g,m/(η_gc τ_g,m) (nan where τ_g,m < ``threshold``) and the 5-pe design
-    of each row (``interfaces.power_speed_band``: ``region3`` in zone 1, else the edges below τ_g,r)."""
+    of each row: ``designs`` (``interfaces.POWER_SPEED_DETECTOR_DESIGNS``) of its torque band (``torque_band``,
+    region 1 below ``threshold``)."""
     for r in range(sensors.shape[0]):
         torque = sensors[r, torque_col]
         channel[r] = sensors[r, power_col] / (eta_gc * torque) if torque >= threshold else np.nan
-        v = tau_g_ref[r]
-        if zone[r] == 1:
-            band[r] = region3
-        elif v != v:  # searchsorted puts nan after every edge
-            band[r] = edges.size
-        else:
-            below = 0
-            for e in edges:
-                if e < v:
-                    below += 1
-            band[r] = below
+        band[r] = designs[torque_band(tau_g_ref[r], zone[r], edges, threshold)]
 
 
 @kernel
@@ -474,9 +483,13 @@ def cusum(y, x_hat, mask, frozen, predictor, column, scale, min_weight, floor, p
 
 # -- the estimator's observer (``service.turbine.builtin.UIOBankEstimator.step`` with a flag raised) ----------------
 @kernel
-def select_observers(faulty, speed_targets, weights, observer_of_mask, power_speed, tau_g_ref, zone, edges, mask, out):
-    """The bitmask of the distrusted speed sensors and the observer each row's estimate comes from (5-pe: the
-    design of the row's torque band, ``interfaces.power_speed_band``)."""
+def select_observers(
+    faulty, speed_targets, weights, observer_of_mask, observer_of_band, tau_g_ref, zone, edges, region1, mask, out
+):
+    """The bitmask of the distrusted speed sensors and the observer each row's estimate comes from: the mask's
+    (``observer_of_mask``), or where that is the first 5-pe design (both generator-speed sensors distrusted), the
+    observer of the row's torque band (``observer_of_band``, ``bank.power_speed_estimate_observers``;
+    ``torque_band``, region 1 below the torque ``region1``)."""
     for r in range(faulty.shape[0]):
         m = 0
         for t in range(speed_targets.size):
@@ -484,18 +497,8 @@ def select_observers(faulty, speed_targets, weights, observer_of_mask, power_spe
                 m += weights[t]
         mask[r] = m
         j = observer_of_mask[m]
-        if power_speed.size and j == power_speed[0]:
-            v = tau_g_ref[r]
-            if zone[r] == 1:
-                band = edges.size + 1
-            elif v != v:
-                band = edges.size
-            else:
-                band = 0
-                for e in edges:
-                    if e < v:
-                        band += 1
-            j = power_speed[band]
+        if observer_of_band.size and j == observer_of_band[0]:
+            j = observer_of_band[torque_band(tau_g_ref[r], zone[r], edges, region1)]
         out[r] = j
 
 

@@ -40,6 +40,18 @@ POWER_SPEED_DESIGN_Q = (3.8e3**2, 7.6e3**2, 1.35e4**2)  # (N m)² per tick
 # and no random walk fits all of it: there 5-pe is the rigid drive train on the three channels
 # (``uio.design_rigid``), designed at rated torque, which needs no model of the torque at all.
 POWER_SPEED_REGION3 = "5-pe-r3"
+# The torque bands of ``power_speed_band``, after the design bands 0, 1, 2 (``POWER_SPEED_DESIGN_TORQUES`` order):
+# region 3 (the controller's zone 1), then region 1 (the torque reference below ``POWER_SPEED_MIN_TORQUE`` × rated,
+# whatever the zone), where the power-speed channel is N_g × the rotor-speed sensors' mean. Who serves each band
+# is a table of the user's: the estimator's ``bank.power_speed_estimate_observers``, the detector's
+# ``POWER_SPEED_DETECTOR_DESIGNS``.
+POWER_SPEED_REGION3_BAND = len(POWER_SPEED_DESIGN_TORQUES)
+POWER_SPEED_REGION1_BAND = len(POWER_SPEED_DESIGN_TORQUES) + 1
+POWER_SPEED_BANDS = POWER_SPEED_REGION1_BAND + 1
+# The 5-pe design (index into ``BankDesign.power_speed``) the detector's isolation, clearing and arbitration use in
+# each band: its own in the design and region-3 bands, 5-pe15 in region 1 (a design at region 1's own random walk
+# moved the flags there, decision N-15; the channel is the rotor-speed mean, which 5-pe15 weighs as 1.27 rad/s).
+POWER_SPEED_DETECTOR_DESIGNS = (*range(len(POWER_SPEED_DESIGN_TORQUES) + 1), 0)
 
 # Design process noise of the observers (per step): the drive-train model is exact up to the efficiency fault
 # and the converter's torque offset, so Q is small.
@@ -170,11 +182,16 @@ def power_speed_name(torque_fraction: float) -> str:
 
 
 def power_speed_band(torque: np.ndarray, p: TurbineParams, zone: np.ndarray | None = None) -> np.ndarray:
-    """Index of the 5-pe design for each row: into ``POWER_SPEED_DESIGN_TORQUES``, the design nearest the torque
-    (N m) on a log scale; where the controller's ``zone`` is region 3 (1), the region-3 design after them."""
+    """Torque band of each row (n,), the key of the tables that say which observer serves it with both
+    generator-speed sensors distrusted: ``POWER_SPEED_REGION1_BAND`` where the torque reference ``torque`` (N m) is
+    below ``POWER_SPEED_MIN_TORQUE`` × rated (the power-speed channel is then N_g × the rotor-speed sensors' mean,
+    ``power_speed``), else ``POWER_SPEED_REGION3_BAND`` where the controller's ``zone`` is region 3 (1), else the
+    index into ``POWER_SPEED_DESIGN_TORQUES`` of the design nearest the torque on a log scale (NaN: the last)."""
     edges = np.sqrt(np.multiply(POWER_SPEED_DESIGN_TORQUES[:-1], POWER_SPEED_DESIGN_TORQUES[1:])) * p.rated_torque
     band = np.searchsorted(edges, torque)
-    return band if zone is None else np.where(zone == 1, len(POWER_SPEED_DESIGN_TORQUES), band)
+    if zone is not None:
+        band = np.where(zone == 1, POWER_SPEED_REGION3_BAND, band)
+    return np.where(torque < POWER_SPEED_MIN_TORQUE * p.rated_torque, POWER_SPEED_REGION1_BAND, band)
 
 
 def power_speed_sigma(sigma: dict[str, float], p: TurbineParams, torque_fraction: float) -> float:

@@ -15,7 +15,8 @@
    both carry the same delay, except the torque of the observers on noisier speed channels than observer 4's
    (4-g1, 4-g2, 5), whose cutoff follows their noise (``torque_cutoffs``), then
 3. v̂ solves τ̂_r = ½ρπR³ C_q(ω̂_r R / v, β̂) v² (``wwcore.aero.wind_from_torque``), started from the previous
-   estimate; the anemometer only provides the start value at the first tick. ω̂_r here is the published speed
+   estimate (after a change of the estimate's observer, iterated on to the new torque's root: ``WindRecovery.wind``);
+   the anemometer only provides the start value at the first tick. ω̂_r here is the published speed
    estimate (filtered at ``speed_cutoff_hz``): the rotor's inertia makes it change too slowly for the two
    filters' different delays to matter in λ.
 
@@ -38,6 +39,12 @@ from service.turbine.bank import GENERATOR, ROTOR, BankDesign
 from wwcore import aero
 from wwcore.lti import biquad_steady_state, butter2_lowpass, zoh
 from wwcore.turbine_params import TurbineParams
+
+# The wind inversion (``aero.wind_from_torque``): warm-started from the previous estimate, 0.2 s apart, 3 iterations
+# suffice; after a change of observer, as many as cross [1, 40] m/s in a flat branch's 20 % steps (log 40 / log 1.2
+# = 20.2), so the estimate is the new observer's root whatever the old guess (``WindRecovery.wind``).
+WARM_ITERATIONS = 3
+SETTLE_ITERATIONS = 21
 
 
 class Biquad:
@@ -395,16 +402,24 @@ class WindRecovery:
         states = x_hat[np.ix_(rows, self._rigid_converter_states)]
         raw[np.ix_(rows, self._rigid_torque_columns)] += self._converter_gain * (measured_torque[rows, None] - states)
 
-    def wind(self, columns: np.ndarray, v_guess: np.ndarray) -> np.ndarray:
-        """Wind speed of observer ``columns[i]`` (shape (m, n)) for every row: (m, n) m/s, one inversion call."""
+    def wind(self, columns: np.ndarray, v_guess: np.ndarray, moved: np.ndarray | None = None) -> np.ndarray:
+        """Wind speed of observer ``columns[i]`` (shape (m, n)) for every row: (m, n) m/s, one inversion call.
+
+        ``v_guess`` (m, n) is the previous estimate of each: WARM_ITERATIONS from it suffice where the torque moved
+        little since. ``moved`` (m, n) bool (None: none): the estimates whose observer changed since that guess was
+        made. Their guess belongs to another observer's torque, which a fault the detector has not yet caught may
+        have taken metres per second away, so they go on to SETTLE_ITERATIONS: enough to cross the whole
+        [WIND_MIN, WIND_MAX] range at the 20 % steps of a flat branch, so the result is the new torque's root
+        whatever the guess (``aero.wind_from_torque``; the same iterations continued, so unmoved rows and a guess
+        already at the root are unchanged)."""
         rows = np.broadcast_to(np.arange(self.n), columns.shape)
         torque, omega_r = self._groups[0], self._groups[1]  # the published ω̂_r (see the module docstring)
         invert = aero.wind_from_torque if self._fast is None else self._fast.wind_from_torque
-        return invert(
-            self._filtered[rows, torque.start + columns],
-            self._filtered[rows, omega_r.start + columns],
-            np.broadcast_to(self.pitch_filtered, columns.shape),
-            v_guess,
-            self.p,
-            iterations=3,  # warm-started from the previous estimate, 0.2 s apart
-        )
+        tau = self._filtered[rows, torque.start + columns]
+        speed = self._filtered[rows, omega_r.start + columns]
+        pitch = np.broadcast_to(self.pitch_filtered, columns.shape)
+        v = invert(tau, speed, pitch, v_guess, self.p, iterations=WARM_ITERATIONS)
+        if moved is not None and moved.any():
+            at = np.nonzero(moved)
+            v[at] = invert(tau[at], speed[at], pitch[at], v[at], self.p, iterations=SETTLE_ITERATIONS - WARM_ITERATIONS)
+        return v
