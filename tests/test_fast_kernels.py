@@ -247,11 +247,35 @@ def test_the_bank_kernel_equals_the_reference(n):
     assert banks[0].steps > len(banks[0]._update_transient) and banks[0].chi2.max() > 0.0
 
 
+def test_the_reproduced_blas_product_equals_numpy_matmul():
+    # ``fast_actuator.blas_vector_matrix`` against numpy's stacked ``(1, 6) @ (6, 6)`` (one BLAS ``dgemv`` per
+    # product) on random states of the bank's own matrices and on random matrices over twelve decades, zeros among
+    # them, to the last bit; a plain loop product differs on the same operands
+    fast_actuator = fast_module("service.turbine.fast_actuator")
+    if not fast_actuator.reproduces_numpy_matmul():
+        pytest.skip("numpy's BLAS on this machine is not the kernel blas_vector_matrix reproduces")
+    rng = np.random.default_rng(SEED)
+    bank_matrices = TurbineSupervisor(1, backend="numpy").detector.components.signatures._At
+    for a_t in (bank_matrices, rng.standard_normal((40, 6, 6)) * np.exp(rng.standard_normal((40, 1, 1)))):
+        x = rng.standard_normal((500, len(a_t), 6)) * np.exp(6.0 * rng.standard_normal((500, len(a_t), 1)))
+        x[::11, :, 2:] = 0.0
+        expected = np.matmul(x[:, :, None, :], a_t[None])[:, :, 0, :]
+        got = np.empty_like(x)
+        fast_actuator.vector_matrix_rows(x, a_t, got)
+        np.testing.assert_array_equal(got.view(np.int64), expected.view(np.int64))
+        loop = np.einsum("nqi,qij->nqj", x, a_t, optimize=False)  # the six products added in turn, unfused
+        assert (loop != expected).mean() > 0.1
+
+
+@pytest.mark.parametrize("reproduced", [False, True])
 @pytest.mark.parametrize("n", [1, 3, 40])
-def test_the_signature_kernel_equals_the_reference(n):
+def test_the_signature_kernel_equals_the_reference(n, reproduced):
     # ``SignatureBank.block`` and ``_actuators``' block sums (``einsum``, ``sum(axis=0)``) against
     # ``fast_actuator.signature_block``, block after block from rest through ramps, steps and noise, the states
-    # carried over; every array equal to the last bit (a sequential six-term sum or a loop product fails this)
+    # carried over; every array equal to the last bit (a sequential six-term sum or a loop product fails this), the
+    # state products by BLAS calls and by the reproduced BLAS arithmetic
+    if reproduced and not fast_module("service.turbine.fast_actuator").reproduces_numpy_matmul():
+        pytest.skip("numpy's BLAS on this machine is not the kernel blas_vector_matrix reproduces")
     rng = np.random.default_rng(SEED + n)
     components = TurbineSupervisor(n, backend="numpy").detector.components
     ticks = components._ref_block.shape[0]
@@ -269,7 +293,7 @@ def test_the_signature_kernel_equals_the_reference(n):
             np.einsum("knc,knc->nc", s, s),
             np.concatenate([w.sum(axis=0), s.sum(axis=0)], axis=1),
         )
-        got = fast_bank.block_sums(reference, w, kernel)
+        got = fast_bank.block_sums(reference, w, kernel, reproduced)
         for name, a, b in zip(("correlation", "energy", "sums"), got, expected, strict=True):
             np.testing.assert_array_equal(a, b, f"block {block}: {name}")
         np.testing.assert_array_equal(fast_bank.x, reference_bank.x, f"block {block}: state")

@@ -18,13 +18,10 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from llvmlite import ir
-from numba.core import cgutils, types
-from numba.extending import intrinsic
 
 from wwcore.aero_fast import _newton, maximum, minimum, pitch_features
 from wwcore.farm_frames import CANCEL_3P_MODE, DEBRIS_MODE, DERATED_MODE, PITCH_TRIM_MODE
-from wwcore.jit import kernel
+from wwcore.jit import fma, kernel
 from wwcore.thrust_fast import interp, np_maximum, np_minimum
 
 
@@ -431,21 +428,6 @@ def dispatch_shares(p_avail, p_ref, held, held_given, faulty, demand, y, integra
             mode[r] = CANCEL_3P_MODE if cancelled else m
             sources[r] = cancelled and not held[r]
             free_rows[r] = not (sources[r] or derate or held[r])
-
-
-@intrinsic
-def fma(typingctx, a, b, c):
-    """a·b + c rounded once (IEEE fused multiply-add, LLVM's ``llvm.fma``): what numpy's SIMD complex loops use."""
-    signature = types.float64(types.float64, types.float64, types.float64)
-
-    def codegen(context, builder, sig, args):
-        double = ir.DoubleType()
-        function = cgutils.get_or_insert_function(
-            builder.module, ir.FunctionType(double, [double, double, double]), "llvm.fma.f64"
-        )
-        return builder.call(function, args)
-
-    return signature, codegen
 
 
 @kernel
