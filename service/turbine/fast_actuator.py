@@ -22,25 +22,27 @@ from wwcore.jit import fma, kernel
 
 # -- signature bank and block sums (``pitch_actuator.SignatureBank.block``, ``ComponentFDI._actuators``) --------------
 @kernel
-def blas_vector_matrix(x, a, out):
-    """out = x a for x (6,) and a (6, 6) in C order, with the arithmetic of the BLAS call numpy's ``matmul`` makes for a
-    (1, 6) @ (6, 6) product (``reproduces_numpy_matmul`` checks that it is numpy's on this machine).
+def blas_vector_matrix(a, q, j, x0, x1, x2, x3, x4, x5):
+    """Output j of x a[q] for x = (x0 … x5) and a (K, 6, 6) in C order, with the arithmetic of the BLAS call numpy's
+    ``matmul`` makes for a (1, 6) @ (6, 6) product (``reproduces_numpy_matmul`` checks that it is numpy's on this
+    machine).
 
-    numpy asks for ``cblas_dgemv(RowMajor, Trans)``: OpenBLAS's ``dgemv_n`` on the column-major view of a, whose
-    column i is a's row i, and y = +0 first (β = 0). On its SkylakeX kernels (OpenBLAS 0.3.31 of numpy 2.4.6, on an
+    numpy asks for ``cblas_dgemv(RowMajor, Trans)``: OpenBLAS's ``dgemv_n`` on the column-major view of a[q], whose
+    column i is a[q]'s row i, and y = +0 first (β = 0). On its SkylakeX kernels (OpenBLAS 0.3.31 of numpy 2.4.6, on an
     AVX-512 CPU) outputs 0–3 take the 4 × 4 micro-kernel on a's rows 0–3, fused multiply-adds from a₁x₁:
     fma(a₃x₃, fma(a₂x₂, fma(a₀x₀, a₁x₁))), added to y, then the 4 × 2 micro-kernel's fma(a₄x₄, a₅x₅) added;
     outputs 4–5 take the scalar tail, a chain of fused multiply-adds over the six rows from 0, added to y. Found
     by comparing candidate orders with numpy's products on random operands (0 of 800 000 values differ; the
     two-accumulator order of OpenBLAS's Haswell kernel differs in 38 %, the other orders tried in 14–54 %)."""
-    for j in range(4):
-        head = fma(a[3, j], x[3], fma(a[2, j], x[2], fma(a[0, j], x[0], a[1, j] * x[1])))
-        out[j] = (head + 0.0) + fma(a[4, j], x[4], a[5, j] * x[5])
-    for j in range(4, 6):
-        tail = 0.0
-        for i in range(6):
-            tail = fma(a[i, j], x[i], tail)
-        out[j] = tail + 0.0
+    if j < 4:
+        head = fma(a[q, 3, j], x3, fma(a[q, 2, j], x2, fma(a[q, 0, j], x0, a[q, 1, j] * x1)))
+        return (head + 0.0) + fma(a[q, 4, j], x4, a[q, 5, j] * x5)
+    tail = fma(a[q, 0, j], x0, 0.0)
+    tail = fma(a[q, 1, j], x1, tail)
+    tail = fma(a[q, 2, j], x2, tail)
+    tail = fma(a[q, 3, j], x3, tail)
+    tail = fma(a[q, 4, j], x4, tail)
+    return fma(a[q, 5, j], x5, tail) + 0.0
 
 
 @kernel
@@ -49,7 +51,9 @@ def vector_matrix_rows(x, a, out):
     ``np.matmul(x[:, :, None, :], a[None])[:, :, 0, :]`` of ``SignatureBank.block``."""
     for r in range(x.shape[0]):
         for q in range(x.shape[1]):
-            blas_vector_matrix(x[r, q], a[q], out[r, q])
+            x0, x1, x2, x3, x4, x5 = x[r, q, 0], x[r, q, 1], x[r, q, 2], x[r, q, 3], x[r, q, 4], x[r, q, 5]
+            for j in range(6):
+                out[r, q, j] = blas_vector_matrix(a, q, j, x0, x1, x2, x3, x4, x5)
 
 
 _REPRODUCED: list[bool] = []  # the answer of ``reproduces_numpy_matmul``, once per process
@@ -94,16 +98,17 @@ def signature_block(reference, x, a_t, b, c, d, w, correlation, energy, block_su
         for r in range(n):
             rk = reference[k, r]
             for q in range(k_count):
-                xv = x[r, q]
-                p0, p1, p2 = xv[0] * c[q, 0], xv[1] * c[q, 1], xv[2] * c[q, 2]
-                p3, p4, p5 = xv[3] * c[q, 3], xv[4] * c[q, 4], xv[5] * c[q, 5]
+                x0, x1, x2, x3, x4, x5 = x[r, q, 0], x[r, q, 1], x[r, q, 2], x[r, q, 3], x[r, q, 4], x[r, q, 5]
+                p0, p1, p2 = x0 * c[q, 0], x1 * c[q, 1], x2 * c[q, 2]
+                p3, p4, p5 = x3 * c[q, 3], x4 * c[q, 4], x5 * c[q, 5]
                 s[q] = (((p0 + p2) + p4) + ((p1 + p3) + p5)) + rk * d[q]
                 if reproduced:
-                    blas_vector_matrix(xv, a_t[q], moved)
+                    for j in range(6):
+                        x[r, q, j] = blas_vector_matrix(a_t, q, j, x0, x1, x2, x3, x4, x5) + rk * b[q, j]
                 else:
-                    np.dot(xv, a_t[q], moved)
-                for j in range(6):
-                    xv[j] = moved[j] + rk * b[q, j]
+                    np.dot(x[r, q], a_t[q], moved)
+                    for j in range(6):
+                        x[r, q, j] = moved[j] + rk * b[q, j]
             for q in range(k_count):
                 energy[r, q] += s[q] * s[q]
                 for i in range(3):
