@@ -224,14 +224,17 @@ def test_the_region2_speed_kernel_equals_the_reference():
     assert replaced > 50
 
 
-@pytest.mark.parametrize("n", [1, 2, 100])
+@pytest.mark.parametrize("n", [1, 2, 50, 100])
 def test_the_bank_kernel_equals_the_reference(n):
-    # ``ObserverBank.step``'s numpy lines against ``fast.bank_step`` (its products by BLAS from inside the kernel),
-    # through the transient gains into the steady ones, for one row, a run with its twin and a wide batch; every
-    # array equal to the last bit
+    # ``ObserverBank.step``'s numpy lines against ``fast.bank_step`` (its products by BLAS from inside the kernel
+    # for one row, over the matrices' nonzeros with BLAS's arithmetic for more where ``gemm_layout`` finds it),
+    # through the transient gains into the steady ones, for one row, a run with its twin and wide batches, a NaN
+    # reading on one row of several at tick 25; every array equal to the last bit, zeros' signs included
     rng = np.random.default_rng(SEED + n)
     design = TurbineSupervisor(n).context.bank_design
-    banks = [ObserverBank(design, n), ObserverBank(design, n, fast=fast_module("service.turbine.fast"))]
+    fast = fast_module("service.turbine.fast")
+    banks = [ObserverBank(design, n), ObserverBank(design, n, fast=fast)]
+    assert banks[1]._sparse[0] == (n > 1 and fast.gemm_layout(n, *banks[1]._update.shape) is not None)
     inputs = banks[0].d.H_blk.shape[1]
     scale = np.array([1.6, 1.6, 150.0, 150.0, 150.0][:inputs] + [1.0] * max(0, inputs - 5))
     x0, y0 = rng.normal(1.0, 0.3, (n, 4)), scale * rng.normal(1.0, 0.01, (n, inputs))
@@ -239,12 +242,44 @@ def test_the_bank_kernel_equals_the_reference(n):
         bank.initialise(x0, y0)
     for k in range(len(banks[0]._update_transient) + 30):
         y = scale * rng.normal(1.0, 0.01, (n, inputs))
+        if k == 25 and n > 1:
+            y[n // 2, 0] = np.nan
         u = rng.normal(2e4, 500.0, n)
         for bank in banks:
             bank.step(y, u)
         for name in ("z", "x_hat", "chi2", "steps"):
-            np.testing.assert_array_equal(getattr(banks[1], name), getattr(banks[0], name), f"tick {k}: {name}")
-    assert banks[0].steps > len(banks[0]._update_transient) and banks[0].chi2.max() > 0.0
+            got, expected = getattr(banks[1], name), getattr(banks[0], name)
+            np.testing.assert_array_equal(got, expected, f"tick {k}: {name}")
+            np.testing.assert_array_equal(np.signbit(got), np.signbit(expected), f"tick {k}: {name}")
+    healthy = np.arange(n) != n // 2 if n > 1 else np.ones(1, dtype=bool)
+    assert np.isnan(banks[1].z[~healthy]).all() and np.isfinite(banks[1].z[healthy]).all()
+    assert banks[0].steps > len(banks[0]._update_transient) and banks[0].chi2[healthy].max() > 0.0
+
+
+@pytest.mark.parametrize("n", [2, 7, 50, 450])
+def test_the_sparse_product_equals_numpy_matmul(n):
+    # ``fast.gemm_product`` over a sparse matrix's nonzeros against numpy's dense ``@`` (BLAS's gemm), for the
+    # observer bank's and the wind recovery's shapes and random sparse matrices, with zero entries, a zero row,
+    # an inf and a NaN row: equal to the last bit; a plain loop product differs on the same operands
+    fast = fast_module("service.turbine.fast")
+    rng = np.random.default_rng(SEED + n)
+    for k_count, n_columns in ((82, 76), (81, 108), (152, 54)):
+        lanes_from = fast.gemm_layout(n, k_count, n_columns)
+        if lanes_from is None:
+            pytest.skip("numpy's BLAS on this machine is not the kernel gemm_product reproduces")
+        matrix = rng.standard_normal((k_count, n_columns)) * (rng.random((k_count, n_columns)) < 0.08)
+        a = rng.standard_normal((n, k_count)) * np.exp(3.0 * rng.standard_normal((n, 1)))
+        a[0] = 0.0
+        a[1, 3], a[-1, 5] = np.inf, np.nan
+        with np.errstate(invalid="ignore"):  # inf · 0
+            expected = a @ matrix
+        got = np.empty_like(expected)
+        fast.gemm_product(a, matrix, fast.nonzeros(matrix, lanes_from), got)
+        np.testing.assert_array_equal(got, expected)
+        finite = np.isfinite(expected)
+        np.testing.assert_array_equal(got[finite].view(np.int64), expected[finite].view(np.int64))
+        rows, dense = rng.standard_normal((8, k_count)), rng.standard_normal((k_count, n_columns))
+        assert (np.einsum("nk,kj->nj", rows, dense, optimize=False) != rows @ dense).any()
 
 
 def test_the_reproduced_blas_product_equals_numpy_matmul():

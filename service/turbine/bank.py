@@ -262,6 +262,8 @@ class ObserverBank:
         ]
         self._output = np.block([[np.eye(width), -design.L_res.T], [design.H_blk.T, design.G_res.T]])
         self._width = width
+        if fast is not None:
+            self._sparse = self._sparse_products(fast, n)
         # The left operands of the two products, [z, u, y_prev] and [z, y], refilled in place every tick
         # (cheaper than concatenating; the same C-contiguous arrays, so the same products).
         self._update_in = np.empty((n, width + 1 + design.K_blk.shape[1]))
@@ -322,17 +324,33 @@ class ObserverBank:
         self.chi2 = terms[:, :m] + (terms[:, m : 2 * m] + terms[:, 2 * m :])  # = reduceat(w², res_starts)
         self._y_prev = y
 
+    def _sparse_products(self, fast, n: int) -> tuple:
+        """The two products' matrices as their nonzeros for ``fast.gemm_product`` (the update's and its transient
+        versions', the output's), where ``fast.gemm_layout`` finds BLAS's arithmetic for these shapes and n rows;
+        else BLAS products (one row; another BLAS or CPU). The matrices are sparse (a few % nonzero): the products
+        over their nonzeros are a small part of BLAS's dense work, with the same numbers."""
+        (k_update, n_update), (k_output, n_output) = self._update.shape, self._output.shape
+        update_lanes, output_lanes = fast.gemm_layout(n, k_update, n_update), fast.gemm_layout(n, k_output, n_output)
+        reproduced = update_lanes is not None and output_lanes is not None
+        if not reproduced:
+            update_lanes = output_lanes = 0
+        self._update_nonzeros = fast.nonzeros(self._update, update_lanes)
+        self._transient_nonzeros = [fast.nonzeros(m, update_lanes) for m in self._update_transient]
+        return reproduced, fast.nonzeros(self._output, output_lanes)
+
     def _fast_step(self, y: np.ndarray, u_prev: np.ndarray) -> None:
-        """``step`` by one kernel (``service.turbine.fast.bank_step``: the stacking, the two products by BLAS as
-        numpy's, the χ² sums)."""
+        """``step`` by one kernel (``service.turbine.fast.bank_step``: the stacking, the two products as numpy's,
+        over the matrices' nonzeros or by BLAS, the χ² sums)."""
         advance = self._y_prev is not None
-        update = self._update
+        update, update_nonzeros = self._update, self._update_nonzeros
         if advance and self.steps < len(self._update_transient):
-            update = self._update_transient[self.steps]
+            update, update_nonzeros = self._update_transient[self.steps], self._transient_nonzeros[self.steps]
         self.chi2 = np.empty((self.n, len(self.d.names)))
+        reproduced, output_nonzeros = self._sparse
         self.z, out = self._fast.bank_step(
             self.z, u_prev, self._y_prev if advance else y, update, self._update_in, y, self._output,
             self._output_in, self._terms, self._squares.shape[1] - 1, advance, self.chi2,
+            (reproduced, update_nonzeros, output_nonzeros),
         )  # fmt: skip
         self.steps += advance
         self.x_hat = out[:, : self._width]
