@@ -3,8 +3,9 @@ and χ² statistics, the wind recovery's filters, the FDI's window tests and the
 pitch-actuator test's kernels: ``service.turbine.fast_actuator``).
 
 Each kernel performs the numpy reference's operations in its order, row by row, so its results equal the
-reference's bit for bit (``tests/test_fast_backend.py``). The matrix products (the bank's two, the recovery's
-map) stay BLAS's: a compiled loop would sum in another order; ``bank_step`` calls BLAS from inside the kernel
+reference's bit for bit (``tests/test_fast_backend.py``). The recovery's map stays numpy's BLAS product. The bank's
+two products are ``gemm_product``'s, over the matrices' nonzeros with the arithmetic of numpy's BLAS product
+(``gemm_layout`` checks it on this machine for the bank's shapes and rows), else BLAS from inside the kernel
 (numba's product calls the routine numpy's does, with the same numbers: the tests compare them bit for bit).
 Decisions (isolation, clearing, events) stay in Python: they run on the rare ticks where something is suspected.
 ``wind_from_torque`` is ``wwcore.aero_fast``'s, for the wind recovery.
