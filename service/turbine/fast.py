@@ -107,37 +107,51 @@ def gemm_product(a, matrix, nonzeros, out):
     ((l₀ + l₁) + (l₂ + l₃)) + ((l₄ + l₅) + (l₆ + l₇)) (its small-matrix kernel's last columns). Leaving out a zero
     coefficient changes no result: the accumulators start at +0 and never become −0 (a fused multiply-add rounds
     an exact zero sum to +0), so adding x · 0 = ±0 to one leaves it as it was, for finite x. A row with a
-    non-finite entry takes every k (its products with the zeros are NaN, as BLAS's)."""
+    non-finite entry takes every k (its products with the zeros are NaN, as BLAS's). The rows' chains are
+    independent: the loops run over the rows innermost, so that they overlap."""
     starts, ks, values, lanes_from = nonzeros
     n, k_count = a.shape
-    lanes = np.zeros(8)
-    for r in range(n):
+    a_t = np.ascontiguousarray(a.T)  # (K, n): a coefficient's products with every row, contiguous
+    acc = np.empty(n)
+    lanes = np.empty((8, n))
+    for j in range(out.shape[1]):
+        if j < lanes_from:
+            acc[:] = 0.0
+            for e in range(starts[j], starts[j + 1]):
+                row, value = a_t[ks[e]], values[e]
+                for r in range(n):
+                    acc[r] = fma(row[r], value, acc[r])
+            for r in range(n):
+                out[r, j] = acc[r]
+            continue
+        lanes[:] = 0.0
+        for e in range(starts[j], starts[j + 1]):
+            k = ks[e]
+            row, value, lane = a_t[k], values[e], lanes[k % 8]
+            for r in range(n):
+                lane[r] = fma(row[r], value, lane[r])
+        for r in range(n):
+            low = (lanes[0, r] + lanes[1, r]) + (lanes[2, r] + lanes[3, r])
+            out[r, j] = low + ((lanes[4, r] + lanes[5, r]) + (lanes[6, r] + lanes[7, r]))
+    for r in range(n):  # rows with a non-finite entry: every k, the zeros' products included
         finite = True
         for k in range(k_count):
             finite = finite and np.isfinite(a[r, k])
+        if finite:
+            continue
         for j in range(out.shape[1]):
             if j < lanes_from:
-                acc = 0.0
-                if finite:
-                    for e in range(starts[j], starts[j + 1]):
-                        acc = fma(a[r, ks[e]], values[e], acc)
-                else:
-                    for k in range(k_count):
-                        acc = fma(a[r, k], matrix[k, j], acc)
-                out[r, j] = acc
+                total = 0.0
+                for k in range(k_count):
+                    total = fma(a[r, k], matrix[k, j], total)
+                out[r, j] = total
                 continue
             for i in range(8):
-                lanes[i] = 0.0
-            if finite:
-                for e in range(starts[j], starts[j + 1]):
-                    k = ks[e]
-                    lanes[k % 8] = fma(a[r, k], values[e], lanes[k % 8])
-            else:
-                for k in range(k_count):
-                    lanes[k % 8] = fma(a[r, k], matrix[k, j], lanes[k % 8])
-            out[r, j] = ((lanes[0] + lanes[1]) + (lanes[2] + lanes[3])) + (
-                (lanes[4] + lanes[5]) + (lanes[6] + lanes[7])
-            )
+                lanes[i, 0] = 0.0
+            for k in range(k_count):
+                lanes[k % 8, 0] = fma(a[r, k], matrix[k, j], lanes[k % 8, 0])
+            low = (lanes[0, 0] + lanes[1, 0]) + (lanes[2, 0] + lanes[3, 0])
+            out[r, j] = low + ((lanes[4, 0] + lanes[5, 0]) + (lanes[6, 0] + lanes[7, 0]))
 
 
 def nonzeros(matrix: np.ndarray, lanes_from: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, int]:
