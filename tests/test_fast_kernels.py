@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from service.turbine.adaptive import HealthySpread
-from service.turbine.bank import GENERATOR, ObserverBank
+from service.turbine.bank import GENERATOR, SPARSE_PRODUCT_ROWS, ObserverBank
 from service.turbine.builtin import SPEED_TARGETS, BenchmarkDetector, UIOBankEstimator
 from service.turbine.component_fdi import ACTUATOR_TARGET, CONVERTER_TARGET, M1_TARGET
 from service.turbine.interfaces import POWER_SPEED_MIN_TORQUE, TurbineContext
@@ -265,14 +265,19 @@ def test_the_observer_selection_kernels_equal_the_reference():
     assert {*design.power_speed, design.index(frozenset(GENERATOR))} <= selected_seen
 
 
-@pytest.mark.parametrize("n", [1, 2, 100])
+@pytest.mark.parametrize("n", [1, 2, 16, 50])
 def test_the_bank_kernel_equals_the_reference(n):
-    # ``ObserverBank.step``'s numpy lines against ``fast.bank_step`` (its products by BLAS from inside the kernel),
-    # through the transient gains into the steady ones, for one row, a run with its twin and a wide batch; every
-    # array equal to the last bit
+    # ``ObserverBank.step``'s numpy lines against ``fast.bank_step`` (its products by BLAS from inside the kernel
+    # for few rows, over the matrices' nonzeros with BLAS's arithmetic for more where ``gemm_layout`` finds it),
+    # through the transient gains into the steady ones, for one row, a run with its twin and wide batches, a NaN
+    # reading on one row of several at tick 25; every array equal to the last bit, zeros' signs included
     rng = np.random.default_rng(SEED + n)
     design = TurbineSupervisor(n).context.bank_design
-    banks = [ObserverBank(design, n), ObserverBank(design, n, fast=fast_module("service.turbine.fast"))]
+    fast = fast_module("service.turbine.fast")
+    banks = [ObserverBank(design, n), ObserverBank(design, n, fast=fast)]
+    assert banks[1]._sparse[0] == (
+        n >= SPARSE_PRODUCT_ROWS and fast.gemm_layout(n, *banks[1]._update.shape) is not None
+    )
     inputs = banks[0].d.H_blk.shape[1]
     scale = np.array([1.6, 1.6, 150.0, 150.0, 150.0][:inputs] + [1.0] * max(0, inputs - 5))
     x0, y0 = rng.normal(1.0, 0.3, (n, 4)), scale * rng.normal(1.0, 0.01, (n, inputs))
@@ -280,19 +285,75 @@ def test_the_bank_kernel_equals_the_reference(n):
         bank.initialise(x0, y0)
     for k in range(len(banks[0]._update_transient) + 30):
         y = scale * rng.normal(1.0, 0.01, (n, inputs))
+        if k == 25 and n > 1:
+            y[n // 2, 0] = np.nan
         u = rng.normal(2e4, 500.0, n)
         for bank in banks:
             bank.step(y, u)
         for name in ("z", "x_hat", "chi2", "steps"):
-            np.testing.assert_array_equal(getattr(banks[1], name), getattr(banks[0], name), f"tick {k}: {name}")
-    assert banks[0].steps > len(banks[0]._update_transient) and banks[0].chi2.max() > 0.0
+            got, expected = getattr(banks[1], name), getattr(banks[0], name)
+            np.testing.assert_array_equal(got, expected, f"tick {k}: {name}")
+            np.testing.assert_array_equal(np.signbit(got), np.signbit(expected), f"tick {k}: {name}")
+    healthy = np.arange(n) != n // 2 if n > 1 else np.ones(1, dtype=bool)
+    assert np.isnan(banks[1].z[~healthy]).all() and np.isfinite(banks[1].z[healthy]).all()
+    assert banks[0].steps > len(banks[0]._update_transient) and banks[0].chi2[healthy].max() > 0.0
 
 
+@pytest.mark.parametrize("n", [2, 7, 50, 450])
+def test_the_sparse_product_equals_numpy_matmul(n):
+    # ``fast.gemm_product`` over a sparse matrix's nonzeros against numpy's dense ``@`` (BLAS's gemm), for the
+    # observer bank's and the wind recovery's shapes and random sparse matrices, with zero entries, a zero row,
+    # an inf and a NaN row: equal to the last bit; a plain loop product differs on the same operands
+    fast = fast_module("service.turbine.fast")
+    rng = np.random.default_rng(SEED + n)
+    for k_count, n_columns in ((82, 76), (81, 108), (152, 54)):
+        lanes_from = fast.gemm_layout(n, k_count, n_columns)
+        if lanes_from is None:
+            pytest.skip("numpy's BLAS on this machine is not the kernel gemm_product reproduces")
+        matrix = rng.standard_normal((k_count, n_columns)) * (rng.random((k_count, n_columns)) < 0.08)
+        a = rng.standard_normal((n, k_count)) * np.exp(3.0 * rng.standard_normal((n, 1)))
+        a[0] = 0.0
+        a[1, 3], a[-1, 5] = np.inf, np.nan
+        with np.errstate(invalid="ignore"):  # inf · 0
+            expected = a @ matrix
+        got = np.empty_like(expected)
+        fast.gemm_product(a, matrix, fast.nonzeros(matrix, lanes_from), got)
+        np.testing.assert_array_equal(got, expected)
+        finite = np.isfinite(expected)
+        np.testing.assert_array_equal(got[finite].view(np.int64), expected[finite].view(np.int64))
+        rows, dense = rng.standard_normal((8, k_count)), rng.standard_normal((k_count, n_columns))
+        assert (np.einsum("nk,kj->nj", rows, dense, optimize=False) != rows @ dense).any()
+
+
+def test_the_reproduced_blas_product_equals_numpy_matmul():
+    # ``fast_actuator.blas_vector_matrix`` against numpy's stacked ``(1, 6) @ (6, 6)`` (one BLAS ``dgemv`` per
+    # product) on random states of the bank's own matrices and on random matrices over twelve decades, zeros among
+    # them, to the last bit; a plain loop product differs on the same operands
+    fast_actuator = fast_module("service.turbine.fast_actuator")
+    if not fast_actuator.reproduces_numpy_matmul():
+        pytest.skip("numpy's BLAS on this machine is not the kernel blas_vector_matrix reproduces")
+    rng = np.random.default_rng(SEED)
+    bank_matrices = TurbineSupervisor(1, backend="numpy").detector.components.signatures._At
+    for a_t in (bank_matrices, rng.standard_normal((40, 6, 6)) * np.exp(rng.standard_normal((40, 1, 1)))):
+        x = rng.standard_normal((500, len(a_t), 6)) * np.exp(6.0 * rng.standard_normal((500, len(a_t), 1)))
+        x[::11, :, 2:] = 0.0
+        expected = np.matmul(x[:, :, None, :], a_t[None])[:, :, 0, :]
+        got = np.empty_like(x)
+        fast_actuator.vector_matrix_rows(x, a_t, got)
+        np.testing.assert_array_equal(got.view(np.int64), expected.view(np.int64))
+        loop = np.einsum("nqi,qij->nqj", x, a_t, optimize=False)  # the six products added in turn, unfused
+        assert (loop != expected).mean() > 0.1
+
+
+@pytest.mark.parametrize("reproduced", [False, True])
 @pytest.mark.parametrize("n", [1, 3, 40])
-def test_the_signature_kernel_equals_the_reference(n):
+def test_the_signature_kernel_equals_the_reference(n, reproduced):
     # ``SignatureBank.block`` and ``_actuators``' block sums (``einsum``, ``sum(axis=0)``) against
     # ``fast_actuator.signature_block``, block after block from rest through ramps, steps and noise, the states
-    # carried over; every array equal to the last bit (a sequential six-term sum or a loop product fails this)
+    # carried over; every array equal to the last bit (a sequential six-term sum or a loop product fails this), the
+    # state products by BLAS calls and by the reproduced BLAS arithmetic
+    if reproduced and not fast_module("service.turbine.fast_actuator").reproduces_numpy_matmul():
+        pytest.skip("numpy's BLAS on this machine is not the kernel blas_vector_matrix reproduces")
     rng = np.random.default_rng(SEED + n)
     components = TurbineSupervisor(n, backend="numpy").detector.components
     ticks = components._ref_block.shape[0]
@@ -310,7 +371,7 @@ def test_the_signature_kernel_equals_the_reference(n):
             np.einsum("knc,knc->nc", s, s),
             np.concatenate([w.sum(axis=0), s.sum(axis=0)], axis=1),
         )
-        got = fast_bank.block_sums(reference, w, kernel)
+        got = fast_bank.block_sums(reference, w, kernel, reproduced)
         for name, a, b in zip(("correlation", "energy", "sums"), got, expected, strict=True):
             np.testing.assert_array_equal(a, b, f"block {block}: {name}")
         np.testing.assert_array_equal(fast_bank.x, reference_bank.x, f"block {block}: state")

@@ -10,9 +10,6 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from llvmlite import ir
-from numba.core import cgutils, types
-from numba.extending import intrinsic
 
 from wwcore.aero import (
     _AWAY_STEP,
@@ -48,21 +45,6 @@ def minimum(a, b):
 def maximum(a, b):
     """np.maximum of two floats (nan if either is nan)."""
     return a if a >= b or a != a else b
-
-
-@intrinsic
-def fma(typingctx, a, b, c):
-    """a·b + c rounded once (IEEE fused multiply-add, LLVM's ``llvm.fma``): what numpy's SIMD complex loops use."""
-    signature = types.float64(types.float64, types.float64, types.float64)
-
-    def codegen(context, builder, sig, args):
-        double = ir.DoubleType()
-        function = cgutils.get_or_insert_function(
-            builder.module, ir.FunctionType(double, [double, double, double]), "llvm.fma.f64"
-        )
-        return builder.call(function, args)
-
-    return signature, codegen
 
 
 @kernel

@@ -16,6 +16,9 @@ import os
 from pathlib import Path
 
 import numba
+from llvmlite import ir
+from numba.core import cgutils, types
+from numba.extending import intrinsic
 
 
 def cache_dir() -> Path:
@@ -33,3 +36,19 @@ numba.config.CACHE_DIR = str(cache_dir())
 def kernel(func):
     """Compile ``func`` in nopython mode, cached on disk, releasing the GIL, with numpy's division semantics."""
     return numba.njit(cache=True, nogil=True, error_model="numpy")(func)
+
+
+@intrinsic
+def fma(typingctx, a, b, c):
+    """a·b + c rounded once (IEEE fused multiply-add, LLVM's ``llvm.fma``): what numpy's SIMD complex loops
+    and OpenBLAS's kernels use, for the kernels that reproduce their results."""
+    signature = types.float64(types.float64, types.float64, types.float64)
+
+    def codegen(context, builder, sig, args):
+        double = ir.DoubleType()
+        function = cgutils.get_or_insert_function(
+            builder.module, ir.FunctionType(double, [double, double, double]), "llvm.fma.f64"
+        )
+        return builder.call(function, args)
+
+    return signature, codegen

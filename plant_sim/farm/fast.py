@@ -20,8 +20,8 @@ import math
 import numpy as np
 
 from plant_sim.turbine.fast import _blade_features, _blade_torques, readings, step_inputs
-from wwcore.aero_fast import fma, maximum, minimum
-from wwcore.jit import kernel
+from wwcore.aero_fast import maximum, minimum
+from wwcore.jit import fma, kernel
 from wwcore.thrust_fast import thrust_coefficient  # noqa: F401 (the wakes' C_T, ``TableWakes.advance``)
 
 TWO_PI = 2.0 * math.pi

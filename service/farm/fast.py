@@ -19,9 +19,9 @@ import math
 
 import numpy as np
 
-from wwcore.aero_fast import _newton, fma, maximum, minimum, pitch_features
+from wwcore.aero_fast import _newton, maximum, minimum, pitch_features
 from wwcore.farm_frames import CANCEL_3P_MODE, DEBRIS_MODE, DERATED_MODE, PITCH_TRIM_MODE
-from wwcore.jit import kernel
+from wwcore.jit import fma, kernel
 from wwcore.thrust_fast import interp, np_maximum, np_minimum
 
 

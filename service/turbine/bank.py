@@ -250,6 +250,13 @@ def power_speed_estimate_observers(design: BankDesign, power_speed: bool = True)
     return np.array([*design.power_speed, design.index(frozenset(GENERATOR))], dtype=np.int64)
 
 
+SPARSE_PRODUCT_ROWS = 16
+"""Banks of at least this many rows make their two products over the matrices' nonzeros on the compiled backend
+(``ObserverBank._sparse_products``), fewer by BLAS (the same numbers): the sparse products' fixed cost per column
+makes them the slower below 8–16 rows (CPU time of a bank step: 2 rows 8.9 µs against BLAS's 5.3, 8 rows 9.6 against
+9.4, 16 rows 12.2 against 14.9, 50 rows 27.1 against 36.1)."""
+
+
 class ObserverBank:
     """Runs a ``BankDesign`` for n turbines: eqs. (11)–(12) for every observer, plus whitened residuals.
 
@@ -274,6 +281,8 @@ class ObserverBank:
         ]
         self._output = np.block([[np.eye(width), -design.L_res.T], [design.H_blk.T, design.G_res.T]])
         self._width = width
+        if fast is not None:
+            self._sparse = self._sparse_products(fast, n)
         # The left operands of the two products, [z, u, y_prev] and [z, y], refilled in place every tick
         # (cheaper than concatenating; the same C-contiguous arrays, so the same products).
         self._update_in = np.empty((n, width + 1 + design.K_blk.shape[1]))
@@ -334,17 +343,37 @@ class ObserverBank:
         self.chi2 = terms[:, :m] + (terms[:, m : 2 * m] + terms[:, 2 * m :])  # = reduceat(w², res_starts)
         self._y_prev = y
 
+    def _sparse_products(self, fast, n: int) -> tuple:
+        """The two products' matrices as their nonzeros for ``fast.gemm_product`` (the update's and its transient
+        versions', the output's), for ``SPARSE_PRODUCT_ROWS`` rows or more where ``fast.gemm_layout`` finds BLAS's
+        arithmetic for these shapes and n rows; else BLAS products (fewer rows; another BLAS or CPU). The matrices
+        are sparse (4–8 % nonzero): the products over their nonzeros are a twentieth of BLAS's dense work, with the
+        same numbers."""
+        (k_update, n_update), (k_output, n_output) = self._update.shape, self._output.shape
+        update_lanes = output_lanes = None
+        if n >= SPARSE_PRODUCT_ROWS:
+            update_lanes = fast.gemm_layout(n, k_update, n_update)
+            output_lanes = fast.gemm_layout(n, k_output, n_output)
+        reproduced = update_lanes is not None and output_lanes is not None
+        if not reproduced:
+            update_lanes = output_lanes = 0
+        self._update_nonzeros = fast.nonzeros(self._update, update_lanes)
+        self._transient_nonzeros = [fast.nonzeros(m, update_lanes) for m in self._update_transient]
+        return reproduced, fast.nonzeros(self._output, output_lanes)
+
     def _fast_step(self, y: np.ndarray, u_prev: np.ndarray) -> None:
-        """``step`` by one kernel (``service.turbine.fast.bank_step``: the stacking, the two products by BLAS as
-        numpy's, the χ² sums)."""
+        """``step`` by one kernel (``service.turbine.fast.bank_step``: the stacking, the two products as numpy's,
+        over the matrices' nonzeros or by BLAS, the χ² sums)."""
         advance = self._y_prev is not None
-        update = self._update
+        update, update_nonzeros = self._update, self._update_nonzeros
         if advance and self.steps < len(self._update_transient):
-            update = self._update_transient[self.steps]
+            update, update_nonzeros = self._update_transient[self.steps], self._transient_nonzeros[self.steps]
         self.chi2 = np.empty((self.n, len(self.d.names)))
+        reproduced, output_nonzeros = self._sparse
         self.z, out = self._fast.bank_step(
             self.z, u_prev, self._y_prev if advance else y, update, self._update_in, y, self._output,
             self._output_in, self._terms, self._squares.shape[1] - 1, advance, self.chi2,
+            (reproduced, update_nonzeros, output_nonzeros),
         )  # fmt: skip
         self.steps += advance
         self.x_hat = out[:, : self._width]

@@ -5,8 +5,10 @@ the shorter windows, the learnt spread, the raise and the clearing.
 As in ``service.turbine.fast``, each kernel performs the numpy reference's operations in its order, so its results
 equal the reference's bit for bit (``tests/test_fast_backend.py``). ``signature_block`` computes the signature bank
 and the block's sums in the order numpy's ``einsum`` and ``matmul`` give them on this numpy build (``einsum``'s
-two-lane inner loop for the six-term contraction, tick order for the block's sums; the state update's product by
-BLAS, as numpy's stacked ``matmul`` calls it); the tests compare them with the numpy lines bit for bit.
+two-lane inner loop for the six-term contraction, tick order for the block's sums); the state update's product is
+either a BLAS call, as numpy's stacked ``matmul`` makes one per row and candidate, or ``blas_vector_matrix``, the
+arithmetic of the BLAS kernel numpy's call reaches, used only where ``reproduces_numpy_matmul`` found it equal to
+numpy's on this machine; the tests compare them with the numpy lines bit for bit.
 """
 
 from __future__ import annotations
@@ -15,20 +17,75 @@ import numpy as np
 
 from service.turbine.fast import learn_spread
 from wwcore.aero_fast import maximum
-from wwcore.jit import kernel
+from wwcore.jit import fma, kernel
 
 
 # -- signature bank and block sums (``pitch_actuator.SignatureBank.block``, ``ComponentFDI._actuators``) --------------
 @kernel
-def signature_block(reference, x, a_t, b, c, d, w, correlation, energy, block_sums):
+def blas_vector_matrix(a, q, j, x0, x1, x2, x3, x4, x5):
+    """Output j of x a[q] for x = (x0 … x5) and a (K, 6, 6) in C order, with the arithmetic of the BLAS call numpy's
+    ``matmul`` makes for a (1, 6) @ (6, 6) product (``reproduces_numpy_matmul`` checks that it is numpy's on this
+    machine).
+
+    numpy asks for ``cblas_dgemv(RowMajor, Trans)``: OpenBLAS's ``dgemv_n`` on the column-major view of a[q], whose
+    column i is a[q]'s row i, and y = +0 first (β = 0). On its SkylakeX kernels (OpenBLAS 0.3.31 of numpy 2.4.6, on an
+    AVX-512 CPU) outputs 0–3 take the 4 × 4 micro-kernel on a's rows 0–3, fused multiply-adds from a₁x₁:
+    fma(a₃x₃, fma(a₂x₂, fma(a₀x₀, a₁x₁))), added to y, then the 4 × 2 micro-kernel's fma(a₄x₄, a₅x₅) added;
+    outputs 4–5 take the scalar tail, a chain of fused multiply-adds over the six rows from 0, added to y. Found
+    by comparing candidate orders with numpy's products on random operands (0 of 800 000 values differ; the
+    two-accumulator order of OpenBLAS's Haswell kernel differs in 38 %, the other orders tried in 14–54 %)."""
+    if j < 4:
+        head = fma(a[q, 3, j], x3, fma(a[q, 2, j], x2, fma(a[q, 0, j], x0, a[q, 1, j] * x1)))
+        return (head + 0.0) + fma(a[q, 4, j], x4, a[q, 5, j] * x5)
+    tail = fma(a[q, 0, j], x0, 0.0)
+    tail = fma(a[q, 1, j], x1, tail)
+    tail = fma(a[q, 2, j], x2, tail)
+    tail = fma(a[q, 3, j], x3, tail)
+    tail = fma(a[q, 4, j], x4, tail)
+    return fma(a[q, 5, j], x5, tail) + 0.0
+
+
+@kernel
+def vector_matrix_rows(x, a, out):
+    """``blas_vector_matrix`` of every x[r, q] (n, K, 6) with a[q] (K, 6, 6), into out (n, K, 6): the stacked
+    ``np.matmul(x[:, :, None, :], a[None])[:, :, 0, :]`` of ``SignatureBank.block``."""
+    for r in range(x.shape[0]):
+        for q in range(x.shape[1]):
+            x0, x1, x2, x3, x4, x5 = x[r, q, 0], x[r, q, 1], x[r, q, 2], x[r, q, 3], x[r, q, 4], x[r, q, 5]
+            for j in range(6):
+                out[r, q, j] = blas_vector_matrix(a, q, j, x0, x1, x2, x3, x4, x5)
+
+
+_REPRODUCED: list[bool] = []  # the answer of ``reproduces_numpy_matmul``, once per process
+
+
+def reproduces_numpy_matmul() -> bool:
+    """Whether ``blas_vector_matrix`` gives numpy's stacked ``matmul`` bit for bit on this machine (numpy's BLAS and
+    the kernel it picks for this CPU): random operands over twelve decades, zero rows among them, 24 000 values
+    compared. Asked once per process; where it is false, ``signature_block`` makes BLAS calls instead."""
+    if not _REPRODUCED:
+        rng = np.random.default_rng(20261127)
+        x = rng.standard_normal((60, 40, 6)) * np.exp(6.0 * rng.standard_normal((60, 40, 1)))
+        x[::7] = 0.0
+        a = rng.standard_normal((40, 6, 6)) * np.exp(rng.standard_normal((40, 1, 1)))
+        expected = np.matmul(x[:, :, None, :], a[None])[:, :, 0, :]
+        got = np.empty_like(x)
+        vector_matrix_rows(x, a, got)
+        _REPRODUCED.append(bool(np.array_equal(expected.view(np.int64), got.view(np.int64))))
+    return _REPRODUCED[0]
+
+
+@kernel
+def signature_block(reference, x, a_t, b, c, d, w, correlation, energy, block_sums, reproduced):
     """``SignatureBank.block`` of the block's references (ticks, n) from the states x (n, K, 6), in place, and the
     block's sums of ``ComponentFDI._actuators``: Σ_k w s_θ (n, 3, K), Σ_k s_θ² (n, K) and [Σ_k w | Σ_k s_θ]
     (n, 3 + K), with w (ticks, n, 3) the whitened residual.
 
     s_θ[k] = C x + r D, the six products added as numpy's ``einsum("nkj,kj->nk")`` adds them (two lanes:
-    ((p0 + p2) + p4) + ((p1 + p3) + p5)); x ← x Aᵀ + r B, the product by BLAS (the vector-matrix product numpy's
-    stacked ``matmul`` makes); the block's sums in tick order from the first tick, as ``einsum`` and ``sum(axis=0)``
-    add along the ticks."""
+    ((p0 + p2) + p4) + ((p1 + p3) + p5)); x ← x Aᵀ + r B, the product by ``blas_vector_matrix`` where
+    ``reproduced`` (``reproduces_numpy_matmul``), else by a BLAS call (the vector-matrix product numpy's stacked
+    ``matmul`` makes); the block's sums in tick order from the first tick, as ``einsum`` and ``sum(axis=0)`` add
+    along the ticks."""
     ticks, n = reference.shape
     k_count = c.shape[0]
     s, moved = np.empty(k_count), np.empty(6)
@@ -41,13 +98,17 @@ def signature_block(reference, x, a_t, b, c, d, w, correlation, energy, block_su
         for r in range(n):
             rk = reference[k, r]
             for q in range(k_count):
-                xv = x[r, q]
-                p0, p1, p2 = xv[0] * c[q, 0], xv[1] * c[q, 1], xv[2] * c[q, 2]
-                p3, p4, p5 = xv[3] * c[q, 3], xv[4] * c[q, 4], xv[5] * c[q, 5]
+                x0, x1, x2, x3, x4, x5 = x[r, q, 0], x[r, q, 1], x[r, q, 2], x[r, q, 3], x[r, q, 4], x[r, q, 5]
+                p0, p1, p2 = x0 * c[q, 0], x1 * c[q, 1], x2 * c[q, 2]
+                p3, p4, p5 = x3 * c[q, 3], x4 * c[q, 4], x5 * c[q, 5]
                 s[q] = (((p0 + p2) + p4) + ((p1 + p3) + p5)) + rk * d[q]
-                np.dot(xv, a_t[q], moved)
-                for j in range(6):
-                    xv[j] = moved[j] + rk * b[q, j]
+                if reproduced:
+                    for j in range(6):
+                        x[r, q, j] = blas_vector_matrix(a_t, q, j, x0, x1, x2, x3, x4, x5) + rk * b[q, j]
+                else:
+                    np.dot(x[r, q], a_t[q], moved)
+                    for j in range(6):
+                        x[r, q, j] = moved[j] + rk * b[q, j]
             for q in range(k_count):
                 energy[r, q] += s[q] * s[q]
                 for i in range(3):
