@@ -22,6 +22,17 @@ evidence that its sensor is healthy again.
   passes, the detection level is used, and where no superset of the flags passes either, the whole bank is
   searched (an isolation that went wrong may be replaced). Where nothing passes at all, the flags grow to the
   least inconsistent superset, or stay where none is left: a flag drops only by its clearing test.
+* **No fault.** A detection may be the noise alone (the detection tests spend their design budget), and no
+  explanation then is the truth, while every one is consistent a few ticks later. So before choosing one, the
+  isolation asks whether the observer that detected (the selected one: the all-sensor observer while nothing is
+  flagged) is consistent again on the ticks after the detection's: its statistic summed over those k ticks,
+  against the upper α_confirm/L quantile of a healthy k-tick sum (L looks, k = max(``isolation_delay``, 1) …
+  ``window``; Bonferroni). Beyond it, the fault persists and the isolation goes on; within it for a whole window,
+  the detection ends without a flag and the detection test re-arms; within it on fewer ticks, the decision waits a
+  tick (the explanations suspected). A detection raised by noise alone thus ends in a flag with probability
+  ≤ α_confirm (0.05). A frozen reading, or a flagged set no observer leaves out, is a fault without this test. The
+  cost falls on faults whose residual the observers absorb within a window of the detection (rotor-speed offsets
+  of a few σ): they end unflagged here and are left to the rotor-speed bias test.
 * **Doubt.** A fault on a rotor-speed sensor shows in the UIOs only as their states drift from it, over several
   ticks, so at the deadline a rotor-speed gain beside a generator-speed fault may not yet reject the explanation
   that names the generator-speed sensor alone. When a witness of the chosen explanation fails the laxer level
