@@ -189,6 +189,78 @@ def test_the_first_flag_names_the_rotor_speed_pair_as_its_sequential_test_bounds
     assert int(joined.sum()) >= 1500 * 0.95
 
 
+def _after_one_tick_over_the_detection_level(rows: int, seed: int, fault_after=None, **options) -> SpeedSensorFDI:
+    """``rows`` turbines, healthy (χ² at its mean), then one tick on which the all-sensor observer's statistic
+    alone is its window threshold (the sum crosses it: a detection), as the plant's noise raised one on seed 79501's
+    random set (docs/turbine.md, "Where the false alarms come from"); then 40 ticks of every observer's χ² drawn
+    afresh from χ²_rank (white, healthy) and the readings' white noise. ``fault_after`` (stat (rows, n_obs) → None)
+    changes those ticks' statistics in place: a fault that persists."""
+    fdi = SpeedSensorFDI(DESIGN, rows, P.dt, FDISettings(adapt_time_s=0.0, warmup_s=0.0, **options))
+    rng = np.random.default_rng(seed)
+    x_hat = np.zeros((rows, DESIGN.F_blk.shape[0]))
+    truth = np.array([1.2, 1.2, 1.2 * P.N_g, 1.2 * P.N_g])
+    healthy = np.ones((rows, len(DESIGN.names)))
+    healthy[:, : DESIGN.n_isolating] = fdi._rank
+    for _ in range(20):
+        fdi.step(truth + SPEED_SIGMA * rng.standard_normal((rows, 4)), healthy, x_hat)
+    spike = healthy.copy()
+    spike[:, fdi._all_healthy] = fdi.h_window[fdi._all_healthy]
+    fdi.step(truth + SPEED_SIGMA * rng.standard_normal((rows, 4)), spike, x_hat)
+    assert (fdi.deadline >= 0).all(), "every row detected"
+    fdi.first_flag = np.zeros(rows, dtype=np.int64)
+    for _ in range(40):
+        stat = healthy.copy()
+        stat[:, : DESIGN.n_isolating] = rng.chisquare(fdi._rank, (rows, DESIGN.n_isolating))
+        if fault_after is not None:
+            fault_after(stat)
+        fdi.step(truth + SPEED_SIGMA * rng.standard_normal((rows, 4)), stat, x_hat)
+        fdi.first_flag = np.where(fdi.first_flag == 0, fdi.flagged, fdi.first_flag)
+    return fdi
+
+
+def test_a_detection_raised_by_noise_alone_ends_without_a_flag():
+    """The isolation's "no fault" outcome: once a whole window after the detection's tick leaves the all-sensor
+    observer's sum within its α_confirm/L level, the detection ends unflagged and the test re-arms. A noise
+    detection then ends in a flag with probability ≤ α_confirm = 0.05 (here white χ² draws after the tick; the
+    earlier isolation, with no such outcome, flagged a sensor on every row, most often a rotor-speed one)."""
+    rows = 2000
+    fdi = _after_one_tick_over_the_detection_level(rows, 31, rotor_bias_test=False)
+    flagged = int((fdi.first_flag != 0).sum())
+    assert flagged <= rows * fdi.s.isolation_confirm_alpha, flagged
+    assert (fdi.deadline < 0).all(), "every detection decided"
+    # the test re-armed: a fault on ω_g,m1 that follows is detected and flagged on every row
+    rng = np.random.default_rng(32)
+    truth = np.array([1.2, 1.2, 1.2 * P.N_g, 1.2 * P.N_g])
+    stat = np.ones((rows, len(DESIGN.names)))
+    stat[:, : DESIGN.n_isolating] = fdi._rank
+    for j, left_out in enumerate(DESIGN.left_out):
+        if "omega_g_m1" not in left_out:
+            stat[:, j] = 1e4
+    for _ in range(40):
+        y = truth + SPEED_SIGMA * rng.standard_normal((rows, 4))
+        y[:, 1] = y[:, 0]
+        fdi.step(y, stat, np.zeros((rows, DESIGN.F_blk.shape[0])))
+    assert (fdi.flagged & BIT["omega_g_m1"] != 0).all()
+
+
+def test_a_fault_that_persists_after_the_detection_is_still_flagged():
+    """The same detection, with a rotor-speed offset on ω_r,m1 behind it that the observers using it keep seeing at a
+    quarter of their detection window's level per tick (their window sum at the detection level, as a fault a
+    little above the detection limit): the ticks after the detection's reject "no fault" and every row's first
+    flag names ω_r,m1."""
+
+    def rotor_offset(stat: np.ndarray) -> None:
+        for j, left_out in enumerate(DESIGN.left_out):
+            if "omega_r_m1" not in left_out:
+                stat[:, j] += 0.25 * (fdi_h_window[j] - DESIGN.ranks[j] * 4)
+
+    fdi_h_window = SpeedSensorFDI(DESIGN, 1, P.dt, FDISettings(adapt_time_s=0.0, warmup_s=0.0)).h_window
+    fdi = _after_one_tick_over_the_detection_level(500, 33, fault_after=rotor_offset, rotor_bias_test=False)
+    assert (fdi.first_flag & BIT["omega_r_m1"] != 0).all(), np.unique(fdi.first_flag, return_counts=True)
+    # a healthy sensor beside it with probability about α_iso (the isolation level's price, module docstring)
+    assert (fdi.first_flag != BIT["omega_r_m1"]).sum() <= 500 * 1e-3 + 3.0 * math.sqrt(500 * 1e-3)
+
+
 def test_a_reading_frozen_near_the_truth_is_flagged_without_arbitration():
     """ω_g,m2 frozen at the true speed: no residual sees it and the observers using it stay consistent, so the
     arbitration between the two generator-speed sensors could take seconds; a frozen reading is a fault whatever

@@ -22,6 +22,17 @@ evidence that its sensor is healthy again.
   passes, the detection level is used, and where no superset of the flags passes either, the whole bank is
   searched (an isolation that went wrong may be replaced). Where nothing passes at all, the flags grow to the
   least inconsistent superset, or stay where none is left: a flag drops only by its clearing test.
+* **No fault.** A detection may be the noise alone (the detection tests spend their design budget), and no
+  explanation then is the truth, while every one is consistent a few ticks later. So before choosing one, the
+  isolation asks whether the observer that detected (the selected one: the all-sensor observer while nothing is
+  flagged) is consistent again on the ticks after the detection's: its statistic summed over those k ticks,
+  against the upper α_confirm/L quantile of a healthy k-tick sum (L looks, k = max(``isolation_delay``, 1) …
+  ``window``; Bonferroni). Beyond it, the fault persists and the isolation goes on; within it for a whole window,
+  the detection ends without a flag and the detection test re-arms; within it on fewer ticks, the decision waits a
+  tick (the explanations suspected). A detection raised by noise alone thus ends in a flag with probability
+  ≤ α_confirm (0.05). A frozen reading, or a flagged set no observer leaves out, is a fault without this test. The
+  cost falls on faults whose residual the observers absorb within a window of the detection (rotor-speed offsets
+  of a few σ): they end unflagged here and are left to the rotor-speed bias test.
 * **Doubt.** A fault on a rotor-speed sensor shows in the UIOs only as their states drift from it, over several
   ticks, so at the deadline a rotor-speed gain beside a generator-speed fault may not yet reject the explanation
   that names the generator-speed sensor alone. When a witness of the chosen explanation fails the laxer level
@@ -144,6 +155,14 @@ class SpeedSensorFDI:
         self.h_confirm_window = np.array(
             [window_threshold(o.autocov, settings.window, confirm / 2.0) for o in observers]
         )
+        # the "no fault" outcome (``_fault_persists``): the selected observer's statistic summed over the k ticks after
+        # the detection's, at level α_confirm / L for each of the L looks (k = max(isolation_delay, 1) … window), so a
+        # detection raised by noise alone still ends in a flag with probability ≤ α_confirm (Bonferroni)
+        first_look = max(settings.isolation_delay, 1)
+        self.fresh_alpha = confirm / (settings.window - first_look + 1)
+        self.h_fresh = np.zeros((bank.n_isolating, settings.window + 1))
+        for k in range(first_look, settings.window + 1):
+            self.h_fresh[:, k] = [window_threshold(o.autocov, k, self.fresh_alpha) for o in observers]
         self.h_clear = np.array(
             [window_threshold(o.autocov, settings.clear_window, settings.clear_alpha) for o in observers]
         )
@@ -224,6 +243,9 @@ class SpeedSensorFDI:
         self._maybe_flagged = False  # False only while no row has a flagged sensor
         self.deadline = np.full(n, -1, dtype=np.int64)  # tick at which a pending isolation is decided, −1 none
         self.started = np.zeros(n, dtype=np.int64)  # tick at which the pending isolation started
+        self.confirmed = np.zeros(
+            n, dtype=bool
+        )  # the ticks after the detection's have shown the fault (``_fault_persists``)
         self.arbiter = GeneratorArbiter(bank, n, iso, dt, fast)
         # the rotor-speed pair's summed difference (``arbitration``) judges an explanation that names no rotor-speed
         # sensor by Wald's sequential test of "both healthy" against "one biased by the bias test's smallest design
@@ -363,6 +385,10 @@ class SpeedSensorFDI:
         # a reading frozen for ``frozen_ticks`` has already shown its fault for that long: no delay to wait out
         self.deadline[start] = self.ticks + np.where(inconsistent[start], self.s.isolation_delay, 0)
         self.started[start] = self.ticks
+        # a frozen reading is a fault whatever the residuals say; a flagged set no observer leaves out has no test
+        self.confirmed[start] = ((frozen_mask & ~self.flagged) != 0)[start] | (self.observer_of_mask[self.flagged] < 0)[
+            start
+        ]
         # the onset's jump names the generator-speed sensor unless one of the pair is flagged (``arbitration``)
         self.arbiter.reset(start, (self.flagged & _GENERATOR_BITS) == 0)
         suspected = _SENSORS_OF_MASK[self.flagged | self.provisional]
@@ -388,6 +414,18 @@ class SpeedSensorFDI:
             )
             if self.ticks >= self.deadline[row]:
                 waited = self.ticks - self.started[row]
+                if not self.confirmed[row]:
+                    persists = self._fault_persists(row, waited)
+                    if persists < 0:  # no fault: the detection ends without a flag and the detection test re-arms
+                        self.deadline[row] = -1
+                        self.provisional[row] = self.flagged[row]
+                        continue
+                    if persists == 0:  # too few ticks since the detection to tell
+                        self.deadline[row] = self.ticks + 1
+                        if self._estimable[self.provisional[row] | explanation]:
+                            self.provisional[row] |= explanation
+                        continue
+                    self.confirmed[row] = True
                 if self._doubtful(row, explanation, confirm[i], waited, patience, frozen):
                     self.deadline[row] = self.ticks + 1  # one more tick of evidence, distrusting what is suspected
                     if self._estimable[self.provisional[row] | explanation]:
@@ -418,6 +456,23 @@ class SpeedSensorFDI:
             self.clearing.start(_SENSORS_OF_MASK[raised])
         self._pending = bool((self.deadline >= 0).any())
         self._maybe_flagged = True
+
+    def _fault_persists(self, row: int, waited: int) -> int:
+        """The isolation's "no fault" outcome, on ``row`` ``waited`` ticks after its detection: whether the observer
+        that detected it (the one leaving out the flagged sensors; the all-sensor one while nothing is flagged) is
+        consistent again on the k = min(waited, window) ticks after the detection's, S_k = Σ χ²_j/ŝ²_j over them
+        against the upper α_confirm/L quantile of a healthy residual's k-tick sum (``window_threshold``, the design
+        autocovariance; L looks, k = max(isolation_delay, 1) … window). +1: S_k beyond it, the fault persists; −1:
+        a whole window after the detection within it, no fault (a healthy observer gets that far with probability
+        ≥ 1 − α_confirm, so a detection raised by noise alone ends in a flag with probability ≤ α_confirm);
+        0: not yet a whole window, the decision waits a tick. The ticks the detection rested on are left out: they
+        are the ones that crossed the detection level."""
+        k = min(waited, self.s.window)
+        j = int(self.observer_of_mask[self.flagged[row]])
+        fresh = self._history[(self.ticks - 1 - np.arange(k)) % self.s.window, row, j].sum() if k else 0.0
+        if k and fresh > self.h_fresh[j, k]:
+            return 1
+        return -1 if k >= self.s.window else 0
 
     def _doubtful(
         self, row: int, explanation: int, confirm: np.ndarray, waited: int = 0, patience: int = 1, frozen: int = 0
