@@ -17,6 +17,7 @@ from service.turbine.builtin import SPEED_TARGETS, BenchmarkDetector, UIOBankEst
 from service.turbine.component_fdi import ACTUATOR_TARGET, CONVERTER_TARGET, M1_TARGET
 from service.turbine.interfaces import POWER_SPEED_MIN_TORQUE, TurbineContext
 from service.turbine.supervisor import TurbineSupervisor
+from service.turbine.wind_recovery import WindRecovery
 from tests.fast_compare import FAULTY, SEED, assert_close, at_half_speed
 from wwcore import aero, aero_fast
 from wwcore.backend import fast_module
@@ -323,6 +324,31 @@ def test_the_sparse_product_equals_numpy_matmul(n):
         np.testing.assert_array_equal(got[finite].view(np.int64), expected[finite].view(np.int64))
         rows, dense = rng.standard_normal((8, k_count)), rng.standard_normal((k_count, n_columns))
         assert (np.einsum("nk,kj->nj", rows, dense, optimize=False) != rows @ dense).any()
+
+
+@pytest.mark.parametrize("n", [2, SPARSE_PRODUCT_ROWS, 50])
+def test_the_recovery_map_product_equals_numpy_matmul(n):
+    # ``WindRecovery._mapped`` (the map from [x̂[n], x̂[n−1]] to every observer's raw τ̂_r, ω̂_r, ω̂_g) on the compiled
+    # backend against numpy's ``stacked @ map``: over the map's nonzeros from ``SPARSE_PRODUCT_ROWS`` rows where
+    # ``gemm_layout`` finds BLAS's arithmetic, BLAS's product below; equal to the last bit, zeros' signs included,
+    # with a zero row and a NaN reading
+    design = TurbineSupervisor(n).context.bank_design
+    fast = fast_module("service.turbine.fast")
+    recovery = WindRecovery(BENCHMARK, design, n, 0.3, 2.0, fast=fast)
+    sparse = n >= SPARSE_PRODUCT_ROWS and fast.gemm_layout(n, *recovery._map.shape) is not None
+    assert (recovery._map_nonzeros is not None) == sparse
+    assert WindRecovery(BENCHMARK, design, n, 0.3, 2.0)._map_nonzeros is None
+    assert np.count_nonzero(recovery._map) < 0.05 * recovery._map.size
+    rng = np.random.default_rng(SEED + n)
+    scale = np.abs(rng.normal(1e3, 1e3, recovery._map.shape[0]))
+    for k in range(5):
+        stacked = scale * rng.standard_normal((n, recovery._map.shape[0]))
+        stacked[0] = 0.0
+        if k == 3:
+            stacked[-1, 7] = np.nan
+        expected, got = stacked @ recovery._map, recovery._mapped(np.ascontiguousarray(stacked))
+        np.testing.assert_array_equal(got, expected)
+        np.testing.assert_array_equal(np.signbit(got), np.signbit(expected))
 
 
 def test_the_reproduced_blas_product_equals_numpy_matmul():

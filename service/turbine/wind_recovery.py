@@ -35,7 +35,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from service.turbine.bank import GENERATOR, ROTOR, BankDesign
+from service.turbine.bank import GENERATOR, ROTOR, SPARSE_PRODUCT_ROWS, BankDesign
 from wwcore import aero
 from wwcore.lti import biquad_steady_state, butter2_lowpass, zoh
 from wwcore.turbine_params import TurbineParams
@@ -216,6 +216,26 @@ class WindRecovery:
         self._stacked = np.empty((n, 2 * width))
         self._filter_in = np.empty((n, 3 * m + 1))
         self._no_columns = np.empty((n, 0))  # the empty middle block of ``fast.stack``
+        self._map_nonzeros = self._sparse_map(fast, n)
+
+    def _sparse_map(self, fast, n: int) -> tuple | None:
+        """The map as its nonzeros for ``fast.gemm_product`` where ``fast.gemm_layout`` finds BLAS's arithmetic for
+        its shape and ``n`` rows (``bank.SPARSE_PRODUCT_ROWS`` or more); else None: BLAS's product (fewer rows, the
+        numpy backend, another BLAS or CPU). The map is about 1 % nonzero (a handful of physical coefficients per
+        observer), so the product over its nonzeros is a small fraction of BLAS's dense work, with the same numbers."""
+        if fast is None or n < SPARSE_PRODUCT_ROWS:
+            return None
+        lanes_from = fast.gemm_layout(n, *self._map.shape)
+        return None if lanes_from is None else fast.nonzeros(self._map, lanes_from)
+
+    def _mapped(self, stacked: np.ndarray) -> np.ndarray:
+        """raw = [x̂[n], x̂[n−1]] @ map (n, 3 n_obs): by ``fast.gemm_product`` over the map's nonzeros where
+        ``_sparse_map`` found it numpy's, else numpy's product."""
+        if self._map_nonzeros is None:
+            return stacked @ self._map
+        raw = np.empty((self.n, self._map.shape[1]))
+        self._fast.gemm_product(stacked, self._map, self._map_nonzeros, raw)
+        return raw
 
     @property
     def filtered(self) -> np.ndarray:
@@ -298,7 +318,7 @@ class WindRecovery:
         else:
             stacked[:, :width] = x_hat
             stacked[:, width:] = self._x_prev
-        raw = stacked @ self._map
+        raw = self._mapped(stacked)
         if measured_torque is not None:
             self.converter_correction(raw, x_hat, measured_torque)
         if self._fast is not None:  # the lines below, the pitch model's and the filters' by one kernel
@@ -346,7 +366,7 @@ class WindRecovery:
         (``fast.recovery_healthy_tick``, the same operations as ``step``, the estimator's gather and
         ``region2_generator_speed``)."""
         self._fast.stack(x_hat, self._no_columns, self._x_prev, self._stacked)
-        raw = self._stacked @ self._map
+        raw = self._mapped(self._stacked)
         f, pitch = self.filter, self.pitch
         self._filtered = np.empty_like(self._filter_in)
         speeds = (self._groups[1].start, self._groups[2].start, omega_r, omega_g)
