@@ -141,11 +141,10 @@ def test_a_clear_single_fault_waits_only_for_the_rotor_pair_s_verdict():
     assert _first_flag(masks) == (ticks - 1, BIT["omega_g_m1"])
 
 
-def _single_generator_fault_first_flags(rows: int, rotor_bias_sigma: float, seed: int) -> np.ndarray:
-    """A fault on ω_g,m1 from tick 0 that every observer using it sees at once (χ² = 10⁴) on ``rows`` turbines, with
-    ω_r,m2 biased by ``rotor_bias_sigma`` σ_r, which the UIOs do not see: only the rotor-speed pair's difference
-    tells. Returns each row's first flagged bitmask (0: none within 80 ticks)."""
-    fdi = SpeedSensorFDI(DESIGN, rows, P.dt, FDISettings(adapt_time_s=0.0, warmup_s=0.0))
+def _settled_fdi(rows: int, seed: int, **options):
+    """A speed FDI on ``rows`` healthy turbines after 20 ticks of white readings and χ² at its mean (no adaptation,
+    no warm-up): (fdi, rng, x̂, the true speeds, the healthy statistics)."""
+    fdi = SpeedSensorFDI(DESIGN, rows, P.dt, FDISettings(adapt_time_s=0.0, warmup_s=0.0, **options))
     rng = np.random.default_rng(seed)
     x_hat = np.zeros((rows, DESIGN.F_blk.shape[0]))
     truth = np.array([1.2, 1.2, 1.2 * P.N_g, 1.2 * P.N_g])
@@ -153,6 +152,14 @@ def _single_generator_fault_first_flags(rows: int, rotor_bias_sigma: float, seed
     healthy[:, : DESIGN.n_isolating] = fdi._rank
     for _ in range(20):
         fdi.step(truth + SPEED_SIGMA * rng.standard_normal((rows, 4)), healthy, x_hat)
+    return fdi, rng, x_hat, truth, healthy
+
+
+def _single_generator_fault_first_flags(rows: int, rotor_bias_sigma: float, seed: int) -> np.ndarray:
+    """A fault on ω_g,m1 from tick 0 that every observer using it sees at once (χ² = 10⁴) on ``rows`` turbines, with
+    ω_r,m2 biased by ``rotor_bias_sigma`` σ_r, which the UIOs do not see: only the rotor-speed pair's difference
+    tells. Returns each row's first flagged bitmask (0: none within 80 ticks)."""
+    fdi, rng, x_hat, truth, healthy = _settled_fdi(rows, seed)
     stat = healthy.copy()
     for j, left_out in enumerate(DESIGN.left_out):
         if "omega_g_m1" not in left_out:
@@ -195,14 +202,7 @@ def _after_one_tick_over_the_detection_level(rows: int, seed: int, fault_after=N
     random set (docs/turbine.md, "Where the false alarms come from"); then 40 ticks of every observer's χ² drawn
     afresh from χ²_rank (white, healthy) and the readings' white noise. ``fault_after`` (stat (rows, n_obs) → None)
     changes those ticks' statistics in place: a fault that persists."""
-    fdi = SpeedSensorFDI(DESIGN, rows, P.dt, FDISettings(adapt_time_s=0.0, warmup_s=0.0, **options))
-    rng = np.random.default_rng(seed)
-    x_hat = np.zeros((rows, DESIGN.F_blk.shape[0]))
-    truth = np.array([1.2, 1.2, 1.2 * P.N_g, 1.2 * P.N_g])
-    healthy = np.ones((rows, len(DESIGN.names)))
-    healthy[:, : DESIGN.n_isolating] = fdi._rank
-    for _ in range(20):
-        fdi.step(truth + SPEED_SIGMA * rng.standard_normal((rows, 4)), healthy, x_hat)
+    fdi, rng, x_hat, truth, healthy = _settled_fdi(rows, seed, **options)
     spike = healthy.copy()
     spike[:, fdi._all_healthy] = fdi.h_window[fdi._all_healthy]
     fdi.step(truth + SPEED_SIGMA * rng.standard_normal((rows, 4)), spike, x_hat)
