@@ -525,6 +525,10 @@ def test_a_rotor_speed_sensor_joins_the_first_flag_by_the_rotor_pair_s_sequentia
     assert not fdi._doubtful(2, g1, confirm, waited=3, frozen=g1)  # a frozen sensor's explanation: one look
     assert [fdi._with_rotor_pair(row, g1, own) for row in range(4)] == [g1, g1, g1, g1 | r1]
     assert fdi._with_rotor_pair(2, g1, own, frozen=g1) == g1 | r1  # one look: z = 3.33 > 3.29
+    # the one look in the pair's learnt spread: sensors 2 % noisier than the design (ŝ = 1.02) move the level to 3.36
+    fdi.bias.spread.scale[2] = 1.02
+    assert fdi._with_rotor_pair(2, g1, own, frozen=g1) == g1
+    fdi.bias.spread.scale[2] = 1.0
     own[fdi.observer_of_mask[g1 | r2]] = 0.1
     assert fdi._with_rotor_pair(3, g1, own) == g1 | r2
     assert fdi._with_rotor_pair(3, g1 | r2, own) == g1 | r2

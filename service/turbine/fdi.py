@@ -49,7 +49,7 @@ evidence that its sensor is healthy again.
   decided as it is (a rotor-speed bias of the design size ever gets there with probability ≤ α_confirm, larger ones
   far less often). Λ falls by at most m_d²/2 = 0.56 a tick, so a generator-speed explanation waits 6 ticks at least,
   about 10 on a healthy pair: the price of a first flag whose partial-set risk is bounded. An explanation naming a
-  frozen sensor is decided on one look (the sum's z beyond the isolation level).
+  frozen sensor is decided on one look (the sum's z beyond the isolation level in the pair's learnt spread).
 * **Persistent rotor-speed bias.** Beside the window tests, Page's CUSUMs (a bank of shifts ``bias_shift``·2^k,
   k < ``bias_bank``) on the parity of the two rotor-speed sensors' exclusion residuals against the generator-speed
   Kalman filter (``bias_test``; ``rotor_bias_test``, ``bias_shift``) flag a bias of 1–2 σ that the UIOs take for
@@ -516,17 +516,28 @@ class SpeedSensorFDI:
         sequential test says one of them is biased (``_rotor_pair_verdict`` +1): a rotor-speed gain of a few percent
         shows in the pair's difference from the fault's first tick, while the UIOs see it only as their states drift
         from it. An explanation naming a ``frozen`` sensor is decided on the frozen test's tick, one look at the
-        pair's sum: there the sum's z beyond the isolation's two-sided level suffices (``arbitration``). Of the two,
+        pair's sum: there the sum's z beyond the isolation's two-sided level in the pair's learnt spread suffices
+        (``_rotor_pair_disagrees``). Of the two,
         the one whose explanation's own observer has the smaller statistic (``own``, at the isolation level)."""
         if explanation & _ROTOR_BITS:
             return explanation
-        one_look = bool(explanation & frozen) and bool(self.arbiter.rotor_disagree[row])
+        one_look = bool(explanation & frozen) and self._rotor_pair_disagrees(row)
         if not one_look and self._rotor_pair_verdict(row) <= 0:
             return explanation
         candidates = [explanation | _BITS[r] for r in ROTOR if self.observer_of_mask[explanation | _BITS[r]] >= 0]
         if not candidates:
             return explanation
         return int(min(candidates, key=lambda m: own[self.observer_of_mask[m]]))
+
+    def _rotor_pair_disagrees(self, row: int) -> bool:
+        """The frozen sensor's one look at the rotor-speed pair on ``row``: the summed difference's z beyond the
+        isolation level in the pair's learnt spread, z > z_iso ŝ, with ŝ the rotor-speed bias test's healthy spread of
+        the same normalised difference (``bias_test``, ``adaptive``: √ of its learnt second moment, clipped to
+        [1, ``max_noise_scale``]; 1 without the bias test). Sensors noisier than the design, or a calibration offset
+        within tolerance (which the second moment holds too), would pass the design-σ_d level more often than its
+        two-sided α_iso."""
+        spread = float(self.bias.spread.scale[row]) if self.bias is not None else 1.0
+        return bool(self.arbiter.rotor_z[row] > self.arbiter.parity_level * spread)
 
     def _explained(self, ratio: np.ndarray) -> np.ndarray:
         """For each explanation (observer index), the largest ratio among its witnesses (n_isolating,)."""
