@@ -3,10 +3,10 @@ and χ² statistics, the wind recovery's filters, the FDI's window tests and the
 pitch-actuator test's kernels: ``service.turbine.fast_actuator``).
 
 Each kernel performs the numpy reference's operations in its order, row by row, so its results equal the
-reference's bit for bit (``tests/test_fast_backend.py``). The recovery's map stays numpy's BLAS product. The bank's
-two products are ``gemm_product``'s, over the matrices' nonzeros with the arithmetic of numpy's BLAS product
-(``gemm_layout`` checks it on this machine for the bank's shapes and rows), else BLAS from inside the kernel
-(numba's product calls the routine numpy's does, with the same numbers: the tests compare them bit for bit).
+reference's bit for bit (``tests/test_fast_backend.py``). The bank's two products and the recovery's map are
+``wwcore.blas_fast.gemm_product``'s, over the matrices' nonzeros with the arithmetic of numpy's BLAS product
+(``gemm_layout`` checks it on this machine for their shapes and rows), else BLAS (numba's product from inside the
+kernel calls the routine numpy's does, with the same numbers: the tests compare them bit for bit).
 Decisions (isolation, clearing, events) stay in Python: they run on the rare ticks where something is suspected.
 ``wind_from_torque`` is ``wwcore.aero_fast``'s, for the wind recovery.
 """
@@ -17,7 +17,8 @@ import numpy as np
 
 from service.turbine.fast_converter import converter_tick
 from wwcore.aero_fast import maximum, wind_from_torque  # noqa: F401 (the wind recovery's inversion)
-from wwcore.jit import fma, kernel
+from wwcore.blas_fast import gemm_layout, gemm_product, nonzeros  # noqa: F401 (the bank's and recovery's set-up)
+from wwcore.jit import kernel
 
 
 # -- observer bank (``service.turbine.bank.ObserverBank.step``, ``TurbineContext._bank_inputs``) --------------------
@@ -93,93 +94,6 @@ def bank_step(z, u_prev, y_prev, update, update_in, y, output, output_in, terms,
         out = output_in @ output
     chi2(out, width, terms, n_res, stat)
     return z, out
-
-
-# -- matrix products with BLAS's arithmetic over a sparse matrix's nonzeros ------------------------------------------
-@kernel
-def gemm_product(a, matrix, nonzeros, out):
-    """out = a @ matrix for a (n, K) and matrix (K, N), with the arithmetic of numpy's BLAS product (``gemm``, ≥ 2
-    rows) as ``gemm_layout`` found it for these shapes, over the matrix's nonzeros ``nonzeros`` = (starts (N + 1,),
-    ks, values, lanes_from): column j's nonzeros are values[starts[j]:starts[j + 1]] at rows ks[...], in row order.
-
-    Columns before ``lanes_from``: one chain of fused multiply-adds over k from +0 (OpenBLAS's SkylakeX kernels'
-    per-output accumulator); from ``lanes_from`` on: eight accumulators, k's by k mod 8, then
-    ((l₀ + l₁) + (l₂ + l₃)) + ((l₄ + l₅) + (l₆ + l₇)) (its small-matrix kernel's last columns). Leaving out a zero
-    coefficient changes no result: the accumulators start at +0 and never become −0 (a fused multiply-add rounds
-    an exact zero sum to +0), so adding x · 0 = ±0 to one leaves it as it was, for finite x. A row with a
-    non-finite entry takes every k (its products with the zeros are NaN, as BLAS's). The rows' chains are
-    independent: the loops run over the rows innermost, so that they overlap."""
-    starts, ks, values, lanes_from = nonzeros
-    n, k_count = a.shape
-    a_t = np.ascontiguousarray(a.T)  # (K, n): a coefficient's products with every row, contiguous
-    acc = np.empty(n)
-    lanes = np.empty((8, n))
-    for j in range(out.shape[1]):
-        if j < lanes_from:
-            acc[:] = 0.0
-            for e in range(starts[j], starts[j + 1]):
-                row, value = a_t[ks[e]], values[e]
-                for r in range(n):
-                    acc[r] = fma(row[r], value, acc[r])
-            for r in range(n):
-                out[r, j] = acc[r]
-            continue
-        lanes[:] = 0.0
-        for e in range(starts[j], starts[j + 1]):
-            k = ks[e]
-            row, value, lane = a_t[k], values[e], lanes[k % 8]
-            for r in range(n):
-                lane[r] = fma(row[r], value, lane[r])
-        for r in range(n):
-            low = (lanes[0, r] + lanes[1, r]) + (lanes[2, r] + lanes[3, r])
-            out[r, j] = low + ((lanes[4, r] + lanes[5, r]) + (lanes[6, r] + lanes[7, r]))
-    for r in range(n):  # rows with a non-finite entry: every k, the zeros' products included
-        finite = True
-        for k in range(k_count):
-            finite = finite and np.isfinite(a[r, k])
-        if finite:
-            continue
-        for j in range(out.shape[1]):
-            if j < lanes_from:
-                total = 0.0
-                for k in range(k_count):
-                    total = fma(a[r, k], matrix[k, j], total)
-                out[r, j] = total
-                continue
-            for i in range(8):
-                lanes[i, 0] = 0.0
-            for k in range(k_count):
-                lanes[k % 8, 0] = fma(a[r, k], matrix[k, j], lanes[k % 8, 0])
-            low = (lanes[0, 0] + lanes[1, 0]) + (lanes[2, 0] + lanes[3, 0])
-            out[r, j] = low + ((lanes[4, 0] + lanes[5, 0]) + (lanes[6, 0] + lanes[7, 0]))
-
-
-def nonzeros(matrix: np.ndarray, lanes_from: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, int]:
-    """``gemm_product``'s form of ``matrix`` (K, N): its nonzeros column by column, in row order."""
-    columns, rows = np.nonzero(matrix.T)  # sorted by column, then row
-    starts = np.searchsorted(columns, np.arange(matrix.shape[1] + 1)).astype(np.int64)
-    return starts, rows.astype(np.int64), np.ascontiguousarray(matrix[rows, columns]), int(lanes_from)
-
-
-def gemm_layout(n: int, k_count: int, n_columns: int, seed: int = 20261127) -> int | None:
-    """The first column ``gemm_product`` sums in eight lanes for an (n, K) @ (K, N) product, such that it equals
-    numpy's ``@`` bit for bit on this machine, or None where neither layout does (another BLAS or CPU, or one row,
-    which numpy multiplies by ``gemv``): both candidates (none in lanes; the last N mod 8 columns in lanes) are
-    compared with numpy's product of random dense operands over six decades, with zero entries and a zero row."""
-    if n < 2:
-        return None
-    rng = np.random.default_rng(seed)
-    a = rng.standard_normal((n, k_count)) * np.exp(3.0 * rng.standard_normal((n, 1)))
-    a[:, ::7] = 0.0
-    a[n // 2] = 0.0
-    matrix = rng.standard_normal((k_count, n_columns))
-    expected = (a @ matrix).view(np.int64)
-    for lanes_from in (n_columns, n_columns - n_columns % 8):
-        got = np.empty((n, n_columns))
-        gemm_product(a, matrix, nonzeros(matrix, lanes_from), got)
-        if np.array_equal(got.view(np.int64), expected):
-            return lanes_from
-    return None
 
 
 @kernel

@@ -243,9 +243,8 @@ class SpeedSensorFDI:
         self._maybe_flagged = False  # False only while no row has a flagged sensor
         self.deadline = np.full(n, -1, dtype=np.int64)  # tick at which a pending isolation is decided, −1 none
         self.started = np.zeros(n, dtype=np.int64)  # tick at which the pending isolation started
-        self.confirmed = np.zeros(
-            n, dtype=bool
-        )  # the ticks after the detection's have shown the fault (``_fault_persists``)
+        # the ticks after the detection's have shown the fault (``_fault_persists``)
+        self.confirmed = np.zeros(n, dtype=bool)
         self.arbiter = GeneratorArbiter(bank, n, iso, dt, fast)
         # the rotor-speed pair's summed difference (``arbitration``) judges an explanation that names no rotor-speed
         # sensor by Wald's sequential test of "both healthy" against "one biased by the bias test's smallest design
@@ -386,9 +385,8 @@ class SpeedSensorFDI:
         self.deadline[start] = self.ticks + np.where(inconsistent[start], self.s.isolation_delay, 0)
         self.started[start] = self.ticks
         # a frozen reading is a fault whatever the residuals say; a flagged set no observer leaves out has no test
-        self.confirmed[start] = ((frozen_mask & ~self.flagged) != 0)[start] | (self.observer_of_mask[self.flagged] < 0)[
-            start
-        ]
+        untestable = ((frozen_mask & ~self.flagged) != 0) | (self.observer_of_mask[self.flagged] < 0)
+        self.confirmed[start] = untestable[start]
         # the onset's jump names the generator-speed sensor unless one of the pair is flagged (``arbitration``)
         self.arbiter.reset(start, (self.flagged & _GENERATOR_BITS) == 0)
         suspected = _SENSORS_OF_MASK[self.flagged | self.provisional]
@@ -530,12 +528,9 @@ class SpeedSensorFDI:
         return int(min(candidates, key=lambda m: own[self.observer_of_mask[m]]))
 
     def _rotor_pair_disagrees(self, row: int) -> bool:
-        """The frozen sensor's one look at the rotor-speed pair on ``row``: the summed difference's z beyond the
-        isolation level in the pair's learnt spread, z > z_iso ŝ, with ŝ the rotor-speed bias test's healthy spread of
-        the same normalised difference (``bias_test``, ``adaptive``: √ of its learnt second moment, clipped to
-        [1, ``max_noise_scale``]; 1 without the bias test). Sensors noisier than the design, or a calibration offset
-        within tolerance (which the second moment holds too), would pass the design-σ_d level more often than its
-        two-sided α_iso."""
+        """The frozen sensor's one look at the rotor-speed pair on ``row``: z > z_iso ŝ, ŝ the rotor-speed bias test's
+        learnt spread of the same difference (√ of its second moment, clipped to [1, ``max_noise_scale``]; 1 without
+        the test), so noisier sensors or a calibration offset within tolerance pass no more often than α_iso."""
         spread = float(self.bias.spread.scale[row]) if self.bias is not None else 1.0
         return bool(self.arbiter.rotor_z[row] > self.arbiter.parity_level * spread)
 
