@@ -126,6 +126,10 @@ class GeneratorArbiter:
         self._onset = np.full(n, -1, dtype=np.int64)  # tick (count of ``observe``) of the onset while ℓ_J grows
         self.parity = np.zeros(n)  # Σ (y_r1 − y_r2) since the isolation started, rad/s
         self.count = np.zeros(n)  # ticks summed
+        # Σ (y_rs − y_gk/N_g) over the same ticks, [row, s, k]: each rotor-speed sensor against each generator-speed
+        # sensor through the gear (the one-encoder rigid observers 4-g1, 4-g2), rad/s
+        self.encoder_gap = np.zeros((n, 2, 2))
+        self.encoder_sigma = math.sqrt(float(variance["omega_r_m1"]) + self.generator_variance / gear_ratio**2)
 
     def reset(self, rows: np.ndarray, jump: np.ndarray | None = None) -> None:
         """Start the sums of ``rows`` ((n,) bool) afresh, from ℓ_J of the fault's onset on the rows of ``jump``
@@ -134,6 +138,7 @@ class GeneratorArbiter:
         self.total_power[rows] = 0.0
         self.parity[rows] = 0.0
         self.count[rows] = 0.0
+        self.encoder_gap[rows] = 0.0
         self.jump[rows] = 0.0
         self._onset[rows] = -1
         if jump is None or self._seen < self._means.shape[1]:
@@ -220,6 +225,15 @@ class GeneratorArbiter:
         difference" (the sign that fits) against "both are healthy" (0 before anything is summed)."""
         return shift * np.abs(self.parity[rows]) / self.parity_sigma - 0.5 * shift**2 * self.count[rows]
 
+    def rotor_sensor_log_ratios(self, shift: float, row: int, encoder: int, spread: float = 1.0) -> np.ndarray:
+        """Λ_s = shift·|Σe_s| − k·shift²/2 for s = ω_r,m1, ω_r,m2 (2,) on ``row``, e_s = (y_rs − y_gk/N_g)/(σ_e ŝ)
+        over the k ticks summed, k = ``encoder`` (0: ω_g,m1, 1: ω_g,m2), σ_e² = σ_r² + σ_g²/N_g², ŝ = ``spread``: the
+        log-likelihood ratio of "rotor-speed sensor s is biased by ±shift σ_e" (the sign that fits) against "both
+        are healthy", on residuals that do not share the other rotor-speed sensor's noise (docs/turbine.md, "The
+        rotor-speed pair's sequential test")."""
+        z = np.abs(self.encoder_gap[row, :, encoder]) / (self.encoder_sigma * spread)
+        return shift * z - 0.5 * shift**2 * self.count[row]
+
     @property
     def rotor_disagree(self) -> np.ndarray:
         """(n,) bool: the rotor-speed sensors' summed difference is beyond the isolation level (module docstring)."""
@@ -250,6 +264,8 @@ class GeneratorArbiter:
         both_rotor = rotor_trusted.all(axis=1) if rotor_paired is None else rotor_paired
         self.parity += np.where(both_rotor, y[:, 0] - y[:, 1], 0.0)
         self.count += both_rotor
+        gap = y[:, :2, None] - y[:, None, 2:4] / self.gear_ratio
+        self.encoder_gap += np.where(both_rotor[:, None, None], gap, 0.0)
         weight_r = rotor_trusted / self.rotor_variance
         numerator = (weight_r * y[:, :2]).sum(axis=1) * self.gear_ratio
         weight = weight_r.sum(axis=1)

@@ -261,6 +261,11 @@ class SpeedSensorFDI:
         self.rotor_healthy_level = -math.log(1.0 / confirm)
         # the longest the test may hold an isolation open: the generator-speed arbitration's
         self.rotor_patience = self.arbitration_ticks
+        # an explanation naming one generator-speed sensor tests each rotor-speed sensor against the other one through
+        # the gear instead (``arbitration.rotor_sensor_log_ratios``): twice the pair's information per tick, spent on
+        # a smaller design bias (``rotor_pair_shift``); four alternatives (two sensors, two signs) share α_iso
+        self.encoder_shift = settings.rotor_pair_shift
+        self.encoder_join_level = math.log(2.0 * len(ROTOR) / iso)
         self.provisional = np.zeros(n, dtype=np.int64)  # the pending isolation's current explanation
         self._pending = False  # whether any row has a pending isolation
         self._all_healthy = int(self.observer_of_mask[0])  # the observer that leaves nothing out
@@ -493,21 +498,40 @@ class SpeedSensorFDI:
             not explanation & _ROTOR_BITS
             and not explanation & frozen
             and waited < self.rotor_patience
-            and self._rotor_pair_verdict(row) == 0
+            and self._rotor_pair_verdict(row, explanation) == 0
         ):
             return True
         return waited < patience and bool((self.witnesses[j] * confirm).max() > 1.0)
 
-    def _rotor_pair_verdict(self, row: int) -> int:
-        """The rotor-speed pair's sequential test on ``row`` since its isolation started (``arbitration``:
-        Λ = m_d |Σd| − k m_d²/2, d = (y_r1 − y_r2)/σ_d): +1 when Λ ≥ ``rotor_join_level`` (one of them is biased; a
-        healthy pair gets there with probability ≤ α_iso over any number of looks), −1 when Λ ≤
-        ``rotor_healthy_level`` (both healthy; a bias of the design size gets there with probability
-        ≤ ``isolation_confirm_alpha``), 0 while the evidence is between the two."""
-        evidence = float(self.arbiter.rotor_log_ratio(self.rotor_shift, row))
-        if evidence >= self.rotor_join_level:
+    def _rotor_pair_verdict(self, row: int, explanation: int = 0) -> int:
+        """The rotor-speed sequential test on ``row`` since its isolation started: +1 when a rotor-speed sensor is
+        biased (a healthy pair gets there with probability ≤ α_iso over any number of looks), −1 when both are
+        healthy (a bias of the design size gets there with probability ≤ ``isolation_confirm_alpha``), 0 while the
+        evidence is between the two. Where the ``explanation`` names one generator-speed sensor, each rotor-speed
+        sensor against the other one (``_encoder_log_ratios``); elsewhere the pair's difference (``arbitration``:
+        Λ = m_d |Σd| − k m_d²/2, d = (y_r1 − y_r2)/σ_d)."""
+        ratios = self._encoder_log_ratios(row, explanation)
+        if ratios is not None:
+            evidence, join = float(ratios.max()), self.encoder_join_level
+        else:
+            evidence, join = float(self.arbiter.rotor_log_ratio(self.rotor_shift, row)), self.rotor_join_level
+        if evidence >= join:
             return 1
         return -1 if evidence <= self.rotor_healthy_level else 0
+
+    def _encoder_log_ratios(self, row: int, explanation: int) -> np.ndarray | None:
+        """Λ_s (2,) of "rotor-speed sensor s biased by ±``rotor_pair_shift`` σ" against "both healthy", each
+        rotor-speed sensor against the generator-speed sensor the ``explanation`` leaves trusted through the gear,
+        in the pair's learnt spread ŝ (``arbitration.rotor_sensor_log_ratios``); None unless the explanation names
+        exactly one generator-speed sensor. Max over s and sign of four likelihood ratios, each a martingale of
+        mean 1 on a healthy pair: join at ln(4/α_iso) (Ville); the true alternative's falls to −ln(1/α_confirm) with
+        probability ≤ α_confirm."""
+        generator = explanation & _GENERATOR_BITS
+        if generator not in (_BITS[2], _BITS[3]):
+            return None
+        encoder = 1 if generator == _BITS[2] else 0  # the generator-speed sensor left trusted
+        spread = float(self.bias.spread.scale[row]) if self.bias is not None else 1.0
+        return self.arbiter.rotor_sensor_log_ratios(self.encoder_shift, row, encoder, spread)
 
     def _with_rotor_pair(self, row: int, explanation: int, own: np.ndarray, frozen: int = 0) -> int:
         """The explanation with a rotor-speed sensor added where it names none and the rotor-speed pair's
@@ -520,9 +544,13 @@ class SpeedSensorFDI:
         if explanation & _ROTOR_BITS:
             return explanation
         one_look = bool(explanation & frozen) and self._rotor_pair_disagrees(row)
-        if not one_look and self._rotor_pair_verdict(row) <= 0:
+        if not one_look and self._rotor_pair_verdict(row, explanation) <= 0:
             return explanation
         candidates = [explanation | _BITS[r] for r in ROTOR if self.observer_of_mask[explanation | _BITS[r]] >= 0]
+        ratios = self._encoder_log_ratios(row, explanation)
+        if not one_look and ratios is not None:  # the test against one encoder names the sensor
+            named = explanation | _BITS[ROTOR[int(ratios.argmax())]]
+            candidates = [named] if named in candidates else candidates
         if not candidates:
             return explanation
         return int(min(candidates, key=lambda m: own[self.observer_of_mask[m]]))
