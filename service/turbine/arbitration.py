@@ -32,6 +32,8 @@ runs out instead). The pair is compared whether or not one of them is suspected,
 is flagged: the first explanation of a double fault may suspect the healthy rotor-speed sensor, which would leave
 the faulty one alone in ω₃ and the pair never compared (a random-scenario window, ω_r,m2 gain 0.913 beside an
 8.5σ offset on ω_g,m1 at 15 m/s: ω_r,m1 suspected first, ω_g,m2 flagged on the rotor-speed opinion; docs/turbine.md).
+Beside the pair's difference, each rotor-speed sensor's reading less each generator-speed sensor's through the gear is
+summed over the same ticks (``encoder_gap``): the sums ``rotor_pair`` tests against one encoder.
 
 **The fault's first ticks.** The sum above needs many ticks because its third opinion is noisy (σ₃ ≈ 0.8 rad/s at
 a third of rated torque, 16 σ_g), yet a generator-speed sensor's offset or gain fault shows at its first tick as a
@@ -226,11 +228,11 @@ class GeneratorArbiter:
         return shift * np.abs(self.parity[rows]) / self.parity_sigma - 0.5 * shift**2 * self.count[rows]
 
     def rotor_sensor_log_ratios(self, shift: float, row: int, encoder: int, spread: float = 1.0) -> np.ndarray:
-        """Λ_s = shift·|Σe_s| − k·shift²/2 for s = ω_r,m1, ω_r,m2 (2,) on ``row``, e_s = (y_rs − y_gk/N_g)/(σ_e ŝ)
-        over the k ticks summed, k = ``encoder`` (0: ω_g,m1, 1: ω_g,m2), σ_e² = σ_r² + σ_g²/N_g², ŝ = ``spread``: the
-        log-likelihood ratio of "rotor-speed sensor s is biased by ±shift σ_e" (the sign that fits) against "both
-        are healthy", on residuals that do not share the other rotor-speed sensor's noise (docs/turbine.md, "The
-        rotor-speed pair's sequential test")."""
+        """Λ_s = shift·|Σe_s| − k·shift²/2 for s = ω_r,m1, ω_r,m2 (2,) on ``row``, e_s = (y_rs − y_g/N_g)/(σ_e ŝ)
+        over the k ticks summed, y_g the generator-speed sensor ``encoder`` (0: ω_g,m1, 1: ω_g,m2), σ_e² = σ_r² +
+        σ_g²/N_g², ŝ = ``spread``: the log-likelihood ratio of "rotor-speed sensor s is biased by ±shift σ_e" (the
+        sign that fits) against "both are healthy", on residuals that do not share the other rotor-speed sensor's
+        noise (``rotor_pair``; docs/turbine.md, "Against one encoder")."""
         z = np.abs(self.encoder_gap[row, :, encoder]) / (self.encoder_sigma * spread)
         return shift * z - 0.5 * shift**2 * self.count[row]
 
