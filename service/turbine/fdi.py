@@ -53,8 +53,9 @@ evidence that its sensor is healthy again.
   one generator-speed sensor is judged instead by each rotor-speed sensor against the other generator-speed sensor
   through the gear (the one-encoder rigid observer's prediction, white N(0, σ_r²) on the plant at every wind:
   twice the pair's information per tick), for a bias of ``rotor_pair_shift`` (1.25 σ_r) on either sensor, either
-  sign: the same two levels, the upper ln(4/α_iso) for four alternatives, about 9.7 ticks on a healthy pair, and the
-  test names the biased sensor. An explanation naming a
+  sign: the same two levels, the upper ln(4/α_iso) for four alternatives; Λ_s falls by at most m²/2 = 0.78 a tick,
+  so such an explanation is decided on the 4th tick at the earliest, after about 9.7 on a healthy pair, and the test
+  names the biased sensor (``rotor_pair``). An explanation naming a
   frozen sensor is decided on one look (the sum's z beyond the isolation level in the pair's learnt spread).
 * **Persistent rotor-speed bias.** Beside the window tests, Page's CUSUMs (a bank of shifts ``bias_shift``·2^k,
   k < ``bias_bank``) on the parity of the two rotor-speed sensors' exclusion residuals against the generator-speed
