@@ -239,6 +239,7 @@ def test_rigid_drive_train_recovers_a_steady_aerodynamic_torque_exactly():
         ({"false_clears_per_1000s": -1.0}, "false_clears_per_1000s"),
         ({"window": 2.5}, "window"),
         ({"arbitration_s": 61.0}, "arbitration_s"),
+        ({"rotor_pair_shift": 0.1}, "rotor_pair_shift"),
     ],
 )
 def test_an_option_out_of_its_range_is_refused_naming_it(options, key):
@@ -498,13 +499,14 @@ def test_a_rotor_speed_sensor_joins_the_first_flag_by_the_rotor_pair_s_sequentia
     sensor, m_d = 1.5/√2 σ_d of the pair's difference), Λ = m_d |Σd| − k m_d²/2: the rotor-speed sensor whose
     explanation's own observer has the smaller statistic joins once Λ ≥ ln(2/α_iso), the explanation is decided
     alone once Λ ≤ −ln(1/α_confirm), and it waits in between. An explanation naming a frozen sensor is decided on
-    one look, where the sum's z beyond the isolation level 3.29 suffices."""
+    one look, where the sum's z beyond the isolation level 3.29 suffices. An explanation naming one generator-speed
+    sensor tests each rotor-speed sensor against the other encoder instead, which names the biased one."""
     fdi = SpeedSensorFDI(DESIGN, 4, P.dt)
     m_d = 1.5 / math.sqrt(2.0)
-    assert fdi.rotor_shift == pytest.approx(m_d)
-    assert fdi.rotor_join_level == pytest.approx(math.log(2000.0))
-    assert fdi.rotor_healthy_level == pytest.approx(-math.log(20.0))
-    assert fdi.rotor_patience == fdi.arbitration_ticks == 500
+    assert fdi.rotor_pair.shift == pytest.approx(m_d)
+    assert fdi.rotor_pair.join_level == pytest.approx(math.log(2000.0))
+    assert fdi.rotor_pair.healthy_level == pytest.approx(-math.log(20.0))
+    assert fdi.rotor_pair.patience == fdi.arbitration_ticks == 500
     assert fdi.arbiter.parity_level == pytest.approx(3.290527, abs=1e-6)
     sigma_d = fdi.arbiter.parity_sigma
     k = 8.0
@@ -512,9 +514,22 @@ def test_a_rotor_speed_sensor_joins_the_first_flag_by_the_rotor_pair_s_sequentia
     evidence = np.array([-3.5, -1.0, 5.5, 8.0])  # healthy, open, open (z = 3.33 > 3.29), biased
     fdi.arbiter.parity[:] = (evidence + k * m_d**2 / 2.0) / m_d * sigma_d
     np.testing.assert_allclose(fdi.arbiter.rotor_log_ratio(m_d), evidence)
-    assert [fdi._rotor_pair_verdict(row) for row in range(4)] == [-1, 0, 0, 1]
+    assert [fdi.rotor_pair.verdict(row) for row in range(4)] == [-1, 0, 0, 1]
     assert fdi.arbiter.rotor_disagree.tolist() == [False, False, True, True]
+    # an explanation naming one generator-speed sensor is judged by each rotor-speed sensor against the other
+    # encoder (Λ_s at ``rotor_pair_shift`` = 1.25 σ, joining at ln(4/α_iso) = 8.29): the same verdicts, with ω_r,m2
+    # the biased one on row 3 and ω_r,m1 far inside "healthy"
+    m = fdi.rotor_pair.encoder_shift
+    assert m == 1.25 and fdi.rotor_pair.encoder_join_level == pytest.approx(math.log(4000.0))
+    encoder_evidence = np.array([-3.5, -1.0, 5.5, 9.0])
+    sigma_e = fdi.arbiter.encoder_sigma
+    fdi.arbiter.encoder_gap[:, 1, 1] = (encoder_evidence + k * m**2 / 2.0) / m * sigma_e  # Σ(y_r2 − y_g2/N_g)
     g1 = 1 << G1
+    assert [fdi.rotor_pair.verdict(row, g1) for row in range(4)] == [-1, 0, 0, 1]
+    np.testing.assert_allclose(fdi.rotor_pair.encoder_log_ratios(3, g1), [-k * m**2 / 2.0, 9.0])
+    assert (
+        fdi.rotor_pair.encoder_log_ratios(3, g1 | (1 << SPEED_SENSORS.index("omega_g_m2"))) is None
+    )  # no encoder left
     r1, r2 = 1 << R1, 1 << SPEED_SENSORS.index("omega_r_m2")
     own = np.ones(DESIGN.n_isolating)
     own[fdi.observer_of_mask[g1 | r1]] = 0.5  # {r1, g1}'s own observer explains the data best
@@ -523,15 +538,18 @@ def test_a_rotor_speed_sensor_joins_the_first_flag_by_the_rotor_pair_s_sequentia
     assert not fdi._doubtful(2, g1, confirm, waited=500)  # the rotor patience has run out
     assert not fdi._doubtful(2, g1 | r2, confirm, waited=3)  # the explanation names a rotor-speed sensor already
     assert not fdi._doubtful(2, g1, confirm, waited=3, frozen=g1)  # a frozen sensor's explanation: one look
-    assert [fdi._with_rotor_pair(row, g1, own) for row in range(4)] == [g1, g1, g1, g1 | r1]
-    assert fdi._with_rotor_pair(2, g1, own, frozen=g1) == g1 | r1  # one look: z = 3.33 > 3.29
+    # the test against one encoder names the sensor, whatever the UIOs' statistics prefer
+    assert [fdi.rotor_pair.with_rotor(row, g1, own, fdi.observer_of_mask) for row in range(4)] == [g1, g1, g1, g1 | r2]
+    assert (
+        fdi.rotor_pair.with_rotor(2, g1, own, fdi.observer_of_mask, frozen=g1) == g1 | r1
+    )  # one look: z = 3.33 > 3.29
     # the one look in the pair's learnt spread: sensors 2 % noisier than the design (ŝ = 1.02) move the level to 3.36
     fdi.bias.spread.scale[2] = 1.02
-    assert fdi._with_rotor_pair(2, g1, own, frozen=g1) == g1
+    assert fdi.rotor_pair.with_rotor(2, g1, own, fdi.observer_of_mask, frozen=g1) == g1
     fdi.bias.spread.scale[2] = 1.0
     own[fdi.observer_of_mask[g1 | r2]] = 0.1
-    assert fdi._with_rotor_pair(3, g1, own) == g1 | r2
-    assert fdi._with_rotor_pair(3, g1 | r2, own) == g1 | r2
+    assert fdi.rotor_pair.with_rotor(3, g1, own, fdi.observer_of_mask) == g1 | r2
+    assert fdi.rotor_pair.with_rotor(3, g1 | r2, own, fdi.observer_of_mask) == g1 | r2
 
 
 def test_the_speed_sent_to_the_controller_is_the_encoders_unfiltered_in_region_2_only():

@@ -32,6 +32,8 @@ runs out instead). The pair is compared whether or not one of them is suspected,
 is flagged: the first explanation of a double fault may suspect the healthy rotor-speed sensor, which would leave
 the faulty one alone in ω₃ and the pair never compared (a random-scenario window, ω_r,m2 gain 0.913 beside an
 8.5σ offset on ω_g,m1 at 15 m/s: ω_r,m1 suspected first, ω_g,m2 flagged on the rotor-speed opinion; docs/turbine.md).
+Beside the pair's difference, each rotor-speed sensor's reading less each generator-speed sensor's through the gear is
+summed over the same ticks (``encoder_gap``): the sums ``rotor_pair`` tests against one encoder.
 
 **The fault's first ticks.** The sum above needs many ticks because its third opinion is noisy (σ₃ ≈ 0.8 rad/s at
 a third of rated torque, 16 σ_g), yet a generator-speed sensor's offset or gain fault shows at its first tick as a
@@ -126,6 +128,10 @@ class GeneratorArbiter:
         self._onset = np.full(n, -1, dtype=np.int64)  # tick (count of ``observe``) of the onset while ℓ_J grows
         self.parity = np.zeros(n)  # Σ (y_r1 − y_r2) since the isolation started, rad/s
         self.count = np.zeros(n)  # ticks summed
+        # Σ (y_rs − y_gk/N_g) over the same ticks, [row, s, k]: each rotor-speed sensor against each generator-speed
+        # sensor through the gear (the one-encoder rigid observers 4-g1, 4-g2), rad/s
+        self.encoder_gap = np.zeros((n, 2, 2))
+        self.encoder_sigma = math.sqrt(float(variance["omega_r_m1"]) + self.generator_variance / gear_ratio**2)
 
     def reset(self, rows: np.ndarray, jump: np.ndarray | None = None) -> None:
         """Start the sums of ``rows`` ((n,) bool) afresh, from ℓ_J of the fault's onset on the rows of ``jump``
@@ -134,6 +140,7 @@ class GeneratorArbiter:
         self.total_power[rows] = 0.0
         self.parity[rows] = 0.0
         self.count[rows] = 0.0
+        self.encoder_gap[rows] = 0.0
         self.jump[rows] = 0.0
         self._onset[rows] = -1
         if jump is None or self._seen < self._means.shape[1]:
@@ -220,6 +227,15 @@ class GeneratorArbiter:
         difference" (the sign that fits) against "both are healthy" (0 before anything is summed)."""
         return shift * np.abs(self.parity[rows]) / self.parity_sigma - 0.5 * shift**2 * self.count[rows]
 
+    def rotor_sensor_log_ratios(self, shift: float, row: int, encoder: int, spread: float = 1.0) -> np.ndarray:
+        """Λ_s = shift·|Σe_s| − k·shift²/2 for s = ω_r,m1, ω_r,m2 (2,) on ``row``, e_s = (y_rs − y_g/N_g)/(σ_e ŝ)
+        over the k ticks summed, y_g the generator-speed sensor ``encoder`` (0: ω_g,m1, 1: ω_g,m2), σ_e² = σ_r² +
+        σ_g²/N_g², ŝ = ``spread``: the log-likelihood ratio of "rotor-speed sensor s is biased by ±shift σ_e" (the
+        sign that fits) against "both are healthy", on residuals that do not share the other rotor-speed sensor's
+        noise (``rotor_pair``; docs/turbine.md, "Against one encoder")."""
+        z = np.abs(self.encoder_gap[row, :, encoder]) / (self.encoder_sigma * spread)
+        return shift * z - 0.5 * shift**2 * self.count[row]
+
     @property
     def rotor_disagree(self) -> np.ndarray:
         """(n,) bool: the rotor-speed sensors' summed difference is beyond the isolation level (module docstring)."""
@@ -250,6 +266,8 @@ class GeneratorArbiter:
         both_rotor = rotor_trusted.all(axis=1) if rotor_paired is None else rotor_paired
         self.parity += np.where(both_rotor, y[:, 0] - y[:, 1], 0.0)
         self.count += both_rotor
+        gap = y[:, :2, None] - y[:, None, 2:4] / self.gear_ratio
+        self.encoder_gap += np.where(both_rotor[:, None, None], gap, 0.0)
         weight_r = rotor_trusted / self.rotor_variance
         numerator = (weight_r * y[:, :2]).sum(axis=1) * self.gear_ratio
         weight = weight_r.sum(axis=1)

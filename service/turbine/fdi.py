@@ -39,7 +39,8 @@ evidence that its sensor is healthy again.
   ``isolation_confirm_alpha`` (default 0.05), the decision waits one more tick, up to ``isolation_patience``
   ticks beyond the deadline, with the explanations considered suspected (so the estimate already leaves them
   out): a first flag that names only part of the faulty set is a wrong isolation, and one more tick is cheaper.
-  The rotor-speed pair's summed difference (``arbitration``) judges an explanation that names no rotor-speed sensor
+  The rotor-speed pair's summed difference (``arbitration``, ``rotor_pair``) judges an explanation that names no
+  rotor-speed sensor
   (a double fault's rotor-speed gain, which the UIOs see only as their states drift) by Wald's sequential test of
   "both healthy" against "one biased by the bias test's smallest design size": Λ = m_d |Σd| − k m_d²/2 over the k
   ticks since the isolation started, m_d = ``bias_shift``/√2 σ of the pair's difference. The decision waits while
@@ -48,7 +49,13 @@ evidence that its sensor is healthy again.
   probability ≤ α_iso, however many ticks are looked at: Ville's inequality), at the lower one the explanation is
   decided as it is (a rotor-speed bias of the design size ever gets there with probability ≤ α_confirm, larger ones
   far less often). Λ falls by at most m_d²/2 = 0.56 a tick, so a generator-speed explanation waits 6 ticks at least,
-  about 10 on a healthy pair: the price of a first flag whose partial-set risk is bounded. An explanation naming a
+  about 10 on a healthy pair: the price of a first flag whose partial-set risk is bounded. An explanation naming
+  one generator-speed sensor is judged instead by each rotor-speed sensor against the other generator-speed sensor
+  through the gear (the one-encoder rigid observer's prediction, white N(0, σ_r²) on the plant at every wind:
+  twice the pair's information per tick), for a bias of ``rotor_pair_shift`` (1.25 σ_r) on either sensor, either
+  sign: the same two levels, the upper ln(4/α_iso) for four alternatives; Λ_s falls by at most m²/2 = 0.78 a tick,
+  so such an explanation is decided on the 4th tick at the earliest, after about 9.7 on a healthy pair, and the test
+  names the biased sensor (``rotor_pair``). An explanation naming a
   frozen sensor is decided on one look (the sum's z beyond the isolation level in the pair's learnt spread).
 * **Persistent rotor-speed bias.** Beside the window tests, Page's CUSUMs (a bank of shifts ``bias_shift``·2^k,
   k < ``bias_bank``) on the parity of the two rotor-speed sensors' exclusion residuals against the generator-speed
@@ -94,8 +101,6 @@ design false-alarm rate.
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 
 from service.turbine.adaptive import HealthySpread
@@ -105,6 +110,7 @@ from service.turbine.bias_test import ROTOR, RotorBiasTest
 from service.turbine.clearing import FlagClearing
 from service.turbine.fdi_settings import FDISettings
 from service.turbine.frozen import FrozenReadings
+from service.turbine.rotor_pair import RotorPairTest
 from wwcore.channels import SPEED_SENSORS
 from wwcore.quantiles import chi2_isf
 from wwcore.scenario.mismatch import SENSOR_BIAS_TOLERANCE
@@ -246,21 +252,10 @@ class SpeedSensorFDI:
         # the ticks after the detection's have shown the fault (``_fault_persists``)
         self.confirmed = np.zeros(n, dtype=bool)
         self.arbiter = GeneratorArbiter(bank, n, iso, dt, fast)
-        # the rotor-speed pair's summed difference (``arbitration``) judges an explanation that names no rotor-speed
-        # sensor by Wald's sequential test of "both healthy" against "one biased by the bias test's smallest design
-        # size" (``bias_shift`` σ on one sensor, m_d σ_d of the pair's difference), Λ = m_d |Σd| − k m_d²/2, looked at
-        # on every tick the isolation waits (``_rotor_pair_verdict``)
-        rotor_sigma = math.sqrt(self.arbiter.rotor_variance) / self.arbiter.gear_ratio  # σ_r1, rad/s
-        self.rotor_shift = settings.bias_shift * rotor_sigma / self.arbiter.parity_sigma
         self.arbitration_ticks = round(settings.arbitration_s / dt)
-        # a rotor-speed sensor joins once Λ ≥ ln(2/α_iso): ½(e^Λ⁺ + e^Λ⁻) is a martingale of mean 1 on a healthy
-        # pair, so it ever gets there with probability ≤ α_iso however many ticks are looked at (Ville)
-        self.rotor_join_level = math.log(2.0 / iso)
-        # the pair is judged healthy once Λ ≤ −ln(1/α_confirm): a bias of at least the design size ever gets there
-        # with probability ≤ α_confirm (e^−Λ is a martingale under it), larger ones far less often
-        self.rotor_healthy_level = -math.log(1.0 / confirm)
-        # the longest the test may hold an isolation open: the generator-speed arbitration's
-        self.rotor_patience = self.arbitration_ticks
+        # the rotor-speed sensors' sequential tests judge an explanation that names no rotor-speed sensor, on every
+        # tick the isolation waits, at most as long as the generator-speed arbitration (``rotor_pair``)
+        self.rotor_pair = RotorPairTest(self.arbiter, settings, iso, confirm, self.bias, self.arbitration_ticks)
         self.provisional = np.zeros(n, dtype=np.int64)  # the pending isolation's current explanation
         self._pending = False  # whether any row has a pending isolation
         self._all_healthy = int(self.observer_of_mask[0])  # the observer that leaves nothing out
@@ -439,7 +434,7 @@ class SpeedSensorFDI:
                         continue
                     if (self.arbiter.log_ratio[row] > 0.0) != bool(explanation & _BITS[2]):
                         explanation = other
-                explanation = self._with_rotor_pair(row, explanation, isolate[i], frozen)
+                explanation = self.rotor_pair.with_rotor(row, explanation, isolate[i], self.observer_of_mask, frozen)
                 self.flagged[row] = explanation
                 self.deadline[row] = -1
                 self.provisional[row] = explanation
@@ -480,8 +475,8 @@ class SpeedSensorFDI:
 
         * while ``waited`` < ``patience``, when a witness fails the laxer confirmation level
           ``isolation_confirm_alpha``: evidence of a further fault that has not yet grown enough to reject it;
-        * while ``waited`` < ``rotor_patience``, when the explanation names no rotor-speed sensor and the rotor-speed
-          pair's sequential test has not yet decided (``_rotor_pair_verdict`` 0): a rotor-speed gain beside a
+        * while ``waited`` < the rotor-speed tests' patience, when the explanation names no rotor-speed sensor and
+          their sequential test has not yet decided (``rotor_pair.verdict`` 0): a rotor-speed gain beside a
           generator-speed fault shows in the pair's difference from its first tick but in the UIOs only as their
           states drift, so that flagging before the test says "healthy" would name a part of the faulty set first,
           and joining before it says "biased" would name a healthy sensor. Not for an explanation that names a
@@ -492,47 +487,11 @@ class SpeedSensorFDI:
         if (
             not explanation & _ROTOR_BITS
             and not explanation & frozen
-            and waited < self.rotor_patience
-            and self._rotor_pair_verdict(row) == 0
+            and waited < self.rotor_pair.patience
+            and self.rotor_pair.verdict(row, explanation) == 0
         ):
             return True
         return waited < patience and bool((self.witnesses[j] * confirm).max() > 1.0)
-
-    def _rotor_pair_verdict(self, row: int) -> int:
-        """The rotor-speed pair's sequential test on ``row`` since its isolation started (``arbitration``:
-        Λ = m_d |Σd| − k m_d²/2, d = (y_r1 − y_r2)/σ_d): +1 when Λ ≥ ``rotor_join_level`` (one of them is biased; a
-        healthy pair gets there with probability ≤ α_iso over any number of looks), −1 when Λ ≤
-        ``rotor_healthy_level`` (both healthy; a bias of the design size gets there with probability
-        ≤ ``isolation_confirm_alpha``), 0 while the evidence is between the two."""
-        evidence = float(self.arbiter.rotor_log_ratio(self.rotor_shift, row))
-        if evidence >= self.rotor_join_level:
-            return 1
-        return -1 if evidence <= self.rotor_healthy_level else 0
-
-    def _with_rotor_pair(self, row: int, explanation: int, own: np.ndarray, frozen: int = 0) -> int:
-        """The explanation with a rotor-speed sensor added where it names none and the rotor-speed pair's
-        sequential test says one of them is biased (``_rotor_pair_verdict`` +1): a rotor-speed gain of a few percent
-        shows in the pair's difference from the fault's first tick, while the UIOs see it only as their states drift
-        from it. An explanation naming a ``frozen`` sensor is decided on the frozen test's tick, one look at the
-        pair's sum: there the sum's z beyond the isolation's two-sided level in the pair's learnt spread suffices
-        (``_rotor_pair_disagrees``). Of the two,
-        the one whose explanation's own observer has the smaller statistic (``own``, at the isolation level)."""
-        if explanation & _ROTOR_BITS:
-            return explanation
-        one_look = bool(explanation & frozen) and self._rotor_pair_disagrees(row)
-        if not one_look and self._rotor_pair_verdict(row) <= 0:
-            return explanation
-        candidates = [explanation | _BITS[r] for r in ROTOR if self.observer_of_mask[explanation | _BITS[r]] >= 0]
-        if not candidates:
-            return explanation
-        return int(min(candidates, key=lambda m: own[self.observer_of_mask[m]]))
-
-    def _rotor_pair_disagrees(self, row: int) -> bool:
-        """The frozen sensor's one look at the rotor-speed pair on ``row``: z > z_iso ŝ, ŝ the rotor-speed bias test's
-        learnt spread of the same difference (√ of its second moment, clipped to [1, ``max_noise_scale``]; 1 without
-        the test), so noisier sensors or a calibration offset within tolerance pass no more often than α_iso."""
-        spread = float(self.bias.spread.scale[row]) if self.bias is not None else 1.0
-        return bool(self.arbiter.rotor_z[row] > self.arbiter.parity_level * spread)
 
     def _explained(self, ratio: np.ndarray) -> np.ndarray:
         """For each explanation (observer index), the largest ratio among its witnesses (n_isolating,)."""

@@ -51,6 +51,9 @@ class FDISettings:
     rotor_bias_test: bool = True  # on the rotor-speed parity: < 0.05 false alarms per 1000 s (docs/decisions.md)
     # the bias that CUSUM is designed for, m (it detects biases above m/2; > clear_floor, for hysteresis)
     bias_shift: Annotated[float, Bounds(ge=0.25, le=10.0, unit="σ")] = 1.5
+    # the smallest bias on one rotor-speed sensor that a generator-speed explanation's sequential test against one
+    # encoder is designed for (``rotor_pair``: it is decided alone only once a bias this large is unlikely)
+    rotor_pair_shift: Annotated[float, Bounds(ge=0.25, le=10.0, unit="σ")] = 1.25
     # shifts in that CUSUM's bank: bias_shift·2^k, k < bias_bank (1: one CUSUM; more: larger biases found sooner)
     bias_bank: Annotated[int, Bounds(ge=1, le=6)] = 3
 
