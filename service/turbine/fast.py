@@ -22,6 +22,20 @@ from wwcore.blas_fast import gemm_layout, gemm_product, nonzeros  # noqa: F401 (
 from wwcore.jit import kernel
 
 
+# -- stacking (the wind recovery's operands) ------------------------------------------------------------------------
+@kernel
+def stack(left, middle, right, out):
+    """out = [left | middle | right] row by row; ``middle`` (n,) may be empty (n, 0)-free: pass a (n, 0) array."""
+    a, b = left.shape[1], middle.shape[1]
+    for r in range(left.shape[0]):
+        for c in range(a):
+            out[r, c] = left[r, c]
+        for c in range(b):
+            out[r, a + c] = middle[r, c]
+        for c in range(right.shape[1]):
+            out[r, a + b + c] = right[r, c]
+
+
 # -- wind recovery (``service.turbine.wind_recovery.WindRecovery.step``, every pitch sensor healthy) ------------------
 @kernel
 def recovery_filter(raw, pitch_m1, pitch_m2, healthy, modelled, b0, a1, a2, s1, s2, filtered):

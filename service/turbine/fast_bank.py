@@ -43,19 +43,6 @@ def bank_inputs_offset(sensors, columns, threshold, n_g, eta_gc, offset, speed, 
 
 
 @kernel
-def stack(left, middle, right, out):
-    """out = [left | middle | right] row by row; ``middle`` (n,) may be empty (n, 0)-free: pass a (n, 0) array."""
-    a, b = left.shape[1], middle.shape[1]
-    for r in range(left.shape[0]):
-        for c in range(a):
-            out[r, c] = left[r, c]
-        for c in range(b):
-            out[r, a + c] = middle[r, c]
-        for c in range(right.shape[1]):
-            out[r, a + b + c] = right[r, c]
-
-
-@kernel
 def chi2(out, width, terms, n_res, stat):
     """χ²_j = w_a² + (w_b² + w_c²) over the segment's whitened residuals (``terms``: first, second, third column
     of each segment, ``n_res`` where the segment is shorter: a zero), ``out[:, width:]`` the residuals."""
