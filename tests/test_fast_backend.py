@@ -184,6 +184,57 @@ def test_backend_choice_refuses_unknown_names_and_restores_the_environment(monke
         TurbineSupervisor(1, backend="numbba")
 
 
+PLANT_FAULTS = """
+name = "kept-arguments-check"
+duration_s = 4.0
+[plant]
+kind = "turbine"
+[wind]
+mean = [[0.0, 12.0], [4.0, 13.0]]
+turbulence_intensity = 0.1
+[[faults]]
+name = "blade 2 pitch offset"
+target = "pitch_actuator_2"
+kind = "pitch_offset"
+value = 2.0
+start_s = 1.0
+end_s = 2.5
+[[faults]]
+name = "generator sensor 1 offset"
+target = "omega_g_m1"
+kind = "offset"
+value = 3.0
+start_s = 3.0
+"""
+
+
+def test_the_plant_kernels_kept_arguments_follow_the_faults():
+    # the compiled measurement keeps its arguments between ticks (``TurbineBatch._measure_arguments``); the fault
+    # factors are new arrays whenever a fault starts or ends: a pitch offset (the blade torques' pitch) on and off,
+    # a sensor fault after it; every tick's state, readings and torques equal to numpy's within ``RTOL`` (the blade
+    # torques' kernel can differ from numpy's in the last place, ``docs/cluster.md``)
+    scenario = parse_scenario(tomllib.loads(PLANT_FAULTS))
+    plants = [
+        TurbineBatch(scenario.plant, scenario.wind, scenario.faults, seed=SEED, runs=[0, 1], backend=backend)
+        for backend in ("numpy", "numba")
+    ]
+    assert plants[1]._one_measure_kernel
+    offsets = set()
+    for _ in range(round(scenario.duration_s / plants[0].dt)):
+        frames = [plant.measure() for plant in plants]
+        k = plants[0].k
+        assert_close(frames[1].sensors, frames[0].sensors, f"tick {k}: readings")
+        assert_close(plants[1].tau_aero, plants[0].tau_aero, f"tick {k}: τ_r")
+        assert_close(plants[1].blade_torque, plants[0].blade_torque, f"tick {k}: blade torques")
+        offsets.add(float(plants[0].faults.pitch_offset.max()))
+        for plant in plants:
+            plant.control(None)
+            plant.advance()
+        assert_close(plants[1].x, plants[0].x, f"tick {k}: state")
+        np.testing.assert_array_equal(plants[1].controller.zone, plants[0].controller.zone)
+    assert offsets == {0.0, 2.0}
+
+
 def test_compiled_objects_copy_and_pickle():
     kernels = fast_module("plant_sim.turbine.fast")
     assert copy.deepcopy(kernels) is kernels

@@ -300,6 +300,67 @@ def test_the_bank_kernel_equals_the_reference(n):
     assert banks[0].steps > len(banks[0]._update_transient) and banks[0].chi2[healthy].max() > 0.0
 
 
+@pytest.mark.parametrize("n", [1, 16])
+@pytest.mark.parametrize("offset", [False, True])
+def test_the_bank_tick_from_the_readings_equals_the_reference(n, offset):
+    # ``TurbineContext.bank``'s numpy lines (``_bank_inputs``, ``ObserverBank.step``) against the compiled context's
+    # one kernel call from the frame's readings (``fast.bank_tick``), with and without the speed sensors'
+    # calibration offsets, through region 1's fallback channel, a NaN reading and -0.0; every array equal to the
+    # last bit, the speed readings kept before the offsets
+    rng = np.random.default_rng(SEED + 3 * n + offset)
+    contexts = [TurbineContext(BENCHMARK, n, backend="numpy"), TurbineContext(BENCHMARK, n, backend="numba")]
+    shift = rng.normal(0.0, 0.01, (n, 4))
+    for context in contexts:
+        context.speed_offset = shift.copy() if offset else None
+    scale = {"omega_r_m1": 1.6, "omega_r_m2": 1.6, "omega_g_m1": 150.0, "omega_g_m2": 150.0, "p_g_m": 4.8e6}
+    torques = []
+    for k in range(40):
+        sensors = rng.normal(1.0, 0.2, (n, len(SENSORS)))
+        for name, value in scale.items():
+            sensors[:, SENSOR_INDEX[name]] *= value
+        # the torque reading across the power-speed channel's threshold (region 1's fallback below it)
+        sensors[:, SENSOR_INDEX["tau_g_m"]] = BENCHMARK.rated_torque * rng.uniform(0.0, 1.0, n)
+        sensors[:, SENSOR_INDEX["omega_g_m1"]] = -0.0 if k == 7 else sensors[:, SENSOR_INDEX["omega_g_m1"]]
+        if k == 20:
+            sensors[0, SENSOR_INDEX["omega_r_m2"]] = np.nan
+        tau_g_ref = rng.normal(2e4, 500.0, n)
+        frame = TurbineFrame(k, 0.01 * k, sensors, tau_g_ref, np.zeros(n), np.full(n, 5e6), np.zeros(n, np.int8))
+        banks = [context.bank(frame) for context in contexts]
+        for name in ("z", "x_hat", "chi2", "steps", "_y_prev"):
+            got, expected = getattr(banks[1], name), getattr(banks[0], name)
+            np.testing.assert_array_equal(got, expected, f"tick {k}: {name}")
+            np.testing.assert_array_equal(np.signbit(got), np.signbit(expected), f"tick {k}: {name}")
+        np.testing.assert_array_equal(contexts[1].speed_readings(frame), contexts[0].speed_readings(frame))
+        if offset:
+            contexts[0].speed_offset += 0.001  # updated in place, as the detector does
+            contexts[1].speed_offset += 0.001
+        threshold = POWER_SPEED_MIN_TORQUE * BENCHMARK.rated_torque
+        torques.append(sensors[:, SENSOR_INDEX["tau_g_m"]])
+    torques = np.concatenate(torques)
+    assert banks[0].steps == 39 and (torques < threshold).any() and (torques > threshold).any()
+
+
+def test_the_record_test_equals_the_reference():
+    # ``TurbineSupervisor._record``'s "nothing changed" test against numpy's comparisons: a flag or a selection
+    # changed anywhere (first row, last row, last column) is seen
+    fast = fast_module("service.turbine.fast")
+    rng = np.random.default_rng(SEED)
+    for n in (1, 2, 50):
+        flags = rng.random((n, len(DIAGNOSIS_TARGETS))) < 0.1
+        selected = rng.integers(-1, 20, n)
+        for _ in range(60):
+            faulty, chosen = flags.copy(), selected.copy()
+            where = rng.integers(0, 4)
+            if where == 1:
+                faulty[rng.integers(n), rng.integers(faulty.shape[1])] ^= True
+            elif where == 2:
+                chosen[rng.integers(n)] += 1
+            elif where == 3:
+                faulty[-1, -1] ^= True
+            expected = bool((faulty == flags).all() and (chosen == selected).all())
+            assert fast.record_unchanged(flags, faulty, selected, chosen) is expected
+
+
 @pytest.mark.parametrize("n", [2, 7, 50, 450])
 def test_the_sparse_product_equals_numpy_matmul(n):
     # ``fast.gemm_product`` over a sparse matrix's nonzeros against numpy's dense ``@`` (BLAS's gemm), for the

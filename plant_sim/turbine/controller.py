@@ -65,16 +65,14 @@ class BenchmarkController:
                 self.power_ref = np.where(refs.valid, refs.power_ref, self.power_ref)
         else:
             self.using_estimates[:] = False
-        if self._fast is not None:  # the same operations, in place, row by row
-            zone, integrator = self.zone.copy(), self.integrator.copy()
-            self.beta_ref, self.tau_g_ref = np.empty(self.n), np.empty(self.n)
+        if self._fast is not None:  # the same operations, row by row, into the controller's own arrays
+            # (written in place: the plant's frame and truth copy what they hand on, and nothing else keeps them)
             power_ref = np.ascontiguousarray(self.power_ref, dtype=float)
             estimate = refs.omega_g if fresh else omega_g_m
             self._fast.control(
-                omega_g_m, self.using_estimates, estimate, p_g_m, power_ref, zone, integrator, self.beta_ref,
-                self.tau_g_ref, self._constants,
+                omega_g_m, self.using_estimates, estimate, p_g_m, power_ref, self.zone, self.integrator,
+                self.beta_ref, self.tau_g_ref, self._constants,
             )  # fmt: skip
-            self.zone, self.integrator = zone, integrator
             return
         # Zone logic with the previous zone held (unit delay).
         to_region3 = (p_g_m >= self.power_ref) | (omega_g >= p.omega_nom)

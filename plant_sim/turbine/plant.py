@@ -157,6 +157,7 @@ class TurbineBatch:
         )
         if self._one_measure_kernel:
             self._wind_table, self._m_t = self.wind.interpolation(), self._fast.M_T
+        self._kept: dict | None = None  # ``_fast_measure_frame``'s kernel arguments while the faults stay
 
     # -- set-up -----------------------------------------------------------------------------------------------
     def _trim(self, wind0: float, power_reference: float) -> None:
@@ -267,19 +268,35 @@ class TurbineBatch:
     def _fast_measure_frame(self, x: np.ndarray) -> TurbineFrame:
         """``measure`` with the plant's own ``WindField`` by one kernel (``plant_sim.turbine.fast.measure``: the wind
         sample, the blade torques and the readings, the same operations as ``sample``, ``blade_torques`` and
-        ``_fast_frame``), then with a sensor fault active ``faulty_readings`` in the readings' place."""
-        wind, f, n = self.wind, self.faults, self.n
+        ``_fast_frame``), then with a sensor fault active ``faulty_readings`` in the readings' place. The kernel's
+        arguments are kept between ticks (``_measure_arguments``); the readings ``y`` are new every tick (the
+        frame hands them on)."""
+        wind = self.wind
+        kept = self._kept or self._measure_arguments()
         base, u3, hub, mean = wind.fields(wind.advance(self.k))
-        blades, rotor, torque, tau_aero = np.empty((n, 3)), np.empty(n), np.empty((n, 3)), np.empty(n)
-        y, pitch_error = np.empty((n, len(SENSORS))), np.empty((n, 3))
+        y = np.empty((self.n, len(SENSORS)))
         noise = self._next_noise()
-        aero = (self._m_t, self.dynamics.blade_gain, f.aero_factor, f.pitch_offset, self.p.radius)
-        sensors = (self.p.eta_gc, f.power_factor, _PICK, noise, self.bias, _BETA_M1, _BETA_M2)
-        outputs = (blades, rotor, torque, tau_aero, self._quantities, y, pitch_error)
-        self._fast.measure(x, (*self._wind_table, base, u3, hub), aero, sensors, *outputs)
+        blades, rotor, torque, tau_aero, pitch_error = kept["outputs"]
+        self._fast.measure(
+            x, (*self._wind_table, base, u3, hub), kept["aero"], (*kept["gains"], noise, *kept["sensors"]),
+            blades, rotor, torque, tau_aero, self._quantities, y, pitch_error,
+        )  # fmt: skip
         self._wind_sample = WindSample(blades=blades, hub=hub, rotor=rotor, mean=mean)
-        self.blade_torque, self.tau_aero, self._pitch_error = torque, tau_aero, pitch_error
         return self._fast_faulty_frame(self._fast, x, noise, y)
+
+    def _measure_arguments(self) -> dict:
+        """``_fast_measure_frame``'s kernel arguments that stay from tick to tick until the faults change
+        (``_update_faults`` drops them): the fault factors, the constants, and the outputs read within the tick
+        (the blades' and rotor's wind and the torques: the evaluation and the twins copy what they keep)."""
+        n, f = self.n, self.faults
+        self.blade_torque, self.tau_aero, self._pitch_error = np.empty((n, 3)), np.empty(n), np.empty((n, 3))
+        self._kept = {
+            "aero": (self._m_t, self.dynamics.blade_gain, f.aero_factor, f.pitch_offset, self.p.radius),
+            "gains": (self.p.eta_gc, f.power_factor, _PICK),
+            "sensors": (self.bias, _BETA_M1, _BETA_M2),
+            "outputs": (np.empty((n, 3)), np.empty(n), self.blade_torque, self.tau_aero, self._pitch_error),
+        }
+        return self._kept
 
     def _fast_frame(self, fast, x: np.ndarray, ws, pitch: np.ndarray) -> TurbineFrame:
         """``measure``'s readings, by ``plant_sim.turbine.fast``: ``readings``, then with a sensor fault active
@@ -430,6 +447,7 @@ class TurbineBatch:
             elif k == sched.end_tick and k > sched.start_tick:
                 self._emit(EventType.FAULT_CLEARED, sched)
         self.faults.reset()
+        self._kept = None  # the fault factors are new arrays
         for sched in self.schedule:
             level = sched.intensity(k, dt)
             if level > 0.0:

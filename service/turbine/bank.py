@@ -297,6 +297,7 @@ class ObserverBank:
         self._terms = np.concatenate(
             [np.where(design.ranks > i, design.res_starts + i, n_res) for i in range(3)]
         )  # (3 n_obs,) columns of _squares: first, second, third element of each segment
+        self._work = (self._update_in, self._output_in, self._terms, n_res)  # ``fast.bank_tick``'s work arrays
         self.z = np.zeros((n, width))
         self.x_hat = np.zeros((n, width))
         self.chi2 = np.zeros((n, len(design.names)))  # ‖W_j r_j‖², χ²-distributed with rank_j dof when healthy
@@ -378,6 +379,28 @@ class ObserverBank:
         self.steps += advance
         self.x_hat = out[:, : self._width]
         self._y_prev = y
+
+    def step_readings(self, inputs: tuple, offset: np.ndarray | None, u_prev: np.ndarray) -> tuple:
+        """``step`` with y[n] gathered from a frame's readings by the same kernel call (``fast.bank_tick``: the
+        inputs as ``TurbineContext._bank_inputs``'s, ``inputs`` = (sensors, columns, threshold, N_g, η_gc), less
+        the speed sensors' calibration ``offset`` (n, 4) if any); after the first step, with the compiled backend
+        only. (y[n] (n, 5), the speed readings before the offset (n, 4))."""
+        n = self.n
+        read = np.empty((n, 6))
+        speed = np.empty((n, 4)) if offset is not None else read[:, :4]
+        update, update_nonzeros = self._update, self._update_nonzeros
+        if self.steps < len(self._update_transient):
+            update, update_nonzeros = self._update_transient[self.steps], self._transient_nonzeros[self.steps]
+        self.chi2 = np.empty((n, len(self.d.names)))
+        reproduced, output_nonzeros = self._sparse
+        self.z, out = self._fast.bank_tick(
+            inputs, offset is not None, speed if offset is None else offset, speed, read, self.z, u_prev,
+            self._y_prev, update, self._output, self._work, self.chi2, (reproduced, update_nonzeros, output_nonzeros),
+        )  # fmt: skip
+        self.steps += 1
+        self.x_hat = out[:, : self._width]
+        self._y_prev = y = read[:, :5]
+        return y, speed
 
     def restart(self, rows: np.ndarray, target: np.ndarray, source: np.ndarray) -> None:
         """Re-initialise observer ``target[i]`` of row ``rows[i]`` from observer ``source[i]``'s estimate of this

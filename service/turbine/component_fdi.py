@@ -267,6 +267,7 @@ class ComponentFDI:
             self._converter_weight, float(settings.converter_clear_floor), self._clear_h, CONVERTER_TARGET,
         )  # fmt: skip
         self._converter_spread_state = (self.converter_spread.offset, self.converter_spread.scale)
+        self._kept: tuple | None = None  # ``_fast_tick``'s kernel arguments (``_tick_arguments``)
 
     def step(self, frame: TurbineFrame) -> np.ndarray:
         y = frame.sensors
@@ -296,30 +297,37 @@ class ComponentFDI:
         """The gathers, the parity statistics, the block's inputs, the frozen readings' repeat test, the parity's
         adaptive normalisation and the converter's tick of ``step`` by one kernel
         (``service.turbine.fast.component_step``, the same operations), then the pitch-sensor decisions."""
-        n, w, o, spread = self.n, self.parity, self.outlier, self.parity_spread
-        beta, parity, window = np.empty((n, 3 * 2)), np.empty((n, 3)), np.empty((n, 3))
-        parity_n, window_n = (np.empty((n, 3)), np.empty((n, 3))) if spread.enabled else (parity, window)
-        ring = (w.ring, w.count % w.size, w.total)
-        outlier = (o.ring, o.count % o.size, o.total)
-        scales = (self._parity_scale, self._window_scale, self.z_single)
-        tick = (frame.sensors, M12, TAU_G_M, frame.tau_g_ref, j, CROSS_BLADE)
-        learning = (spread.min_weight, spread.max_scale2, spread.state)
-        adapt = (spread.enabled, self.flags, M1_TARGET, M2_TARGET, self._root_parity_window, self.z_single, learning)
-        first = self._tau_hat is None
-        if first:
-            self._tau_hat = np.empty(n)
-        converter = (self._tau_hat, first, self._converter_block_sum, self.ticks + 1 > self.warmup_ticks)
-        state = (self.converter_statistic, self._converter_run, self._converter_count, self._converter_mean)
-        state += (self.converter_clear_statistic,)
-        converter += (self._converter_spread_state, self._converter_test, state)
+        kept = self._kept or self._tick_arguments()
+        w, o = self.parity, self.outlier
+        beta = kept[0][self.ticks % 2]  # two buffers: the frozen test keeps the last tick's (``previous``)
+        converter = (self._tau_hat, self.ticks == 0, self._converter_block_sum, self.ticks + 1 > self.warmup_ticks)
         any_suspicious, repeated = self._fast.component_step(
-            tick, (self._e_block, self._tau_block), ring, outlier, scales, (beta, parity, window),
-            self.readings.previous, (*adapt, parity_n, window_n), converter,
+            (frame.sensors, M12, TAU_G_M, frame.tau_g_ref, j, CROSS_BLADE), kept[1],
+            (w.ring, w.count % w.size, w.total), (o.ring, o.count % o.size, o.total), kept[2], (beta, *kept[3]),
+            self.readings.previous, kept[4], converter + kept[5],
         )  # fmt: skip
         w.count += 1
         o.count += 1
         self.readings.push(beta, repeated)
-        self._pitch_flags(parity_n, window_n, any_suspicious)
+        self._pitch_flags(*kept[4][-2:], any_suspicious)
+
+    def _tick_arguments(self) -> tuple:
+        """``_fast_tick``'s kernel arguments kept from tick to tick: the two β buffers, the blocks, the scales, the
+        parity's outputs, the adaptation's and the converter's (outputs written and read within a tick; state
+        arrays updated in place, never replaced)."""
+        n, spread = self.n, self.parity_spread
+        parity, window = np.empty((n, 3)), np.empty((n, 3))
+        parity_n, window_n = (np.empty((n, 3)), np.empty((n, 3))) if spread.enabled else (parity, window)
+        learning = (spread.min_weight, spread.max_scale2, spread.state)
+        adapt = (spread.enabled, self.flags, M1_TARGET, M2_TARGET, self._root_parity_window, self.z_single, learning)
+        state = (self.converter_statistic, self._converter_run, self._converter_count, self._converter_mean)
+        self._tau_hat = np.empty(n)  # τ̂_g, set from the first tick's reading by the kernel
+        self._kept = (
+            (np.empty((n, 3 * 2)), np.empty((n, 3 * 2))), (self._e_block, self._tau_block),
+            (self._parity_scale, self._window_scale, self.z_single), (parity, window), (*adapt, parity_n, window_n),
+            (self._converter_spread_state, self._converter_test, (*state, self.converter_clear_statistic)),
+        )  # fmt: skip
+        return self._kept
 
     # -- pitch sensors ------------------------------------------------------------------------------------------
     def _pitch_sensors(self, beta: np.ndarray, m1: np.ndarray, m2: np.ndarray) -> None:

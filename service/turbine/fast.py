@@ -15,27 +15,14 @@ from __future__ import annotations
 
 import numpy as np
 
+from service.turbine.fast_bank import bank_inputs, bank_inputs_offset, bank_step, bank_tick  # noqa: F401
 from service.turbine.fast_converter import converter_tick
 from wwcore.aero_fast import maximum, wind_from_torque  # noqa: F401 (the wind recovery's inversion)
 from wwcore.blas_fast import gemm_layout, gemm_product, nonzeros  # noqa: F401 (the bank's and recovery's set-up)
 from wwcore.jit import kernel
 
 
-# -- observer bank (``service.turbine.bank.ObserverBank.step``, ``TurbineContext._bank_inputs``) --------------------
-@kernel
-def bank_inputs(sensors, columns, threshold, n_g, eta_gc, read):
-    """read = sensors[:, columns] (n, 6: ω_r,m1..ω_g,m2, P_g,m, τ_g,m) with column 4 the power-speed channel
-    P_g,m / (η_gc τ_g,m), or N_g × the rotor-speed mean where τ_g,m < ``threshold`` (``interfaces.power_speed``)."""
-    for r in range(sensors.shape[0]):
-        for c in range(columns.size):
-            read[r, c] = sensors[r, columns[c]]
-        torque = read[r, 5]
-        if torque < threshold:
-            read[r, 4] = n_g * 0.5 * (read[r, 0] + read[r, 1])
-        else:
-            read[r, 4] = read[r, 4] / (eta_gc * torque)
-
-
+# -- stacking (the wind recovery's operands) ------------------------------------------------------------------------
 @kernel
 def stack(left, middle, right, out):
     """out = [left | middle | right] row by row; ``middle`` (n,) may be empty (n, 0)-free: pass a (n, 0) array."""
@@ -47,61 +34,6 @@ def stack(left, middle, right, out):
             out[r, a + c] = middle[r, c]
         for c in range(right.shape[1]):
             out[r, a + b + c] = right[r, c]
-
-
-@kernel
-def chi2(out, width, terms, n_res, stat):
-    """χ²_j = w_a² + (w_b² + w_c²) over the segment's whitened residuals (``terms``: first, second, third column
-    of each segment, ``n_res`` where the segment is shorter: a zero), ``out[:, width:]`` the residuals."""
-    m = stat.shape[1]
-    for r in range(out.shape[0]):
-        for j in range(m):
-            acc = _square(out, r, width, terms[j], n_res)
-            acc += _square(out, r, width, terms[m + j], n_res) + _square(out, r, width, terms[2 * m + j], n_res)
-            stat[r, j] = acc
-
-
-@kernel
-def bank_step(z, u_prev, y_prev, update, update_in, y, output, output_in, terms, n_res, advance, stat, sparse):
-    """``ObserverBank.step`` in one call: when ``advance``, z ← [z | u[n−1] | y[n−1]] · update (eq. 11), then
-    out = [z | y[n]] · output (eq. 12) and χ² into ``stat`` (``chi2``); (z, out). The stacking as ``stack``; the two
-    products by ``gemm_product`` over the matrices' nonzeros where ``sparse`` = (reproduced, update's nonzeros,
-    output's nonzeros) says so (``gemm_layout``), else by BLAS (numba's product calls the BLAS routine numpy's does,
-    with the same numbers: the tests)."""
-    n, width = z.shape
-    reproduced, update_nonzeros, output_nonzeros = sparse
-    if advance:
-        for r in range(n):
-            for c in range(width):
-                update_in[r, c] = z[r, c]
-            update_in[r, width] = u_prev[r]
-            for c in range(y_prev.shape[1]):
-                update_in[r, width + 1 + c] = y_prev[r, c]
-        if reproduced:
-            z = np.empty((n, update.shape[1]))
-            gemm_product(update_in, update, update_nonzeros, z)
-        else:
-            z = update_in @ update
-    for r in range(n):
-        for c in range(width):
-            output_in[r, c] = z[r, c]
-        for c in range(y.shape[1]):
-            output_in[r, width + c] = y[r, c]
-    if reproduced:
-        out = np.empty((n, output.shape[1]))
-        gemm_product(output_in, output, output_nonzeros, out)
-    else:
-        out = output_in @ output
-    chi2(out, width, terms, n_res, stat)
-    return z, out
-
-
-@kernel
-def _square(out, r, width, column, n_res):
-    if column == n_res:
-        return 0.0
-    w = out[r, width + column]
-    return w * w
 
 
 # -- wind recovery (``service.turbine.wind_recovery.WindRecovery.step``, every pitch sensor healthy) ------------------
@@ -538,12 +470,16 @@ def gather_speeds(filtered, rotor_start, generator_start, selected, omega_r, ome
 
 
 @kernel
-def any_differ(a, b):
-    """Whether ``a`` and ``b`` (1-D, one length) differ anywhere."""
-    for i in range(a.size):  # noqa: SIM110 (a loop: numba compiles no generator into any())
-        if a[i] != b[i]:
-            return True
-    return False
+def record_unchanged(flags, faulty, selected, chosen):
+    """Whether the detector's ``faulty`` (n, targets) equals the supervisor's ``flags`` and the estimator's
+    ``chosen`` observers (n,) its ``selected`` ones everywhere: a tick with no event (``TurbineSupervisor._record``)."""
+    for r in range(flags.shape[0]):
+        if selected[r] != chosen[r]:
+            return False
+        for c in range(flags.shape[1]):
+            if flags[r, c] != faulty[r, c]:
+                return False
+    return True
 
 
 # -- rotor-speed bias CUSUM (``service.turbine.bias_test.RotorBiasTest.step``) ----------------------------------------

@@ -135,7 +135,12 @@ class TurbineContext:
             self._bank_tick = frame.k
             self._bank.step(y, frame.tau_g_ref)
         elif self._bank_tick != frame.k:
-            self._bank.step(self._bank_inputs(frame), frame.tau_g_ref)
+            if self.fast is not None:  # ``_bank_inputs`` and the step by one kernel call
+                p = self.params
+                inputs = (frame.sensors, BANK_COLUMNS, self.power_speed_min_torque, p.N_g, p.eta_gc)
+                _, self._speed = self._bank.step_readings(inputs, self.speed_offset, frame.tau_g_ref)
+            else:
+                self._bank.step(self._bank_inputs(frame), frame.tau_g_ref)
             self._bank_tick = frame.k
         return self._bank
 
@@ -145,10 +150,16 @@ class TurbineContext:
         if self.fast is not None:
             p = self.params
             read = np.empty((self.n, len(BANK_COLUMNS)))
-            self.fast.bank_inputs(frame.sensors, BANK_COLUMNS, self.power_speed_min_torque, p.N_g, p.eta_gc, read)
-        else:
-            read = frame.sensors.take(BANK_COLUMNS, axis=1)  # (n, 6); column 4 becomes the power-speed channel
-            read[:, 4] = power_speed(read[:, 4], read[:, 5], read, self.params)
+            columns = (frame.sensors, BANK_COLUMNS, self.power_speed_min_torque, p.N_g, p.eta_gc)
+            if self.speed_offset is None:
+                self.fast.bank_inputs(*columns, read)
+                self._speed = read[:, :4]
+            else:  # the lines below by the kernel: the readings kept, the offsets subtracted
+                self._speed = np.empty((self.n, 4))
+                self.fast.bank_inputs_offset(*columns, self.speed_offset, self._speed, read)
+            return read[:, :5]
+        read = frame.sensors.take(BANK_COLUMNS, axis=1)  # (n, 6); column 4 becomes the power-speed channel
+        read[:, 4] = power_speed(read[:, 4], read[:, 5], read, self.params)
         self._speed = read[:, :4].copy() if self.speed_offset is not None else read[:, :4]
         if self.speed_offset is not None:
             read[:, :4] -= self.speed_offset

@@ -93,10 +93,10 @@ class TurbineSupervisor:
     def _record(self, t: float, diagnosis: Diagnosis, estimates: Estimates) -> None:
         fast = self.context.fast
         arrays = isinstance(diagnosis.faulty, np.ndarray) and isinstance(estimates.selected, np.ndarray)
-        if fast is not None and arrays:  # the common tick: no flag changed, no row switched observer
-            same_flags = not fast.any_differ(self.flags.ravel(), diagnosis.faulty.ravel())
-            if same_flags and not fast.any_differ(self.selected, estimates.selected):
-                return
+        selection = self.selected, estimates.selected
+        # the common tick: no flag changed, no row switched observer
+        if arrays and fast is not None and fast.record_unchanged(self.flags, diagnosis.faulty, *selection):
+            return
         rows = self.turbine_of_row, self.run_of_row
         raised = flag_events(t, self.flags, diagnosis.faulty, DIAGNOSIS_TARGETS, *rows)
         if raised:
