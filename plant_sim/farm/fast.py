@@ -8,9 +8,10 @@ blades stays numpy's product, and the controller's hold, fade and 3P cancellatio
 ``sub_steps`` runs a farm sample's ten ticks (``FarmBatch.run_sample``) in one call: the kernels above and the
 turbine's (``plant_sim.turbine.fast``) tick after tick, the followed reference's ramp computed ahead (``ramp``; it
 does not depend on the plant). Its two matrix products per tick (the aerodynamic fit's 6 × 6 and the exact step's
-16 × 11) are numba's ``@``, which calls OpenBLAS's dgemm through SciPy rather than numpy's own OpenBLAS: equal bit
-for bit on this machine (random operands of these shapes, and the tests tick by tick), the one place where a
-product is not numpy's call (``docs/decisions.md`` N-7).
+16 × 11) are numba's ``np.dot``, which calls OpenBLAS's dgemm through SciPy rather than numpy's own OpenBLAS: equal
+bit for bit on this machine (random operands of these shapes, and the tests tick by tick), the one place where a
+product is not numpy's call (``docs/decisions.md`` N-7). Each writes into an array kept for the sample (the step's
+into the state itself): the dgemm call of ``@`` without its allocation and copy (N-25).
 """
 
 from __future__ import annotations
@@ -176,6 +177,7 @@ def sub_steps(
     azimuth, omega_r, p_g_m = np.empty(n), np.empty(n), np.empty(n)
     pitch = np.empty((n, 3))
     tsr, lam, f = np.empty(3 * n), np.empty(3 * n), np.empty((6, 3 * n))
+    g_aero = np.empty((6, 3 * n))
     noise = np.empty((n, pick.size))
     base_torque = np.empty(n)
     omega_raw, pair = np.empty(n), np.empty(n)
@@ -211,7 +213,8 @@ def sub_steps(
             mean_out,
         )
         _blade_features(omega_r, radius, blades, pitch, tsr, lam, f)
-        _blade_torques(tsr, lam, f, m_t @ f, blades, blade_gain, torque, tau_aero)
+        np.dot(m_t, f, g_aero)
+        _blade_torques(tsr, lam, f, g_aero, blades, blade_gain, torque, tau_aero)
         for r in range(n):
             for s in range(pick.size):
                 noise[r, s] = draws[r % own, first_noise + i, s]
@@ -291,7 +294,7 @@ def sub_steps(
             for r in range(n):
                 for b in range(3):
                     z[r, n_states + 2 + b] = z[r, n_states + 2 + b] + trim[r, b]
-        x[:, :] = z @ shared
+        np.dot(z, shared, x)
         if meshing:
             for r in range(n):
                 tau_ext = -eta_dt[r] * pair[r] / n_g_mesh
