@@ -128,7 +128,8 @@ def _converter_run(offsets_sigma, ticks, start, end=None, rate=0.01, n_per=1, se
     """Drive ``ComponentFDI`` with frames whose torque reference is constant and whose τ_g,m is the first-order
     converter's response to reference + offset, plus τ_g,m's noise; pitch sensors noisy and equal in mean.
     Returns the converter flags (ticks, rows) and the detector."""
-    from service.turbine.component_fdi import ComponentFDI, ComponentSettings
+    from service.turbine.component_fdi import ComponentFDI
+    from service.turbine.component_settings import ComponentSettings
     from wwcore.channels import N_SENSORS, SENSOR_INDEX, SENSORS, noise_std
     from wwcore.turbine_frames import TurbineFrame
 

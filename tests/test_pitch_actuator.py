@@ -11,7 +11,8 @@ from scipy.stats import norm
 
 from service.plugins import AlgorithmOptionError
 from service.turbine import fast
-from service.turbine.component_fdi import ComponentFDI, ComponentSettings, actuator_whitener
+from service.turbine.component_fdi import ComponentFDI, actuator_whitener
+from service.turbine.component_settings import ComponentSettings
 from service.turbine.pitch_actuator import FAULTS, TOLERANCE, SignatureBank, glr, glr_threshold
 from tests.test_component_fdi import flags_over_time
 from wwcore.channels import DIAGNOSIS_TARGETS

@@ -10,7 +10,8 @@ import numpy as np
 import pytest
 
 from service.plugins import AlgorithmOptionError, choose, load_plugins
-from service.turbine.component_fdi import ComponentFDI, ComponentSettings
+from service.turbine.component_fdi import ComponentFDI
+from service.turbine.component_settings import ComponentSettings
 from service.turbine.fdi import FDISettings, SpeedSensorFDI
 from service.turbine.interfaces import TurbineContext
 from wwcore.channels import N_SENSORS, SENSOR_INDEX, SPEED_SENSORS, TARGET_INDEX

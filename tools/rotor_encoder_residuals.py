@@ -20,9 +20,8 @@ from pathlib import Path
 
 import numpy as np
 
-from plant_sim.turbine import TurbineBatch
 from plant_sim.turbine.plant import OMEGA_G, OMEGA_R
-from service.turbine.supervisor import TurbineSupervisor
+from windwarden.evaluation.turbine import batch_and_supervisor
 from wwcore.scenario import load_scenario
 from wwcore.stepping import run_ticks
 
@@ -53,14 +52,8 @@ def _scenario(wind: float, duration: float, mismatch: bool) -> str:
 
 def measure(wind: float, runs: int, duration: float, mismatch: bool, seed: int) -> dict:
     scenario = load_scenario(_scenario(wind, duration, mismatch))
-    plant = TurbineBatch(scenario.plant, scenario.wind, scenario.faults, seed=seed, runs=list(range(runs)),
-                         mismatch=scenario.mismatch)  # fmt: skip
-    supervisor = TurbineSupervisor(
-        plant.n,
-        options=dict(scenario.supervisor.params),
-        noise_convention=scenario.plant.noise_convention,
-        run_of_row=plant.run_of_row,
-        turbine_of_row=plant.turbine_of_row,
+    plant, supervisor = batch_and_supervisor(
+        scenario, seed, list(range(runs)), options=dict(scenario.supervisor.params)
     )
     fdi = supervisor.detector.fdi
     gear, sigma_e = fdi._gear_ratio, fdi.arbiter.encoder_sigma

@@ -24,6 +24,7 @@ from plant_sim.turbine import TurbineBatch
 from service.turbine.supervisor import TurbineSupervisor
 from windwarden.evaluation.parallel import Branch
 from windwarden.evaluation.scoring import windows_from_faults
+from windwarden.evaluation.turbine import batch_and_supervisor
 from wwcore.channels import SPEED_SENSORS, TARGET_INDEX
 from wwcore.scenario import load_scenario
 from wwcore.stepping import run_ticks
@@ -55,14 +56,8 @@ def _recorder(plant: TurbineBatch, supervisor: TurbineSupervisor, first_k: int):
 
 def trace(path: str, seed: int, runs: int, window: int, before_s: float, after_s: float) -> dict:
     scenario = load_scenario(path)
-    plant = TurbineBatch(scenario.plant, scenario.wind, scenario.faults, seed=seed, runs=list(range(runs)),
-                         mismatch=scenario.mismatch)  # fmt: skip
-    supervisor = TurbineSupervisor(
-        plant.n,
-        options=dict(scenario.supervisor.params),
-        noise_convention=scenario.plant.noise_convention,
-        run_of_row=plant.run_of_row,
-        turbine_of_row=plant.turbine_of_row,
+    plant, supervisor = batch_and_supervisor(
+        scenario, seed, list(range(runs)), options=dict(scenario.supervisor.params)
     )
     spans = windows_from_faults(scenario.faults, scenario.duration_s)
     if not 0 <= window < len(spans):

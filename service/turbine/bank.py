@@ -362,19 +362,24 @@ class ObserverBank:
         self._transient_nonzeros = [fast.nonzeros(m, update_lanes) for m in self._update_transient]
         return reproduced, fast.nonzeros(self._output, output_lanes)
 
+    def _fast_products(self, advance: bool) -> tuple:
+        """The update matrix of this step (a transient one over the first steps) and ``fast.bank_step``'s
+        ``sparse`` = (reproduced, its nonzeros, the output's nonzeros) (``_sparse_products``)."""
+        reproduced, output_nonzeros = self._sparse
+        update, update_nonzeros = self._update, self._update_nonzeros
+        if advance and self.steps < len(self._update_transient):
+            update, update_nonzeros = self._update_transient[self.steps], self._transient_nonzeros[self.steps]
+        return update, (reproduced, update_nonzeros, output_nonzeros)
+
     def _fast_step(self, y: np.ndarray, u_prev: np.ndarray) -> None:
         """``step`` by one kernel (``service.turbine.fast.bank_step``: the stacking, the two products as numpy's,
         over the matrices' nonzeros or by BLAS, the χ² sums)."""
         advance = self._y_prev is not None
-        update, update_nonzeros = self._update, self._update_nonzeros
-        if advance and self.steps < len(self._update_transient):
-            update, update_nonzeros = self._update_transient[self.steps], self._transient_nonzeros[self.steps]
+        update, sparse = self._fast_products(advance)
         self.chi2 = np.empty((self.n, len(self.d.names)))
-        reproduced, output_nonzeros = self._sparse
         self.z, out = self._fast.bank_step(
             self.z, u_prev, self._y_prev if advance else y, update, self._update_in, y, self._output,
-            self._output_in, self._terms, self._squares.shape[1] - 1, advance, self.chi2,
-            (reproduced, update_nonzeros, output_nonzeros),
+            self._output_in, self._terms, self._squares.shape[1] - 1, advance, self.chi2, sparse,
         )  # fmt: skip
         self.steps += advance
         self.x_hat = out[:, : self._width]
@@ -384,23 +389,20 @@ class ObserverBank:
         """``step`` with y[n] gathered from a frame's readings by the same kernel call (``fast.bank_tick``: the
         inputs as ``TurbineContext._bank_inputs``'s, ``inputs`` = (sensors, columns, threshold, N_g, η_gc), less
         the speed sensors' calibration ``offset`` (n, 4) if any); after the first step, with the compiled backend
-        only. (y[n] (n, 5), the speed readings before the offset (n, 4))."""
+        only. The speed readings before the offset (n, 4)."""
         n = self.n
         read = np.empty((n, 6))
         speed = np.empty((n, 4)) if offset is not None else read[:, :4]
-        update, update_nonzeros = self._update, self._update_nonzeros
-        if self.steps < len(self._update_transient):
-            update, update_nonzeros = self._update_transient[self.steps], self._transient_nonzeros[self.steps]
+        update, sparse = self._fast_products(True)
         self.chi2 = np.empty((n, len(self.d.names)))
-        reproduced, output_nonzeros = self._sparse
         self.z, out = self._fast.bank_tick(
             inputs, offset is not None, speed if offset is None else offset, speed, read, self.z, u_prev,
-            self._y_prev, update, self._output, self._work, self.chi2, (reproduced, update_nonzeros, output_nonzeros),
+            self._y_prev, update, self._output, self._work, self.chi2, sparse,
         )  # fmt: skip
         self.steps += 1
         self.x_hat = out[:, : self._width]
-        self._y_prev = y = read[:, :5]
-        return y, speed
+        self._y_prev = read[:, :5]
+        return speed
 
     def restart(self, rows: np.ndarray, target: np.ndarray, source: np.ndarray) -> None:
         """Re-initialise observer ``target[i]`` of row ``rows[i]`` from observer ``source[i]``'s estimate of this

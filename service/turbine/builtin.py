@@ -19,7 +19,8 @@ import numpy as np
 
 from service.plugins import TURBINE_DETECTORS, TURBINE_ESTIMATORS
 from service.turbine.bank import estimate_observers, power_speed_estimate_observers
-from service.turbine.component_fdi import ComponentFDI, ComponentSettings
+from service.turbine.component_fdi import ComponentFDI
+from service.turbine.component_settings import ComponentSettings
 from service.turbine.fdi import FDISettings, SpeedSensorFDI
 from service.turbine.interfaces import (
     POWER_SPEED_DESIGN_TORQUES,

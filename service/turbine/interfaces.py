@@ -136,9 +136,7 @@ class TurbineContext:
             self._bank.step(y, frame.tau_g_ref)
         elif self._bank_tick != frame.k:
             if self.fast is not None:  # ``_bank_inputs`` and the step by one kernel call
-                p = self.params
-                inputs = (frame.sensors, BANK_COLUMNS, self.power_speed_min_torque, p.N_g, p.eta_gc)
-                _, self._speed = self._bank.step_readings(inputs, self.speed_offset, frame.tau_g_ref)
+                self._speed = self._bank.step_readings(self._input_columns(frame), self.speed_offset, frame.tau_g_ref)
             else:
                 self._bank.step(self._bank_inputs(frame), frame.tau_g_ref)
             self._bank_tick = frame.k
@@ -148,9 +146,8 @@ class TurbineContext:
         """The bank's input columns (``bank_design.inputs``: 4 speeds, the power-speed channel) for this frame;
         keeps the speed readings aside."""
         if self.fast is not None:
-            p = self.params
             read = np.empty((self.n, len(BANK_COLUMNS)))
-            columns = (frame.sensors, BANK_COLUMNS, self.power_speed_min_torque, p.N_g, p.eta_gc)
+            columns = self._input_columns(frame)
             if self.speed_offset is None:
                 self.fast.bank_inputs(*columns, read)
                 self._speed = read[:, :4]
@@ -164,6 +161,11 @@ class TurbineContext:
         if self.speed_offset is not None:
             read[:, :4] -= self.speed_offset
         return read[:, :5]
+
+    def _input_columns(self, frame: TurbineFrame) -> tuple:
+        """The compiled bank inputs' arguments (sensors, columns, threshold, N_g, η_gc): ``fast.bank_inputs``."""
+        p = self.params
+        return frame.sensors, BANK_COLUMNS, self.power_speed_min_torque, p.N_g, p.eta_gc
 
     def speed_readings(self, frame: TurbineFrame) -> np.ndarray:
         """``frame.sensors[:, SPEED_COLUMNS]`` (n, 4), gathered once per tick with the bank's step (read-only)."""

@@ -73,19 +73,18 @@ def _twin_spans(scenario: Scenario, n_steps: int, dt: float) -> list[tuple[int, 
     return [(i, round(w.start_s / dt), min(round(w.end_s / dt), n_steps)) for i, w in enumerate(windows, start=1)]
 
 
-def simulate_chunk(
-    run_ids: list[int],
-    progress,
+def batch_and_supervisor(
     scenario: Scenario,
     seed: int,
-    detector: str,
-    estimator: str,
-    options: dict,
-    twins: bool = True,
-) -> ChunkResult:
-    """The runs ``run_ids``, and with ``twins`` (when the scenario has faults) the fault-free twin of each fault
-    window and the clean runs (module docstring)."""
-    twins = twins and bool(scenario.faults)
+    run_ids: list[int],
+    detector: str | None = None,
+    estimator: str | None = None,
+    options: dict | None = None,
+    twins: bool = False,
+) -> tuple[TurbineBatch, TurbineSupervisor]:
+    """The batch of a turbine scenario's runs ``run_ids`` (with ``twins``: and their clean runs, module docstring)
+    and the supervisor that watches it, its events naming the clean runs' rows ``CLEAN_TURBINE``; ``None``: the
+    default detector, estimator and options."""
     plant = TurbineBatch(
         scenario.plant,
         scenario.wind,
@@ -104,6 +103,23 @@ def simulate_chunk(
         run_of_row=plant.run_of_row,
         turbine_of_row=np.where(plant.twin_of_row, CLEAN_TURBINE, plant.turbine_of_row),
     )
+    return plant, supervisor
+
+
+def simulate_chunk(
+    run_ids: list[int],
+    progress,
+    scenario: Scenario,
+    seed: int,
+    detector: str,
+    estimator: str,
+    options: dict,
+    twins: bool = True,
+) -> ChunkResult:
+    """The runs ``run_ids``, and with ``twins`` (when the scenario has faults) the fault-free twin of each fault
+    window and the clean runs (module docstring)."""
+    twins = twins and bool(scenario.faults)
+    plant, supervisor = batch_and_supervisor(scenario, seed, run_ids, detector, estimator, options, twins)
     runs = len(run_ids)  # the runs' rows; with twins the clean runs' rows follow them
     n_steps = round(scenario.duration_s / plant.dt)
     which, labels = window_of_tick(scenario, n_steps, plant.dt)
