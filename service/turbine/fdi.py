@@ -57,6 +57,14 @@ evidence that its sensor is healthy again.
   so such an explanation is decided on the 4th tick at the earliest, after about 9.7 on a healthy pair, and the test
   names the biased sensor (``rotor_pair``). An explanation naming a
   frozen sensor is decided on one look (the sum's z beyond the isolation level in the pair's learnt spread).
+* **Hold.** Once the fault is confirmed ("No fault" above), an isolation that waits on an explanation it already
+  holds (the arbitration's choice between the encoders, the rotor-speed pair's test, a doubt) keeps it until the
+  data reject it at α_iso; on a tick where it is still consistent no other explanation replaces it. Among consistent
+  explanations of one size the choice is a tie-break on noise (the smaller statistic), and a choice re-made on every
+  tick of a wait that lasts hundreds of ticks lands sooner or later on whatever has no test to wait for (a
+  rotor-speed sensor beside a small generator-speed gain whose window statistics fall back under their levels), so
+  its error probability has no bound; the held explanation's is the bound of the test it waits on. The wait keeps its
+  own bound (``arbitration_s``); the "no fault" test is not asked again (docs/decisions.md N-27).
 * **Persistent rotor-speed bias.** Beside the window tests, Page's CUSUMs (a bank of shifts ``bias_shift``·2^k,
   k < ``bias_bank``) on the parity of the two rotor-speed sensors' exclusion residuals against the generator-speed
   Kalman filter (``bias_test``; ``rotor_bias_test``, ``bias_shift``) flag a bias of 1–2 σ that the UIOs take for
