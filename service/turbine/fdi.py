@@ -280,12 +280,13 @@ class SpeedSensorFDI:
         raw = chi2_stat[:, : self.bank.n_isolating]
         if self._fast is not None:  # the lines of the else branch, and a healthy tick's bias test, by one kernel
             kept, readings = self._kept or self._tick_arguments(), self.readings
-            quiet = not (readings.counting or readings.ticks < 2) and readings.previous is not None
+            previous = readings.previous
+            quiet = not (readings.counting or readings.ticks < 2) and previous is not None
             healthy = self.ticks >= self.warmup_ticks and not (self._maybe_flagged or self._pending)
             self.ratio = ratio = np.empty_like(self._window_sum)
             tick = (self.ticks % self.s.window, self._learns, healthy)
             finished, repeated, exceeded, growing, raised = self._detector.detector_tick(
-                y, raw, x_hat, readings.previous if quiet else None, tick,
+                y, raw, x_hat, previous if quiet else None, tick,
                 kept["flags"], kept["offset"], kept["window"], kept["learning"], kept["arbiter"], kept["bias"],
                 (kept["y"], kept["chi2_stat"], ratio, kept["over"]),
             )  # fmt: skip
