@@ -279,7 +279,8 @@ class SpeedSensorFDI:
         channel (n,) (NaN where it is only the rotor-speed mean; ``arbitration``)."""
         raw = chi2_stat[:, : self.bank.n_isolating]
         if self._fast is not None:  # the lines of the else branch, and a healthy tick's bias test, by one kernel
-            kept, readings = self._kept or self._tick_arguments(), self.readings
+            self._kept = kept = self._kept or self._detector.detector_arguments(self)  # kept between ticks
+            readings = self.readings
             previous = readings.previous
             quiet = not (readings.counting or readings.ticks < 2) and previous is not None
             healthy = self.ticks >= self.warmup_ticks and not (self._maybe_flagged or self._pending)
@@ -343,11 +344,6 @@ class SpeedSensorFDI:
                 self._clear(y, x_hat, frozen_mask, trouble | (self.deadline >= 0), torque_band)
             self._maybe_flagged = bool(self.flagged.any())
 
-    def _tick_arguments(self) -> dict:
-        """``fast_detector.detector_tick``'s arguments kept from tick to tick (``detector_arguments``)."""
-        self._kept = self._detector.detector_arguments(self)
-        return self._kept
-
     def _rotor_bias(self, y: np.ndarray, x_hat: np.ndarray) -> bool:
         """Flag a rotor-speed sensor whose bias the CUSUM of ``bias_test`` finds, on rows where no rotor-speed
         sensor is flagged and nothing is being isolated; the flag then drops only by its clearing test. Whether
@@ -358,8 +354,7 @@ class SpeedSensorFDI:
         return over is not None
 
     def _clear_raised(self, y: np.ndarray, x_hat: np.ndarray, torque_band) -> None:
-        """The clearing's step on a tick where nothing was inconsistent, frozen, flagged or pending and the bias test
-        raised a flag: ``step``'s last lines on such a tick (no row skipped)."""
+        """``step``'s last lines on a tick where the bias test raised a flag and nothing else was up."""
         self._clear(y, x_hat, self._no_frozen, np.zeros(self.n, dtype=bool), torque_band)
         self._maybe_flagged = bool(self.flagged.any())
 
