@@ -215,6 +215,25 @@ class GeneratorArbiter:
         if len(growing):
             self._grow_jump(growing)
 
+    def compiled_arguments(self) -> tuple:
+        """``observe``'s kernel arguments for a caller that runs them in its own kernel
+        (``fast_detector.arbiter_observe``): the histories, the onsets, wᵀ, the learning rate, Cov(e) (updated in
+        place, never replaced) and an (n, W) buffer for the fit's slice of the histories."""
+        n = self._means.shape[0]
+        return (
+            self._means, self._parities, self._onset, self.weights.T, self._jump_rate, self.jump_covariance,
+            np.empty((n, JUMP_HISTORY)),
+        )  # fmt: skip
+
+    def observed(self, growing: bool) -> bool:
+        """``observe``'s lines after its kernels, where a caller ran them (``compiled_arguments``): the tick
+        counted, ℓ_J grown where it is ``growing``. Returns whether the next tick's kernels learn Cov(e) (the
+        histories then hold a whole fit and its L errors)."""
+        self._seen += 1
+        if growing:
+            self._grow_jump(np.flatnonzero(self._onset >= 0))
+        return self._seen + 1 >= JUMP_HISTORY + JUMP_TICKS
+
     @property
     def rotor_z(self) -> np.ndarray:
         """(n,) |Σ(y_r1 − y_r2)| / (σ_d √k): the rotor-speed sensors' summed difference in its standard deviations,

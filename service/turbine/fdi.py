@@ -119,6 +119,8 @@ from service.turbine.clearing import FlagClearing
 from service.turbine.fdi_settings import FDISettings
 from service.turbine.frozen import FrozenReadings
 from service.turbine.rotor_pair import RotorPairTest
+from service.turbine.uio import window_threshold
+from wwcore.backend import fast_module
 from wwcore.channels import SPEED_SENSORS
 from wwcore.quantiles import chi2_isf
 from wwcore.scenario.mismatch import SENSOR_BIAS_TOLERANCE
@@ -128,20 +130,6 @@ _BITS = 1 << np.arange(N_SPEED)
 _SENSORS_OF_MASK = (np.arange(1 << N_SPEED)[:, None] >> np.arange(N_SPEED)) & 1 == 1  # (16, 4): bitmask → flags
 _GENERATOR_BITS = sum(1 << SPEED_SENSORS.index(g) for g in GENERATOR)
 _ROTOR_BITS = sum(1 << r for r in ROTOR)
-
-
-def window_threshold(autocov: np.ndarray, window: int, alpha: float) -> float:
-    """Upper α-quantile of Σ_{i<window} ‖w[n−i]‖² for a whitened residual with autocovariance ``autocov``.
-
-    E = window·rank; Var = Σ_i Σ_j 2 tr(R_{|i−j|} R_{|i−j|}ᵀ) (Gaussian quadratic forms); the sum is taken as
-    c·χ²_ν with c = Var/(2E), ν = 2E²/Var (Satterthwaite), which is exact for a white residual.
-    """
-    rank = autocov.shape[1]
-    mean = window * rank
-    lag_power = [2.0 * float(np.trace(autocov[k] @ autocov[k].T)) for k in range(window)]
-    var = sum(lag_power[abs(i - j)] for i in range(window) for j in range(window))
-    c, nu = var / (2.0 * mean), 2.0 * mean**2 / var
-    return float(c * chi2_isf(alpha, nu))
 
 
 def _mask(left_out: frozenset[str]) -> int:
@@ -270,6 +258,10 @@ class SpeedSensorFDI:
         self._pending = False  # whether any row has a pending isolation
         self._all_healthy = int(self.observer_of_mask[0])  # the observer that leaves nothing out
         self._no_frozen = np.zeros(n, dtype=np.int64)
+        # the compiled tick (``fast_detector``), its arguments kept between ticks, and whether the arbiter learns next
+        self._detector = fast_module("service.turbine.fast_detector") if fast is not None else None
+        self._kept: dict | None = None
+        self._learns = False
 
     @property
     def faulty(self) -> np.ndarray:
@@ -296,47 +288,53 @@ class SpeedSensorFDI:
         state estimates x̂ (n, width), the 5-pe design for the torque (``clearing``) and the power-speed
         channel (n,) (NaN where it is only the rotor-speed mean; ``arbitration``)."""
         raw = chi2_stat[:, : self.bank.n_isolating]
-        slot = self.ticks % self.s.window
-        if self._fast is None:
+        if self._fast is not None:  # the lines of the else branch, and a healthy tick's bias test, by one kernel
+            self._kept = kept = self._kept or self._detector.detector_arguments(self)  # kept between ticks
+            readings = self.readings
+            previous = readings.previous
+            quiet = not (readings.counting or readings.ticks < 2) and previous is not None
+            healthy = self.ticks >= self.warmup_ticks and not (self._maybe_flagged or self._pending)
+            self.ratio = ratio = np.empty_like(self._window_sum)
+            tick = (self.ticks % self.s.window, self._learns, healthy)
+            finished, repeated, exceeded, growing, raised = self._detector.detector_tick(
+                y, raw, x_hat, previous if quiet else None, tick,
+                kept["flags"], kept["offset"], kept["window"], kept["learning"], kept["arbiter"], kept["bias"],
+                (kept["y"], kept["chi2_stat"], ratio, kept["over"]),
+            )  # fmt: skip
+            any_frozen = readings.push(y, repeated if quiet else None)
+            self.ticks += 1
+            self._learns = self.arbiter.observed(growing)
+            if finished:  # nothing inconsistent, frozen, flagged or pending: the bias test has run
+                if raised:
+                    self._raise_bias(kept["over"])
+                    self._clear_raised(kept["y"] if self.calibration.enabled else y, x_hat, torque_band)
+                return
+            y, chi2_stat = (kept["y"] if self.calibration.enabled else y), kept["chi2_stat"]
+        else:
+            slot = self.ticks % self.s.window
             chi2_stat = raw / self.spread.scale2 if self.spread.enabled else raw  # χ²_j / ŝ²_j (``adaptive``)
             self._window_sum += chi2_stat - self._history[slot]
             self._history[slot] = chi2_stat
-        any_frozen = self.readings.push(y)  # the raw readings: a frozen one stays frozen
-        y_raw = y
-        if self.calibration.enabled:  # the clearing and the arbitration see the bank's calibrated readings
-            y = y - self.calibration.offset
-        self.ticks += 1
-        # the pair mean's history and its prediction error, for the onset's log-likelihood ratio (``arbitration``)
-        self.arbiter.observe(y, (self.flagged == 0) & (self.deadline < 0))
-        exceeded = True  # whether a ratio of the all-sensor observer is above 1 (computed on the fast path)
-        if self._fast is not None:
-            # the window lines above and the learning below by one kernel (ŝ² is 1 where nothing is learnt: x/1 is
-            # x); neither reads what the frozen readings' test or the arbiter changes, nor the other way round
-            chi2_stat, ratio = np.empty_like(self._window_sum), np.empty_like(self._window_sum)
-            window = (raw, self.spread.scale2, self._history, slot, self._window_sum, self.h_detect, self.h_window)
-            window += (self._all_healthy, chi2_stat, ratio)
-            if self.spread.enabled:
-                spread, calibration = self.spread, self.calibration
-                learning = (self.flagged, self.deadline, self._rank, y_raw, self._gear_ratio)
-                learning += ((spread.min_weight, spread.max_scale2, spread.state),)
-                learning += ((calibration.min_weight, calibration.max_scale2, calibration.state),)
-                exceeded = self._fast.window_test_learn(*window, learning)
-            else:
-                exceeded = self._fast.window_test(*window)
-            self.ratio = ratio
-        else:
+            any_frozen = self.readings.push(y)  # the raw readings: a frozen one stays frozen
+            y_raw = y
+            if self.calibration.enabled:  # the clearing and the arbitration see the bank's calibrated readings
+                y = y - self.calibration.offset
+            self.ticks += 1
+            # the pair mean's history and its prediction error, for the onset's log-likelihood ratio (``arbitration``)
+            self.arbiter.observe(y, (self.flagged == 0) & (self.deadline < 0))
             self.ratio = ratio = np.maximum(chi2_stat / self.h_detect, self._window_sum / self.h_window)
-        if self.spread.enabled and self._fast is None:  # learn from rows with nothing flagged, pending or inconsistent
-            healthy = (self.flagged == 0) & (self.deadline < 0) & (ratio <= 1.0).all(axis=1)
-            self.spread.update_rows(raw / self._rank, healthy)
-            generator = 0.5 * (y_raw[:, 2] + y_raw[:, 3])
-            deviation = y_raw - np.column_stack([generator / self._gear_ratio] * 2 + [generator] * 2)
-            self.calibration.update_rows(None, healthy, deviation)  # offsets only
+            exceeded = True  # the all-sensor observer's ratios are tested below with the others
+            if self.spread.enabled:  # learn from rows with nothing flagged, pending or inconsistent
+                healthy = (self.flagged == 0) & (self.deadline < 0) & (ratio <= 1.0).all(axis=1)
+                self.spread.update_rows(raw / self._rank, healthy)
+                generator = 0.5 * (y_raw[:, 2] + y_raw[:, 3])
+                deviation = y_raw - np.column_stack([generator / self._gear_ratio] * 2 + [generator] * 2)
+                self.calibration.update_rows(None, healthy, deviation)  # offsets only
         if self.ticks <= self.warmup_ticks:
             return
         if not (exceeded or any_frozen or self._maybe_flagged or self._pending):
-            if self.bias is not None:
-                self._rotor_bias(y, x_hat)
+            if self.bias is not None and self._rotor_bias(y, x_hat):
+                self._clear_raised(y, x_hat, torque_band)
             return  # nothing inconsistent, frozen, flagged or pending: what the lines below conclude on such a tick
         frozen_mask = self.readings.frozen @ _BITS if any_frozen else self._no_frozen
         if self._maybe_flagged or self._pending:
@@ -356,12 +354,22 @@ class SpeedSensorFDI:
                 self._clear(y, x_hat, frozen_mask, trouble | (self.deadline >= 0), torque_band)
             self._maybe_flagged = bool(self.flagged.any())
 
-    def _rotor_bias(self, y: np.ndarray, x_hat: np.ndarray) -> None:
+    def _rotor_bias(self, y: np.ndarray, x_hat: np.ndarray) -> bool:
         """Flag a rotor-speed sensor whose bias the CUSUM of ``bias_test`` finds, on rows where no rotor-speed
-        sensor is flagged and nothing is being isolated; the flag then drops only by its clearing test."""
+        sensor is flagged and nothing is being isolated; the flag then drops only by its clearing test. Whether
+        any is raised."""
         over = self.bias.step_flags(y, x_hat, self.flagged, self.deadline, self._bias_predictor)
-        if over is None:
-            return
+        if over is not None:
+            self._raise_bias(over)
+        return over is not None
+
+    def _clear_raised(self, y: np.ndarray, x_hat: np.ndarray, torque_band) -> None:
+        """``step``'s last lines on a tick where the bias test raised a flag and nothing else was up."""
+        self._clear(y, x_hat, self._no_frozen, np.zeros(self.n, dtype=bool), torque_band)
+        self._maybe_flagged = bool(self.flagged.any())
+
+    def _raise_bias(self, over: np.ndarray) -> None:
+        """Flag the rotor-speed sensors of ``over`` (n, 2) bool, ``RotorBiasTest.step_flags``'s."""
         rows = over.any(axis=1)
         raised = np.zeros((self.n, N_SPEED), dtype=bool)
         raised[:, list(ROTOR)] = over

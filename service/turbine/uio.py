@@ -47,6 +47,7 @@ import numpy as np
 from scipy.linalg import solve_discrete_are
 
 from service.turbine.design_model import DesignModel
+from wwcore.quantiles import chi2_isf
 
 RANK_TOL = 1e-9
 SLOWEST_ERROR_S = 5.0  # an observer whose error decays slower than this counts as not detectable (see below)
@@ -306,3 +307,17 @@ def _finish(sensors, kind, C, H, T, TB, F, K, F_seq, K_seq, R, Q, note: str = ""
         R=R,
         Q=Q,
     )
+
+
+def window_threshold(autocov: np.ndarray, window: int, alpha: float) -> float:
+    """Upper α-quantile of Σ_{i<window} ‖w[n−i]‖² for a whitened residual with autocovariance ``autocov``.
+
+    E = window·rank; Var = Σ_i Σ_j 2 tr(R_{|i−j|} R_{|i−j|}ᵀ) (Gaussian quadratic forms); the sum is taken as
+    c·χ²_ν with c = Var/(2E), ν = 2E²/Var (Satterthwaite), which is exact for a white residual.
+    """
+    rank = autocov.shape[1]
+    mean = window * rank
+    lag_power = [2.0 * float(np.trace(autocov[k] @ autocov[k].T)) for k in range(window)]
+    var = sum(lag_power[abs(i - j)] for i in range(window) for j in range(window))
+    c, nu = var / (2.0 * mean), 2.0 * mean**2 / var
+    return float(c * chi2_isf(alpha, nu))

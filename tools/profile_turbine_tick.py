@@ -1,0 +1,43 @@
+"""Where one turbine run's tick goes: ``windwarden bench turbine``'s plant and supervisor for ``ftwse-2012`` on the
+compiled backend, warmed up, timed unprofiled over ``--ticks`` ticks (µs a tick), then the same number of ticks under
+cProfile, sorted by own time (how docs/cluster.md's "What is left" profiles were taken; the profiler slows Python
+calls more than kernels, so read shares and call counts per tick, not microseconds).
+
+    .venv/bin/python tools/profile_turbine_tick.py --rows 1 --ticks 3000
+"""
+
+from __future__ import annotations
+
+import argparse
+import cProfile
+import pstats
+import time
+
+from windwarden.bench import _Stepper, turbine_pair
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--rows", type=int, default=1, help="runs stepped side by side")
+    parser.add_argument("--warmup", type=int, default=500, help="ticks run before timing")
+    parser.add_argument("--ticks", type=int, default=2000, help="ticks timed, then profiled")
+    parser.add_argument("--top", type=int, default=35, help="lines of the profile printed")
+    parser.add_argument("--backend", choices=("numba", "numpy"), default="numba")
+    args = parser.parse_args()
+    plant, supervisor = turbine_pair("ftwse-2012", args.rows, 0, False, args.backend)
+    stepper = _Stepper(plant, supervisor)
+    stepper.run(args.warmup)
+    start = time.perf_counter()
+    stepper.run(args.ticks)
+    print(f"unprofiled: {1e6 * (time.perf_counter() - start) / args.ticks:.1f} µs a tick")
+    profile = cProfile.Profile()
+    profile.enable()
+    stepper.run(args.ticks)
+    profile.disable()
+    stats = pstats.Stats(profile)
+    print(f"Python calls a tick: {stats.total_calls / args.ticks:.1f}")
+    stats.sort_stats("tottime").print_stats(args.top)
+
+
+if __name__ == "__main__":
+    main()
