@@ -225,7 +225,8 @@ class FarmTurbineController(BenchmarkController):
             self._extra = (lead, np.asarray(rate, dtype=float), float(since))
         self.power_ref_target = np.minimum(np.maximum(np.asarray(power_ref, dtype=float), 0.0), self.p.rated_power)
         self._ramping = True
-        if hold_torque is None and cancel_3p is None and not self.hold.any():
+        asks_none = (hold_torque is None or not np.any(hold_torque)) and (cancel_3p is None or not np.any(cancel_3p))
+        if asks_none and not self.hold.any():
             # nothing asked and nothing held: no hold starts or is released, and what is asked stays nothing (the
             # lines below would find the same; these arrays are replaced, never written in place)
             self.hold_asked, self._asked_level, self._any_asked = self._none_asked, self._no_level, False
