@@ -480,3 +480,28 @@ def test_the_power_phasor_kernel_equals_the_controllers():
         got = np.empty(n)
         fast.phasor_power(phasor.real.copy(), phasor.imag.copy(), rate, age, got)
         assert_close(got, expected, "Re{C e^{jω age}}")
+
+
+def test_the_compiled_samples_kept_arguments_follow_the_faults():
+    """``FarmBatch._sub_steps`` keeps the kernel's products of the fault factors between samples and makes them
+    again when the faults change (the factors are then new arrays): on every compiled sample of the early-faults
+    farm the kept power gain η_gc f_P and aerodynamic gain are the ones of the faults acting, the debris's factor
+    0.97 on its turbine while it acts and 1 before and after. Kept arguments that were not made again would keep
+    the gains of the first compiled sample and fail here (and, tick by tick, in
+    ``test_a_farm_sample_at_a_time_equals_the_numpy_ticks``)."""
+    plant, supervisor = farm_pair(parse_scenario(farm_with_early_faults()), 1, SEED, False, "numba", 20.0)
+    compiled, sub_steps = [], plant._sub_steps
+    plant._sub_steps = lambda *args: compiled.append(plant.k) or sub_steps(*args)  # the first ticks compiled
+    p, refs, seen = plant.p, None, set()
+    while plant.k < round(20.0 / BENCHMARK.dt):
+        first = plant.k
+        block = plant.run_sample(refs, shaft_torque=True)
+        refs = supervisor.step(block.frame)
+        if not compiled or compiled[-1] != first:
+            continue  # the calls ran this sample
+        kept, f = plant._sample_arguments, plant.turbines.faults
+        np.testing.assert_array_equal(kept.power_gain, p.eta_gc * f.power_factor)
+        np.testing.assert_array_equal(kept.aero[1], plant.turbines.dynamics.blade_gain * f.aero_factor)
+        np.testing.assert_array_equal(kept.shaft[0], p.K_dt * f.stiffness_factor)
+        seen.add(float(f.power_factor[4]))
+    assert seen == {1.0, 0.97}  # compiled samples before, during and after the debris on turbine 5

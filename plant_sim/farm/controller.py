@@ -172,6 +172,7 @@ class FarmTurbineController(BenchmarkController):
         self.hold_asked = np.zeros(n, dtype=bool)  # the last reference asked for it
         self._asked_level = np.zeros(n)  # hold or cancellation asked, 0/1: where the cancellation's engagement heads
         self._any_asked = False  # any turbine asked to hold (set with the reference, read every tick)
+        self._none_asked, self._no_level = np.zeros(n, dtype=bool), np.zeros(n)  # what a reference asking none sets
         self.tau_hold = np.zeros(n)  # N m, generator side, the held sum S = τ_g + B_g ω_g
         self._omega_g = np.zeros(n)  # rad/s, the last generator speed the controller used
         self._hold_set = np.zeros(n)  # rad/s, ω_set while in the hold
@@ -224,6 +225,12 @@ class FarmTurbineController(BenchmarkController):
             self._extra = (lead, np.asarray(rate, dtype=float), float(since))
         self.power_ref_target = np.minimum(np.maximum(np.asarray(power_ref, dtype=float), 0.0), self.p.rated_power)
         self._ramping = True
+        asks_none = (hold_torque is None or not np.any(hold_torque)) and (cancel_3p is None or not np.any(cancel_3p))
+        if asks_none and not self.hold.any():
+            # nothing asked and nothing held: no hold starts or is released, and what is asked stays nothing (the
+            # lines below would find the same; these arrays are replaced, never written in place)
+            self.hold_asked, self._asked_level, self._any_asked = self._none_asked, self._no_level, False
+            return
         asked = np.zeros(self.n, dtype=bool) if hold_torque is None else np.asarray(hold_torque, dtype=bool)
         starting = asked & ~self.hold
         if starting.any():  # S = τ_g + B_g ω_g: the shaft torque in steady state, N_g S/η_dt

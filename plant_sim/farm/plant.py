@@ -32,24 +32,17 @@ from scipy import signal
 
 from plant_sim.farm.controller import (
     EXTRA_MAX_AGE_S,
-    RIPPLE_ENGAGE_S,
-    RIPPLE_MEAN_S,
-    RIPPLE_NARROW_S,
-    RIPPLE_SOGI_GAIN,
-    RIPPLE_TRACK_GAIN,
     FarmTurbineController,
-    speed_setpoint,
 )
 from plant_sim.farm.direction import DirectionSeries
+from plant_sim.farm.sample_kernel import SampleArguments, run_compiled_sample
 from plant_sim.farm.wakes import TableWakes, plant_wake_tables
-from plant_sim.farm.wind import _THIRDS, HISTORY_S, MIN_MEAN_WIND, FarmWakes, FarmWindField, MastSeries, RowWakes
+from plant_sim.farm.wind import HISTORY_S, MIN_MEAN_WIND, FarmWakes, FarmWindField, MastSeries, RowWakes
 from plant_sim.turbine import TurbineBatch
 from plant_sim.turbine.dynamics import N_STATES, OMEGA_G, OMEGA_R, PITCH, TAU_G, THETA
-from plant_sim.turbine.plant import _BETA_M1, _BETA_M2, _OMEGA_G_M1, _P_G_M, _PICK, ERROR_ONSET_S, row_streams
+from plant_sim.turbine.plant import row_streams
 from plant_sim.turbine.trim import PlantAero, trim
-from plant_sim.wind import WindSample
-from wwcore.aero import _M_T
-from wwcore.channels import N_SENSORS, SENSORS
+from wwcore.channels import N_SENSORS
 from wwcore.events import Event
 from wwcore.farm_frames import FarmFrame, FarmRefs
 from wwcore.scenario.farm import FARM_DT_S, FarmPlant
@@ -224,6 +217,7 @@ class FarmBatch:
         self.vane_reading = np.mod(self.direction.at(np.arange(len(self.runs)), 0), 360.0)
         self._refs_tick = -1
         self._opened = -1  # the tick whose farm sample was last opened (``_open_sample``)
+        self._sample_arguments: SampleArguments | None = None  # ``_sub_steps``'s, while the fault factors stay
 
     # -- set-up -----------------------------------------------------------------------------------------------
     def _trim(self, wind0: np.ndarray) -> None:
@@ -428,108 +422,13 @@ class FarmBatch:
         return common
 
     def _sub_steps(self, states: np.ndarray, power: np.ndarray, shaft: np.ndarray | None) -> FarmFrame:
-        """``len(power)`` common ticks by ``plant_sim.farm.fast.sub_steps``; the last tick's frame."""
-        tb, c, field, f, p = self.turbines, self.controller, self.field, self.turbines.faults, self.p
-        fast = field._farm_fast
-        count, n = power.shape
-        k = self.k
-        wind = (field._table, field._slope, field._per_rad, field._offsets, field._base, field._hub, field._u3)
-        wind += (field._mean, field._offset_now, field._offset_step, k - field._chunk_start)
-        wind += (float(k % self.ticks_per_sample),)
-        aero = (_M_T, tb.dynamics.blade_gain * f.aero_factor, f.pitch_offset, p.radius)
-        power_gain = p.eta_gc * f.power_factor
-        sensors = (tb._draws, k % tb.noise_chunk, power_gain, _PICK, tb.bias, _BETA_M1, _BETA_M2, f.torque_offset)
-        sensors += (_OMEGA_G_M1, _P_G_M)
-        zone, integrator, beta_ref, tau_g_ref = (
-            c.zone.copy(),
-            c.integrator.copy(),
-            c.beta_ref.copy(),
-            c.tau_g_ref.copy(),
-        )
-        controller = (zone, integrator, beta_ref, c._bp_state, tau_g_ref, c._fast_constants)
-        ramping = c._ramping
-        if ramping:  # the followed reference's path does not depend on the plant: each tick's, ahead
-            power_refs = np.empty((count, n))
-            ramping = fast.ramp(c.power_ref, c.power_ref_target, c.ramp, count, power_refs) == count
-            setpoints = speed_setpoint(p, power_refs)
-            hysteresis = c._hysteresis_at(setpoints)
-        else:
-            power_refs = np.broadcast_to(c.power_ref, (count, n)).copy()
-            setpoints = np.broadcast_to(c.setpoint, (count, n)).copy()
-            hysteresis = np.broadcast_to(c._hysteresis, (count, n)).copy()
-        references = (c.power_ref, power_refs, setpoints, hysteresis, c.hold)
-        pitch_add = f.pitch_command_offset if f.command_offset_active else None
-        blades, torque, pitch_error = np.empty((3, n, 3))  # new arrays (rows of one): the objects keep them
-        hub, mean, tau_aero, omega_g, damper, *frame = np.empty((8, n))
-        y = np.empty((n, len(SENSORS)))
-        last = (blades, hub, mean, torque, tau_aero, y, pitch_error, tb._quantities, omega_g, damper)
-        frame = (*frame, np.empty(n, dtype=np.int8))
-        shaft_args = None
-        if shaft is not None:
-            shaft_args = (shaft, p.K_dt * f.stiffness_factor, p.B_dt * f.damping_factor, p.N_g)
-        x = tb.x.copy()
-        sums = (self._scada_sum, self._power_ref_sum)
-        gain = field.turbulence_gain
-        mesh_flags = np.array([f.mesh_active, tb._error_active], dtype=np.int8)
-        mesh = (mesh_flags, tb._error_stage, tb._error_level, f.transmission_error, p.K_dt * f.stiffness_factor)
-        mesh += (f.eta_dt, tb.discrete.gamma_ext, (self.dt / ERROR_ONSET_S, p.N_g, 0.5 * self.dt))
-        cancel_flags = np.array([c.cancel_3p, c._any_asked, c._ripple_running], dtype=np.int8)
-        cancelled = c.cancel_3p and (c._ripple_running or c._any_asked)
-        ripple_on, ripple_age, ripple_torque = c._ripple_on.copy(), c._ripple_age.copy(), c.ripple_torque.copy()
-        ripple_consts = (self.dt, self.dt / RIPPLE_MEAN_S, 3.0 / p.N_g, RIPPLE_NARROW_S, RIPPLE_SOGI_GAIN)
-        ripple_consts += (RIPPLE_TRACK_GAIN - RIPPLE_SOGI_GAIN, self.dt / RIPPLE_ENGAGE_S, -p.J_g, p.eta_gc)
-        ripple_mean = c._ripple_mean if c._ripple_running else np.empty(n)
-        cancel = (cancel_flags, c._ripple_state, ripple_mean, ripple_on, ripple_age, c._asked_level, ripple_torque)
-        cancel += (ripple_consts,)
-        extra_power = np.empty(n)
-        if c._extra is None:
-            extra = (np.zeros(1, dtype=np.int8), extra_power, extra_power, extra_power)
-            extra += ((float(k), self.dt, 0.0, p.eta_gc), extra_power)
-        else:
-            lead, rate, since = c._extra
-            extra = (np.ones(1, dtype=np.int8), lead.real.copy(), lead.imag.copy(), rate)
-            extra += ((float(k), self.dt, since, p.eta_gc), extra_power)
-        fast.sub_steps(
-            x,
-            tb.discrete.shared,
-            wind,
-            gain,
-            aero,
-            sensors,
-            controller,
-            references,
-            pitch_add,
-            c.pitch_trim,
-            sums,
-            last,
-            frame,
-            states,
-            power,
-            shaft_args,
-            mesh,
-            cancel,
-            extra,
-        )
-        tb._error_active = bool(mesh_flags[1])
-        if cancelled:  # the cancellation ran (from the first tick on): its filter's state and outputs
-            c._ripple_mean, c._ripple_on, c._ripple_age = ripple_mean, ripple_on, ripple_age
-            c.ripple_torque, c._ripple_running = ripple_torque, bool(cancel_flags[2])
-        if c._extra is not None:
-            c.extra_power = extra_power
-        # the state every object would hold after the last tick's advance
-        k_last = k + count - 1
-        tb.x, tb.k, self.k = x, k + count, k + count
-        tb.blade_torque, tb.tau_aero, tb.last_reading, tb._pitch_error = torque, tau_aero, y, pitch_error
-        field._next_k = k + count
-        field.rotor_wind = rotor = blades @ _THIRDS
-        tb._wind_sample = WindSample(blades=blades, hub=hub, rotor=rotor, mean=mean)
-        c.zone, c.integrator, c.beta_ref, c.tau_g_ref = zone, integrator, beta_ref, tau_g_ref
-        c.damper_torque, c._omega_g = damper, omega_g
-        if c._ramping:
-            c.power_ref, c.setpoint, c._hysteresis = power_refs[-1].copy(), setpoints[-1].copy(), hysteresis[-1].copy()
-            c._ramping = ramping
-        turbines = TurbineFrame(k_last, k_last * self.dt, y, *frame)
-        return self._farm_frame(k_last, turbines)
+        """``len(power)`` common ticks by ``plant_sim.farm.fast.sub_steps`` (``sample_kernel``), with the arguments
+        kept since the last compiled sample while the turbines' fault factors are the same arrays; the last tick's
+        frame."""
+        kept = self._sample_arguments
+        if kept is None or not kept.current(self):
+            kept = self._sample_arguments = SampleArguments(self)
+        return run_compiled_sample(self, kept, states, power, shaft)
 
     def truth(self) -> dict[str, np.ndarray]:
         """Ground truth for scoring and display only; the supervisor never reads it."""

@@ -64,6 +64,7 @@ class RippleCompensation:
 
     def _reset(self) -> None:
         n = self.n
+        self._estimating = False  # a step with sources since the last reset; else the state below is the reset's
         self._theta = np.zeros(n)  # rad, demodulation phase θ_j of the sources
         self._previous = np.full(n, np.nan)  # W, P̄_g,j−1 of the sources (NaN: not a source)
         self._stages = np.zeros((PHASOR_STAGES, n), dtype=complex)
@@ -77,9 +78,11 @@ class RippleCompensation:
         """Update from the sample: ``sources`` (n,) rows whose ripple is estimated, ``free`` (n,) rows that may
         compensate it."""
         if not sources.any():
-            if self.power.any() or not np.isnan(self._previous).all():
+            # after a reset nothing is left to clear (the test below would find nothing), so no numpy call
+            if self._estimating and (self.power.any() or not np.isnan(self._previous).all()):
                 self._reset()
             return
+        self._estimating = True
         p, dt = self.p, FARM_DT_S
         power = sample.scada[:, P_G]
         omega_3 = 3.0 * sample.scada[:, OMEGA_G].mean(axis=1) / p.N_g
@@ -106,6 +109,8 @@ class RippleCompensation:
         """The sample with the 3P power its block of readings carries taken off P̄_g: the sources' ripple as last
         estimated, the others' compensation as last asked (Re{C e^{jω(Δt − τ_b)}} D(ω), C referred to the previous
         sample). What the farm controller reads: the ripple is this module's to cancel, not its power loop's."""
+        if not self._estimating:  # no ripple estimated, no compensation asked: nothing to take off
+            return sample
         phasor, rate = self.ripple + self.power, self.source_rate + self.rate
         if not phasor.any():
             return sample
