@@ -16,9 +16,10 @@ from dataclasses import dataclass
 from typing import Annotated, Literal
 
 import numpy as np
+from scipy.stats import norm
 
 from service.plugins import TURBINE_DETECTORS, TURBINE_ESTIMATORS
-from service.turbine.bank import estimate_observers, power_speed_estimate_observers
+from service.turbine.bank import GENERATOR, estimate_observers, power_speed_estimate_observers
 from service.turbine.component_fdi import ComponentFDI
 from service.turbine.component_settings import ComponentSettings
 from service.turbine.fdi import FDISettings, SpeedSensorFDI
@@ -40,6 +41,7 @@ from wwcore.options import Bounds
 from wwcore.turbine_frames import TurbineFrame
 
 SPEED_TARGETS = np.array([TARGET_INDEX[s] for s in SPEED_SENSORS])
+GENERATOR_TARGETS = np.array([TARGET_INDEX[s] for s in GENERATOR])
 PITCH_M1 = np.array([SENSOR_INDEX[f"beta_{i}_m1"] for i in (1, 2, 3)])
 PITCH_M2 = np.array([SENSOR_INDEX[f"beta_{i}_m2"] for i in (1, 2, 3)])
 PITCH_M12 = np.concatenate([PITCH_M1, PITCH_M2])
@@ -70,6 +72,9 @@ class EstimatorSettings:
     power_speed: bool = True  # both generator-speed sensors flagged: use observer 5-pe
     # "generator": observer 4 on the healthy generator-speed sensors; "seed000": the published selection
     estimate_from: Literal["generator", "seed000"] = "generator"
+    # the encoders' consistency test (``UIOBankEstimator``): a healthy pair's two one-encoder torques differ beyond
+    # its level on this share of the wind's inversions; 0: no test
+    encoder_pair_alpha: Annotated[float, Bounds(ge=0.0, lt=1.0)] = 1e-3
 
 
 def _settings(cls, options: dict):
@@ -209,6 +214,15 @@ class UIOBankEstimator:
         self._winds: np.ndarray | None = None  # (2, n): FTE, NFTE
         self._inverted: np.ndarray | None = None  # (n,) the FTE's observer at the last inversion
         self._no_move = np.zeros(context.n, dtype=bool)  # the NFTE's observer never changes
+        # The encoders' consistency test (``_wind_columns``): the two one-encoder observers (4-g1, 4-g2), the
+        # observer on both (4), and the level of their torques' difference at the two-sided encoder_pair_alpha.
+        self._pair_level = np.inf
+        both = self.observer_of_mask[0]
+        pair = tuple(design.single_generator)
+        if settings.encoder_pair_alpha > 0.0 and len(pair) == 2 and settings.estimate_from == "generator":
+            sigma = self.recovery.pair_difference_sigma(design, pair)
+            self._pair_level = float(norm.isf(settings.encoder_pair_alpha / 2.0)) * sigma
+        self._pair, self._both_encoders = pair, both
 
     def _take_over(self, bank, selected: np.ndarray, mask: np.ndarray, flagged: np.ndarray) -> None:
         """Where a speed sensor that was flagged is trusted again (``mask``: the distrusted speed sensors, ``flagged``:
@@ -263,6 +277,35 @@ class UIOBankEstimator:
                 band = power_speed_band(torque_reference, self.context.params, zone)
                 selected = np.where(on_band, self._observer_of_band[band], selected)
         return mask, selected
+
+    def _wind_columns(self, columns: np.ndarray, faulty: np.ndarray, frame: TurbineFrame) -> np.ndarray:
+        """The observer each row's wind is inverted from: ``columns`` (the estimate's observer), except on the rows
+        on both generator-speed sensors (observer 4) whose two one-encoder observers' filtered torques differ by more
+        than ``_pair_level``: those take the observer the estimate uses with both encoders distrusted (``select``:
+        observer 5 in region 1, the torque band's 5-pe above).
+
+        Why: while nothing is suspected observer 4 averages the two encoders, so an encoder fault the detector has
+        not yet seen (a small offset's step, a drift) moves its torque by half what it does to the faulty encoder's
+        own observer, and at low wind a torque error moves the wind estimate most (``docs/turbine.md``, "The
+        encoders' consistency test"). The two one-encoder torques' difference is the encoders' noise alone on a
+        healthy plant, whatever the wind (``WindRecovery.pair_difference_sigma``), so the level is its two-sided
+        ``encoder_pair_alpha`` quantile: a healthy pair leaves observer 4 on that share of the inversions. A fault
+        on one encoder moves the difference by the whole of what it does to that encoder's observer, twice what it
+        does to observer 4's torque, and the estimate leaves both encoders until the two agree again. The speeds
+        sent to the controller and ``selected`` are not changed; a rotor-speed fault does not move the difference."""
+        if not np.isfinite(self._pair_level):
+            return columns
+        on_both = columns == self._both_encoders
+        if not on_both.any():
+            return columns
+        torque = self.recovery.filtered
+        apart = on_both & (np.abs(torque[:, self._pair[0]] - torque[:, self._pair[1]]) > self._pair_level)
+        if not apart.any():
+            return columns
+        distrusted = faulty.copy()
+        distrusted[np.ix_(np.flatnonzero(apart), GENERATOR_TARGETS)] = True
+        _, fallback = self.select(distrusted, frame.tau_g_ref, frame.zone)
+        return np.where(apart & (fallback >= 0), fallback, columns)
 
     @staticmethod
     def _flagged_mask(flagged: np.ndarray | None, mask: np.ndarray) -> np.ndarray:
@@ -329,6 +372,7 @@ class UIOBankEstimator:
             # method's note)
             omega_g = recovery.region2_generator_speed(bank.x_hat, selected, frame.zone, omega_g)
         if self.ticks % self.wind_every == 0:
+            columns = self._wind_columns(columns, faulty, frame)
             # an estimate whose observer changed since the last inversion is inverted afresh (``WindRecovery.wind``)
             moved = None if self._inverted is None else np.stack([columns != self._inverted, self._no_move])
             self._winds = recovery.wind(np.stack([columns, self._reference_columns]), self._winds, moved)
