@@ -134,3 +134,44 @@ def test_an_encoder_step_the_detector_has_not_seen_barely_moves_the_wind_estimat
     unseen = ~suspected[:rows]
     assert unseen.any() and not suspected[rows:].any()
     assert (ratio[unseen] < 3.0).all(), ratio
+
+
+@pytest.mark.parametrize("backend", ["numpy", "numba"])
+def test_a_flagged_encoder_trusted_again_restarts_its_one_encoder_observer_from_the_healthy_one(backend):
+    """When a flagged generator-speed sensor is trusted again while the other is trusted, the one-encoder observer
+    on it takes the other one's filters, so the two one-encoder torques' difference restarts from zero (without it,
+    the restored encoder's observer carries the fault's end for seconds and the test keeps the wind off observer 4).
+    Not where the encoder was only suspected (its own readings were healthy), nor where both encoders come back at
+    once (neither one-encoder observer ran on healthy readings)."""
+    rows = 3
+    context = TurbineContext(P, rows, backend=backend)
+    estimator = UIOBankEstimator(context=context)
+    bank = ObserverBank(DESIGN, rows, fast=context.fast)
+    left_out_g1, left_out_g2 = estimator._pair  # observers on ω_g,m2 and on ω_g,m1
+    four, five = estimator._both_encoders, DESIGN.index(frozenset(GENERATOR))
+    g1, g2 = (1 << SPEED_SENSORS.index(g) for g in GENERATOR)
+    recovery = estimator.recovery
+    omega_g = np.full(rows, 120.0)
+    y = np.column_stack([omega_g / P.N_g, omega_g / P.N_g, omega_g, omega_g, omega_g])
+    bank.initialise(np.column_stack([omega_g / P.N_g, omega_g, np.zeros(rows), np.zeros(rows)]), y)
+    recovery.start(bank.x_hat, np.zeros(rows), np.full(rows, 1e5))
+    rng = np.random.default_rng(5)
+    for state in (recovery.filter.s1, recovery.filter.s2, recovery.filtered):
+        state[:] = rng.standard_normal(state.shape) * 1e4
+    before = recovery.filtered.copy()
+    # the previous tick: row 0 with ω_g,m1 flagged, row 1 with it suspected only, row 2 with both flagged
+    previous_mask = np.array([g1, g1, g1 | g2])
+    estimator._take_over(bank, np.array([left_out_g1, left_out_g1, five]), previous_mask, np.array([g1, 0, g1 | g2]))
+    nothing = np.zeros(rows, dtype=np.int64)
+    estimator._take_over(bank, np.full(rows, four), nothing, nothing)
+    filtered = recovery.filtered
+    assert filtered[0, left_out_g2] == filtered[0, left_out_g1] == before[0, left_out_g1]
+    assert recovery.filter.s1[0, left_out_g2] == recovery.filter.s1[0, left_out_g1]
+    assert recovery.filter.s2[0, left_out_g2] == recovery.filter.s2[0, left_out_g1]
+    assert (filtered[1:, [left_out_g1, left_out_g2]] == before[1:, [left_out_g1, left_out_g2]]).all()
+    off = UIOBankEstimator(context=context, options={"encoder_pair_alpha": 0.0})  # no test: nothing to restart
+    off.recovery.start(bank.x_hat, np.zeros(rows), np.full(rows, 1e5))
+    off.recovery.filtered[:] = before
+    off._take_over(bank, np.array([left_out_g1, left_out_g1, five]), previous_mask, np.array([g1, 0, g1 | g2]))
+    off._take_over(bank, np.full(rows, four), nothing, nothing)
+    assert (off.recovery.filtered[:, [left_out_g1, left_out_g2]] == before[:, [left_out_g1, left_out_g2]]).all()

@@ -49,6 +49,7 @@ PITCH_M1_T = np.array([TARGET_INDEX[f"beta_{i}_m1"] for i in (1, 2, 3)])
 PITCH_M2_T = np.array([TARGET_INDEX[f"beta_{i}_m2"] for i in (1, 2, 3)])
 CONVERTER_T = TARGET_INDEX["converter"]
 _MASK_WEIGHTS = 1 << np.arange(len(SPEED_SENSORS))
+_GENERATOR_BITS = tuple(int(_MASK_WEIGHTS[SPEED_SENSORS.index(s)]) for s in GENERATOR)  # in ``GENERATOR``'s order
 # Diagnosis row of each speed-sensor bitmask (16, len(DIAGNOSIS_TARGETS)): one gather gives the whole verdict.
 _P_G_M, _TAU_G_M = SENSOR_INDEX["p_g_m"], SENSOR_INDEX["tau_g_m"]
 _DIAGNOSIS_OF_MASK = np.zeros((1 << len(SPEED_SENSORS), len(DIAGNOSIS_TARGETS)), dtype=bool)
@@ -252,6 +253,35 @@ class UIOBankEstimator:
         if len(rows):
             bank.restart(rows, selected[rows], previous[rows])
             self.recovery.transfer(rows, selected[rows], previous[rows], self.context.bank_design, bank.x_hat)
+        self._restart_encoder_pair(restored, mask, bank.x_hat)
+
+    def _restart_encoder_pair(self, restored: np.ndarray, mask: np.ndarray, x_hat: np.ndarray) -> None:
+        """Where a flagged generator-speed sensor is trusted again (``restored``: the speed sensors trusted again
+        this tick that were flagged, ``mask``: those still distrusted, bitmasks per row) while the other encoder is
+        trusted and was not restored with it, the one-encoder observer on the restored encoder takes the other one's
+        filters (``WindRecovery.transfer``), so the encoders' consistency test (``_wind_columns``) starts again from
+        their noise.
+
+        Why: that observer ran on the faulty readings all along, and its filtered torque carries the fault's end (a
+        step of the offset or gain that ended) for seconds after its flag clears (the wind filter's 0.3 Hz); the
+        test would read that as the encoders disagreeing and keep the wind off observer 4 on a healthy pair. The
+        healthy encoder's observer has seen the same shaft with healthy readings, which is what the restored one's
+        filters would hold had it never seen the fault. A sensor only suspected keeps its own filters (its readings
+        were found healthy, ``_take_over``). Where the estimate moves, ``_take_over``'s own transfer and this one are
+        on different columns; in the "generator" selection a restored encoder whose partner is trusted always moves
+        the estimate (off the partner's one-encoder observer), so the compiled ``handover``'s test finds the tick."""
+        if not np.isfinite(self._pair_level):
+            return
+        if not (restored & (_GENERATOR_BITS[0] | _GENERATOR_BITS[1])).any():
+            return
+        for k, bit in enumerate(_GENERATOR_BITS):
+            partner = _GENERATOR_BITS[1 - k]
+            rows = np.flatnonzero((restored & bit != 0) & (mask & partner == 0) & (restored & partner == 0))
+            if len(rows):
+                # single_generator[k] leaves out encoder k (it runs on the partner); [1 − k] runs on encoder k
+                on_restored = np.full(len(rows), self._pair[1 - k])
+                on_partner = np.full(len(rows), self._pair[k])
+                self.recovery.transfer(rows, on_restored, on_partner, self.context.bank_design, x_hat)
 
     def select(
         self, faulty: np.ndarray, torque_reference: np.ndarray, zone: np.ndarray
