@@ -16,9 +16,10 @@ from dataclasses import dataclass
 from typing import Annotated, Literal
 
 import numpy as np
+from scipy.stats import norm
 
 from service.plugins import TURBINE_DETECTORS, TURBINE_ESTIMATORS
-from service.turbine.bank import estimate_observers, power_speed_estimate_observers
+from service.turbine.bank import GENERATOR, estimate_observers, power_speed_estimate_observers
 from service.turbine.component_fdi import ComponentFDI
 from service.turbine.component_settings import ComponentSettings
 from service.turbine.fdi import FDISettings, SpeedSensorFDI
@@ -40,6 +41,7 @@ from wwcore.options import Bounds
 from wwcore.turbine_frames import TurbineFrame
 
 SPEED_TARGETS = np.array([TARGET_INDEX[s] for s in SPEED_SENSORS])
+GENERATOR_TARGETS = np.array([TARGET_INDEX[s] for s in GENERATOR])
 PITCH_M1 = np.array([SENSOR_INDEX[f"beta_{i}_m1"] for i in (1, 2, 3)])
 PITCH_M2 = np.array([SENSOR_INDEX[f"beta_{i}_m2"] for i in (1, 2, 3)])
 PITCH_M12 = np.concatenate([PITCH_M1, PITCH_M2])
@@ -47,6 +49,7 @@ PITCH_M1_T = np.array([TARGET_INDEX[f"beta_{i}_m1"] for i in (1, 2, 3)])
 PITCH_M2_T = np.array([TARGET_INDEX[f"beta_{i}_m2"] for i in (1, 2, 3)])
 CONVERTER_T = TARGET_INDEX["converter"]
 _MASK_WEIGHTS = 1 << np.arange(len(SPEED_SENSORS))
+_GENERATOR_BITS = tuple(int(_MASK_WEIGHTS[SPEED_SENSORS.index(s)]) for s in GENERATOR)  # in ``GENERATOR``'s order
 # Diagnosis row of each speed-sensor bitmask (16, len(DIAGNOSIS_TARGETS)): one gather gives the whole verdict.
 _P_G_M, _TAU_G_M = SENSOR_INDEX["p_g_m"], SENSOR_INDEX["tau_g_m"]
 _DIAGNOSIS_OF_MASK = np.zeros((1 << len(SPEED_SENSORS), len(DIAGNOSIS_TARGETS)), dtype=bool)
@@ -70,6 +73,9 @@ class EstimatorSettings:
     power_speed: bool = True  # both generator-speed sensors flagged: use observer 5-pe
     # "generator": observer 4 on the healthy generator-speed sensors; "seed000": the published selection
     estimate_from: Literal["generator", "seed000"] = "generator"
+    # the encoders' consistency test (``UIOBankEstimator``): a healthy pair's two one-encoder torques differ beyond
+    # its level on this share of the wind's inversions; 0: no test
+    encoder_pair_alpha: Annotated[float, Bounds(ge=0.0, lt=1.0)] = 1e-3
 
 
 def _settings(cls, options: dict):
@@ -209,6 +215,15 @@ class UIOBankEstimator:
         self._winds: np.ndarray | None = None  # (2, n): FTE, NFTE
         self._inverted: np.ndarray | None = None  # (n,) the FTE's observer at the last inversion
         self._no_move = np.zeros(context.n, dtype=bool)  # the NFTE's observer never changes
+        # The encoders' consistency test (``_wind_columns``): the two one-encoder observers (4-g1, 4-g2), the
+        # observer on both (4), and the level of their torques' difference at the two-sided encoder_pair_alpha.
+        self._pair_level = np.inf
+        both = self.observer_of_mask[0]
+        pair = tuple(design.single_generator)
+        if settings.encoder_pair_alpha > 0.0 and len(pair) == 2 and settings.estimate_from == "generator":
+            sigma = self.recovery.pair_difference_sigma(design, pair)
+            self._pair_level = float(norm.isf(settings.encoder_pair_alpha / 2.0)) * sigma
+        self._pair, self._both_encoders = pair, both
 
     def _take_over(self, bank, selected: np.ndarray, mask: np.ndarray, flagged: np.ndarray) -> None:
         """Where a speed sensor that was flagged is trusted again (``mask``: the distrusted speed sensors, ``flagged``:
@@ -238,6 +253,35 @@ class UIOBankEstimator:
         if len(rows):
             bank.restart(rows, selected[rows], previous[rows])
             self.recovery.transfer(rows, selected[rows], previous[rows], self.context.bank_design, bank.x_hat)
+        self._restart_encoder_pair(restored, mask, bank.x_hat)
+
+    def _restart_encoder_pair(self, restored: np.ndarray, mask: np.ndarray, x_hat: np.ndarray) -> None:
+        """Where a flagged generator-speed sensor is trusted again (``restored``: the speed sensors trusted again
+        this tick that were flagged, ``mask``: those still distrusted, bitmasks per row) while the other encoder is
+        trusted and was not restored with it, the one-encoder observer on the restored encoder takes the other one's
+        filters (``WindRecovery.transfer``), so the encoders' consistency test (``_wind_columns``) starts again from
+        their noise.
+
+        Why: that observer ran on the faulty readings all along, and its filtered torque carries the fault's end (a
+        step of the offset or gain that ended) for seconds after its flag clears (the wind filter's 0.3 Hz); the
+        test would read that as the encoders disagreeing and keep the wind off observer 4 on a healthy pair. The
+        healthy encoder's observer has seen the same shaft with healthy readings, which is what the restored one's
+        filters would hold had it never seen the fault. A sensor only suspected keeps its own filters (its readings
+        were found healthy, ``_take_over``). Where the estimate moves, ``_take_over``'s own transfer and this one are
+        on different columns; in the "generator" selection a restored encoder whose partner is trusted always moves
+        the estimate (off the partner's one-encoder observer), so the compiled ``handover``'s test finds the tick."""
+        if not np.isfinite(self._pair_level):
+            return
+        if not (restored & (_GENERATOR_BITS[0] | _GENERATOR_BITS[1])).any():
+            return
+        for k, bit in enumerate(_GENERATOR_BITS):
+            partner = _GENERATOR_BITS[1 - k]
+            rows = np.flatnonzero((restored & bit != 0) & (mask & partner == 0) & (restored & partner == 0))
+            if len(rows):
+                # single_generator[k] leaves out encoder k (it runs on the partner); [1 − k] runs on encoder k
+                on_restored = np.full(len(rows), self._pair[1 - k])
+                on_partner = np.full(len(rows), self._pair[k])
+                self.recovery.transfer(rows, on_restored, on_partner, self.context.bank_design, x_hat)
 
     def select(
         self, faulty: np.ndarray, torque_reference: np.ndarray, zone: np.ndarray
@@ -263,6 +307,35 @@ class UIOBankEstimator:
                 band = power_speed_band(torque_reference, self.context.params, zone)
                 selected = np.where(on_band, self._observer_of_band[band], selected)
         return mask, selected
+
+    def _wind_columns(self, columns: np.ndarray, faulty: np.ndarray, frame: TurbineFrame) -> np.ndarray:
+        """The observer each row's wind is inverted from: ``columns`` (the estimate's observer), except on the rows
+        on both generator-speed sensors (observer 4) whose two one-encoder observers' filtered torques differ by more
+        than ``_pair_level``: those take the observer the estimate uses with both encoders distrusted (``select``:
+        observer 5 in region 1, the torque band's 5-pe above).
+
+        Why: while nothing is suspected observer 4 averages the two encoders, so an encoder fault the detector has
+        not yet seen (a small offset's step, a drift) moves its torque by half what it does to the faulty encoder's
+        own observer, and at low wind a torque error moves the wind estimate most (``docs/turbine.md``, "The
+        encoders' consistency test"). The two one-encoder torques' difference is the encoders' noise alone on a
+        healthy plant, whatever the wind (``WindRecovery.pair_difference_sigma``), so the level is its two-sided
+        ``encoder_pair_alpha`` quantile: a healthy pair leaves observer 4 on that share of the inversions. A fault
+        on one encoder moves the difference by the whole of what it does to that encoder's observer, twice what it
+        does to observer 4's torque, and the estimate leaves both encoders until the two agree again. The speeds
+        sent to the controller and ``selected`` are not changed; a rotor-speed fault does not move the difference."""
+        if not np.isfinite(self._pair_level):
+            return columns
+        on_both = columns == self._both_encoders
+        if not on_both.any():
+            return columns
+        torque = self.recovery.filtered
+        apart = on_both & (np.abs(torque[:, self._pair[0]] - torque[:, self._pair[1]]) > self._pair_level)
+        if not apart.any():
+            return columns
+        distrusted = faulty.copy()
+        distrusted[np.ix_(np.flatnonzero(apart), GENERATOR_TARGETS)] = True
+        _, fallback = self.select(distrusted, frame.tau_g_ref, frame.zone)
+        return np.where(apart & (fallback >= 0), fallback, columns)
 
     @staticmethod
     def _flagged_mask(flagged: np.ndarray | None, mask: np.ndarray) -> np.ndarray:
@@ -329,6 +402,7 @@ class UIOBankEstimator:
             # method's note)
             omega_g = recovery.region2_generator_speed(bank.x_hat, selected, frame.zone, omega_g)
         if self.ticks % self.wind_every == 0:
+            columns = self._wind_columns(columns, faulty, frame)
             # an estimate whose observer changed since the last inversion is inverted afresh (``WindRecovery.wind``)
             moved = None if self._inverted is None else np.stack([columns != self._inverted, self._no_move])
             self._winds = recovery.wind(np.stack([columns, self._reference_columns]), self._winds, moved)

@@ -34,6 +34,7 @@ shaft (``WindRecovery.region2_generator_speed``).
 from __future__ import annotations
 
 import numpy as np
+from scipy.signal import lfilter
 
 from service.turbine.bank import GENERATOR, ROTOR, SPARSE_PRODUCT_ROWS, BankDesign
 from wwcore import aero
@@ -421,6 +422,34 @@ class WindRecovery:
             return
         states = x_hat[np.ix_(rows, self._rigid_converter_states)]
         raw[np.ix_(rows, self._rigid_torque_columns)] += self._converter_gain * (measured_torque[rows, None] - states)
+
+    def pair_difference_sigma(self, bank: BankDesign, pair: tuple[int, int]) -> float:
+        """σ (N m) of the difference of two observers' filtered τ̂_r, each on one generator-speed sensor (``pair``:
+        4-g1 and 4-g2), on a healthy plant.
+
+        A rigid observer on one encoder has x̂ = that encoder's reading (its ω̂_g column) and τ̂_g from the torque
+        reference alone (``uio.design_rigid``), so its raw τ̂_r is c_now y[n] + c_prev y[n−1] plus terms the two share
+        (the converter's τ̂_g): the difference of the two raw torques is c_now e[n] + c_prev e[n−1] with e = y_1 − y_2,
+        white of variance σ_1² + σ_2² (the design's R) whatever the wind, the aerodynamic torque and the drive train's
+        motion, which both encoders read alike. Through the two columns' common Butterworth (their cutoffs are equal,
+        ``torque_cutoffs``): variance (σ_1² + σ_2²) Σ_k g_k², g the impulse response of that filter on
+        c_now + c_prev z⁻¹, summed until it has decayed (40 time constants of the cutoff)."""
+        first, second = (bank.observers[j] for j in pair)
+        if first.kind != "rigid" or second.kind != "rigid" or len(first.sensors) != 1 or len(second.sensors) != 1:
+            raise ValueError("the pair must be two rigid observers on one generator-speed sensor each")
+        cutoff = self.torque_cutoffs_hz[pair[0]]
+        if not np.isclose(cutoff, self.torque_cutoffs_hz[pair[1]]):
+            raise ValueError("the pair's torque filters differ: their difference is not the encoders' noise alone")
+        width, column = self._width, self._groups[0].start + pair[0]
+        c_now = self._map[bank.offsets[pair[0]] + 1, column]
+        c_prev = self._map[width + bank.offsets[pair[0]] + 1, column]
+        b, a = butter2_lowpass(cutoff, self.p.dt)
+        ticks = int(np.ceil(40.0 / (2.0 * np.pi * cutoff * self.p.dt)))
+        impulse = np.zeros(ticks)
+        impulse[0], impulse[1] = c_now, c_prev
+        response = lfilter(b, a, impulse)
+        variance = float(first.R[0, 0] + second.R[0, 0])
+        return float(np.sqrt(variance * np.sum(response**2)))
 
     def wind(self, columns: np.ndarray, v_guess: np.ndarray, moved: np.ndarray | None = None) -> np.ndarray:
         """Wind speed of observer ``columns[i]`` (shape (m, n)) for every row: (m, n) m/s, one inversion call.
