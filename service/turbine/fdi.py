@@ -57,14 +57,6 @@ evidence that its sensor is healthy again.
   so such an explanation is decided on the 4th tick at the earliest, after about 9.7 on a healthy pair, and the test
   names the biased sensor (``rotor_pair``). An explanation naming a
   frozen sensor is decided on one look (the sum's z beyond the isolation level in the pair's learnt spread).
-* **Hold.** Once the fault is confirmed ("No fault" above), an isolation that waits on an explanation it already
-  holds (the arbitration's choice between the encoders, the rotor-speed pair's test, a doubt) keeps it until the
-  data reject it at α_iso; on a tick where it is still consistent no other explanation replaces it. Among consistent
-  explanations of one size the choice is a tie-break on noise (the smaller statistic), and a choice re-made on every
-  tick of a wait that lasts hundreds of ticks lands sooner or later on whatever has no test to wait for (a
-  rotor-speed sensor beside a small generator-speed gain whose window statistics fall back under their levels), so
-  its error probability has no bound; the held explanation's is the bound of the test it waits on. The wait keeps its
-  own bound (``arbitration_s``); the "no fault" test is not asked again (docs/decisions.md N-27).
 * **Persistent rotor-speed bias.** Beside the window tests, Page's CUSUMs (a bank of shifts ``bias_shift``·2^k,
   k < ``bias_bank``) on the parity of the two rotor-speed sensors' exclusion residuals against the generator-speed
   Kalman filter (``bias_test``; ``rotor_bias_test``, ``bias_shift``) flag a bias of 1–2 σ that the UIOs take for
@@ -247,8 +239,6 @@ class SpeedSensorFDI:
         self.started = np.zeros(n, dtype=np.int64)  # tick at which the pending isolation started
         # the ticks after the detection's have shown the fault (``_fault_persists``)
         self.confirmed = np.zeros(n, dtype=bool)
-        # the explanation a confirmed isolation last waited on (−1: none), kept on ticks where nothing is pointed at
-        self.held = np.full(n, -1, dtype=np.int64)
         self.arbiter = GeneratorArbiter(bank, n, iso, dt, fast)
         self.arbitration_ticks = round(settings.arbitration_s / dt)
         # the rotor-speed sensors' sequential tests judge an explanation that names no rotor-speed sensor, on every
@@ -400,7 +390,6 @@ class SpeedSensorFDI:
         # a frozen reading is a fault whatever the residuals say; a flagged set no observer leaves out has no test
         untestable = ((frozen_mask & ~self.flagged) != 0) | (self.observer_of_mask[self.flagged] < 0)
         self.confirmed[start] = untestable[start]
-        self.held[start] = -1
         # the onset's jump names the generator-speed sensor unless one of the pair is flagged (``arbitration``)
         self.arbiter.reset(start, (self.flagged & _GENERATOR_BITS) == 0)
         suspected = _SENSORS_OF_MASK[self.flagged | self.provisional]
@@ -421,10 +410,9 @@ class SpeedSensorFDI:
         before = self.flagged.copy()
         for i, row in enumerate(rows):
             frozen = int(frozen_mask[row])
-            explained = self._explained(isolate[i])
-            explanation = self._explain(row, self._explained(ratio[row]), explained, frozen, isolate[i])
-            if self.held[row] >= 0 and self._still_explains(int(self.held[row]), explained):
-                explanation = int(self.held[row])  # not rejected: a tie-break on noise does not replace it
+            explanation = self._explain(
+                row, self._explained(ratio[row]), self._explained(isolate[i]), frozen, isolate[i]
+            )
             if self.ticks >= self.deadline[row]:
                 waited = self.ticks - self.started[row]
                 if not self.confirmed[row]:
@@ -441,7 +429,6 @@ class SpeedSensorFDI:
                     self.confirmed[row] = True
                 if self._doubtful(row, explanation, confirm[i], waited, patience, frozen):
                     self.deadline[row] = self.ticks + 1  # one more tick of evidence, distrusting what is suspected
-                    self.held[row] = explanation
                     if self._estimable[self.provisional[row] | explanation]:
                         self.provisional[row] |= explanation
                     continue
@@ -449,7 +436,6 @@ class SpeedSensorFDI:
                 if other is not None:
                     if not decided[row] and waited < self.arbitration_ticks:
                         self.deadline[row] = self.ticks + 1  # wait for the arbitration, trusting neither
-                        self.held[row] = explanation
                         both = self.provisional[row] | explanation | other
                         if self._estimable[both]:
                             self.provisional[row] = both
@@ -459,7 +445,6 @@ class SpeedSensorFDI:
                 explanation = self.rotor_pair.with_rotor(row, explanation, isolate[i], self.observer_of_mask, frozen)
                 self.flagged[row] = explanation
                 self.deadline[row] = -1
-                self.held[row] = -1
                 self.provisional[row] = explanation
             elif start[row]:
                 self.provisional[row] = explanation
@@ -489,13 +474,6 @@ class SpeedSensorFDI:
         if k and fresh > self.h_fresh[j, k]:
             return 1
         return -1 if k >= self.s.window else 0
-
-    def _still_explains(self, held: int, explained: np.ndarray) -> bool:
-        """Whether the explanation a confirmed isolation waits on (``held``, a bitmask) is still consistent at the
-        isolation level: every witness of its observer within it (``explained``, ``_explained`` of the isolation
-        ratios). Only its rejection lets another explanation replace it (module docstring, "Hold")."""
-        j = self.observer_of_mask[held]
-        return bool(j >= 0 and explained[j] <= 1.0)
 
     def _doubtful(
         self, row: int, explanation: int, confirm: np.ndarray, waited: int = 0, patience: int = 1, frozen: int = 0
