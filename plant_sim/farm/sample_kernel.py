@@ -8,13 +8,13 @@ arrays whenever the turbines' faults change (``TurbineBatch._update_faults`` res
 acting), so the kept products are made again when any array they were made from is no longer the turbines' own
 (``SampleArguments.current``): a fault that starts, ends or ramps reaches the kernel on the first compiled sample
 after it. Arrays that leave the sample (the state, the frame's, the controller's and the wind sample's) stay new
-every sample: the evaluation, the twins and the frames may keep them.
+every sample: the evaluation, the twins and the frames may keep them. ``batch`` in every function is the calling
+``plant_sim.farm.plant.FarmBatch`` (not imported: this module is below it).
 """
 
 from __future__ import annotations
 
 import operator
-from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -34,14 +34,11 @@ from wwcore.channels import SENSORS
 from wwcore.farm_frames import FarmFrame
 from wwcore.turbine_frames import TurbineFrame
 
-if TYPE_CHECKING:
-    from plant_sim.farm.plant import FarmBatch
-
 
 class SampleArguments:
     """``sub_steps``'s arguments that stay between samples while the turbines' fault factors stay the same arrays."""
 
-    def __init__(self, batch: FarmBatch):
+    def __init__(self, batch):
         tb, p, dt, n = batch.turbines, batch.p, batch.dt, batch.n
         self.sources = self._sources(batch)
         f = tb.faults
@@ -62,7 +59,7 @@ class SampleArguments:
         self._blocks: dict[int, np.ndarray] = {}  # ticks → (3, ticks, n): P_r, ω_set and Ω_Δ,set of each tick
 
     @staticmethod
-    def _sources(batch: FarmBatch) -> tuple:
+    def _sources(batch) -> tuple:
         """The arrays the kept arguments are made from or hold (the fault factors, the turbines' state of the wear's
         onset and the step's response to the wear's torque)."""
         tb = batch.turbines
@@ -70,7 +67,7 @@ class SampleArguments:
         sources = (f.aero_factor, f.pitch_offset, f.power_factor, f.stiffness_factor, f.damping_factor)
         return (*sources, f.transmission_error, f.eta_dt, tb.dynamics.blade_gain, tb._error_stage, tb._error_level)
 
-    def current(self, batch: FarmBatch) -> bool:
+    def current(self, batch) -> bool:
         """Whether every array the kept arguments were made from is still the turbines' own."""
         return all(map(operator.is_, self._sources(batch), self.sources)) and self.mesh[6] is (
             batch.turbines.discrete.gamma_ext
@@ -84,7 +81,7 @@ class SampleArguments:
         return blocks
 
 
-def followed_references(batch: FarmBatch, kept: SampleArguments, count: int) -> tuple:
+def followed_references(batch, kept: SampleArguments, count: int) -> tuple:
     """(P_r (T, n), ω_set (T, n), Ω_Δ,set (T, n), whether P_r still moves after the sample) of the sample's ticks.
     The followed reference's path does not depend on the plant, so each tick's is computed ahead (``fast.ramp``).
     When P_r reaches its target on the first tick, every tick's set point is the first tick's: ω_set and Ω_Δ,set
@@ -105,7 +102,7 @@ def followed_references(batch: FarmBatch, kept: SampleArguments, count: int) -> 
 
 
 def run_compiled_sample(
-    batch: FarmBatch, kept: SampleArguments, states: np.ndarray, power: np.ndarray, shaft: np.ndarray | None
+    batch, kept: SampleArguments, states: np.ndarray, power: np.ndarray, shaft: np.ndarray | None
 ) -> FarmFrame:
     """``len(power)`` common ticks by ``plant_sim.farm.fast.sub_steps`` with the ``kept`` arguments (current); the
     last tick's frame, every object left as the ticks' calls would leave it."""
