@@ -297,7 +297,7 @@ class ObserverBank:
         self._terms = np.concatenate(
             [np.where(design.ranks > i, design.res_starts + i, n_res) for i in range(3)]
         )  # (3 n_obs,) columns of _squares: first, second, third element of each segment
-        self._work = (self._update_in, self._output_in, self._terms, n_res)  # ``fast.bank_tick``'s work arrays
+        self._work = (self._update_in, self._output_in, self._terms, n_res)  # the compiled steps' work arrays
         self.z = np.zeros((n, width))
         self.x_hat = np.zeros((n, width))
         self.chi2 = np.zeros((n, len(design.names)))  # ‖W_j r_j‖², χ²-distributed with rank_j dof when healthy
@@ -376,10 +376,11 @@ class ObserverBank:
         over the matrices' nonzeros or by BLAS, the χ² sums)."""
         advance = self._y_prev is not None
         update, sparse = self._fast_products(advance)
+        update_in, output_in, terms, n_res = self._work
         self.chi2 = np.empty((self.n, len(self.d.names)))
         self.z, out = self._fast.bank_step(
-            self.z, u_prev, self._y_prev if advance else y, update, self._update_in, y, self._output,
-            self._output_in, self._terms, self._squares.shape[1] - 1, advance, self.chi2, sparse,
+            self.z, u_prev, self._y_prev if advance else y, update, update_in, y, self._output, output_in, terms,
+            n_res, advance, self.chi2, sparse,
         )  # fmt: skip
         self.steps += advance
         self.x_hat = out[:, : self._width]

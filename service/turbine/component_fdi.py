@@ -225,7 +225,7 @@ class ComponentFDI:
             self._converter_weight, float(settings.converter_clear_floor), self._clear_h, CONVERTER_TARGET,
         )  # fmt: skip
         self._converter_spread_state = (self.converter_spread.offset, self.converter_spread.scale)
-        self._kept: tuple | None = None  # ``_fast_tick``'s kernel arguments (``_tick_arguments``)
+        self._kept: dict | None = None  # ``_fast_tick``'s kernel arguments (``_tick_arguments``)
 
     def step(self, frame: TurbineFrame) -> np.ndarray:
         y = frame.sensors
@@ -257,17 +257,17 @@ class ComponentFDI:
         (``service.turbine.fast.component_step``, the same operations), then the pitch-sensor decisions."""
         kept = self._kept or self._tick_arguments()
         w, o = self.parity, self.outlier
-        beta = kept[0][self.ticks % 2]  # two buffers: the frozen test keeps the last tick's (``previous``)
+        beta = kept["beta"][self.ticks % 2]  # two buffers: the frozen test keeps the last tick's (``previous``)
         converter = (self._tau_hat, self.ticks == 0, self._converter_block_sum, self.ticks + 1 > self.warmup_ticks)
         any_suspicious, repeated = self._fast.component_step(
-            (frame.sensors, M12, TAU_G_M, frame.tau_g_ref, j, CROSS_BLADE), kept[1],
-            (w.ring, w.count % w.size, w.total), (o.ring, o.count % o.size, o.total), kept[2], (beta, *kept[3]),
-            self.readings.previous, kept[4], converter + kept[5],
+            (frame.sensors, M12, TAU_G_M, frame.tau_g_ref, j, CROSS_BLADE), kept["blocks"],
+            (w.ring, w.count % w.size, w.total), (o.ring, o.count % o.size, o.total), kept["scales"],
+            (beta, *kept["parity"]), self.readings.previous, kept["adapt"], converter + kept["converter"],
         )  # fmt: skip
         w.count += 1
         o.count += 1
         self.readings.push(beta, repeated)
-        self._pitch_flags(*kept[4][-2:], any_suspicious)
+        self._pitch_flags(*kept["normalised"], any_suspicious)
 
     def _tick_arguments(self) -> tuple:
         """``_fast_tick``'s kernel arguments kept from tick to tick: the two β buffers, the blocks, the scales, the
@@ -280,11 +280,15 @@ class ComponentFDI:
         adapt = (spread.enabled, self.flags, M1_TARGET, M2_TARGET, self._root_parity_window, self.z_single, learning)
         state = (self.converter_statistic, self._converter_run, self._converter_count, self._converter_mean)
         self._tau_hat = np.empty(n)  # τ̂_g, set from the first tick's reading by the kernel
-        self._kept = (
-            (np.empty((n, 3 * 2)), np.empty((n, 3 * 2))), (self._e_block, self._tau_block),
-            (self._parity_scale, self._window_scale, self.z_single), (parity, window), (*adapt, parity_n, window_n),
-            (self._converter_spread_state, self._converter_test, (*state, self.converter_clear_statistic)),
-        )  # fmt: skip
+        self._kept = {
+            "beta": (np.empty((n, 3 * 2)), np.empty((n, 3 * 2))),
+            "blocks": (self._e_block, self._tau_block),
+            "scales": (self._parity_scale, self._window_scale, self.z_single),
+            "parity": (parity, window),
+            "adapt": (*adapt, parity_n, window_n),
+            "normalised": (parity_n, window_n),  # the parity's statistics in the learnt spread: the decisions read them
+            "converter": (self._converter_spread_state, self._converter_test, (*state, self.converter_clear_statistic)),
+        }
         return self._kept
 
     # -- pitch sensors ------------------------------------------------------------------------------------------

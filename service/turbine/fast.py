@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from service.turbine.fast_bank import bank_inputs, bank_inputs_offset, bank_step, bank_tick  # noqa: F401
+from service.turbine.fast_bank import bank_step, bank_tick  # noqa: F401 (the observer bank's)
 from service.turbine.fast_converter import converter_tick
 from wwcore.aero_fast import maximum, wind_from_torque  # noqa: F401 (the wind recovery's inversion)
 from wwcore.blas_fast import gemm_layout, gemm_product, nonzeros  # noqa: F401 (the bank's and recovery's set-up)

@@ -144,17 +144,8 @@ class TurbineContext:
 
     def _bank_inputs(self, frame: TurbineFrame) -> np.ndarray:
         """The bank's input columns (``bank_design.inputs``: 4 speeds, the power-speed channel) for this frame;
-        keeps the speed readings aside."""
-        if self.fast is not None:
-            read = np.empty((self.n, len(BANK_COLUMNS)))
-            columns = self._input_columns(frame)
-            if self.speed_offset is None:
-                self.fast.bank_inputs(*columns, read)
-                self._speed = read[:, :4]
-            else:  # the lines below by the kernel: the readings kept, the offsets subtracted
-                self._speed = np.empty((self.n, 4))
-                self.fast.bank_inputs_offset(*columns, self.speed_offset, self._speed, read)
-            return read[:, :5]
+        keeps the speed readings aside. The compiled path gathers them inside its step (``fast.bank_tick``, the same
+        numbers: ``tests/test_fast_kernels.py``) and calls this on the first frame only."""
         read = frame.sensors.take(BANK_COLUMNS, axis=1)  # (n, 6); column 4 becomes the power-speed channel
         read[:, 4] = power_speed(read[:, 4], read[:, 5], read, self.params)
         self._speed = read[:, :4].copy() if self.speed_offset is not None else read[:, :4]
@@ -163,7 +154,7 @@ class TurbineContext:
         return read[:, :5]
 
     def _input_columns(self, frame: TurbineFrame) -> tuple:
-        """The compiled bank inputs' arguments (sensors, columns, threshold, N_g, η_gc): ``fast.bank_inputs``."""
+        """The compiled bank inputs' arguments (sensors, columns, threshold, N_g, η_gc): ``fast_bank.bank_inputs``."""
         p = self.params
         return frame.sensors, BANK_COLUMNS, self.power_speed_min_torque, p.N_g, p.eta_gc
 

@@ -79,7 +79,10 @@ class RotorPairTest:
         of the design size gets there with probability ≤ α_confirm), 0 while the evidence is between the two. Where
         the ``explanation`` (bitmask) names one generator-speed sensor, against the other one
         (``encoder_log_ratios``); elsewhere the pair's difference (``arbitration``: Λ = m_d |Σd| − k m_d²/2)."""
-        ratios = self.encoder_log_ratios(row, explanation)
+        return self._decide(row, self.encoder_log_ratios(row, explanation))
+
+    def _decide(self, row: int, ratios: np.ndarray | None) -> int:
+        """``verdict`` from the tests against one encoder's Λ_s (``ratios``; None: the pair's test)."""
         if ratios is not None:
             evidence, join = float(ratios.max()), self.encoder_join_level
         else:
@@ -116,10 +119,10 @@ class RotorPairTest:
         if explanation & _ROTOR_BITS:
             return explanation
         one_look = bool(explanation & frozen) and self.disagrees(row)
-        if not one_look and self.verdict(row, explanation) <= 0:
+        ratios = self.encoder_log_ratios(row, explanation)
+        if not one_look and self._decide(row, ratios) <= 0:
             return explanation
         candidates = [explanation | bit for bit in _ROTOR_BIT if observer_of_mask[explanation | bit] >= 0]
-        ratios = self.encoder_log_ratios(row, explanation)
         if not one_look and ratios is not None:
             named = explanation | _ROTOR_BIT[int(ratios.argmax())]
             candidates = [named] if named in candidates else candidates
