@@ -303,6 +303,66 @@ def test_a_reading_frozen_near_the_truth_is_flagged_without_arbitration():
     assert fdi.flagged[0] == BIT["omega_g_m2"], "kept while frozen"
 
 
+def _frozen_rotor_speed_run(fdi: SpeedSensorFDI, witness_stat) -> list[int]:
+    """ω_r,m1 frozen at the true speed from tick 0 (the frozen test fires on tick ``frozen_ticks`` − 1), the other
+    readings healthy; ``witness_stat(k, j)`` is observer j's χ² on tick k, or None for its mean. Returns the flagged
+    bitmask of every tick."""
+    rng, x_hat = _healthy_history(fdi, 12)
+    masks = []
+    for k in range(15):
+        stat = _healthy_chi2(fdi)
+        for j in range(DESIGN.n_isolating):
+            value = witness_stat(k, j)
+            if value is not None:
+                stat[0, j] = value
+        y = _readings(rng)
+        y[0, 0] = 1.2
+        fdi.step(y, stat, x_hat)
+        masks.append(int(fdi.flagged[0]))
+    return masks
+
+
+def test_a_frozen_reading_waits_out_a_healthy_witness_over_the_isolation_level():
+    """docs/turbine.md's shipped one-rotor window: on the tick the frozen test fires, observer 6-r1g2 (a witness of
+    ω_r,m1 alone that never reads it) is just over the isolation level, under the detection level, so ω_r,m1 alone
+    is consistent at the detection level only. Deciding on that tick flagged the smallest superset consistent at the
+    isolation level with the smallest own statistic (observer 4's, ω_r,m1 + ω_r,m2, under 6-r1g1's as there), the
+    healthy ω_r,m2 with it; the decision waits instead, and the next ticks name ω_r,m1 alone."""
+    fdi = _fdi()
+    j = DESIGN.names.index("6-r1g2")
+    deciding = fdi.s.frozen_ticks - 1
+    spike = 1.05 * fdi.h_isolate[j]
+    assert spike < fdi.h_detect[j] and spike + 3 * fdi._rank[j] < fdi.h_window[j], "under the detection level"
+    on_deciding_tick = {j: spike, DESIGN.names.index("6-r1g1"): 2.0}
+    k, first = _first_flag(
+        _frozen_rotor_speed_run(fdi, lambda k, i: on_deciding_tick.get(i) if k == deciding else None)
+    )
+    assert first == BIT["omega_r_m1"], "the first flag names the frozen sensor alone"
+    assert deciding < k <= deciding + fdi.s.isolation_delay + fdi.s.isolation_patience
+
+
+@pytest.mark.parametrize("level", ["between", "beyond"])
+def test_a_frozen_reading_with_a_second_fault_is_flagged_with_it_within_the_patience(level):
+    """ω_r,m1 frozen and ω_r,m2 faulty: every observer reading ω_r,m2 has its window sum between the isolation and
+    the detection levels from the deciding tick on ("between"; ω_r,m1 alone is consistent at the detection level,
+    so the decision waits, up to ``isolation_delay`` + ``isolation_patience`` ticks), or each tick beyond the
+    detection level ("beyond": ω_r,m1 alone is rejected, nothing to wait for). Both are flagged together first."""
+    fdi = _fdi()
+    w = fdi.s.window
+    per_tick = {
+        "between": 0.5 * (fdi.h_isolate_window + fdi.h_window) / w,
+        "beyond": 1.5 * fdi.h_detect,
+    }[level]
+
+    def stat(k, j):
+        return None if "omega_r_m2" in DESIGN.left_out[j] else per_tick[j]
+
+    k, first = _first_flag(_frozen_rotor_speed_run(fdi, stat))
+    assert first == BIT["omega_r_m1"] | BIT["omega_r_m2"]
+    bound = fdi.s.frozen_ticks - 1 + (fdi.s.isolation_delay + fdi.s.isolation_patience if level == "between" else 0)
+    assert k <= bound
+
+
 @pytest.mark.parametrize(
     ("options", "key"),
     [

@@ -76,7 +76,10 @@ evidence that its sensor is healthy again.
   truth, which no residual can see), and its flag cannot drop while it stays frozen. Its isolation is decided
   on the tick the frozen test fires (the test has seen ``frozen_ticks`` of the fault already) and never waits for
   the generator-speed arbitration (``arbitration``), which a reading frozen near the truth would keep open for
-  seconds.
+  seconds; but where the flagged and frozen sensors alone are consistent at the detection level and a witness
+  is over the isolation level, the decision waits a tick, up to ``isolation_patience``, rather than flag the
+  smallest superset consistent at it: a healthy witness crosses α_iso on the one tick with probability about α_iso,
+  on that tick and again a window later about α_iso² (``_doubtful``).
 * **Which generator-speed sensor.** Where an explanation names one generator-speed sensor and the other is not
   ruled out, the isolation waits for the arbitration (``arbitration``): the fault's first ticks against the pair
   mean's own prediction, then sums against the rotor-speed sensors and the power-speed channel.
@@ -410,9 +413,8 @@ class SpeedSensorFDI:
         before = self.flagged.copy()
         for i, row in enumerate(rows):
             frozen = int(frozen_mask[row])
-            explanation = self._explain(
-                row, self._explained(ratio[row]), self._explained(isolate[i]), frozen, isolate[i]
-            )
+            explained = self._explained(ratio[row])
+            explanation = self._explain(row, explained, self._explained(isolate[i]), frozen, isolate[i])
             if self.ticks >= self.deadline[row]:
                 waited = self.ticks - self.started[row]
                 if not self.confirmed[row]:
@@ -427,12 +429,12 @@ class SpeedSensorFDI:
                             self.provisional[row] |= explanation
                         continue
                     self.confirmed[row] = True
-                if self._doubtful(row, explanation, confirm[i], waited, patience, frozen):
+                if self._doubtful(row, explanation, confirm[i], waited, patience, frozen, explained):
                     self.deadline[row] = self.ticks + 1  # one more tick of evidence, distrusting what is suspected
                     if self._estimable[self.provisional[row] | explanation]:
                         self.provisional[row] |= explanation
                     continue
-                other = self._generator_alternative(explanation, self._explained(ratio[row]), frozen)
+                other = self._generator_alternative(explanation, explained, frozen)
                 if other is not None:
                     if not decided[row] and waited < self.arbitration_ticks:
                         self.deadline[row] = self.ticks + 1  # wait for the arbitration, trusting neither
@@ -476,13 +478,26 @@ class SpeedSensorFDI:
         return -1 if k >= self.s.window else 0
 
     def _doubtful(
-        self, row: int, explanation: int, confirm: np.ndarray, waited: int = 0, patience: int = 1, frozen: int = 0
+        self,
+        row: int,
+        explanation: int,
+        confirm: np.ndarray,
+        waited: int = 0,
+        patience: int = 1,
+        frozen: int = 0,
+        explained: np.ndarray | None = None,
     ) -> bool:
         """Whether the decision on an explanation chosen at the isolation level waits a tick (``waited`` ticks since
         the isolation started):
 
         * while ``waited`` < ``patience``, when a witness fails the laxer confirmation level
           ``isolation_confirm_alpha``: evidence of a further fault that has not yet grown enough to reject it;
+        * while ``waited`` < ``patience``, when the explanation grows the flagged and newly ``frozen`` sensors by a
+          sensor although they alone are consistent at the detection level (``explained``, the largest detection
+          ratio among each explanation's witnesses): one witness over the isolation level on the tick the frozen
+          test fires is, with probability about α_iso per witness, a healthy observer's noise, and for a healthy
+          sensor to be flagged beside the frozen one a witness must then stay over it on every tick up to the
+          patience (docs/decisions.md, "A frozen reading waits out a witness");
         * while ``waited`` < the rotor-speed tests' patience, when the explanation names no rotor-speed sensor and
           their sequential test has not yet decided (``rotor_pair.verdict`` 0): a rotor-speed gain beside a
           generator-speed fault shows in the pair's difference from its first tick but in the UIOs only as their
@@ -492,6 +507,11 @@ class SpeedSensorFDI:
         j = self.observer_of_mask[explanation]
         if j < 0 or self.ambiguous[row]:
             return False
+        keep = int(self.flagged[row]) | frozen
+        if explained is not None and frozen & ~self.flagged[row] and explanation != keep and waited < patience:
+            alone = self.observer_of_mask[keep]
+            if alone >= 0 and explained[alone] <= 1.0:
+                return True
         if (
             not explanation & _ROTOR_BITS
             and not explanation & frozen
