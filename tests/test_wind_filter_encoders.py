@@ -309,7 +309,7 @@ def test_region_1_rows_invert_on_the_stalled_branch():
         recovery = supervisor.estimator.recovery
         inversion = recovery.wind
 
-        def wind_seen(columns, v_guess, moved=None, stalled=None, inversion=inversion):
+        def wind_seen(columns, v_guess, moved=None, stalled=None, inversion=inversion, wind=wind):
             seen.append((wind, stalled.copy()))
             return inversion(columns, v_guess, moved, stalled)
 

@@ -497,9 +497,11 @@ class WindRecovery:
         return v
 
     def _stalled_root(self, v: np.ndarray, rows: np.ndarray, tau, speed, pitch, invert) -> None:
-        """``wind``'s stalled root, in place on the entries ``rows`` (m, n) bool of ``v``: the root from WIND_MAX
-        where it is a root of τ̂ (|τ(v) − τ̂| ≤ DISTINCT_ROOT |τ̂|, eq. of ``aero.rotor_torque``) above ``v`` by more
-        than DISTINCT_ROOT."""
+        """``wind``'s stalled root, in place on the entries ``rows`` (m, n) bool of ``v``: the iterate from WIND_MAX
+        (SETTLE_ITERATIONS) where it is a root of τ̂ (|τ_r(v) − τ̂| ≤ DISTINCT_ROOT |τ̂|, ``aero.rotor_torque``) above
+        ``v`` by more than DISTINCT_ROOT. Where τ̂ lies within a hair of the trough's level, the iterate may step past
+        the trough to the unstalled root (1 of 109 three-root cases in a random probe of region 1's ω_r and
+        β ∈ [−2, 1] deg); ``v`` is then kept."""
         if not rows.any():
             return
         at = np.nonzero(rows)
