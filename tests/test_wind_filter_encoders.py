@@ -264,3 +264,60 @@ def test_a_change_of_observer_inverts_the_new_torque_afresh():
     unmoved = aero.wind_from_torque(*(a[1] for a in args), fault_free[1], P, iterations=3)
     assert estimates.wind[1] == pytest.approx(unmoved, rel=1e-12)  # the warm start's 3 iterations
     assert np.log(aero.WIND_MAX / aero.WIND_MIN) / np.log(1.0 + aero._AWAY_STEP) <= SETTLE_ITERATIONS
+
+
+def test_a_fresh_inversion_below_cut_in_from_a_bad_warm_start_returns_the_stalled_root():
+    """Region 1 (below cut-in) runs on τ(v)'s stalled branch (λ ≈ 2 at 4 m/s; the hump is at λ ≈ 3.5–4.7). With
+    negative pitch a torque between the trough's and the hump's levels has three roots; at the 4 m/s rotor speed,
+    β = −1.5 deg and a 3 m/s wind's torque they are 1.38, 2.28 and 3 m/s. A fresh inversion (a change of observer)
+    from an estimate a fault took low (1.2 m/s, below the hump) went up the unstalled branch to 1.38 m/s; on a
+    region-1 row (``stalled``) it returns the stalled root, 3 m/s. Off region 1 and where τ(v) has one root the
+    result is the guess's root, unchanged to the last bit."""
+    omega, beta, truth = 0.137, -1.5, 3.0
+    grid = np.linspace(1.0, 8.0, 7001)
+    excess = aero.rotor_torque(grid, omega, beta, P) - aero.rotor_torque(truth, omega, beta, P)
+    assert np.count_nonzero(np.diff(excess > 0.0)) == 3  # three roots in [1, 8] m/s
+    five = DESIGN.index(frozenset(GENERATOR))
+    recovery = WindRecovery(P, DESIGN, 3, wind_cutoff_hz=0.3, speed_cutoff_hz=2.0)
+    filtered = np.zeros((3, 3 * len(DESIGN.names) + 1))
+    torque = np.array([aero.rotor_torque(truth, omega, beta, P), aero.rotor_torque(truth, omega, beta, P), 6.0e4])
+    filtered[:, five] = torque
+    filtered[:, recovery.speed_starts[0] + five] = omega
+    filtered[:, -1] = [beta, beta, 0.0]  # row 2: β = 0, one root (the stall plateau only flattens τ(v))
+    recovery._filtered = filtered
+    columns = np.full((1, 3), five)
+    guess = np.full((1, 3), 1.2)
+    moved = np.ones((1, 3), dtype=bool)
+    main = recovery.wind(columns, guess, moved)  # no row on the stalled branch: the guess's root
+    assert main[0, 0] == pytest.approx(1.381, abs=2e-3)
+    stalled = np.array([True, False, True])
+    v = recovery.wind(columns, guess, moved, stalled)
+    assert v[0, 0] == pytest.approx(truth, rel=1e-9)
+    assert v[0, 1] == main[0, 1] and v[0, 2] == main[0, 2]  # off region 1; one root
+    # unmoved estimates are untouched whatever ``stalled`` says
+    np.testing.assert_array_equal(recovery.wind(columns, guess, ~moved, stalled), recovery.wind(columns, guess, ~moved))
+
+
+def test_region_1_rows_invert_on_the_stalled_branch():
+    """The estimator tells the inversion which rows are in region 1 (the torque reference below
+    ``POWER_SPEED_MIN_TORQUE`` × rated, the selection's band): at 4 m/s all of them, at 7 m/s none."""
+    seen = []
+    for wind in (4.0, 7.0):
+        scenario = parse_scenario(tomllib.loads(AT_4_MS.replace("4.0", str(wind))))
+        plant = TurbineBatch(scenario.plant, scenario.wind, [], seed=5, runs=[0, 1])
+        supervisor = TurbineSupervisor(plant.n)
+        recovery = supervisor.estimator.recovery
+        inversion = recovery.wind
+
+        def wind_seen(columns, v_guess, moved=None, stalled=None, inversion=inversion, wind=wind):
+            seen.append((wind, stalled.copy()))
+            return inversion(columns, v_guess, moved, stalled)
+
+        recovery.wind = wind_seen
+        refs = None
+        for _ in range(300):
+            frame = plant.measure()
+            plant.control(refs)
+            refs = supervisor.step(frame)
+            plant.advance()
+    assert all(s.all() for w, s in seen if w == 4.0) and not any(s.any() for w, s in seen[-5:] if w == 7.0)

@@ -405,7 +405,9 @@ class UIOBankEstimator:
             columns = self._wind_columns(columns, faulty, frame)
             # an estimate whose observer changed since the last inversion is inverted afresh (``WindRecovery.wind``)
             moved = None if self._inverted is None else np.stack([columns != self._inverted, self._no_move])
-            self._winds = recovery.wind(np.stack([columns, self._reference_columns]), self._winds, moved)
+            # region 1 (the selection's band): the operating point is on τ(v)'s stalled branch
+            stalled = frame.tau_g_ref < self.context.power_speed_min_torque
+            self._winds = recovery.wind(np.stack([columns, self._reference_columns]), self._winds, moved, stalled)
             self._inverted = columns.copy()
         self.ticks += 1
         return Estimates(

@@ -46,6 +46,9 @@ from wwcore.turbine_params import TurbineParams
 # = 20.2), so the estimate is the new observer's root whatever the old guess (``WindRecovery.wind``).
 WARM_ITERATIONS = 3
 SETTLE_ITERATIONS = 21
+# A fresh inversion on the stalled branch (``WindRecovery.wind``'s ``stalled``) takes the root found from WIND_MAX
+# where it lies above the guess's root by more than this (relative): a second root, not the same one's last digits.
+DISTINCT_ROOT = 1e-6
 
 
 class Biquad:
@@ -451,7 +454,13 @@ class WindRecovery:
         variance = float(first.R[0, 0] + second.R[0, 0])
         return float(np.sqrt(variance * np.sum(response**2)))
 
-    def wind(self, columns: np.ndarray, v_guess: np.ndarray, moved: np.ndarray | None = None) -> np.ndarray:
+    def wind(
+        self,
+        columns: np.ndarray,
+        v_guess: np.ndarray,
+        moved: np.ndarray | None = None,
+        stalled: np.ndarray | None = None,
+    ) -> np.ndarray:
         """Wind speed of observer ``columns[i]`` (shape (m, n)) for every row: (m, n) m/s, one inversion call.
 
         ``v_guess`` (m, n) is the previous estimate of each: WARM_ITERATIONS from it suffice where the torque moved
@@ -460,7 +469,19 @@ class WindRecovery:
         have taken metres per second away, so they go on to SETTLE_ITERATIONS: enough to cross the whole
         [WIND_MIN, WIND_MAX] range at the 20 % steps of a flat branch, so the result is the new torque's root
         whatever the guess (``aero.wind_from_torque``; the same iterations continued, so unmoved rows and a guess
-        already at the root are unchanged)."""
+        already at the root are unchanged).
+
+        ``stalled`` (n,) bool (None: none): the rows whose operating point is on τ(v)'s stalled branch (λ below
+        the stall hump's), which are region 1's (``builtin.UIOBankEstimator``: the torque reference below
+        ``POWER_SPEED_MIN_TORQUE`` × rated, where the design model's steady states have λ ≤ 2.2 and the hump is at
+        λ ≈ 3.5–4.7). With negative pitch τ(v) rises, falls through the hump and rises again, and a torque between
+        the trough's and the hump's levels has three roots; the iteration from a guess below the hump (an estimate
+        a fault took low) returns the lowest, the unstalled one, metres per second below region 1's wind. A moved
+        estimate on those rows is also inverted from WIND_MAX: from above, Newton descends the stalled branch to
+        its root where the branch reaches the torque, and otherwise crosses the trough to the one root below, the
+        same as from the guess. That result replaces the guess's where it is a root above it by more than
+        DISTINCT_ROOT (relative): the stalled root. Where τ(v) has one root (β ≥ 0: at most a flat plateau) the
+        two are the same root and the guess's is kept."""
         rows = np.broadcast_to(np.arange(self.n), columns.shape)
         torque, omega_r = self._groups[0], self._groups[1]  # the published ω̂_r (see the module docstring)
         invert = aero.wind_from_torque if self._fast is None else self._fast.wind_from_torque
@@ -471,4 +492,21 @@ class WindRecovery:
         if moved is not None and moved.any():
             at = np.nonzero(moved)
             v[at] = invert(tau[at], speed[at], pitch[at], v[at], self.p, iterations=SETTLE_ITERATIONS - WARM_ITERATIONS)
+            if stalled is not None:
+                self._stalled_root(v, moved & stalled, tau, speed, pitch, invert)
         return v
+
+    def _stalled_root(self, v: np.ndarray, rows: np.ndarray, tau, speed, pitch, invert) -> None:
+        """``wind``'s stalled root, in place on the entries ``rows`` (m, n) bool of ``v``: the iterate from WIND_MAX
+        (SETTLE_ITERATIONS) where it is a root of τ̂ (|τ_r(v) − τ̂| ≤ DISTINCT_ROOT |τ̂|, ``aero.rotor_torque``) above
+        ``v`` by more than DISTINCT_ROOT. Where τ̂ lies within a hair of the trough's level, the iterate may step past
+        the trough to the unstalled root (1 of 109 three-root cases in a random probe of region 1's ω_r and
+        β ∈ [−2, 1] deg); ``v`` is then kept."""
+        if not rows.any():
+            return
+        at = np.nonzero(rows)
+        start = np.full(len(at[0]), aero.WIND_MAX)
+        top = invert(tau[at], speed[at], pitch[at], start, self.p, iterations=SETTLE_ITERATIONS)
+        residual = np.abs(aero.rotor_torque(top, speed[at], pitch[at], self.p) - tau[at])
+        higher = (top > v[at] * (1.0 + DISTINCT_ROOT)) & (residual <= DISTINCT_ROOT * np.abs(tau[at]))
+        v[at] = np.where(higher, top, v[at])
