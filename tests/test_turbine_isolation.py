@@ -380,8 +380,8 @@ def test_a_held_explanation_is_not_given_up_on_one_witness_crossing_the_isolatio
     first flag. A crossing beyond the wait's level (an end of the fault, a second fault) gives it up."""
     rows = 200
     first = _held_generator_fault_first_flags(rows, 61, crossing=1.2)
-    own = int(SpeedSensorFDI(DESIGN, 1, P.dt).observer_of_mask[BIT["omega_g_m2"]])
     fdi = SpeedSensorFDI(DESIGN, 1, P.dt)
+    own = int(fdi.observer_of_mask[BIT["omega_g_m2"]])
     assert 1.2 * fdi.h_isolate[own] < fdi.h_held[own], "the crossing is within the wait's level"
     assert (first != 0).all(), "every row flagged"
     assert int((first == BIT["omega_g_m2"]).sum()) >= 0.98 * rows, np.unique(first, return_counts=True)
