@@ -245,12 +245,17 @@ def test_a_detection_raised_by_noise_alone_ends_without_a_flag():
     """The isolation's "no fault" outcome: once a whole window after the detection's tick leaves the all-sensor
     observer's sum within its α_confirm/L level, the detection ends unflagged and the test re-arms. A noise
     detection then ends in a flag with probability ≤ α_confirm = 0.05 (here white χ² draws after the tick; the
-    earlier isolation, with no such outcome, flagged a sensor on every row, most often a rotor-speed one)."""
+    earlier isolation, with no such outcome, flagged a sensor on every row, most often a rotor-speed one). A noise
+    detection that passed the test (≤ α_confirm of them) and holds a generator-speed explanation waits on the
+    arbitration within its bound (``arbitration_s``): a tie-break on noise does not replace the explanation it
+    holds (N-27)."""
     rows = 2000
     fdi = _after_one_tick_over_the_detection_level(rows, 31, rotor_bias_test=False)
-    flagged = int((fdi.first_flag != 0).sum())
-    assert flagged <= rows * fdi.s.isolation_confirm_alpha, flagged
-    assert (fdi.deadline < 0).all(), "every detection decided"
+    ended = fdi.deadline < 0
+    flagged_or_waiting = int((fdi.first_flag != 0).sum() + (~ended).sum())
+    assert flagged_or_waiting <= rows * fdi.s.isolation_confirm_alpha, flagged_or_waiting
+    assert (ended | (fdi.confirmed & (fdi.held >= 0))).all(), "every detection decided, or confirmed and waiting"
+    assert (fdi.ticks - fdi.started[~ended] < fdi.arbitration_ticks).all()
     # the test re-armed: a fault on ω_g,m1 that follows is detected and flagged on every row
     rng = np.random.default_rng(32)
     truth = np.array([1.2, 1.2, 1.2 * P.N_g, 1.2 * P.N_g])
@@ -282,6 +287,107 @@ def test_a_fault_that_persists_after_the_detection_is_still_flagged():
     assert (fdi.first_flag & BIT["omega_r_m1"] != 0).all(), np.unique(fdi.first_flag, return_counts=True)
     # a healthy sensor beside it with probability about α_iso (the isolation level's price, module docstring)
     assert (fdi.first_flag != BIT["omega_r_m1"]).sum() <= 500 * 1e-3 + 3.0 * math.sqrt(500 * 1e-3)
+
+
+def _small_generator_gain_first_flags(rows: int, seed: int, dip: range) -> tuple[np.ndarray, np.ndarray]:
+    """A gain of 0.15 % on ω_g,m2 (0.17 rad/s, 3.4 σ_g) on ``rows`` turbines, as the random set of seed 81501's missed
+    window (docs/turbine.md, "A held explanation"): the observers that use both encoders see the pair's
+    disagreement (their window sums between the isolation and the detection levels, the all-sensor one over the
+    detection level on the first tick), those that leave one encoder out do not (a UIO takes an encoder's step
+    for aerodynamic torque), so {ω_g,m1} and {ω_g,m2} both explain the data and the isolation waits on the
+    arbitration, whose third opinion (the rotor-speed sensors and the power-speed channel, σ₃ ≈ 1 rad/s) needs
+    hundreds of ticks. On the ticks of ``dip`` every statistic is healthy: the window sums fall back under their
+    levels and every explanation is consistent, the empty one included. Returns each row's first flagged bitmask
+    (0: none) and, per row, whether the empty explanation was consistent at the isolation level on the dip's last
+    tick."""
+    fdi, rng, x_hat, truth, healthy = _settled_fdi(rows, seed, arbitration_s=2.0)
+    sigma_power = math.sqrt(fdi.arbiter.power_variance[0])
+    both_encoders = [
+        j
+        for j, left_out in enumerate(DESIGN.left_out[: DESIGN.n_isolating])
+        if not left_out & {"omega_g_m1", "omega_g_m2"}
+    ]
+    between = 0.5 * (fdi.h_isolate_window + fdi.h_window) / fdi.s.window - fdi._rank  # per tick, over the mean
+    first = np.zeros(rows, dtype=np.int64)
+    empty_consistent = np.zeros(rows, dtype=bool)
+    for k in range(fdi.arbitration_ticks + 30):
+        stat = healthy.copy()
+        stat[:, : DESIGN.n_isolating] = rng.chisquare(fdi._rank, (rows, DESIGN.n_isolating))
+        if k not in dip:
+            stat[:, both_encoders] += between[both_encoders]
+        if k == 0:
+            stat[:, fdi._all_healthy] += fdi.h_window[fdi._all_healthy]
+        y = truth + SPEED_SIGMA * rng.standard_normal((rows, 4))
+        y[:, 3] *= 1.0015
+        power_speed = truth[3] + sigma_power * rng.standard_normal(rows)
+        fdi.step(y, stat, x_hat, np.zeros(rows, dtype=np.int64), power_speed)
+        first = np.where(first == 0, fdi.flagged, first)
+        if k == dip[-1]:
+            n = DESIGN.n_isolating
+            isolate = np.maximum(stat[:, :n] / fdi.h_isolate, fdi._window_sum / fdi.h_isolate_window)
+            empty_consistent = (isolate * fdi.witnesses[fdi._all_healthy]).max(axis=1) <= 1.0
+    return first, empty_consistent
+
+
+def test_a_held_generator_speed_explanation_is_not_replaced_when_the_data_stop_pointing_anywhere():
+    """While a confirmed isolation waits on the arbitration for {ω_g,m2}, a few ticks on which every explanation is
+    consistent again (the small gain's window sums back under their levels) must not replace it: the earlier
+    isolation took the consistent one-sensor explanation with the smallest statistic on such a tick, a rotor-speed
+    sensor in about three rows of four (seed 81501's window: 15 wrong isolations). The held explanation is
+    replaced only once the data reject it at α_iso; the choice between the encoders stays the arbitration's, and
+    no row names a rotor-speed sensor."""
+    rows = 200
+    first, empty_consistent = _small_generator_gain_first_flags(rows, 51, range(40, 46))
+    assert empty_consistent.mean() >= 0.5, "the dip makes the data point nowhere"
+    assert (first != 0).all(), "every row flagged within the arbitration's bound"
+    rotor = BIT["omega_r_m1"] | BIT["omega_r_m2"]
+    assert int((first & rotor != 0).sum()) == 0, np.unique(first, return_counts=True)
+    assert int((first & BIT["omega_g_m2"] != 0).sum()) >= 0.8 * rows, np.unique(first, return_counts=True)
+
+
+def _held_generator_fault_first_flags(rows: int, seed: int, crossing: float) -> np.ndarray:
+    """ω_g,m2 faulty from tick 0, seen at once by every observer using it (χ² = 10⁴, as the random set of seed
+    82102's 7.56 σ offset), on ``rows`` turbines: {ω_g,m2} is the only one-sensor explanation, confirmed on the
+    deadline's tick and held while the rotor-speed pair's test (against ω_g,m1 through the gear) gathers its
+    verdict. On the tick after that, its own observer (4-g1, ω_g,m2 left out) reads ``crossing`` times its
+    single-tick isolation threshold: a witness of the held explanation over α_iso, under no other explanation's
+    witnesses but the empty one's. Returns each row's first flagged bitmask (0: none within 60 ticks)."""
+    fdi, rng, x_hat, truth, healthy = _settled_fdi(rows, seed)
+    own = int(fdi.observer_of_mask[BIT["omega_g_m2"]])
+    first = np.zeros(rows, dtype=np.int64)
+    for k in range(60):
+        stat = healthy.copy()
+        stat[:, : DESIGN.n_isolating] = rng.chisquare(fdi._rank, (rows, DESIGN.n_isolating))
+        for j, left_out in enumerate(DESIGN.left_out):
+            if "omega_g_m2" not in left_out:
+                stat[:, j] = 1e4
+        if k == fdi.s.isolation_delay + 1:
+            stat[:, own] = crossing * fdi.h_isolate[own]
+        y = truth + SPEED_SIGMA * rng.standard_normal((rows, 4))
+        y[:, 3] += 8.0 * SPEED_SIGMA[3]
+        fdi.step(y, stat, x_hat)
+        first = np.where(first == 0, fdi.flagged, first)
+    return first
+
+
+def test_a_held_explanation_is_not_given_up_on_one_witness_crossing_the_isolation_level():
+    """A held explanation is exposed on every tick of its wait to a witness's chance crossing of α_iso (about α_iso
+    a tick and witness): given up there, the choice went back to the tie-break among what was still consistent, here
+    the two-sensor explanations beside ω_g,m2 (a rotor-speed sensor or the healthy encoder with it), as on seed
+    82102's window (a 7.56 σ ω_g,m2 offset flagged with ω_r,m2) and seed 82501's (a 5.65 % gain flagged with
+    ω_g,m1). It is rejected only at the wait's level α_iso/N, which a true one reaches over the whole wait with
+    probability ≤ α_iso per witness: a crossing of 1.2 × the isolation threshold keeps it, and ω_g,m2 alone is the
+    first flag. A crossing beyond the wait's level (an end of the fault, a second fault) gives it up."""
+    rows = 200
+    first = _held_generator_fault_first_flags(rows, 61, crossing=1.2)
+    fdi = SpeedSensorFDI(DESIGN, 1, P.dt)
+    own = int(fdi.observer_of_mask[BIT["omega_g_m2"]])
+    assert 1.2 * fdi.h_isolate[own] < fdi.h_held[own], "the crossing is within the wait's level"
+    assert (first != 0).all(), "every row flagged"
+    assert int((first == BIT["omega_g_m2"]).sum()) >= 0.98 * rows, np.unique(first, return_counts=True)
+    # beyond the wait's level the held explanation is given up; the isolation restarts and ends on the tie-break
+    first = _held_generator_fault_first_flags(rows, 61, crossing=2.0 * fdi.h_held[own] / fdi.h_isolate[own])
+    assert int((first == BIT["omega_g_m2"]).sum()) <= 0.5 * rows, np.unique(first, return_counts=True)
 
 
 def test_a_reading_frozen_near_the_truth_is_flagged_without_arbitration():

@@ -57,6 +57,22 @@ evidence that its sensor is healthy again.
   so such an explanation is decided on the 4th tick at the earliest, after about 9.7 on a healthy pair, and the test
   names the biased sensor (``rotor_pair``). An explanation naming a
   frozen sensor is decided on one look (the sum's z beyond the isolation level in the pair's learnt spread).
+* **Hold.** Once the fault is confirmed ("No fault" above), an isolation that waits on an explanation it already
+  holds (the arbitration's choice between the encoders, the rotor-speed pair's test, a doubt) keeps it while the
+  wait lasts; on a tick where another explanation is consistent too, no tie-break replaces it. Among consistent
+  explanations of one size the choice is a tie-break on noise (the smaller statistic), and a choice re-made on every
+  tick of a wait that lasts hundreds of ticks lands sooner or later on whatever has no test to wait for, so its
+  error probability has no bound; the held explanation's is the bound of the tests it waits on. For the same reason
+  the held explanation is not given up on a witness's crossing of the isolation level α_iso, which a true one makes
+  with probability about α_iso on every tick of the wait: it is rejected only at the wait's level α_iso/N (each
+  witness's statistic and window sum at the upper α_iso/(2N) quantiles, N = ``arbitration_s``/Ts, the most ticks
+  any wait lasts), which a true held explanation ever reaches over its whole wait with probability ≤ α_iso per
+  witness (Bonferroni over the N looks). So rejected, the explanation consistent at α_iso takes its place where it
+  keeps the held sensors (or the held one with the other encoder: a further fault beside it); otherwise the
+  isolation starts afresh on that tick, with its own "no fault" test and the arbitration's sums restarted: the
+  data no longer fit what it was waiting on (most often the fault has ended), and neither the explanation nor the
+  sums gathered for it carry over. An explanation naming a frozen sensor is not held: its doubts wait on the
+  witnesses' next ticks and are re-explained on each ("Frozen signals" below).
 * **Persistent rotor-speed bias.** Beside the window tests, Page's CUSUMs (a bank of shifts ``bias_shift``·2^k,
   k < ``bias_bank``) on the parity of the two rotor-speed sensors' exclusion residuals against the generator-speed
   Kalman filter (``bias_test``; ``rotor_bias_test``, ``bias_shift``) flag a bias of 1–2 σ that the UIOs take for
@@ -148,6 +164,10 @@ class SpeedSensorFDI:
         self.h_isolate = chi2_isf(iso / 2.0, ranks)
         self.h_isolate_window = np.array([window_threshold(o.autocov, settings.window, iso / 2.0) for o in observers])
         confirm = max(settings.isolation_confirm_alpha, iso)
+        # a held explanation's rejection (``_still_explains``): α_iso spread over the N ticks a wait lasts at most
+        held = iso / max(round(settings.arbitration_s / dt), 1)
+        self.h_held = chi2_isf(held / 2.0, ranks)
+        self.h_held_window = np.array([window_threshold(o.autocov, settings.window, held / 2.0) for o in observers])
         self.h_confirm = chi2_isf(confirm / 2.0, ranks)
         self.h_confirm_window = np.array(
             [window_threshold(o.autocov, settings.window, confirm / 2.0) for o in observers]
@@ -242,6 +262,8 @@ class SpeedSensorFDI:
         self.started = np.zeros(n, dtype=np.int64)  # tick at which the pending isolation started
         # the ticks after the detection's have shown the fault (``_fault_persists``)
         self.confirmed = np.zeros(n, dtype=bool)
+        # the explanation a confirmed isolation last waited on (−1: none), kept until rejected at the wait's level
+        self.held = np.full(n, -1, dtype=np.int64)
         self.arbiter = GeneratorArbiter(bank, n, iso, dt, fast)
         self.arbitration_ticks = round(settings.arbitration_s / dt)
         # the rotor-speed sensors' sequential tests judge an explanation that names no rotor-speed sensor, on every
@@ -393,6 +415,7 @@ class SpeedSensorFDI:
         # a frozen reading is a fault whatever the residuals say; a flagged set no observer leaves out has no test
         untestable = ((frozen_mask & ~self.flagged) != 0) | (self.observer_of_mask[self.flagged] < 0)
         self.confirmed[start] = untestable[start]
+        self.held[start] = -1
         # the onset's jump names the generator-speed sensor unless one of the pair is flagged (``arbitration``)
         self.arbiter.reset(start, (self.flagged & _GENERATOR_BITS) == 0)
         suspected = _SENSORS_OF_MASK[self.flagged | self.provisional]
@@ -409,12 +432,22 @@ class SpeedSensorFDI:
         rows = np.flatnonzero(self.deadline >= 0)
         isolate = np.maximum(chi2_stat[rows] / self.h_isolate, self._window_sum[rows] / self.h_isolate_window)
         confirm = np.maximum(chi2_stat[rows] / self.h_confirm, self._window_sum[rows] / self.h_confirm_window)
+        held = np.maximum(chi2_stat[rows] / self.h_held, self._window_sum[rows] / self.h_held_window)
         patience = self.s.isolation_delay + self.s.isolation_patience
         before = self.flagged.copy()
         for i, row in enumerate(rows):
             frozen = int(frozen_mask[row])
             explained = self._explained(ratio[row])
             explanation = self._explain(row, explained, self._explained(isolate[i]), frozen, isolate[i])
+            if self.held[row] >= 0:
+                kept = int(self.held[row])
+                if self._still_explains(kept, held[i]):
+                    explanation = kept  # not rejected at the wait's level: a tie-break on noise does not replace it
+                elif self._grows(kept, explanation):
+                    self.held[row] = -1  # a further fault beside it: the explanation consistent at α_iso takes over
+                else:  # rejected, and not by a further fault beside it: the isolation starts afresh
+                    self._restart(row)
+                    continue
             if self.ticks >= self.deadline[row]:
                 waited = self.ticks - self.started[row]
                 if not self.confirmed[row]:
@@ -431,6 +464,9 @@ class SpeedSensorFDI:
                     self.confirmed[row] = True
                 if self._doubtful(row, explanation, confirm[i], waited, patience, frozen, explained):
                     self.deadline[row] = self.ticks + 1  # one more tick of evidence, distrusting what is suspected
+                    # a frozen sensor's decision waits on the witnesses' next ticks, re-explained each tick, not on
+                    # a test a hold would protect (the frozen reading's wait, decisions N-31)
+                    self.held[row] = explanation if not explanation & frozen else -1
                     if self._estimable[self.provisional[row] | explanation]:
                         self.provisional[row] |= explanation
                     continue
@@ -438,6 +474,7 @@ class SpeedSensorFDI:
                 if other is not None:
                     if not decided[row] and waited < self.arbitration_ticks:
                         self.deadline[row] = self.ticks + 1  # wait for the arbitration, trusting neither
+                        self.held[row] = explanation
                         both = self.provisional[row] | explanation | other
                         if self._estimable[both]:
                             self.provisional[row] = both
@@ -447,6 +484,7 @@ class SpeedSensorFDI:
                 explanation = self.rotor_pair.with_rotor(row, explanation, isolate[i], self.observer_of_mask, frozen)
                 self.flagged[row] = explanation
                 self.deadline[row] = -1
+                self.held[row] = -1
                 self.provisional[row] = explanation
             elif start[row]:
                 self.provisional[row] = explanation
@@ -476,6 +514,33 @@ class SpeedSensorFDI:
         if k and fresh > self.h_fresh[j, k]:
             return 1
         return -1 if k >= self.s.window else 0
+
+    def _still_explains(self, held: int, ratio: np.ndarray) -> bool:
+        """Whether the explanation a confirmed isolation waits on (``held``, a bitmask) is still consistent at the
+        wait's level α_iso/N: every witness of its observer within it (``ratio``, the statistics over their α_iso/2N
+        quantiles, ``h_held``). Only its rejection there ends the wait (module docstring, "Hold")."""
+        j = self.observer_of_mask[held]
+        return bool(j >= 0 and (self.witnesses[j] * ratio).max() <= 1.0)
+
+    @staticmethod
+    def _grows(held: int, explanation: int) -> bool:
+        """Whether ``explanation`` keeps the sensors of ``held``, or of ``held`` with the other generator-speed
+        sensor (the arbitration's choice stays open): a further fault beside the one the wait was on."""
+        generator = held & _GENERATOR_BITS
+        other = held ^ _GENERATOR_BITS if generator in (_BITS[2], _BITS[3]) else held
+        return (explanation & held) == held or (explanation & other) == other
+
+    def _restart(self, row: int) -> None:
+        """Start ``row``'s isolation afresh on this tick, as a detection on this tick starts one: its deadline
+        ``isolation_delay`` ahead, its "no fault" test asked again (``_fault_persists``), the explanation held none,
+        the arbitration's sums restarted (from the onset's jump where the parity shows one). The suspicion
+        (``provisional``) stays."""
+        self.started[row] = self.ticks
+        self.deadline[row] = self.ticks + self.s.isolation_delay
+        self.confirmed[row] = False
+        self.held[row] = -1
+        rows = self._rows == row
+        self.arbiter.reset(rows, rows & ((self.flagged & _GENERATOR_BITS) == 0))
 
     def _doubtful(
         self,
