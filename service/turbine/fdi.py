@@ -561,8 +561,8 @@ class SpeedSensorFDI:
           sensor although they alone are consistent at the detection level (``explained``, the largest detection
           ratio among each explanation's witnesses): one witness over the isolation level on the tick the frozen
           test fires is, with probability about α_iso per witness, a healthy observer's noise, and for a healthy
-          sensor to be flagged beside the frozen one a witness must then stay over it on every tick up to the
-          patience (docs/decisions.md, "A frozen reading waits out a witness");
+          sensor to be flagged beside the frozen one a witness must be over it again when the patience ends, a
+          window later (docs/decisions.md N-31);
         * while ``waited`` < the rotor-speed tests' patience, when the explanation names no rotor-speed sensor and
           their sequential test has not yet decided (``rotor_pair.verdict`` 0): a rotor-speed gain beside a
           generator-speed fault shows in the pair's difference from its first tick but in the UIOs only as their
