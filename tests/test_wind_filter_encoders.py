@@ -221,6 +221,18 @@ turbulence_intensity = 0.12
 """
 
 
+def _run_to_an_inversion(plant: TurbineBatch, supervisor: TurbineSupervisor, ticks: int) -> None:
+    """Step the plant and its supervisor ``ticks`` ticks, then on up to the tick before the estimator's next wind
+    inversion (``wind_every``), so that the next ``estimator.step`` inverts."""
+    estimator, refs, k = supervisor.estimator, None, 0
+    while k < ticks or estimator.ticks % estimator.wind_every:
+        frame = plant.measure()
+        plant.control(refs)
+        refs = supervisor.step(frame)
+        plant.advance()
+        k += 1
+
+
 def test_a_change_of_observer_inverts_the_new_torque_afresh():
     """The wind is inverted every 0.2 s by 3 iterations from the previous estimate, which suffice where the torque
     moved little since. A change of observer breaks that: the guess belongs to the old observer's torque, which a
@@ -231,17 +243,7 @@ def test_a_change_of_observer_inverts_the_new_torque_afresh():
     plant = TurbineBatch(scenario.plant, scenario.wind, [], seed=5, runs=[0, 1])
     supervisor = TurbineSupervisor(plant.n)
     estimator = supervisor.estimator
-    refs = None
-    for _ in range(3000):  # 30 s: observer 5's start (its Kalman filter and 0.0434 Hz wind filter) has died out
-        frame = plant.measure()
-        plant.control(refs)
-        refs = supervisor.step(frame)
-        plant.advance()
-    while estimator.ticks % estimator.wind_every:  # up to the tick before the next inversion
-        frame = plant.measure()
-        plant.control(refs)
-        refs = supervisor.step(frame)
-        plant.advance()
+    _run_to_an_inversion(plant, supervisor, 3000)  # 30 s: observer 5's start (its filters) has died out
     fault_free = supervisor.estimates.wind.copy()
     estimator._winds[0, 0] = 0.3 * fault_free[0]  # row 0: an estimate a fault took far off before it was suspected
     frame = plant.measure()
@@ -334,17 +336,7 @@ def test_the_wind_estimate_holds_while_no_observer_leaves_out_the_distrusted_sen
     plant = TurbineBatch(scenario.plant, scenario.wind, [], seed=5, runs=[0, 1])
     supervisor = TurbineSupervisor(plant.n, backend=backend)
     estimator = supervisor.estimator
-    refs = None
-    for _ in range(1000):
-        frame = plant.measure()
-        plant.control(refs)
-        refs = supervisor.step(frame)
-        plant.advance()
-    while estimator.ticks % estimator.wind_every:  # up to the tick before the next inversion
-        frame = plant.measure()
-        plant.control(refs)
-        refs = supervisor.step(frame)
-        plant.advance()
+    _run_to_an_inversion(plant, supervisor, 1000)
     before = supervisor.estimates.wind.copy()
     faulty = np.zeros((plant.n, len(DIAGNOSIS_TARGETS)), dtype=bool)
     faulty[0, [TARGET_INDEX[s] for s in ("omega_r_m2", "omega_g_m1", "omega_g_m2")]] = True
