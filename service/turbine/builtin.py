@@ -407,13 +407,13 @@ class UIOBankEstimator:
             moved = None if self._inverted is None else np.stack([columns != self._inverted, self._no_move])
             # region 1 (the selection's band): the operating point is on τ(v)'s stalled branch
             stalled = frame.tau_g_ref < self.context.power_speed_min_torque
-            held = self._winds[0].copy()
-            self._winds = recovery.wind(np.stack([columns, self._reference_columns]), self._winds, moved, stalled)
+            # no observer leaves out every distrusted sensor (``select`` −1): the estimate holds its last value
+            # rather than invert column 0's torque, which reads the distrusted sensors, and the next inversion on
+            # the observer it had warm-starts from it
             unfit = selected < 0
-            if unfit.any():
-                # no observer leaves out every distrusted sensor (``select`` −1): the estimate holds its last value
-                # rather than invert column 0's torque, which reads the distrusted sensors, and the next inversion
-                # on the observer it had warm-starts from it
+            held = self._winds[0].copy() if unfit.any() else None
+            self._winds = recovery.wind(np.stack([columns, self._reference_columns]), self._winds, moved, stalled)
+            if held is not None:
                 self._winds[0] = np.where(unfit, held, self._winds[0])
                 if self._inverted is not None:
                     columns = np.where(unfit, self._inverted, columns)

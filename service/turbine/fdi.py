@@ -12,16 +12,16 @@ evidence that its sensor is healthy again.
   observers' states drift from it over several ticks.
 * **Detection.** While the selected observer (the one that leaves out the flagged sensors) is consistent,
   nothing is raised. When it is not, a fault is detected.
-* **Isolation.** The new flagged set is the smallest set containing the flagged and frozen sensors whose
-  observer explains the data, i.e. is consistent at the isolation level α_iso (default 1e-3), ties broken by
-  the smaller statistic over threshold. Isolation is a choice between explanations once a fault is known to be
-  there, so it can afford a test far less strict than detection's: a second fault a few σ in size, too small
-  to trip detection on its own, still rejects the observer that leaves out only the first, and a simultaneous
-  pair is flagged together from the first tick. The price is a healthy sensor flagged with the faulty one
-  with probability about α_iso per isolation; its flag then clears on its own (below). Where no such set
-  passes, the detection level is used, and where no superset of the flags passes either, the whole bank is
-  searched (an isolation that went wrong may be replaced). Where nothing passes at all, the flags grow to the
-  least inconsistent superset, or stay where none is left: a flag drops only by its clearing test.
+* **Isolation.** The new flagged set is the smallest set containing the flagged and frozen sensors whose observer
+  explains the data, i.e. is consistent at the isolation level α_iso (default 1e-3), ties broken by the smaller
+  statistic over threshold (``explanations``). Isolation is a choice between explanations once a fault is known to be
+  there, so it can afford a test far less strict than detection's: a second fault a few σ in size, too small to trip
+  detection on its own, still rejects the observer that leaves out only the first, and a simultaneous pair is flagged
+  together from the first tick. The price is a healthy sensor flagged with the faulty one with probability about α_iso
+  per isolation; its flag then clears on its own (below). Where no such set passes, the detection level is used, and
+  where no superset of the flags passes either, the whole bank is searched (an isolation that went wrong may be
+  replaced). Where nothing passes at all, the flags grow to the least inconsistent superset, or stay where none is
+  left: a flag drops only by its clearing test.
 * **No fault.** A detection may be the noise alone (the detection tests spend their design budget), and no
   explanation then is the truth, while every one is consistent a few ticks later. So before choosing one, the
   isolation asks whether the observer that detected (the selected one: the all-sensor observer while nothing is
@@ -124,9 +124,17 @@ import numpy as np
 
 from service.turbine.adaptive import HealthySpread
 from service.turbine.arbitration import GeneratorArbiter
-from service.turbine.bank import GENERATOR, BankDesign, estimate_observers
+from service.turbine.bank import BankDesign, estimate_observers
 from service.turbine.bias_test import ROTOR, RotorBiasTest
 from service.turbine.clearing import FlagClearing
+from service.turbine.explanations import (
+    BITS,
+    GENERATOR_BITS,
+    N_SPEED,
+    ROTOR_BITS,
+    SENSORS_OF_MASK,
+    Explanations,
+)
 from service.turbine.fdi_settings import FDISettings
 from service.turbine.frozen import FrozenReadings
 from service.turbine.rotor_pair import RotorPairTest
@@ -135,16 +143,6 @@ from wwcore.backend import fast_module
 from wwcore.channels import SPEED_SENSORS
 from wwcore.quantiles import chi2_isf
 from wwcore.scenario.mismatch import SENSOR_BIAS_TOLERANCE
-
-N_SPEED = len(SPEED_SENSORS)
-_BITS = 1 << np.arange(N_SPEED)
-_SENSORS_OF_MASK = (np.arange(1 << N_SPEED)[:, None] >> np.arange(N_SPEED)) & 1 == 1  # (16, 4): bitmask → flags
-_GENERATOR_BITS = sum(1 << SPEED_SENSORS.index(g) for g in GENERATOR)
-_ROTOR_BITS = sum(1 << r for r in ROTOR)
-
-
-def _mask(left_out: frozenset[str]) -> int:
-    return sum(1 << SPEED_SENSORS.index(s) for s in left_out)
 
 
 class SpeedSensorFDI:
@@ -158,20 +156,20 @@ class SpeedSensorFDI:
         alpha = settings.false_alarms_per_1000s * dt / 1000.0
         ranks = bank.ranks[: bank.n_isolating]
         observers = bank.observers[: bank.n_isolating]
-        self.h_detect = chi2_isf(alpha / 2.0, ranks)
-        self.h_window = np.array([window_threshold(o.autocov, settings.window, alpha / 2.0) for o in observers])
+
+        def levels(level: float) -> tuple[np.ndarray, np.ndarray]:
+            """Each observer's single-tick χ² threshold and window-sum threshold at α = ``level``, split evenly."""
+            windows = [window_threshold(o.autocov, settings.window, level / 2.0) for o in observers]
+            return chi2_isf(level / 2.0, ranks), np.array(windows)
+
+        self.h_detect, self.h_window = levels(alpha)
         iso = max(settings.isolation_alpha, alpha)
-        self.h_isolate = chi2_isf(iso / 2.0, ranks)
-        self.h_isolate_window = np.array([window_threshold(o.autocov, settings.window, iso / 2.0) for o in observers])
+        self.h_isolate, self.h_isolate_window = levels(iso)
         confirm = max(settings.isolation_confirm_alpha, iso)
-        # a held explanation's rejection (``_still_explains``): α_iso spread over the N ticks a wait lasts at most
-        held = iso / max(round(settings.arbitration_s / dt), 1)
-        self.h_held = chi2_isf(held / 2.0, ranks)
-        self.h_held_window = np.array([window_threshold(o.autocov, settings.window, held / 2.0) for o in observers])
-        self.h_confirm = chi2_isf(confirm / 2.0, ranks)
-        self.h_confirm_window = np.array(
-            [window_threshold(o.autocov, settings.window, confirm / 2.0) for o in observers]
-        )
+        self.h_confirm, self.h_confirm_window = levels(confirm)
+        # a held explanation's rejection (``Explanations.consistent`` at it): α_iso spread over the N ticks a wait
+        # lasts at most
+        self.h_held, self.h_held_window = levels(iso / max(round(settings.arbitration_s / dt), 1))
         # the "no fault" outcome (``_fault_persists``): the selected observer's statistic summed over the k ticks after
         # the detection's, at level α_confirm / L for each of the L looks (k = max(isolation_delay, 1) … window), so a
         # detection raised by noise alone still ends in a flag with probability ≤ α_confirm (Bonferroni)
@@ -197,7 +195,6 @@ class SpeedSensorFDI:
         )
         # the rotor-speed bias test reads the exclusion residuals of the observer that predicts both rotor-speed
         # sensors without them and without the flagged generator-speed sensors (the generator-speed Kalman filters)
-        rotor_bits = _BITS[ROTOR[0]] | _BITS[ROTOR[1]]
         self.bias: RotorBiasTest | None = None
         self._bias_predictor = np.full(1 << N_SPEED, -1, dtype=np.int64)  # flagged mask → predictor, −1 untested
         if settings.rotor_bias_test:
@@ -214,9 +211,9 @@ class SpeedSensorFDI:
                 settings.bias_bank,
             )
             for mask in range(1 << N_SPEED):
-                if mask & rotor_bits:
+                if mask & ROTOR_BITS:
                     continue  # a rotor-speed sensor is flagged: its clearing watches it
-                j = int(predictors[mask | rotor_bits])
+                j = int(predictors[mask | ROTOR_BITS])
                 if j >= 0 and self.bias.usable(j):
                     self._bias_predictor[mask] = j
             if (self._bias_predictor < 0).all():
@@ -234,22 +231,9 @@ class SpeedSensorFDI:
         self._history = np.zeros((settings.window, n, bank.n_isolating))  # ring of the last χ² statistics
         self._window_sum = np.zeros((n, bank.n_isolating))
         self.warmup_ticks = round(settings.warmup_s / dt)
-        masks = [_mask(s) for s in bank.left_out]
-        self.observer_of_mask = np.full(1 << N_SPEED, -1)
-        for j, m in enumerate(masks):
-            self.observer_of_mask[m] = j
-        self.masks = np.array(masks)
-        self.sizes = np.array([len(s) for s in bank.left_out])
-        # witnesses[k, j]: observer j must be consistent for explanation k: every observer that leaves out at least
-        # k's sensors, where the flags would be right, except the Kalman-form ones (their random walk of the
-        # aerodynamic torque is too slow above rated to keep their residuals white there) unless j is k's own
-        kinds = [o.kind for o in bank.observers[: bank.n_isolating]]
-        self.witnesses = np.array(
-            [
-                [(mj & mk) == mk and (j == k or kinds[j] != "kalman") for j, mj in enumerate(masks)]
-                for k, mk in enumerate(masks)
-            ]
-        ).astype(float)
+        self.explanations = Explanations(bank)
+        self.observer_of_mask = self.explanations.observer_of_mask  # explanation (bitmask) → its observer
+        self.witnesses = self.explanations.witnesses
         self.flagged = np.zeros(n, dtype=np.int64)  # bitmask of flagged sensors per turbine
         self.readings = FrozenReadings((n, N_SPEED), settings.frozen_ticks, fast=fast)
         self.ticks = 0
@@ -280,7 +264,7 @@ class SpeedSensorFDI:
 
     @property
     def faulty(self) -> np.ndarray:
-        return _SENSORS_OF_MASK[self.flagged]
+        return SENSORS_OF_MASK[self.flagged]
 
     @property
     def selected(self) -> np.ndarray:
@@ -351,7 +335,7 @@ class SpeedSensorFDI:
             if self.bias is not None and self._rotor_bias(y, x_hat):
                 self._clear_raised(y, x_hat, torque_band)
             return  # nothing inconsistent, frozen, flagged or pending: what the lines below conclude on such a tick
-        frozen_mask = self.readings.frozen @ _BITS if any_frozen else self._no_frozen
+        frozen_mask = self.readings.frozen @ BITS if any_frozen else self._no_frozen
         if self._maybe_flagged or self._pending:
             selected = self.observer_of_mask[self.flagged]
             inconsistent = (ratio[self._rows, np.maximum(selected, 0)] > 1.0) | (selected < 0)
@@ -388,7 +372,7 @@ class SpeedSensorFDI:
         rows = over.any(axis=1)
         raised = np.zeros((self.n, N_SPEED), dtype=bool)
         raised[:, list(ROTOR)] = over
-        self.flagged[rows] |= (raised @ _BITS)[rows]
+        self.flagged[rows] |= (raised @ BITS)[rows]
         self.provisional[rows] = self.flagged[rows]
         self.clearing.start(raised)
         self.bias.reset(rows)
@@ -417,8 +401,8 @@ class SpeedSensorFDI:
         self.confirmed[start] = untestable[start]
         self.held[start] = -1
         # the onset's jump names the generator-speed sensor unless one of the pair is flagged (``arbitration``)
-        self.arbiter.reset(start, (self.flagged & _GENERATOR_BITS) == 0)
-        suspected = _SENSORS_OF_MASK[self.flagged | self.provisional]
+        self.arbiter.reset(start, (self.flagged & GENERATOR_BITS) == 0)
+        suspected = SENSORS_OF_MASK[self.flagged | self.provisional]
         trusted_power = None if power_speed is None else np.isfinite(power_speed)
         self.arbiter.step(
             y,
@@ -426,7 +410,7 @@ class SpeedSensorFDI:
             np.zeros(self.n, dtype=np.int64) if torque_band is None else torque_band,
             ~suspected[:, :2],
             trusted_power,
-            ~_SENSORS_OF_MASK[self.flagged][:, :2].any(axis=1),  # the pair is compared unless one is flagged
+            ~SENSORS_OF_MASK[self.flagged][:, :2].any(axis=1),  # the pair is compared unless one is flagged
         )
         decided = self.arbiter.decided()
         rows = np.flatnonzero(self.deadline >= 0)
@@ -435,15 +419,19 @@ class SpeedSensorFDI:
         held = np.maximum(chi2_stat[rows] / self.h_held, self._window_sum[rows] / self.h_held_window)
         patience = self.s.isolation_delay + self.s.isolation_patience
         before = self.flagged.copy()
+        explanations = self.explanations
         for i, row in enumerate(rows):
             frozen = int(frozen_mask[row])
-            explained = self._explained(ratio[row])
-            explanation = self._explain(row, explained, self._explained(isolate[i]), frozen, isolate[i])
+            explained = explanations.explained(ratio[row])
+            explanation, self.ambiguous[row] = explanations.explain(
+                int(self.flagged[row]), explained, explanations.explained(isolate[i]), frozen, isolate[i]
+            )
             if self.held[row] >= 0:
                 kept = int(self.held[row])
-                if self._still_explains(kept, held[i]):
+                # only a rejection at the wait's level α_iso/N ends the wait (module docstring, "Hold")
+                if explanations.consistent(kept, held[i]):
                     explanation = kept  # not rejected at the wait's level: a tie-break on noise does not replace it
-                elif self._grows(kept, explanation):
+                elif explanations.grows(kept, explanation):
                     self.held[row] = -1  # a further fault beside it: the explanation consistent at α_iso takes over
                 else:  # rejected, and not by a further fault beside it: the isolation starts afresh
                     self._restart(row)
@@ -470,7 +458,7 @@ class SpeedSensorFDI:
                     if self._estimable[self.provisional[row] | explanation]:
                         self.provisional[row] |= explanation
                     continue
-                other = self._generator_alternative(explanation, explained, frozen)
+                other = explanations.generator_alternative(explanation, explained, frozen)
                 if other is not None:
                     if not decided[row] and waited < self.arbitration_ticks:
                         self.deadline[row] = self.ticks + 1  # wait for the arbitration, trusting neither
@@ -479,7 +467,7 @@ class SpeedSensorFDI:
                         if self._estimable[both]:
                             self.provisional[row] = both
                         continue
-                    if (self.arbiter.log_ratio[row] > 0.0) != bool(explanation & _BITS[2]):
+                    if (self.arbiter.log_ratio[row] > 0.0) != bool(explanation & BITS[2]):
                         explanation = other
                 explanation = self.rotor_pair.with_rotor(row, explanation, isolate[i], self.observer_of_mask, frozen)
                 self.flagged[row] = explanation
@@ -494,7 +482,7 @@ class SpeedSensorFDI:
                 self.provisional[row] |= explanation
         raised = self.flagged & ~before
         if raised.any():
-            self.clearing.start(_SENSORS_OF_MASK[raised])
+            self.clearing.start(SENSORS_OF_MASK[raised])
         self._pending = bool((self.deadline >= 0).any())
         self._maybe_flagged = True
 
@@ -515,21 +503,6 @@ class SpeedSensorFDI:
             return 1
         return -1 if k >= self.s.window else 0
 
-    def _still_explains(self, held: int, ratio: np.ndarray) -> bool:
-        """Whether the explanation a confirmed isolation waits on (``held``, a bitmask) is still consistent at the
-        wait's level α_iso/N: every witness of its observer within it (``ratio``, the statistics over their α_iso/2N
-        quantiles, ``h_held``). Only its rejection there ends the wait (module docstring, "Hold")."""
-        j = self.observer_of_mask[held]
-        return bool(j >= 0 and (self.witnesses[j] * ratio).max() <= 1.0)
-
-    @staticmethod
-    def _grows(held: int, explanation: int) -> bool:
-        """Whether ``explanation`` keeps the sensors of ``held``, or of ``held`` with the other generator-speed
-        sensor (the arbitration's choice stays open): a further fault beside the one the wait was on."""
-        generator = held & _GENERATOR_BITS
-        other = held ^ _GENERATOR_BITS if generator in (_BITS[2], _BITS[3]) else held
-        return (explanation & held) == held or (explanation & other) == other
-
     def _restart(self, row: int) -> None:
         """Start ``row``'s isolation afresh on this tick, as a detection on this tick starts one: its deadline
         ``isolation_delay`` ahead, its "no fault" test asked again (``_fault_persists``), the explanation held none,
@@ -540,7 +513,7 @@ class SpeedSensorFDI:
         self.confirmed[row] = False
         self.held[row] = -1
         rows = self._rows == row
-        self.arbiter.reset(rows, rows & ((self.flagged & _GENERATOR_BITS) == 0))
+        self.arbiter.reset(rows, rows & ((self.flagged & GENERATOR_BITS) == 0))
 
     def _doubtful(
         self,
@@ -578,7 +551,7 @@ class SpeedSensorFDI:
             if alone >= 0 and explained[alone] <= 1.0:
                 return True
         if (
-            not explanation & _ROTOR_BITS
+            not explanation & ROTOR_BITS
             and not explanation & frozen
             and waited < self.rotor_pair.patience
             and self.rotor_pair.verdict(row, explanation) == 0
@@ -586,56 +559,18 @@ class SpeedSensorFDI:
             return True
         return waited < patience and bool((self.witnesses[j] * confirm).max() > 1.0)
 
-    def _explained(self, ratio: np.ndarray) -> np.ndarray:
-        """For each explanation (observer index), the largest ratio among its witnesses (n_isolating,)."""
-        return (self.witnesses * ratio).max(axis=1)
-
-    def _generator_alternative(self, explanation: int, isolate: np.ndarray, frozen: int = 0) -> int | None:
-        """The same explanation with the other generator-speed sensor, if the residuals do not rule it out
-        (consistent at the detection level: only the arbitration can tell a small fault's sensor) and the
-        explanation's own generator-speed sensor is not frozen (a frozen reading is a fault whatever its value)."""
-        generator = explanation & _GENERATOR_BITS
-        if generator not in (_BITS[2], _BITS[3]) or generator & frozen:
-            return None
-        other = explanation ^ _GENERATOR_BITS
-        j = self.observer_of_mask[other]
-        return int(other) if j >= 0 and isolate[j] <= 1.0 else None
-
     @property
     def pending(self) -> bool:
         """Whether an isolation is under way on any row (``provisional`` holds its current explanation: sensors an
         estimator should not lean on before they are flagged)."""
         return self._pending
 
-    def _explain(self, row: int, ratio: np.ndarray, isolate: np.ndarray, frozen: int, own: np.ndarray) -> int:
-        """The smallest explanation of the data that keeps the flagged and frozen sensors (module docstring):
-        consistent when all its witnesses are (``ratio``, ``isolate``); among consistent ones of one size, the one
-        whose own observer's statistic (``own``, at the isolation level) is smallest, i.e. that leaves least of
-        the data unexplained."""
-        current = int(self.flagged[row])
-        keep = current | frozen
-        supersets = ((self.masks & keep) == keep) & (self.masks != current)
-        with_frozen = ((self.masks & frozen) == frozen) & (self.masks != current)
-        order = ((supersets, isolate), (supersets, ratio), (with_frozen, isolate), (with_frozen, ratio))
-        for pool_mask, level in order:
-            pool = np.flatnonzero(pool_mask & (level <= 1.0))
-            if len(pool):
-                self.ambiguous[row] = False
-                return int(self.masks[pool[np.lexsort((own[pool], self.sizes[pool]))[0]]])
-        self.ambiguous[row] = True
-        # nothing explains the data: the flags grow (the smallest superset, least inconsistent), and where none is
-        # left they stay; a flag drops only by its clearing test, never because no explanation fits a gust
-        candidates = np.flatnonzero(supersets)
-        if len(candidates) == 0:  # every sensor an observer can leave out is flagged or frozen already
-            return keep
-        return int(self.masks[candidates[np.lexsort((ratio[candidates], self.sizes[candidates]))[0]]])
-
     def _clear(self, y: np.ndarray, x_hat: np.ndarray, frozen_mask: np.ndarray, skip: np.ndarray, torque_band) -> None:
         """Unflag sensor s where its CUSUM says healthy and the observer 'selected set + s' is consistent."""
         if self.spread.enabled:  # the exclusion residuals in units of the row's healthy noise scale (``adaptive``)
             noise = self.spread.scale[:, self._all_healthy, None]
             y, x_hat = y / noise, x_hat / noise
-        ready = self.clearing.step(y, x_hat, self.flagged, _SENSORS_OF_MASK[frozen_mask], torque_band)
+        ready = self.clearing.step(y, x_hat, self.flagged, SENSORS_OF_MASK[frozen_mask], torque_band)
         ready &= ~skip[:, None]
         if not ready.any():
             return
