@@ -469,6 +469,64 @@ def test_a_frozen_reading_with_a_second_fault_is_flagged_with_it_within_the_pati
     assert k <= bound
 
 
+def _generator_offset_first_flags(rows: int, seed: int, witness_stat) -> tuple[np.ndarray, np.ndarray]:
+    """ω_g,m2 offset by 8 σ_g from tick 0 (detected on tick 0, its deadline ``isolation_delay`` ticks later), seen at
+    once by every observer using it (χ² = 10⁴), as the random set of seed 83509's 17.9 σ offset (docs/turbine.md);
+    ``witness_stat(k, j)`` is observer j's χ² on tick k where not None (else its mean). Returns each row's first
+    flagged bitmask (0: none within 40 ticks) and the tick of it."""
+    fdi, rng, x_hat, truth, healthy = _settled_fdi(rows, seed)
+    first = np.zeros(rows, dtype=np.int64)
+    tick = np.full(rows, -1)
+    for k in range(40):
+        stat = healthy.copy()
+        for j, left_out in enumerate(DESIGN.left_out):
+            value = witness_stat(k, j)
+            stat[:, j] = 1e4 if "omega_g_m2" not in left_out else (stat[0, j] if value is None else value)
+        y = truth + SPEED_SIGMA * rng.standard_normal((rows, 4))
+        y[:, 3] += 8.0 * SPEED_SIGMA[3]
+        fdi.step(y, stat, x_hat)
+        tick = np.where((first == 0) & (fdi.flagged != 0), k, tick)
+        first = np.where(first == 0, fdi.flagged, first)
+    return first, tick
+
+
+def test_a_healthy_witness_over_the_isolation_level_does_not_join_a_sensor_on_the_deciding_tick():
+    """Seed 83509's window (docs/turbine.md): on the deciding tick observer 6-r2g2, a witness of ω_g,m2 alone that
+    never reads it, is just over the isolation level, under the detection level, so ω_g,m2 alone is consistent at
+    the detection level only. Deciding on that tick flagged the smallest superset consistent at the isolation level
+    with the smallest own statistic, ω_r,m1 + ω_g,m2 (6-r1g2's, under the Kalman-form 5's for both encoders), the
+    healthy ω_r,m1 with it; the decision waits instead, the choice re-made each tick, and ω_g,m2 alone is first."""
+    fdi = _fdi()
+    j = DESIGN.names.index("6-r2g2")
+    spike = 1.05 * fdi.h_isolate[j]
+    assert spike < fdi.h_detect[j] and spike + 3 * fdi._rank[j] < fdi.h_window[j], "under the detection level"
+    deciding = fdi.s.isolation_delay
+    first, tick = _generator_offset_first_flags(50, 71, lambda k, i: spike if (k, i) == (deciding, j) else None)
+    assert (first == BIT["omega_g_m2"]).all(), np.unique(first, return_counts=True)
+    assert (tick > deciding).all()
+
+
+@pytest.mark.parametrize("level", ["between", "beyond"])
+def test_a_second_fault_over_the_isolation_level_joins_within_the_patience(level):
+    """ω_g,m2 as above with ω_r,m1 faulty too: the observers reading ω_r,m1 but not ω_g,m2 (3-g2, 6-r2g2) have
+    their window sums between the isolation and the detection levels on every tick ("between": ω_g,m2 alone is
+    consistent at the detection level, so the decision waits, re-made each tick, to ``isolation_delay`` +
+    ``isolation_patience`` ticks), or each tick beyond the detection level ("beyond": nothing to wait for, decided
+    on the deadline as before). Both are flagged together first."""
+    fdi = _fdi()
+    w = fdi.s.window
+    per_tick = {"between": 0.5 * (fdi.h_isolate_window + fdi.h_window) / w, "beyond": 1.5 * fdi.h_detect}[level]
+    assert (per_tick[:, None] < (fdi.h_isolate if level == "between" else np.inf)).all()
+
+    def stat(k, j):
+        return None if "omega_r_m1" in DESIGN.left_out[j] else per_tick[j]
+
+    first, tick = _generator_offset_first_flags(20, 72, stat)
+    assert (first == BIT["omega_r_m1"] | BIT["omega_g_m2"]).all(), np.unique(first, return_counts=True)
+    bound = fdi.s.isolation_delay + (fdi.s.isolation_patience if level == "between" else 0)
+    assert (tick <= bound).all(), tick
+
+
 @pytest.mark.parametrize(
     ("options", "key"),
     [

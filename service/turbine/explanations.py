@@ -64,6 +64,15 @@ class Explanations:
         other = held ^ GENERATOR_BITS if generator in (BITS[2], BITS[3]) else held
         return (explanation & held) == held or (explanation & other) == other
 
+    def grown_by_chance(self, explanation: int, keep: int, current: int, detect: np.ndarray) -> bool:
+        """Whether ``explanation`` grows a smaller one that keeps the ``keep`` sensors, names one beside the
+        ``current`` flags and is consistent at the detection level (``detect``: ``explained``'s ratios at it). The
+        choice takes the smallest explanation consistent at the isolation level, so the smaller one lost only by a
+        witness between the isolation and the detection levels."""
+        masks = self.masks
+        smaller = ((masks & keep) == keep) & ((masks & explanation) == masks) & (masks != explanation)
+        return bool((detect[smaller & (masks != current)] <= 1.0).any())
+
     def generator_alternative(self, explanation: int, isolate: np.ndarray, frozen: int = 0) -> int | None:
         """The same explanation with the other generator-speed sensor, if the residuals do not rule it out
         (consistent at the detection level, ``isolate`` being ``explained``'s ratios there: only the arbitration can

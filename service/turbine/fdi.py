@@ -72,7 +72,18 @@ evidence that its sensor is healthy again.
   isolation starts afresh on that tick, with its own "no fault" test and the arbitration's sums restarted: the
   data no longer fit what it was waiting on (most often the fault has ended), and neither the explanation nor the
   sums gathered for it carry over. An explanation naming a frozen sensor is not held: its doubts wait on the
-  witnesses' next ticks and are re-explained on each ("Frozen signals" below).
+  witnesses' next ticks and are re-explained on each ("Frozen signals" below); nor is one during a chance join's
+  patience (below).
+* **Chance joins.** Where the chosen explanation grows a smaller one (a superset of the flagged and frozen sensors
+  naming a sensor beside the flags) that is consistent at the detection level, only a witness of the smaller one
+  between the isolation and the detection levels made the choice: a healthy witness crosses α_iso on a tick with
+  probability about α_iso (n_w α_iso for an explanation's n_w witnesses, 3–4·10⁻³ for a one-sensor one). The
+  decision then waits a tick rather than flag the healthy sensor, while the isolation has waited less than
+  ``isolation_delay`` + ``isolation_patience`` ticks, and the choice is re-made on each of them, nothing held, so
+  the decision at the patience's end is the choice of that tick. A healthy sensor then joins only if a witness is
+  over α_iso on the deciding tick and again at the patience's end, a window or more later: about (n_w α_iso)²; a
+  real second fault whose witness stays between the two levels joins at the patience's end, one beyond the
+  detection level at once (docs/decisions.md N-31 for a frozen reading, N-3x for any explanation).
 * **Persistent rotor-speed bias.** Beside the window tests, Page's CUSUMs (a bank of shifts ``bias_shift``·2^k,
   k < ``bias_bank``) on the parity of the two rotor-speed sensors' exclusion residuals against the generator-speed
   Kalman filter (``bias_test``; ``rotor_bias_test``, ``bias_shift``) flag a bias of 1–2 σ that the UIOs take for
@@ -93,9 +104,7 @@ evidence that its sensor is healthy again.
   on the tick the frozen test fires (the test has seen ``frozen_ticks`` of the fault already) and never waits for
   the generator-speed arbitration (``arbitration``), which a reading frozen near the truth would keep open for
   seconds; but where the flagged and frozen sensors alone are consistent at the detection level and a witness
-  is over the isolation level, the decision waits a tick, up to ``isolation_patience``, rather than flag the
-  smallest superset consistent at it: a healthy witness crosses α_iso on the one tick with probability about α_iso,
-  on that tick and again a window later about α_iso² (``_doubtful``).
+  is over the isolation level, the decision waits as for any chance join ("Chance joins" above).
 * **Which generator-speed sensor.** Where an explanation names one generator-speed sensor and the other is not
   ruled out, the isolation waits for the arbitration (``arbitration``): the fault's first ticks against the pair
   mean's own prediction, then sums against the rotor-speed sensors and the power-speed channel.
@@ -248,6 +257,8 @@ class SpeedSensorFDI:
         self.confirmed = np.zeros(n, dtype=bool)
         # the explanation a confirmed isolation last waited on (−1: none), kept until rejected at the wait's level
         self.held = np.full(n, -1, dtype=np.int64)
+        # a chance join was waited out (``_isolate``): the choice is re-made on every tick up to the patience
+        self.rechoosing = np.zeros(n, dtype=bool)
         self.arbiter = GeneratorArbiter(bank, n, iso, dt, fast)
         self.arbitration_ticks = round(settings.arbitration_s / dt)
         # the rotor-speed sensors' sequential tests judge an explanation that names no rotor-speed sensor, on every
@@ -400,6 +411,7 @@ class SpeedSensorFDI:
         untestable = ((frozen_mask & ~self.flagged) != 0) | (self.observer_of_mask[self.flagged] < 0)
         self.confirmed[start] = untestable[start]
         self.held[start] = -1
+        self.rechoosing[start] = False
         # the onset's jump names the generator-speed sensor unless one of the pair is flagged (``arbitration``)
         self.arbiter.reset(start, (self.flagged & GENERATOR_BITS) == 0)
         suspected = SENSORS_OF_MASK[self.flagged | self.provisional]
@@ -450,11 +462,26 @@ class SpeedSensorFDI:
                             self.provisional[row] |= explanation
                         continue
                     self.confirmed[row] = True
-                if self._doubtful(row, explanation, confirm[i], waited, patience, frozen, explained):
+                flagged = int(self.flagged[row])
+                if (
+                    waited < patience
+                    and self.held[row] < 0
+                    and not self.ambiguous[row]
+                    and explanations.grown_by_chance(explanation, flagged | frozen, flagged, explained)
+                ):
+                    # a witness between the isolation and the detection levels grows it: wait a tick, the choice
+                    # re-made on each until the patience ends, none held meanwhile (module docstring, "Chance joins")
+                    self.rechoosing[row] = True
+                    self.deadline[row] = self.ticks + 1
+                    if self._estimable[self.provisional[row] | explanation]:
+                        self.provisional[row] |= explanation
+                    continue
+                # a frozen sensor's decision, and one re-made on every tick of the patience, waits on the witnesses'
+                # next ticks, not on a test a hold would protect (decisions N-31)
+                holds = not (explanation & frozen or (self.rechoosing[row] and waited < patience))
+                if self._doubtful(row, explanation, confirm[i], waited, patience, frozen):
                     self.deadline[row] = self.ticks + 1  # one more tick of evidence, distrusting what is suspected
-                    # a frozen sensor's decision waits on the witnesses' next ticks, re-explained each tick, not on
-                    # a test a hold would protect (the frozen reading's wait, decisions N-31)
-                    self.held[row] = explanation if not explanation & frozen else -1
+                    self.held[row] = explanation if holds else -1
                     if self._estimable[self.provisional[row] | explanation]:
                         self.provisional[row] |= explanation
                     continue
@@ -462,7 +489,7 @@ class SpeedSensorFDI:
                 if other is not None:
                     if not decided[row] and waited < self.arbitration_ticks:
                         self.deadline[row] = self.ticks + 1  # wait for the arbitration, trusting neither
-                        self.held[row] = explanation
+                        self.held[row] = explanation if holds else -1
                         both = self.provisional[row] | explanation | other
                         if self._estimable[both]:
                             self.provisional[row] = both
@@ -512,6 +539,7 @@ class SpeedSensorFDI:
         self.deadline[row] = self.ticks + self.s.isolation_delay
         self.confirmed[row] = False
         self.held[row] = -1
+        self.rechoosing[row] = False
         rows = self._rows == row
         self.arbiter.reset(rows, rows & ((self.flagged & GENERATOR_BITS) == 0))
 
@@ -523,19 +551,12 @@ class SpeedSensorFDI:
         waited: int = 0,
         patience: int = 1,
         frozen: int = 0,
-        explained: np.ndarray | None = None,
     ) -> bool:
         """Whether the decision on an explanation chosen at the isolation level waits a tick (``waited`` ticks since
         the isolation started):
 
         * while ``waited`` < ``patience``, when a witness fails the laxer confirmation level
           ``isolation_confirm_alpha``: evidence of a further fault that has not yet grown enough to reject it;
-        * while ``waited`` < ``patience``, when the explanation grows the flagged and newly ``frozen`` sensors by a
-          sensor although they alone are consistent at the detection level (``explained``, the largest detection
-          ratio among each explanation's witnesses): one witness over the isolation level on the tick the frozen
-          test fires is, with probability about α_iso per witness, a healthy observer's noise, and for a healthy
-          sensor to be flagged beside the frozen one a witness must be over it again when the patience ends, a
-          window later (docs/decisions.md N-31);
         * while ``waited`` < the rotor-speed tests' patience, when the explanation names no rotor-speed sensor and
           their sequential test has not yet decided (``rotor_pair.verdict`` 0): a rotor-speed gain beside a
           generator-speed fault shows in the pair's difference from its first tick but in the UIOs only as their
@@ -545,11 +566,6 @@ class SpeedSensorFDI:
         j = self.observer_of_mask[explanation]
         if j < 0 or self.ambiguous[row]:
             return False
-        keep = int(self.flagged[row]) | frozen
-        if explained is not None and frozen & ~self.flagged[row] and explanation != keep and waited < patience:
-            alone = self.observer_of_mask[keep]
-            if alone >= 0 and explained[alone] <= 1.0:
-                return True
         if (
             not explanation & ROTOR_BITS
             and not explanation & frozen
