@@ -79,7 +79,7 @@ class EstimatorSettings:
     # its level on this share of the wind's inversions; 0: no test
     encoder_pair_alpha: Annotated[float, Bounds(ge=0.0, lt=1.0)] = 1e-3
     # one generator-speed encoder flagged: the wind's torque from both encoders, the flagged one's reading less an
-    # estimate of its fault (``encoder_compensation``), where that is the quieter torque
+    # estimate of its fault (``encoder_compensation``), once that is the quieter torque
     encoder_compensation: bool = True
 
 
@@ -232,42 +232,49 @@ class UIOBankEstimator:
         self._fault_estimate: EncoderFaultEstimate | None = None
         if settings.encoder_compensation and len(pair) == 2 and settings.estimate_from == "generator":
             self._fault_estimate = self._encoder_fault_estimate(design, context)
-        self._corrected = np.zeros(context.n, dtype=bool)  # rows whose observer 4 reads the corrected encoder
-        self._compensated = np.zeros(context.n, dtype=bool)  # rows whose wind's torque is that observer 4's
+        self._corrected = np.zeros(context.n, dtype=bool)  # rows with a column on the corrected pair (``_compensate``)
+        self._compensated = np.zeros(context.n, dtype=bool)  # rows whose wind's torque is that column's
         self._compensated_inverted = np.zeros(context.n, dtype=bool)  # ``_compensated`` at the last inversion
 
     def _encoder_fault_estimate(self, design, context: TurbineContext) -> EncoderFaultEstimate:
         """The fault estimate of a flagged generator-speed encoder (``encoder_compensation``), with the ticks from
-        which its corrected reading makes observer 4's filtered torque quieter than the healthy encoder's observer
-        (``ticks_until_better``), and observer 4's weight of each encoder (its H, (2 encoders, its states))."""
-        both = self._both_encoders
-        observer = design.observers[both]
-        sensors = [observer.sensors.index(g) for g in GENERATOR]
-        self._encoder_weights = observer.H[:, sensors].T.copy()  # x̂ = … + H y: each encoder's column
-        self._both_block = slice(design.offsets[both], design.offsets[both] + observer.n_states)
-        sigma = np.sqrt(np.diag(observer.R)[sensors])
-        c_now, c_prev = self.recovery.rigid_speed_coefficients(design, both)
+        which the corrected pair makes a quieter torque than the healthy encoder alone (``ticks_until_better``). Kept
+        for ``_compensate``: each encoder's one-encoder observer (``_own``: the column that carries the corrected pair
+        while that encoder is flagged), its x̂ block and H (``_own_block``, ``_own_gain``: x̂ = … + h y), and observer
+        4's inverse-variance weight of the encoder (``_own_weight``)."""
+        both = design.observers[self._both_encoders]
+        sensors = [both.sensors.index(g) for g in GENERATOR]
+        self._own = np.array(self._pair[::-1])  # single_generator[k] leaves out encoder k: [1 − k] runs on it
+        self._own_block = [slice(design.offsets[j], design.offsets[j] + design.observers[j].n_states) for j in self._own]
+        self._own_gain = [design.observers[j].H[:, 0].copy() for j in self._own]
+        self._own_weight = [float(both.H[1, i]) for i in sensors]
+        sigma = np.sqrt(np.diag(both.R)[sensors])
         cutoffs = self.recovery.torque_cutoffs_hz
-        # the same ticks for either encoder where the two are alike (the design's σ); else the later of the two
-        ticks = max(
-            ticks_until_better(
-                c_now, c_prev, float(observer.H[1, sensors[k]]), float(sigma[1 - k]), float(sigma[k]),
-                float(cutoffs[both]), float(cutoffs[self._pair[k]]), context.dt,
-            )  # fmt: skip
-            for k in range(2)
-        )
-        return EncoderFaultEstimate(context.n, context.dt, float(np.hypot(*sigma)), ticks)
+        ticks = []
+        for k in range(2):
+            c_now, c_prev = self.recovery.rigid_speed_coefficients(design, int(self._own[k]))
+            cutoff = float(cutoffs[self._own[k]])
+            ticks.append(
+                ticks_until_better(
+                    c_now, c_prev, self._own_weight[k], float(sigma[1 - k]), float(sigma[k]), cutoff,
+                    float(cutoffs[self._pair[k]]), context.dt,
+                )  # fmt: skip
+            )
+        # −1 (never) for either encoder: never; else the later of the two (the same where the σ are alike)
+        return EncoderFaultEstimate(context.n, context.dt, float(np.hypot(*sigma)), -1 if -1 in ticks else max(ticks))
 
     def _compensate(self, bank, mask: np.ndarray, flagged: np.ndarray, frame: TurbineFrame) -> np.ndarray:
-        """The x̂ the wind recovery runs on this tick: the bank's, except observer 4's on the rows where one
-        generator-speed encoder is flagged (``flagged``, bitmasks per row), the other trusted (``mask``: the
-        distrusted speed sensors), and its fault estimate predicts (``EncoderFaultEstimate.step``): there observer 4
-        takes the flagged reading less the predicted fault, ỹ_f = y_f − d̂ (x̂ − H_f d̂). Observer 4's torque is not
-        used on those rows otherwise (the estimate is on the healthy encoder's observer), so it is fed from the
-        estimate's start, and a row that starts takes over the healthy encoder's observer's filters
-        (``WindRecovery.transfer``): its filters have forgotten the take-over and the estimate's first, noisy
-        predictions by the time the wind uses it (``_compensated``: ``EncoderFaultEstimate.ready``). The bank's x̂
-        itself is not changed: the detector, the controller's speeds and the other columns read the raw readings."""
+        """The x̂ the wind recovery runs on this tick: the bank's, except on the rows where one generator-speed encoder
+        is flagged (``flagged``, bitmasks per row), the other trusted (``mask``: the distrusted speed sensors), and
+        its fault estimate predicts (``EncoderFaultEstimate.step``): there the flagged encoder's own one-encoder
+        observer (4-g2 for ω_g,m1, 4-g1 for ω_g,m2), which the estimate does not use while the flag lasts, reads the
+        corrected pair instead, ω̂_g = (1 − w) y_h + w (y_f − d̂) with observer 4's weight w (x̂ + h (ω̂_g − y_f)). Its
+        torque filter is the healthy encoder's observer's (the one-encoder cutoff), so the corrected pair's torque
+        has that observer's lag and less noise. It is fed from the estimate's start, and a row that starts takes
+        over the healthy encoder's observer's filters (``WindRecovery.transfer``), which have forgotten the
+        estimate's first, noisy predictions by the time the wind uses it (``_compensated``:
+        ``EncoderFaultEstimate.ready``). The bank's x̂ itself is not changed: the detector, the controller's speeds
+        and the other columns read the raw readings."""
         estimate = self._fault_estimate
         generator = mask & (_GENERATOR_BITS[0] | _GENERATOR_BITS[1])
         encoder = np.full(self.context.n, -1, dtype=np.int64)
@@ -289,15 +296,17 @@ class UIOBankEstimator:
         self._compensated = estimate.ready.copy()
         if not use.any():
             return bank.x_hat
-        rows = np.flatnonzero(use)
         x_hat = bank.x_hat.copy()
-        x_hat[rows, self._both_block] -= estimate.prediction[rows, None] * self._encoder_weights[encoder[rows]]
+        for k in range(2):
+            rows = np.flatnonzero(use & (encoder == k))
+            if len(rows):
+                w = self._own_weight[k]
+                shift = (1.0 - w) * (healthy[rows] - faulty[rows]) - w * estimate.prediction[rows]  # ω̂_g − y_f
+                x_hat[rows, self._own_block[k]] += shift[:, None] * self._own_gain[k]
         if started.any():
             rows = np.flatnonzero(started)
-            healthy_observer = np.asarray(self._pair)[encoder[rows]]  # single_generator[k] leaves out encoder k
-            self.recovery.transfer(
-                rows, np.full(len(rows), self._both_encoders), healthy_observer, self.context.bank_design, x_hat
-            )
+            source = np.asarray(self._pair)[encoder[rows]]  # the healthy encoder's observer
+            self.recovery.transfer(rows, self._own[encoder[rows]], source, self.context.bank_design, x_hat)
         return x_hat
 
     def _take_over(self, bank, selected: np.ndarray, mask: np.ndarray, flagged: np.ndarray) -> None:
@@ -492,12 +501,13 @@ class UIOBankEstimator:
                 misfit = self._fault_estimate.test()
                 self._corrected &= ~misfit
                 self._compensated &= ~misfit
-                columns = np.where(self._compensated, self._both_encoders, columns)
+                own = self._own[np.maximum(self._fault_estimate.encoder, 0)]
+                columns = np.where(self._compensated, own, columns)
                 # the wind moving onto the corrected pair stays on the torque it came from (the take-over), so the
                 # inversion is warm; off it, the corrected torque may be what no longer fits: afresh
                 onto = self._compensated & ~self._compensated_inverted
                 if onto.any() and self._inverted is not None:
-                    self._inverted = np.where(onto, self._both_encoders, self._inverted)
+                    self._inverted = np.where(onto, own, self._inverted)
             self._compensated_inverted = self._compensated.copy()
             # an estimate whose observer changed since the last inversion is inverted afresh (``WindRecovery.wind``)
             moved = None if self._inverted is None else np.stack([columns != self._inverted, self._no_move])

@@ -63,7 +63,7 @@ def torque_noise_variances(
     weight_faulty: float,
     sigma_healthy: float,
     sigma_faulty: float,
-    cutoff_both_hz: float,
+    cutoff_pair_hz: float,
     cutoff_one_hz: float,
     dt: float,
     forget_s: float = FORGET_S,
@@ -81,7 +81,7 @@ def torque_noise_variances(
     forget = round(forget_s / dt)
     lam = 1.0 - 1.0 / forget
     horizon = 2 * forget
-    history = int(np.ceil(10.0 / (2.0 * np.pi * min(cutoff_both_hz, cutoff_one_hz) * dt)))
+    history = int(np.ceil(10.0 / (2.0 * np.pi * min(cutoff_pair_hz, cutoff_one_hz) * dt)))
     # row n: the prediction's weights on d[0..n−1], by ``EncoderFaultEstimate.step``'s recursion on θ̂'s weights
     predict = np.zeros((horizon, horizon))
     theta = np.zeros((N_PARAMS, horizon))  # θ̂ = theta @ d
@@ -105,7 +105,7 @@ def torque_noise_variances(
     on_healthy[history:, history:] += weight_faulty * predict  # −w a_nᵀ(e_f − e_h)
     on_faulty[post, np.arange(horizon)] = weight_faulty
     on_faulty[history:, :] -= weight_faulty * predict
-    b, a = butter2_lowpass(cutoff_both_hz, dt)
+    b, a = butter2_lowpass(cutoff_pair_hz, dt)
     variance = np.zeros(horizon)
     for coefficients, sigma in ((on_healthy, sigma_healthy), (on_faulty, sigma_faulty)):
         raw = c_now * coefficients
