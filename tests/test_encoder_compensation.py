@@ -1,6 +1,7 @@
 """Fault estimation and compensation of a flagged generator-speed encoder (``service.turbine.encoder_compensation``):
-the fault (offset, drift) against the healthy encoder by recursive least squares, the corrected reading, its residual
-test, when it makes the quieter torque, and the wind estimate through a flagged offset (docs/turbine.md, "Estimates")."""
+the fault (offset, drift) against the healthy encoder by recursive least squares, the corrected reading, its
+residual test, when it makes the quieter torque, and the wind estimate through a flagged offset (docs/turbine.md,
+"Estimates")."""
 
 from __future__ import annotations
 
@@ -9,7 +10,7 @@ import pytest
 
 from plant_sim.turbine import TurbineBatch
 from service.turbine.builtin import UIOBankEstimator
-from service.turbine.encoder_compensation import EncoderFaultEstimate, torque_noise_variances, ticks_until_better
+from service.turbine.encoder_compensation import EncoderFaultEstimate, ticks_until_better, torque_noise_variances
 from service.turbine.interfaces import TurbineContext
 from service.turbine.supervisor import TurbineSupervisor
 from wwcore.channels import SENSOR_INDEX, SENSORS, noise_std
@@ -28,8 +29,10 @@ def _readings(rng, rows: int, ticks: int, dt: float):
     t = np.arange(ticks)[:, None] * dt
     phase = rng.uniform(0, 2 * np.pi, (1, rows))
     omega = 13.0 + 0.5 * np.sin(2 * np.pi * 0.02 * t + phase) + 0.2 * np.sin(2 * np.pi * 0.05 * t + 2 * phase)
-    return omega, omega + SIGMA_G * rng.standard_normal((ticks, rows)), omega + SIGMA_G * rng.standard_normal(
-        (ticks, rows)
+    return (
+        omega,
+        omega + SIGMA_G * rng.standard_normal((ticks, rows)),
+        omega + SIGMA_G * rng.standard_normal((ticks, rows)),
     )
 
 
@@ -46,12 +49,12 @@ def _estimate(faulty: np.ndarray, healthy: np.ndarray, forget_s: float, min_tick
 
 def test_offset_and_drift_are_recovered_within_their_standard_errors():
     """Synthetic readings, 400 rows × 20 s with an offset of −7σ_g and a drift of +0.3σ_g/s on the faulty encoder:
-    with a forgetting time of 1 000 s (λ = 1 − 10⁻⁵, the weights within 2 % of 1) the least squares' b̂ and ŝ are off by their standard errors σ_d √P in distribution
-    (the z-scores' spread within 10 % of 1, none beyond 4.5), and with the estimator's 10-s forgetting every row is
-    within 4.5 of its (approximate) standard errors."""
+    with a forgetting time of 1 000 s (λ = 1 − 10⁻⁵, the weights within 2 % of 1) the least squares' b̂ and ŝ are
+    off by their standard errors σ_d √P in distribution (the z-scores' spread within 10 % of 1, none beyond 4.5),
+    and with the estimator's 10-s forgetting every row is within 4.5 of its (approximate) standard errors."""
     rng = np.random.default_rng(84204)
     rows, ticks = 400, 2_000
-    omega, healthy, faulty = _readings(rng, rows, ticks, P.dt)
+    _, healthy, faulty = _readings(rng, rows, ticks, P.dt)
     offset, drift = -7.0 * SIGMA_G, 0.3 * SIGMA_G
     t = np.arange(ticks)[:, None] * P.dt
     faulty = faulty + offset + drift * t
@@ -83,10 +86,10 @@ def test_a_gain_is_followed_as_a_moving_offset():
 
 def test_the_residual_test_restarts_where_the_fault_changed_and_rarely_elsewhere():
     """Blocks of 20 ticks (the wind's inversions): on a fault that fits (1) the test restarts a share ≈ α = 10⁻³ of
-    the blocks; a further 2σ_g step of the offset restarts every row within two blocks."""
+    the blocks; a further 2σ_g step of the offset restarts every settled row's estimate within two blocks."""
     rng = np.random.default_rng(84206)
     rows, ticks = 200, 2_040
-    omega, healthy, faulty = _readings(rng, rows, ticks, P.dt)
+    _, healthy, faulty = _readings(rng, rows, ticks, P.dt)
     faulty = faulty - 5.0 * SIGMA_G
     step_at = 2_000
     faulty[step_at:] += 2.0 * SIGMA_G
@@ -99,10 +102,13 @@ def test_the_residual_test_restarts_where_the_fault_changed_and_rarely_elsewhere
             misfit = estimate.test()
             false += int(misfit.sum()) if k < step_at else 0
             restarted = np.where(misfit, k, restarted)
+            if k == step_at - 1:
+                settled = restarted < step_at - 100  # fits a second old or more when the step comes
     assert 5 <= false <= 40  # 200 rows × 100 blocks at α = 10⁻³: 20 expected (Poisson: outside [5, 40] < 10⁻⁴)
-    # every row's estimate restarted with the step's first block or after (one restarted by chance at the block
-    # just before it estimates the new offset from the start)
-    assert (restarted >= step_at - 1).all()
+    # every row whose fit was a second old or more restarted with the step's first two blocks (a fit restarted by
+    # chance just before rests on a few ticks and absorbs much of the step into its offset)
+    assert settled.sum() >= 0.95 * rows
+    assert (restarted[settled] >= step_at).all()
 
 
 def test_a_frozen_reading_is_never_corrected():
@@ -118,21 +124,22 @@ def test_a_frozen_reading_is_never_corrected():
 
 
 def test_the_corrected_pair_is_quieter_once_the_estimate_has_settled():
-    """The wind filter's torque noise on the corrected pair (observer 4, 0.3 Hz) against the healthy encoder's
-    observer (0.252 Hz): early on the prediction's own motion makes it noisier; from ``ticks_until_better`` ticks
-    it is quieter for good, and at the forgetting's stationarity it is within 5 % of the pair of healthy encoders'
-    bound, 2 × (0.3/0.252)³ = 2^(1/4) × quieter: the estimate takes back little of what the second encoder brings."""
-    estimator = UIOBankEstimator(context=TurbineContext(P, 1))
-    both, one = estimator._both_encoders, estimator._pair[0]
-    c_now, c_prev = estimator.recovery.rigid_speed_coefficients(TurbineContext(P, 1).bank_design, both)
+    """The wind filter's torque noise on the corrected pair against the healthy encoder's alone, both at the
+    one-encoder cutoff (0.252 Hz): early on the prediction's own motion makes the pair noisier; from
+    ``ticks_until_better`` ticks (235, 2.35 s) it is quieter for good, and at the forgetting's stationarity within
+    5 % of half (the pair of healthy encoders': the estimate takes back little of what the second one brings)."""
+    context = TurbineContext(P, 1)
+    estimator = UIOBankEstimator(context=context)
+    own, healthy = estimator._own[0], estimator._pair[0]  # ω_g,m1 flagged: 4-g2 runs on it, 4-g1 on ω_g,m2
+    c_now, c_prev = estimator.recovery.rigid_speed_coefficients(context.bank_design, int(own))
     cutoffs = estimator.recovery.torque_cutoffs_hz
-    args = (c_now, c_prev, 0.5, SIGMA_G, SIGMA_G, float(cutoffs[both]), float(cutoffs[one]), P.dt)
+    assert cutoffs[own] == cutoffs[healthy] < 0.3
+    args = (c_now, c_prev, 0.5, SIGMA_G, SIGMA_G, float(cutoffs[own]), float(cutoffs[healthy]), P.dt)
     variance, single = torque_noise_variances(*args)
     start = ticks_until_better(*args)
-    assert start == estimator._fault_estimate.min_ticks
-    assert 100 < start < 1_000
+    assert start == estimator._fault_estimate.min_ticks == 235
     assert (variance[start:] <= single).all() and variance[start - 1] > single
-    assert variance[-1] / single == pytest.approx(2.0 ** (-0.25), rel=0.05)
+    assert variance[-1] / single == pytest.approx(0.5, rel=0.05)
 
 
 def _offset_run(compensation: bool, backend: str = "numpy") -> tuple[np.ndarray, np.ndarray]:

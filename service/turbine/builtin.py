@@ -245,20 +245,21 @@ class UIOBankEstimator:
         both = design.observers[self._both_encoders]
         sensors = [both.sensors.index(g) for g in GENERATOR]
         self._own = np.array(self._pair[::-1])  # single_generator[k] leaves out encoder k: [1 − k] runs on it
-        self._own_block = [slice(design.offsets[j], design.offsets[j] + design.observers[j].n_states) for j in self._own]
+        self._own_block = [
+            slice(design.offsets[j], design.offsets[j] + design.observers[j].n_states) for j in self._own
+        ]
         self._own_gain = [design.observers[j].H[:, 0].copy() for j in self._own]
         self._own_weight = [float(both.H[1, i]) for i in sensors]
         sigma = np.sqrt(np.diag(both.R)[sensors])
         cutoffs = self.recovery.torque_cutoffs_hz
         ticks = []
         for k in range(2):
-            c_now, c_prev = self.recovery.rigid_speed_coefficients(design, int(self._own[k]))
-            cutoff = float(cutoffs[self._own[k]])
+            own = int(self._own[k])
+            c_now, c_prev = self.recovery.rigid_speed_coefficients(design, own)
+            sigmas = (float(sigma[1 - k]), float(sigma[k]))  # the healthy encoder's, the flagged one's
+            cutoff, healthy_cutoff = float(cutoffs[own]), float(cutoffs[self._pair[k]])
             ticks.append(
-                ticks_until_better(
-                    c_now, c_prev, self._own_weight[k], float(sigma[1 - k]), float(sigma[k]), cutoff,
-                    float(cutoffs[self._pair[k]]), context.dt,
-                )  # fmt: skip
+                ticks_until_better(c_now, c_prev, self._own_weight[k], *sigmas, cutoff, healthy_cutoff, context.dt)
             )
         # −1 (never) for either encoder: never; else the later of the two (the same where the σ are alike)
         return EncoderFaultEstimate(context.n, context.dt, float(np.hypot(*sigma)), -1 if -1 in ticks else max(ticks))

@@ -1,12 +1,13 @@
 """Fault estimation and compensation of a flagged generator-speed encoder, for the wind estimate only.
 
 While one generator-speed encoder is flagged and the other trusted, the wind estimate runs on the observer of the
-healthy one (4-g1 or 4-g2), whose torque has twice the speed noise of observer 4's (the one-encoder floor,
-``docs/turbine.md``). The flagged encoder still reads the shaft, only wrongly: for an offset, a drift or a small
-gain, its readings less an estimate of the fault are a second, independent reading of ω_g at the frequencies the
-wind's torque filter passes. This module estimates the fault against the healthy encoder and gives the estimator
-the corrected reading (``UIOBankEstimator``: observer 4's x̂ with the corrected reading in place of the faulty one,
-for the wind's torque only). The detector never sees it: it judges the raw readings.
+healthy one (4-g1 or 4-g2), whose torque carries one encoder's noise instead of two encoders' mean (the one-encoder
+floor, ``docs/turbine.md``). The flagged encoder still reads the shaft, only wrongly: for an offset, a drift or a
+small gain, its readings less an estimate of the fault are a second, independent reading of ω_g at the frequencies
+the wind's torque filter passes. This module estimates the fault against the healthy encoder; the estimator
+(``UIOBankEstimator._compensate``) feeds the corrected pair to the flagged encoder's own one-encoder observer, which
+the estimate does not use while the flag lasts, and inverts the wind from its torque once that is the quieter one.
+The detector never sees it: it judges the raw readings, and the speeds sent to the controller are unchanged.
 
 The fault model, on the difference d = y_f − y_h of the faulty and the healthy reading (rad/s; t the time since the
 estimate started, in units of the forgetting time T)::
@@ -16,28 +17,31 @@ estimate started, in units of the forgetting time T)::
 an offset b and a drift s (rad/s per T), estimated by recursive least squares with forgetting factor
 λ = 1 − Δt/T (weights λ^age). A gain g is followed as the slowly moving offset (g − 1) ω(t): the forgetting's window
 T tracks ω's trend, and what it misses, (g − 1) × ω's motion faster than 1/T, moves the torque by (g − 1) of its
-own share. A regression on the healthy reading (d on y_h) would estimate g directly, but y_h's own noise biases
-it by −σ_h²/var(ω) (errors in variables): −1 % where ω moves by ±0.5 rad/s, the size of the gains themselves.
+own share. A regression on the healthy reading (d on y_h) would estimate g itself, but y_h's own noise biases it by
+−σ_h²/var(ω) (errors in variables): −1 % where ω moves by ±0.5 rad/s, the size of the gains themselves.
 
 The corrected reading is ỹ_f[n] = y_f[n] − d̂[n], d̂ the prediction of (1) from the ticks before n. Its error is
-e_f[n] minus the prediction's error, which lies below the estimate's bandwidth 1/(2πT): there ỹ_f repeats y_h, and
-above it ỹ_f is independent of y_h. The torque's noise is a differenced white noise through the wind filter,
-concentrated near its cutoff f_c (variance ∝ f_c³), so with T ≥ 10/(2π f_c) (5.3 s at 0.3 Hz) the estimate takes
-back a share ≤ (2π f_c T)⁻³ = 10⁻³ of what the second encoder brings; T = ``FORGET_S`` = 10 s. The linear drift in
-(1) keeps a steady drift's prediction unbiased (an offset alone would lag it by s, which the residual test below
-would reject); T then bounds how fast the drift itself may change.
+e_f[n] less the prediction's error, which lies below the estimate's bandwidth: there ỹ_f repeats y_h, above it ỹ_f
+is independent of y_h. The torque's noise is a differenced white noise through the wind filter, concentrated near
+its cutoff f_c, so a T well above 1/(2π f_c) leaves the second encoder's contribution almost whole: with
+T = ``FORGET_S`` = 10 s (0.016 Hz against 0.252 Hz) the corrected pair's stationary torque noise is 0.518 × the
+healthy encoder's alone, against 0.5 for a healthy pair (``torque_noise_variances``). The linear drift in (1) keeps a
+steady drift's prediction unbiased (an offset alone would lag it by s T, which the residual test below would
+reject); T then bounds how fast the drift itself may change.
 
-When the corrected reading is better than leaving the encoder out (``ticks_until_better``): the noise variance of
-the wind filter's torque on the corrected pair, n ticks after the estimate started, against the one-encoder
-observer's at its own cutoff. Both are linear in the encoders' white noise, so their variances are exact sums of
-squared coefficients. Early on the prediction moves with each tick's noise (it rests on n ticks), and that motion is
-torque noise; from ``min_ticks`` ticks on the corrected pair is quieter for good.
+When the corrected pair is better than leaving the encoder out (``ticks_until_better``): both torques go through
+the same filter (the one-encoder cutoff), so their lags are equal and the better one is the less noisy. Both are
+linear in the encoders' white noise, so the variances are exact sums of squared coefficients: n ticks after the
+estimate started, the corrected pair's against the healthy encoder's alone. Early on the prediction moves with each
+tick's noise (it rests on n ticks), and that motion is torque noise; from ``min_ticks`` ticks (235 on the benchmark's
+encoders, 2.35 s) the corrected pair is quieter for good.
 
 The residual test: over each block of ticks between two inversions of the wind (``wind_every``), the innovations
 r[n] = d[n] − d̂[n] of (1) are summed; under (1) the sum is normal with variance Σ (σ_f² + σ_h²)(1 + φᵀPφ). A sum
 beyond its two-sided ``ALPHA`` quantile means the fault no longer fits (its size or kind changed): the estimate
 restarts, and the corrected reading is left out until it has ``min_ticks`` ticks again. A flagged reading that
-repeats exactly (a frozen sensor) carries nothing of the shaft and is never corrected while its flag lasts.
+repeats exactly (a frozen sensor, a fixed value) carries nothing of the shaft and is never corrected while its flag
+lasts.
 """
 
 from __future__ import annotations
@@ -69,15 +73,16 @@ def torque_noise_variances(
     forget_s: float = FORGET_S,
 ) -> tuple[np.ndarray, float]:
     """The noise variance (N m)² of the corrected pair's filtered torque n = 0 … 2T/Δt − 1 ticks after the fault
-    estimate started (inf for the first ``N_PARAMS``), and the one-encoder observer's, on the same encoders.
+    estimate started (inf for the first ``N_PARAMS``), and the healthy encoder's one-encoder observer's.
 
     Raw torque of a rigid observer: c_now ω̂[n] + c_prev ω̂[n−1] (the map's coefficients of ω̂_g), filtered by the
-    second-order Butterworth at the column's cutoff. The corrected pair's ω̂[n] = (1 − w) y_h[n] + w ỹ_f[n]
-    (``weight_faulty`` w: observer 4's weight of the flagged encoder), ỹ_f[n] = y_f[n] − a_nᵀ d[0..n−1] with a_n the
-    weights of (1)'s weighted least-squares prediction at n (forgetting λ); before the start the column ran on
-    the healthy encoder alone (the take-over, ``WindRecovery.transfer``). Noise variance at n: σ_h² ‖g_h,n‖² +
-    σ_f² ‖g_f,n‖², g the coefficients of each encoder's noise sequence in the filtered torque. The one-encoder
-    observer's: σ_h² Σ_k h_k², h the impulse response of its filter on c_now + c_prev z⁻¹."""
+    second-order Butterworth at the column's cutoff (``cutoff_pair_hz``, ``cutoff_one_hz``). The corrected pair's
+    ω̂[n] = (1 − w) y_h[n] + w ỹ_f[n] (``weight_faulty`` w: observer 4's inverse-variance weight of the flagged
+    encoder), ỹ_f[n] = y_f[n] − a_nᵀ d[0..n−1] with a_n the weights of (1)'s prediction at n (``EncoderFaultEstimate
+    .step``'s recursion from its diffuse start); before the start the column ran on the healthy encoder alone (the
+    take-over, ``WindRecovery.transfer``). Noise variance at n: σ_h² ‖g_h,n‖² + σ_f² ‖g_f,n‖², g the coefficients of
+    each encoder's noise sequence in the filtered torque. The one-encoder observer's: σ_h² Σ_k h_k², h the impulse
+    response of its filter on c_now + c_prev z⁻¹."""
     forget = round(forget_s / dt)
     lam = 1.0 - 1.0 / forget
     horizon = 2 * forget
