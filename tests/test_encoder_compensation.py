@@ -17,6 +17,7 @@ from wwcore.channels import SENSOR_INDEX, SENSORS, noise_std
 from wwcore.scenario.faults import FaultKind, FaultSpec
 from wwcore.scenario.turbine import TurbinePlant
 from wwcore.scenario.wind import WindSpec
+from wwcore.stepping import run_ticks
 from wwcore.turbine_params import BENCHMARK as P
 
 SIGMA_G = noise_std(SENSORS[SENSOR_INDEX["omega_g_m1"]], "sigma")
@@ -156,30 +157,28 @@ def _offset_run(compensation: bool, backend: str = "numpy") -> tuple[np.ndarray,
         turbines=list(range(1, rows + 1)), fault_free_twins=True,
     )  # fmt: skip
     supervisor = TurbineSupervisor(plant.n, options={"encoder_compensation": compensation}, backend=backend)
-    refs = None
     squared = np.zeros(plant.n)
     winds = []
-    for k in range(round(end / P.dt)):
-        frame = plant.measure()
-        plant.control(refs)
-        refs = supervisor.step(frame)
-        plant.advance()
+
+    def record(k: int, frame, refs) -> None:
         winds.append(supervisor.estimates.wind.copy())
-        if k * P.dt >= start + 10.0:  # after the estimate has settled (≈ 5.5 s after the flag)
+        if k * P.dt >= start + 10.0:  # after the estimate has settled (2.35 s after the flag)
             error = supervisor.estimates.wind - plant.true_rotor_wind()
-            squared += error * error
+            squared[:] += error * error
+
+    run_ticks(plant, supervisor, range(round(end / P.dt)), stepped=record)
     return squared[:rows] / squared[rows:], np.array(winds)
 
 
 def test_the_wind_estimate_through_a_flagged_offset_is_better_compensated():
     """A −10σ_g offset on ω_g,m1 at 4 m/s, flagged within 0.1 s: without compensation the estimate runs on the one
-    healthy encoder (the one-encoder floor, MSE 2^(1/4) × its twin's by the filter's law); with it, on both encoders,
-    the flagged one's reading corrected: the squared error over 30 s is on average within 5 % of the twin's (1.000;
-    without: 1.163 on this seed), and no row's is more than 3 % over the uncompensated one's (one of the four is
-    1.5 % over: 1.012 against 0.997). The compiled backend gives the same winds."""
+    healthy encoder (the one-encoder floor); with it, on both encoders through the one-encoder filter, the flagged
+    one's reading corrected: the wind's squared error over 30 s is below the uncompensated one's on every row (0.68–
+    0.78 × the twins' against 1.00–1.39 × on this seed: at 4 m/s the pair at the one-encoder cutoff beats the twin's
+    0.3 Hz, which is noise-bound there). The compiled backend gives the same winds."""
     without, _ = _offset_run(False)
     with_, winds = _offset_run(True)
-    assert (with_ < 1.03 * without).all(), (with_, without)
-    assert with_.mean() < 1.05 < 1.1 < without.mean()
+    assert (with_ < without).all(), (with_, without)
+    assert with_.mean() < 0.85 < 1.1 < without.mean()
     _, compiled = _offset_run(True, backend="numba")
     np.testing.assert_allclose(compiled, winds, rtol=1e-9, atol=1e-9)
