@@ -185,6 +185,8 @@ class UIOBankEstimator:
     uses a rotor-speed sensor, so a rotor-speed fault cannot reach it whether or not it is flagged; only with both
     generator-speed sensors flagged does it fall back to the rotor-speed sensors (5-pe or 5). ``"seed000"``: the
     observer whose sensor set matches the healthy sensors, as published (observer 1 when nothing is flagged).
+    ``encoder_compensation`` (true): with one generator-speed sensor flagged, the wind's torque from both encoders,
+    the flagged one's reading less an estimate of its fault (``_compensate``, ``encoder_compensation``).
     """
 
     def __init__(self, *, context: TurbineContext, options: dict | None = None):
