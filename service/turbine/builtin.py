@@ -22,6 +22,7 @@ from service.plugins import TURBINE_DETECTORS, TURBINE_ESTIMATORS
 from service.turbine.bank import GENERATOR, estimate_observers, power_speed_estimate_observers
 from service.turbine.component_fdi import ComponentFDI
 from service.turbine.component_settings import ComponentSettings
+from service.turbine.encoder_compensation import EncoderFaultEstimate, ticks_until_better
 from service.turbine.fdi import FDISettings, SpeedSensorFDI
 from service.turbine.interfaces import (
     POWER_SPEED_DESIGN_TORQUES,
@@ -50,6 +51,7 @@ PITCH_M2_T = np.array([TARGET_INDEX[f"beta_{i}_m2"] for i in (1, 2, 3)])
 CONVERTER_T = TARGET_INDEX["converter"]
 _MASK_WEIGHTS = 1 << np.arange(len(SPEED_SENSORS))
 _GENERATOR_BITS = tuple(int(_MASK_WEIGHTS[SPEED_SENSORS.index(s)]) for s in GENERATOR)  # in ``GENERATOR``'s order
+_GENERATOR_SPEEDS = np.array([SPEED_SENSORS.index(s) for s in GENERATOR])  # their columns in the speed readings
 # Diagnosis row of each speed-sensor bitmask (16, len(DIAGNOSIS_TARGETS)): one gather gives the whole verdict.
 _P_G_M, _TAU_G_M = SENSOR_INDEX["p_g_m"], SENSOR_INDEX["tau_g_m"]
 _DIAGNOSIS_OF_MASK = np.zeros((1 << len(SPEED_SENSORS), len(DIAGNOSIS_TARGETS)), dtype=bool)
@@ -76,6 +78,9 @@ class EstimatorSettings:
     # the encoders' consistency test (``UIOBankEstimator``): a healthy pair's two one-encoder torques differ beyond
     # its level on this share of the wind's inversions; 0: no test
     encoder_pair_alpha: Annotated[float, Bounds(ge=0.0, lt=1.0)] = 1e-3
+    # one generator-speed encoder flagged: the wind's torque from both encoders, the flagged one's reading less an
+    # estimate of its fault (``encoder_compensation``), once that is the quieter torque
+    encoder_compensation: bool = True
 
 
 def _settings(cls, options: dict):
@@ -180,6 +185,8 @@ class UIOBankEstimator:
     uses a rotor-speed sensor, so a rotor-speed fault cannot reach it whether or not it is flagged; only with both
     generator-speed sensors flagged does it fall back to the rotor-speed sensors (5-pe or 5). ``"seed000"``: the
     observer whose sensor set matches the healthy sensors, as published (observer 1 when nothing is flagged).
+    ``encoder_compensation`` (true): with one generator-speed sensor flagged, the wind's torque from both encoders,
+    the flagged one's reading less an estimate of its fault (``_compensate``, ``encoder_compensation``).
     """
 
     def __init__(self, *, context: TurbineContext, options: dict | None = None):
@@ -224,6 +231,86 @@ class UIOBankEstimator:
             sigma = self.recovery.pair_difference_sigma(design, pair)
             self._pair_level = float(norm.isf(settings.encoder_pair_alpha / 2.0)) * sigma
         self._pair, self._both_encoders = pair, both
+        self._fault_estimate: EncoderFaultEstimate | None = None
+        if settings.encoder_compensation and len(pair) == 2 and settings.estimate_from == "generator":
+            self._fault_estimate = self._encoder_fault_estimate(design, context)
+        self._corrected = np.zeros(context.n, dtype=bool)  # rows with a column on the corrected pair (``_compensate``)
+        self._compensated = np.zeros(context.n, dtype=bool)  # rows whose wind's torque is that column's
+        self._compensated_inverted = np.zeros(context.n, dtype=bool)  # ``_compensated`` at the last inversion
+
+    def _encoder_fault_estimate(self, design, context: TurbineContext) -> EncoderFaultEstimate:
+        """The fault estimate of a flagged generator-speed encoder (``encoder_compensation``), with the ticks from
+        which the corrected pair makes a quieter torque than the healthy encoder alone (``ticks_until_better``). Kept
+        for ``_compensate``: each encoder's one-encoder observer (``_own``: the column that carries the corrected pair
+        while that encoder is flagged), its x̂ block and H (``_own_block``, ``_own_gain``: x̂ = … + h y), and observer
+        4's inverse-variance weight of the encoder (``_own_weight``)."""
+        both = design.observers[self._both_encoders]
+        sensors = [both.sensors.index(g) for g in GENERATOR]
+        self._own = np.array(self._pair[::-1])  # single_generator[k] leaves out encoder k: [1 − k] runs on it
+        self._own_block = [
+            slice(design.offsets[j], design.offsets[j] + design.observers[j].n_states) for j in self._own
+        ]
+        self._own_gain = [design.observers[j].H[:, 0].copy() for j in self._own]
+        self._own_weight = [float(both.H[1, i]) for i in sensors]
+        sigma = np.sqrt(np.diag(both.R)[sensors])
+        cutoffs = self.recovery.torque_cutoffs_hz
+        ticks = []
+        for k in range(2):
+            own = int(self._own[k])
+            c_now, c_prev = self.recovery.rigid_speed_coefficients(design, own)
+            sigmas = (float(sigma[1 - k]), float(sigma[k]))  # the healthy encoder's, the flagged one's
+            cutoff, healthy_cutoff = float(cutoffs[own]), float(cutoffs[self._pair[k]])
+            ticks.append(
+                ticks_until_better(c_now, c_prev, self._own_weight[k], *sigmas, cutoff, healthy_cutoff, context.dt)
+            )
+        # −1 (never) for either encoder: never; else the later of the two (the same where the σ are alike)
+        return EncoderFaultEstimate(context.n, context.dt, float(np.hypot(*sigma)), -1 if -1 in ticks else max(ticks))
+
+    def _compensate(self, bank, mask: np.ndarray, flagged: np.ndarray, frame: TurbineFrame) -> np.ndarray:
+        """The x̂ the wind recovery runs on this tick: the bank's, except on the rows where one generator-speed encoder
+        is flagged (``flagged``, bitmasks per row), the other trusted (``mask``: the distrusted speed sensors), and
+        its fault estimate predicts (``EncoderFaultEstimate.step``): there the flagged encoder's own one-encoder
+        observer (4-g2 for ω_g,m1, 4-g1 for ω_g,m2), which the estimate does not use while the flag lasts, reads the
+        corrected pair instead, ω̂_g = (1 − w) y_h + w (y_f − d̂) with observer 4's weight w (x̂ + h (ω̂_g − y_f)). Its
+        torque filter is the healthy encoder's observer's (the one-encoder cutoff), so the corrected pair's torque
+        has that observer's lag and less noise. It is fed from the estimate's start, and a row that starts takes
+        over the healthy encoder's observer's filters (``WindRecovery.transfer``), which have forgotten the
+        estimate's first, noisy predictions by the time the wind uses it (``_compensated``:
+        ``EncoderFaultEstimate.ready``). The bank's x̂ itself is not changed: the detector, the controller's speeds
+        and the other columns read the raw readings."""
+        estimate = self._fault_estimate
+        generator = mask & (_GENERATOR_BITS[0] | _GENERATOR_BITS[1])
+        encoder = np.full(self.context.n, -1, dtype=np.int64)
+        for k, bit in enumerate(_GENERATOR_BITS):
+            encoder[(generator == bit) & (flagged & bit != 0)] = k
+        if not (encoder >= 0).any():
+            estimate.stop()
+            self._corrected[:] = False
+            self._compensated[:] = False
+            return bank.x_hat
+        speeds = self.context.speed_readings(frame)[:, _GENERATOR_SPEEDS]
+        if self.context.speed_offset is not None:  # the bank's readings
+            speeds = speeds - self.context.speed_offset[:, _GENERATOR_SPEEDS]
+        which = np.maximum(encoder, 0)
+        faulty, healthy = speeds[self._rows, which], speeds[self._rows, 1 - which]
+        use = estimate.step(encoder, faulty, healthy)
+        started = use & ~self._corrected
+        self._corrected = use
+        self._compensated = estimate.ready.copy()
+        if not use.any():
+            return bank.x_hat
+        x_hat = bank.x_hat.copy()
+        for k in range(2):
+            rows = np.flatnonzero(use & (encoder == k))
+            if len(rows):
+                w = self._own_weight[k]
+                shift = (1.0 - w) * (healthy[rows] - faulty[rows]) - w * estimate.prediction[rows]  # ω̂_g − y_f
+                x_hat[rows, self._own_block[k]] += shift[:, None] * self._own_gain[k]
+        if started.any():
+            rows = np.flatnonzero(started)
+            source = np.asarray(self._pair)[encoder[rows]]  # the healthy encoder's observer
+            self.recovery.transfer(rows, self._own[encoder[rows]], source, self.context.bank_design, x_hat)
+        return x_hat
 
     def _take_over(self, bank, selected: np.ndarray, mask: np.ndarray, flagged: np.ndarray) -> None:
         """Where a speed sensor that was flagged is trusted again (``mask``: the distrusted speed sensors, ``flagged``:
@@ -364,9 +451,11 @@ class UIOBankEstimator:
         if fast is not None and distrusting:
             n = self.context.n
             mask, selected = self.select(faulty, frame.tau_g_ref, frame.zone)
-            self._take_over(bank, selected, mask, self._flagged_mask(flagged, mask))
+            flagged_mask = self._flagged_mask(flagged, mask)
+            self._take_over(bank, selected, mask, flagged_mask)
+            x_hat = bank.x_hat if self._fault_estimate is None else self._compensate(bank, mask, flagged_mask, frame)
             recovery.step(
-                bank.x_hat, frame.beta_ref, pitch_m1, pitch_m2, ~faulty[:, PITCH_M1_T], ~faulty[:, PITCH_M2_T],
+                x_hat, frame.beta_ref, pitch_m1, pitch_m2, ~faulty[:, PITCH_M1_T], ~faulty[:, PITCH_M2_T],
                 _converter_torque(frame, faulty),
             )  # fmt: skip
             columns = np.maximum(selected, 0)
@@ -374,9 +463,11 @@ class UIOBankEstimator:
             fast.gather_speeds(recovery.filtered, *recovery.speed_starts, selected, omega_r, omega_g)
         elif distrusting:
             mask, selected = self.select(faulty, frame.tau_g_ref, frame.zone)
-            self._take_over(bank, selected, mask, self._flagged_mask(flagged, mask))
+            flagged_mask = self._flagged_mask(flagged, mask)
+            self._take_over(bank, selected, mask, flagged_mask)
+            x_hat = bank.x_hat if self._fault_estimate is None else self._compensate(bank, mask, flagged_mask, frame)
             recovery.step(
-                bank.x_hat, frame.beta_ref, pitch_m1, pitch_m2, ~faulty[:, PITCH_M1_T], ~faulty[:, PITCH_M2_T],
+                x_hat, frame.beta_ref, pitch_m1, pitch_m2, ~faulty[:, PITCH_M1_T], ~faulty[:, PITCH_M2_T],
                 _converter_torque(frame, faulty),
             )  # fmt: skip
             columns = np.maximum(selected, 0)
@@ -384,6 +475,10 @@ class UIOBankEstimator:
             omega_r, omega_g = recovery.omega_r[rows, columns], recovery.omega_g[rows, columns]
         else:  # the common tick: every sensor healthy, every row on the observer that uses all four speed sensors
             selected = self._all_healthy.copy()
+            if self._fault_estimate is not None and self._fault_estimate.active:
+                self._fault_estimate.stop()
+                self._corrected[:] = False
+                self._compensated[:] = False
             if self._switched:
                 none = np.zeros(len(selected), dtype=np.int64)
                 self._take_over(bank, selected, none, none)
@@ -403,6 +498,20 @@ class UIOBankEstimator:
             omega_g = recovery.region2_generator_speed(bank.x_hat, selected, frame.zone, omega_g)
         if self.ticks % self.wind_every == 0:
             columns = self._wind_columns(columns, faulty, frame)
+            if self._fault_estimate is not None and self._fault_estimate.active:
+                # the fault estimates' residual test over the ticks since the last inversion; where the corrected
+                # reading no longer fits, the wind goes back to the healthy encoder's observer
+                misfit = self._fault_estimate.test()
+                self._corrected &= ~misfit
+                self._compensated &= ~misfit
+                own = self._own[np.maximum(self._fault_estimate.encoder, 0)]
+                columns = np.where(self._compensated, own, columns)
+                # the wind moving onto the corrected pair stays on the torque it came from (the take-over), so the
+                # inversion is warm; off it, the corrected torque may be what no longer fits: afresh
+                onto = self._compensated & ~self._compensated_inverted
+                if onto.any() and self._inverted is not None:
+                    self._inverted = np.where(onto, own, self._inverted)
+            self._compensated_inverted = self._compensated.copy()
             # an estimate whose observer changed since the last inversion is inverted afresh (``WindRecovery.wind``)
             moved = None if self._inverted is None else np.stack([columns != self._inverted, self._no_move])
             # region 1 (the selection's band): the operating point is on τ(v)'s stalled branch

@@ -83,7 +83,7 @@ evidence that its sensor is healthy again.
   the decision at the patience's end is the choice of that tick. A healthy sensor then joins only if a witness is
   over α_iso on the deciding tick and again at the patience's end, a window or more later: about (n_w α_iso)²; a
   real second fault whose witness stays between the two levels joins at the patience's end, one beyond the
-  detection level at once (docs/decisions.md N-31 for a frozen reading, N-3x for any explanation).
+  detection level at once (docs/decisions.md N-31 for a frozen reading, N-36 for any explanation).
 * **Persistent rotor-speed bias.** Beside the window tests, Page's CUSUMs (a bank of shifts ``bias_shift``·2^k,
   k < ``bias_bank``) on the parity of the two rotor-speed sensors' exclusion residuals against the generator-speed
   Kalman filter (``bias_test``; ``rotor_bias_test``, ``bias_shift``) flag a bias of 1–2 σ that the UIOs take for

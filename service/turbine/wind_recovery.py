@@ -426,6 +426,14 @@ class WindRecovery:
         states = x_hat[np.ix_(rows, self._rigid_converter_states)]
         raw[np.ix_(rows, self._rigid_torque_columns)] += self._converter_gain * (measured_torque[rows, None] - states)
 
+    def rigid_speed_coefficients(self, bank: BankDesign, observer: int) -> tuple[float, float]:
+        """c_now, c_prev (N m per rad/s): a rigid observer's raw τ̂_r = c_now ω̂_g[n] + c_prev ω̂_g[n−1] + terms in
+        its τ̂_g (the map's coefficients of its ω̂_g state)."""
+        if bank.observers[observer].kind != "rigid":
+            raise ValueError("not a rigid observer")
+        state, column = bank.offsets[observer] + 1, self._groups[0].start + observer
+        return float(self._map[state, column]), float(self._map[self._width + state, column])
+
     def pair_difference_sigma(self, bank: BankDesign, pair: tuple[int, int]) -> float:
         """σ (N m) of the difference of two observers' filtered τ̂_r, each on one generator-speed sensor (``pair``:
         4-g1 and 4-g2), on a healthy plant.
@@ -443,9 +451,7 @@ class WindRecovery:
         cutoff = self.torque_cutoffs_hz[pair[0]]
         if not np.isclose(cutoff, self.torque_cutoffs_hz[pair[1]]):
             raise ValueError("the pair's torque filters differ: their difference is not the encoders' noise alone")
-        width, column = self._width, self._groups[0].start + pair[0]
-        c_now = self._map[bank.offsets[pair[0]] + 1, column]
-        c_prev = self._map[width + bank.offsets[pair[0]] + 1, column]
+        c_now, c_prev = self.rigid_speed_coefficients(bank, pair[0])
         b, a = butter2_lowpass(cutoff, self.p.dt)
         ticks = int(np.ceil(40.0 / (2.0 * np.pi * cutoff * self.p.dt)))
         impulse = np.zeros(ticks)
