@@ -113,9 +113,16 @@ class TurbineContext:
         self._bank: ObserverBank | None = None
         self._bank_tick: int | None = None
         self._speed: np.ndarray | None = None  # the four speed readings of tick _bank_tick
-        # (n, 4) calibration offsets of the speed sensors, subtracted from the bank's inputs (None: none); a
-        # detector that estimates them (``fdi``, ``adaptive``) keeps them here, updated in place
-        self.speed_offset: np.ndarray | None = None
+        # the estimate of the speed sensors' calibration offsets that a detector keeps (``fdi``, an
+        # ``adaptive.HealthySpread`` whose ``offset`` (n, 4) is updated in place; None: none): ``speed_offset``
+        self.speed_calibration = None
+
+    @property
+    def speed_offset(self) -> np.ndarray | None:
+        """(n, 4) calibration offsets of the speed sensors, subtracted from the bank's inputs (None: none); the
+        object is held rather than its array, a view that a copy of the context would not keep
+        (``wwcore.planes``)."""
+        return None if self.speed_calibration is None else self.speed_calibration.offset
 
     @cached_property
     def bank_design(self) -> BankDesign:
