@@ -155,9 +155,10 @@ class TurbineContext:
         numbers: ``tests/test_fast_kernels.py``) and calls this on the first frame only."""
         read = frame.sensors.take(BANK_COLUMNS, axis=1)  # (n, 6); column 4 becomes the power-speed channel
         read[:, 4] = power_speed(read[:, 4], read[:, 5], read, self.params)
-        self._speed = read[:, :4].copy() if self.speed_offset is not None else read[:, :4]
-        if self.speed_offset is not None:
-            read[:, :4] -= self.speed_offset
+        offset = self.speed_offset
+        self._speed = read[:, :4].copy() if offset is not None else read[:, :4]
+        if offset is not None:
+            read[:, :4] -= offset
         return read[:, :5]
 
     def _input_columns(self, frame: TurbineFrame) -> tuple:
