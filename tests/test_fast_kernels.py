@@ -7,6 +7,7 @@ whole tick, scorecards and backend choice: ``tests/test_fast_backend.py``.
 from __future__ import annotations
 
 import copy
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -311,7 +312,7 @@ def test_the_bank_tick_from_the_readings_equals_the_reference(n, offset):
     contexts = [TurbineContext(BENCHMARK, n, backend="numpy"), TurbineContext(BENCHMARK, n, backend="numba")]
     shift = rng.normal(0.0, 0.01, (n, 4))
     for context in contexts:
-        context.speed_offset = shift.copy() if offset else None
+        context.speed_calibration = SimpleNamespace(offset=shift.copy()) if offset else None
     scale = {"omega_r_m1": 1.6, "omega_r_m2": 1.6, "omega_g_m1": 150.0, "omega_g_m2": 150.0, "p_g_m": 4.8e6}
     torques = []
     for k in range(40):
@@ -332,8 +333,8 @@ def test_the_bank_tick_from_the_readings_equals_the_reference(n, offset):
             np.testing.assert_array_equal(np.signbit(got), np.signbit(expected), f"tick {k}: {name}")
         np.testing.assert_array_equal(contexts[1].speed_readings(frame), contexts[0].speed_readings(frame))
         if offset:
-            contexts[0].speed_offset += 0.001  # updated in place, as the detector does
-            contexts[1].speed_offset += 0.001
+            contexts[0].speed_calibration.offset += 0.001  # updated in place, as the detector does
+            contexts[1].speed_calibration.offset += 0.001
         threshold = POWER_SPEED_MIN_TORQUE * BENCHMARK.rated_torque
         torques.append(sensors[:, SENSOR_INDEX["tau_g_m"]])
     torques = np.concatenate(torques)

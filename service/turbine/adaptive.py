@@ -34,12 +34,18 @@ and the bounds are where it stops.
 
 from __future__ import annotations
 
+from typing import ClassVar
+
 import numpy as np
 
 from service.learning import learning_weight
+from wwcore.planes import Planes, planes
+
+# the planes of ``HealthySpread.state``, the arrays ``fast.learn_spread`` updates in place
+SPREAD_PLANES = ("count", "estimate", "scale2", "scale", "mean", "offset", "limit")
 
 
-class HealthySpread:
+class HealthySpread(Planes):
     """ŝ² (and optionally b̂) of one residual statistic per element of ``shape`` (module docstring).
 
     ``sample_s``: time between updates (s); ``adapt_time_s`` T_a (0: no adaptation, ŝ² = 1 and b̂ = 0 always);
@@ -48,6 +54,8 @@ class HealthySpread:
     ``service.turbine.fast`` (``wwcore.backend``) or None; with it, each update of a one- or two-dimensional
     ``shape`` is one kernel (``learn_spread``, the same operations).
     """
+
+    PLANES: ClassVar[dict[str, tuple]] = {"state": SPREAD_PLANES}
 
     def __init__(
         self,
@@ -62,17 +70,15 @@ class HealthySpread:
         self.enabled = adapt_time_s > 0.0
         self.min_weight = min(1.0, sample_s / adapt_time_s) if self.enabled else 0.0
         self.max_scale2 = float(max_scale) ** 2
-        self.estimate = np.ones(shape)  # raw ŝ², unclipped
-        self.mean = np.zeros(shape)  # raw b̂, unclipped
-        self.count = np.zeros(shape)
-        self.scale2 = np.ones(shape)  # clip(ŝ², 1, s_max²): the factor on the thresholds of variance
-        self.scale = np.ones(shape)  # √scale2: the factor on the thresholds of z-scores
-        self.offset_limit = None if offset_limit is None else np.broadcast_to(offset_limit, shape).astype(float)
-        self.offset = np.zeros(shape)  # clip(b̂, −b_max, b_max)
-        # the arrays ``fast.learn_spread`` updates in place, and b_max (b̂ stands in where none is learnt: never read);
-        # of a one-dimensional ``shape``, (n, 1) views taken at each update (a copied object keeps its own)
-        limit = self.mean if self.offset_limit is None else self.offset_limit
-        self.state = (self.count, self.estimate, self.scale2, self.scale, self.mean, self.offset, limit)
+        # one block (7, *shape), its planes by name (``SPREAD_PLANES``, ``wwcore.planes``): count; raw ŝ², unclipped;
+        # clip(ŝ², 1, s_max²), the factor on the thresholds of variance; √scale2, the factor on the thresholds of
+        # z-scores; raw b̂, unclipped; clip(b̂, −b_max, b_max); b_max (zero where no offset is learnt: never read)
+        self.state = np.zeros((len(SPREAD_PLANES), *shape))
+        self.state[1:4] = 1.0
+        if offset_limit is not None:
+            self.state[6] = offset_limit
+        self.__dict__.update(planes(self.state, SPREAD_PLANES))
+        self.offset_limit = self.limit if offset_limit is not None else None
 
     def update(self, q: np.ndarray | None, healthy: np.ndarray, x: np.ndarray | None = None) -> None:
         """One sample: q the statistic of design mean 1 (with the offset already removed; None: learn the offset
@@ -83,8 +89,8 @@ class HealthySpread:
         if self._fast is not None:
             x = x if self.offset_limit is not None else None
             state = self.state
-            if self.count.ndim == 1:  # as a column: (n, 1) views
-                state = tuple(a.reshape(-1, 1) for a in state)
+            if self.count.ndim == 1:  # as a column: (7, n, 1), a view
+                state = state.reshape(*state.shape, 1)
                 q, x = (None if a is None else a.reshape(-1, 1) for a in (q, x))
                 healthy = healthy.reshape(-1, 1)
             self._fast.learn_spread(q, x, healthy, self.min_weight, self.max_scale2, state)

@@ -68,11 +68,13 @@ flagged take no ℓ_J (the parity then carries the flagged sensor's fault).
 from __future__ import annotations
 
 import math
+from typing import ClassVar
 
 import numpy as np
 
 from service.turbine.bank import POWER_SPEED, BankDesign
 from wwcore.backend import fast_module
+from wwcore.planes import Planes, planes
 from wwcore.quantiles import norm_isf
 
 JUMP_HISTORY = 8  # W: ticks of the pair mean the onset prediction is fitted to
@@ -95,8 +97,10 @@ def _variance_of(R: np.ndarray, i: int) -> float:
     return float(R[i, i])
 
 
-class GeneratorArbiter:
+class GeneratorArbiter(Planes):
     """The running log-likelihood ratio ``total`` (n,): > 0 favours ω_g,m1 faulty, < 0 ω_g,m2."""
+
+    PLANES: ClassVar[dict[str, tuple]] = {"_histories": ("_means", "_parities")}
 
     def __init__(self, bank: BankDesign, n: int, alpha: float, dt: float = 0.01, fast=None):
         self._fast_arbitration = fast_module("service.turbine.fast_arbitration") if fast is not None else None
@@ -121,8 +125,10 @@ class GeneratorArbiter:
         self.jump_covariance = np.tile(JUMP_START_SCALE * self.jump_floor, (n, 1, 1))  # learnt, rad²/s²
         self._jump_rate = dt / JUMP_MEMORY_S
         span = JUMP_HISTORY + JUMP_LOOKBACK
-        self._means = np.zeros((n, span))  # the pair mean of the last ``span`` ticks, oldest first
-        self._parities = np.zeros((n, span))  # δ of the same ticks
+        # the pair mean of the last ``span`` ticks, oldest first, and δ of the same ticks: the planes of one block
+        # (``wwcore.planes``), which the compiled tick takes
+        self._histories = np.zeros((len(self.PLANES["_histories"]), n, span))
+        self.__dict__.update(planes(self._histories, self.PLANES["_histories"]))
         self._seen = 0  # ticks observed (the histories are full once it reaches ``span``)
         self.jump = np.zeros(n)  # ℓ_J in the sums of each row (0: none)
         self._onset = np.full(n, -1, dtype=np.int64)  # tick (count of ``observe``) of the onset while ℓ_J grows
@@ -217,11 +223,11 @@ class GeneratorArbiter:
 
     def compiled_arguments(self) -> tuple:
         """``observe``'s kernel arguments for a caller that runs them in its own kernel
-        (``fast_detector.arbiter_observe``): the histories, the onsets, wᵀ, the learning rate, Cov(e) (updated in
-        place, never replaced) and an (n, W) buffer for the fit's slice of the histories."""
+        (``fast_detector.arbiter_observe``): the histories (one block), the onsets, wᵀ, the learning rate, Cov(e)
+        (updated in place, never replaced) and an (n, W) buffer for the fit's slice of the histories."""
         n = self._means.shape[0]
         return (
-            self._means, self._parities, self._onset, self.weights.T, self._jump_rate, self.jump_covariance,
+            self._histories, self._onset, self.weights.T, self._jump_rate, self.jump_covariance,
             np.empty((n, JUMP_HISTORY)),
         )  # fmt: skip
 

@@ -81,16 +81,18 @@ predictor changes starts from zero.
 from __future__ import annotations
 
 import math
+from typing import ClassVar
 
 import numpy as np
 
 from service.turbine.adaptive import HealthySpread
+from wwcore.planes import Planes, planes
 
 ROTOR = (0, 1)  # columns of the rotor-speed sensors in SPEED_SENSORS order
 SIGNS = 2  # the parity's two signs: with the bank's shifts, they share the row's false-alarm budget
 
 
-class RotorBiasTest:
+class RotorBiasTest(Planes):
     """S⁺ and S⁻ (n, K) of the rotor-speed parity of n turbines for the bank's K shifts, and the isolation sums A⁺,
     A⁻ over each statistic's run (module docstring).
 
@@ -102,6 +104,8 @@ class RotorBiasTest:
     ``fast``: ``service.turbine.fast`` (``wwcore.backend``) or None; with it, ``step_flags`` is one kernel
     (``rotor_bias``, the same operations).
     """
+
+    PLANES: ClassVar[dict[str, tuple]] = {"sums": ("up", "down", "run_up", "run_down")}
 
     def __init__(
         self,
@@ -131,10 +135,10 @@ class RotorBiasTest:
         self.parity_shifts = self.shifts / math.sqrt(2.0)  # m_d,k: the parity's mean under a bias of m_k on one sensor
         self.parity_shift = float(self.parity_shifts[0])
         self.h = math.log(SIGNS * bank * 1000.0 / (rate_per_1000s * dt))
-        self.up = np.zeros((n, bank))
-        self.down = np.zeros((n, bank))
-        self.run_up = np.zeros((n, bank))  # A⁺, A⁻: Σ (e_1 + e_2) over the current run of each S⁺, S⁻
-        self.run_down = np.zeros((n, bank))
+        # S⁺, S⁻ and A⁺, A⁻ (Σ (e_1 + e_2) over the current run of each S⁺, S⁻), (n, K) each: the planes of one
+        # block (``wwcore.planes``), which the compiled step takes
+        self.sums = np.zeros((len(self.PLANES["sums"]), n, bank))
+        self.__dict__.update(planes(self.sums, self.PLANES["sums"]))
         self.spread = HealthySpread((n,), dt, adapt_time_s, max_noise_scale)
         self.predictor = np.full(n, -1, dtype=np.int64)  # the observer each row's statistics were summed against
         self._fast = fast
@@ -163,7 +167,7 @@ class RotorBiasTest:
             self.column,
             self.scale,
             (self.parity_shifts, self.h),
-            (self.up, self.down, self.run_up, self.run_down, self.predictor),
+            (self.sums, self.predictor),
             (s.enabled, s.min_weight, s.max_scale2, s.state),
             over,
         )

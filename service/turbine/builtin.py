@@ -97,7 +97,7 @@ class UIOBankDetector:
         settings = _settings(FDISettings, options or {})
         self.fdi = SpeedSensorFDI(context.bank_design, context.n, context.dt, settings, fast=context.fast)
         if self.fdi.calibration.enabled:  # the bank reads the speed sensors less their learnt offsets
-            context.speed_offset = self.fdi.calibration.offset
+            context.speed_calibration = self.fdi.calibration
         design = context.bank_design
         self._margin_names = tuple(f"observer {name}" for name in design.names[: design.n_isolating])
         torques = np.asarray(POWER_SPEED_DESIGN_TORQUES)  # the edges of ``power_speed_band``, for the fast path

@@ -39,6 +39,8 @@ treats the rotor torque as unknown, exactly like a different aerodynamic torque 
 
 from __future__ import annotations
 
+from typing import ClassVar
+
 import numpy as np
 
 from service.plugins import AlgorithmOptionError
@@ -50,6 +52,7 @@ from service.turbine.pitch_actuator import glr as actuator_glr
 from wwcore.backend import fast_module
 from wwcore.channels import SENSOR_INDEX, TARGET_INDEX, Component
 from wwcore.lti import second_order_tf, zoh
+from wwcore.planes import Planes, planes
 from wwcore.quantiles import norm_isf
 from wwcore.scenario.mismatch import SENSOR_BIAS_TOLERANCE
 from wwcore.turbine_frames import TurbineFrame
@@ -67,13 +70,16 @@ TAU_G_M = SENSOR_INDEX["tau_g_m"]
 OTHERS = np.array([[1, 2], [0, 2], [0, 1]])
 
 
-class _Window:
-    """Running sum over the last ``size`` pushes of an (n, m) statistic."""
+class _Window(Planes):
+    """Running sum over the last ``size`` pushes of an (n, m) statistic: the ring of the pushes and their total, one
+    block (``wwcore.planes``; ``sums[:-1]`` and ``sums[-1]``), which the compiled tick takes."""
+
+    PLANES: ClassVar[dict[str, tuple]] = {"sums": (("ring", slice(None, -1)), ("total", -1))}
 
     def __init__(self, size: int, shape: tuple[int, ...]):
         self.size = size
-        self.ring = np.zeros((size, *shape))
-        self.total = np.zeros(shape)
+        self.sums = np.zeros((size + 1, *shape))
+        self.__dict__.update(planes(self.sums, self.PLANES["sums"]))
         self.count = 0
 
     def push(self, x: np.ndarray) -> np.ndarray:
@@ -107,8 +113,13 @@ call per row and candidate where numpy's stacked ``matmul`` makes them without l
 is true, every batch takes the kernel, with the products computed in it."""
 
 
-class ComponentFDI:
+class ComponentFDI(Planes):
     """Flags pitch sensors, pitch actuators and the converter for n turbines (DIAGNOSIS_TARGETS columns)."""
+
+    PLANES: ClassVar[dict[str, tuple]] = {
+        "_converter_cusums": ("converter_statistic", "_converter_run"),
+        "_converter_sums": ("_converter_count", "_converter_mean", "converter_clear_statistic", "_converter_block_sum"),
+    }
 
     def __init__(self, p: TurbineParams, n: int, sigma: dict[str, float], settings: ComponentSettings, fast=None):
         if settings.actuator_window % settings.block:
@@ -176,12 +187,12 @@ class ComponentFDI:
         self._actuator_cleared_rest = np.zeros((n, 3), dtype=np.int64)
         # Page's CUSUMs of the converter residual z (n, 2K), the clearing CUSUM's fault-size estimate μ̂, its tick
         # count and statistic C (n,), and the block's Σ r for the healthy spread (``adaptive``)
-        self.converter_statistic = np.zeros((n, len(self.converter_shifts)))
-        self._converter_run = np.zeros((n, len(self.converter_shifts)))  # ticks since each CUSUM was last zero
-        self._converter_count = np.zeros(n)
-        self._converter_mean = np.zeros(n)
-        self.converter_clear_statistic = np.zeros(n)
-        self._converter_block_sum = np.zeros(n)
+        # (the planes of two blocks, ``wwcore.planes``, which the compiled tick takes; the run: ticks since each CUSUM
+        # was last zero)
+        self._converter_cusums = np.zeros((len(self.PLANES["_converter_cusums"]), n, len(self.converter_shifts)))
+        self._converter_sums = np.zeros((len(self.PLANES["_converter_sums"]), n))
+        for block in self.PLANES:
+            self.__dict__.update(planes(getattr(self, block), self.PLANES[block]))
         self._converter_weight = min(1.0, p.dt / settings.converter_memory_s)
         self.whiten_b, self.whiten_a = actuator_whitener(p)
         if len(self.whiten_b) != 3 or len(self.whiten_a) != 3:
@@ -224,7 +235,8 @@ class ComponentFDI:
             self._converter_gain, 1.0 / self.sigma_tau, self.converter_shifts, self.converter_signs, self.h_converter,
             self._converter_weight, float(settings.converter_clear_floor), self._clear_h, CONVERTER_TARGET,
         )  # fmt: skip
-        self._converter_spread_state = (self.converter_spread.offset, self.converter_spread.scale)
+        self._converter_spread_state = self.converter_spread.state  # its planes' block (``wwcore.planes``)
+        self._converter_state = (self._converter_cusums, self._converter_sums)
         self._kept: dict | None = None  # ``_fast_tick``'s kernel arguments (``_tick_arguments``)
 
     def step(self, frame: TurbineFrame) -> np.ndarray:
@@ -258,10 +270,10 @@ class ComponentFDI:
         kept = self._kept or self._tick_arguments()
         w, o = self.parity, self.outlier
         beta = kept["beta"][self.ticks % 2]  # two buffers: the frozen test keeps the last tick's (``previous``)
-        converter = (self._tau_hat, self.ticks == 0, self._converter_block_sum, self.ticks + 1 > self.warmup_ticks)
+        converter = (self._tau_hat, self.ticks == 0, self.ticks + 1 > self.warmup_ticks)
         any_suspicious, repeated = self._fast.component_step(
             (frame.sensors, M12, TAU_G_M, frame.tau_g_ref, j, CROSS_BLADE), kept["blocks"],
-            (w.ring, w.count % w.size, w.total), (o.ring, o.count % o.size, o.total), kept["scales"],
+            (w.sums, w.count % w.size), (o.sums, o.count % o.size), kept["scales"],
             (beta, *kept["parity"]), self.readings.previous, kept["adapt"], converter + kept["converter"],
         )  # fmt: skip
         w.count += 1
@@ -278,7 +290,6 @@ class ComponentFDI:
         parity_n, window_n = (np.empty((n, 3)), np.empty((n, 3))) if spread.enabled else (parity, window)
         learning = (spread.min_weight, spread.max_scale2, spread.state)
         adapt = (spread.enabled, self.flags, M1_TARGET, M2_TARGET, self._root_parity_window, self.z_single, learning)
-        state = (self.converter_statistic, self._converter_run, self._converter_count, self._converter_mean)
         self._tau_hat = np.empty(n)  # τ̂_g, set from the first tick's reading by the kernel
         self._kept = {
             "beta": (np.empty((n, 3 * 2)), np.empty((n, 3 * 2))),
@@ -287,7 +298,7 @@ class ComponentFDI:
             "parity": (parity, window),
             "adapt": (*adapt, parity_n, window_n),
             "normalised": (parity_n, window_n),  # the parity's statistics in the learnt spread: the decisions read them
-            "converter": (self._converter_spread_state, self._converter_test, (*state, self.converter_clear_statistic)),
+            "converter": (self._converter_spread_state, self._converter_test, self._converter_state),
         }
         return self._kept
 
@@ -500,10 +511,8 @@ class ComponentFDI:
             if first:
                 self._tau_hat = np.empty_like(tau_g_m)
             self._fast_converter.converter_tick(
-                tau_g_m, tau_g_ref_previous, self._tau_hat, first, self._converter_block_sum,
-                self.ticks > self.warmup_ticks, self._converter_spread_state, self._converter_test, self.flags,
-                (self.converter_statistic, self._converter_run, self._converter_count, self._converter_mean,
-                 self.converter_clear_statistic),
+                tau_g_m, tau_g_ref_previous, self._tau_hat, first, self.ticks > self.warmup_ticks,
+                self._converter_spread_state, self._converter_test, self.flags, self._converter_state,
             )  # fmt: skip
             return
         if self._tau_hat is None:

@@ -203,8 +203,10 @@ def learn_spread(q, x, healthy, min_weight, max_scale2, state):
     """One sample of ``HealthySpread.update``: where ``healthy`` (n, m, or n, 1: one flag per row) and if any is,
     count += 1, w = max(1/count, ``min_weight``) (0 elsewhere), ŝ² += w (q − ŝ²), scale2 = clip(ŝ², 1, s_max²),
     scale = √scale2; b̂ += w (x − b̂), offset = clip(b̂, −b_max, b_max). ``q`` or ``x`` None: not learnt.
-    ``state`` = (count, ŝ², scale2, scale, b̂, offset, b_max), (n, m) each, in place."""
-    count, estimate, scale2, scale, mean, offset, limit = state
+    ``state`` = ``HealthySpread.state``, its planes (count, ŝ², scale2, scale, b̂, offset, b_max) (n, m) each, in
+    place."""
+    count, estimate, scale2, scale, mean, offset, limit = (state[0], state[1], state[2], state[3], state[4], state[5],
+                                                           state[6])  # fmt: skip
     learn = False
     for r in range(healthy.shape[0]):
         for c in range(healthy.shape[1]):
@@ -235,14 +237,16 @@ def learn_spread(q, x, healthy, min_weight, max_scale2, state):
 @kernel
 def component_tick(y, m12, tau_col, tau_g_ref, j, cross, e_block, tau_block, ring, outlier, scales, beta, par, window):
     """``ComponentFDI.step``'s per-tick arithmetic: β = y[:, m12] ([β_i,m1 | β_i,m2]); parity = (β_m1 − β_m2) s,
-    its running window sum (``ring`` = (ring, slot, total), slot replaced), window = Σ × s_w; the block's
-    e[j] = ½(β_m1 + β_m2) @ ``cross`` and [τ_g,m, τ_g,r]; each sensor's distance from the mean of the other two
-    blades' four sensors into its window sum (``outlier``, as ``ring``; ``ComponentFDI._push_outlier``). True when
-    any |parity| or |window| exceeds z (``scales`` = (s, s_w, z)). ``cross`` is CROSS_BLADE, whose entries 1 and −½
-    make every product exact: the three terms added left to right are numpy's product bit for bit (the one product
-    computed in a kernel; checked by the tests)."""
-    ring_values, slot, total = ring
-    outlier_values, outlier_slot, outlier_total = outlier
+    its running window sum (``ring`` = (``_Window.sums``: the ring and its total as one block, slot), slot replaced),
+    window = Σ × s_w; the block's e[j] = ½(β_m1 + β_m2) @ ``cross`` and [τ_g,m, τ_g,r]; each sensor's distance from
+    the mean of the other two blades' four sensors into its window sum (``outlier``, as ``ring``;
+    ``ComponentFDI._push_outlier``). True when any |parity| or |window| exceeds z (``scales`` = (s, s_w, z)).
+    ``cross`` is CROSS_BLADE, whose entries 1 and −½ make every product exact: the three terms added left to right
+    are numpy's product bit for bit (the one product computed in a kernel; checked by the tests)."""
+    sums, slot = ring
+    ring_values, total = sums[:-1], sums[-1]
+    outlier_sums, outlier_slot = outlier
+    outlier_values, outlier_total = outlier_sums[:-1], outlier_sums[-1]
     scale, window_scale, z_single = scales
     suspicious = False
     for r in range(y.shape[0]):
@@ -281,7 +285,7 @@ def component_step(tick, blocks, ring, outlier, scales, outputs, previous, adapt
     β equals ``previous``'s (``any_equal``, the frozen readings' repeat test; ``previous`` None: not tested);
     ``adapt_parity`` when ``adapt`` = (learning, flags, m1 targets, m2 targets, √W, z, the spread's learning,
     parity_n, window_n) says the parity's spread learns; ``converter_tick`` on the block's [τ_g,m, τ_g,r] of tick j
-    (``converter`` = (τ̂_g, first, block sum, warm, spread, test, state), flags ``adapt[1]``: it reads and writes
+    (``converter`` = (τ̂_g, first, warm, spread, test, state), flags ``adapt[1]``: it reads and writes
     only the converter's column, the parity only the pitch sensors'). (any suspicious, repeated)."""
     y, m12, tau_col, tau_g_ref, j, cross = tick
     e_block, tau_block = blocks
@@ -295,10 +299,8 @@ def component_step(tick, blocks, ring, outlier, scales, outputs, previous, adapt
         suspicious = adapt_parity(
             parity, window, flags, m1_target, m2_target, root_window, z_single, spread, parity_n, window_n
         )
-    tau_hat, first, block_sum, warm, converter_spread, test, state = converter
-    converter_tick(
-        tau_block[j, 0], tau_block[j, 1], tau_hat, first, block_sum, warm, converter_spread, test, flags, state
-    )
+    tau_hat, first, warm, converter_spread, test, state = converter
+    converter_tick(tau_block[j, 0], tau_block[j, 1], tau_hat, first, warm, converter_spread, test, flags, state)
     return suspicious, repeated
 
 
@@ -491,10 +493,11 @@ def rotor_bias(y, x_hat, flagged, deadline, predictor_of_mask, column, scale, te
     S±_k ← max(0, S±_k + m_k (±d − m_k/2)) on tested rows (0 elsewhere), A±_k ← A±_k + (e_1 + e_2) while S±_k > 0,
     raised where some S± ≥ h; then ``learn_spread`` of raw² from the tested rows not raised, and ``over`` (n, 2) the
     sensor named at a raise by the largest statistic (the first of equals). ``test`` = (m (K,), h); ``state`` = (S⁺,
-    S⁻, A⁺, A⁻ (n, K), predictor), in place; ``learning`` = (enabled, min_weight, s_max², state of ŝ's
-    ``HealthySpread``, (n,) each). Returns whether any row raised."""
+    S⁻, A⁺, A⁻ as the planes of one (4, n, K) array, predictor), in place; ``learning`` = (enabled, min_weight,
+    s_max², ŝ's ``HealthySpread.state``, (7, n)). Returns whether any row raised."""
     m, h = test
-    up, down, run_up, run_down, predictor = state
+    sums, predictor = state
+    up, down, run_up, run_down = sums[0], sums[1], sums[2], sums[3]
     enabled, min_weight, max_scale2, spread = learning
     n, bank = up.shape
     root_two = np.sqrt(2.0)
@@ -537,15 +540,6 @@ def rotor_bias(y, x_hat, flagged, deadline, predictor_of_mask, column, scale, te
         over[r, 1] = (use_up or use_down) and not first
         any_over = any_over or use_up or use_down
     if enabled:
-        count, estimate, scale2, root, mean, offset, limit = spread
-        columns = (
-            count.reshape((n, 1)),
-            estimate.reshape((n, 1)),
-            scale2.reshape((n, 1)),
-            root.reshape((n, 1)),
-            mean.reshape((n, 1)),
-            offset.reshape((n, 1)),
-            limit.reshape((n, 1)),
-        )
+        columns = spread.reshape((spread.shape[0], n, 1))  # the planes as (n, 1) columns
         learn_spread(squared, None, healthy, min_weight, max_scale2, columns)
     return any_over

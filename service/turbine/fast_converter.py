@@ -25,17 +25,20 @@ def _positive_part(value):
 
 
 @kernel
-def converter_tick(tau_g_m, tau_g_ref_previous, tau_hat, first, block_sum, warm, spread, test, flags, state):
+def converter_tick(tau_g_m, tau_g_ref_previous, tau_hat, first, warm, spread, test, flags, state):
     """One tick of the converter test on every row, states in place.
 
-    tau_hat (n,) τ̂_g (set to τ_g,m where ``first``); block_sum (n,) Σ r of the block; ``warm``: the tests run
-    (past the warm-up). spread = (offset, scale) of the residual's healthy spread (n,) each; test = (a, 1/σ_τ,
-    shifts (2K,), signs (2K,), h, memory weight, clear floor, clear h); flags (n, targets) with the converter's
-    column ``column`` = test[8]; state = (statistic (n, 2K), run (n, 2K) ticks since each statistic was last zero,
-    count (n,), mean (n,), clear statistic (n,))."""
-    offset, scale = spread
+    tau_hat (n,) τ̂_g (set to τ_g,m where ``first``); ``warm``: the tests run (past the warm-up). spread = the
+    residual's healthy spread (``HealthySpread.state``, (7, n)), of which the offset and scale planes; test = (a,
+    1/σ_τ, shifts (2K,), signs (2K,), h, memory weight, clear floor, clear h); flags (n, targets) with the
+    converter's column ``column`` = test[8]; state = (the planes statistic and run (ticks since each statistic was
+    last zero) of one (2, n, 2K) array, the planes count, mean, clear statistic and the block's Σ r of one (4, n)
+    array)."""
+    offset, scale = spread[5], spread[3]
     a, inv_sigma, shifts, signs, h, memory_weight, clear_floor, clear_h, column = test
-    statistic, run, count, mean, clear_statistic = state
+    cusums, sums = state
+    statistic, run = cusums[0], cusums[1]
+    count, mean, clear_statistic, block_sum = sums[0], sums[1], sums[2], sums[3]
     k = shifts.shape[0]
     for r in range(tau_g_m.shape[0]):
         if first:

@@ -24,9 +24,10 @@ from wwcore.jit import kernel
 def arbiter_observe(y, learn, arbiter, learns):
     """``GeneratorArbiter.observe``'s kernels: ``arbiter_push`` of y (n, 4), then where ``learns`` (the histories
     hold a whole fit and its L errors) the prediction p = m[:, −L−W:−L] @ wᵀ and ``arbiter_learn`` on the rows of
-    ``learn``; ``arbiter`` = (means, parities, onset, wᵀ (W, L), rate, covariance, fit (n, W): the histories' slice
-    copied). Whether any row's ℓ_J is still growing."""
-    means, parities, onset, weights_t, rate, covariance, fit = arbiter
+    ``learn``; ``arbiter`` = (histories (the means and parities as the planes of one (2, n, span) array), onset,
+    wᵀ (W, L), rate, covariance, fit (n, W): the histories' slice copied). Whether any row's ℓ_J is still growing."""
+    histories, onset, weights_t, rate, covariance, fit = arbiter
+    means, parities = histories[0], histories[1]
     growing = arbiter_push(y, means, parities, onset)
     if learns:
         width, ahead = weights_t.shape
@@ -44,9 +45,10 @@ def detector_tick(y_raw, raw, x_hat, previous, tick, flags, offset, window, lear
 
     * the frozen readings' repeat test: whether any reading of ``y_raw`` (n, 4) equals ``previous``'s (None: not
       tested here, ``FrozenReadings.push`` tests it);
-    * y = y_raw − ``offset`` (the calibration offsets, None: none) into ``outputs[0]``;
-    * ``arbiter_observe`` of y, learning on the rows with nothing flagged or pending (``flags`` = (flagged,
-      deadline));
+    * y = y_raw − the calibration offsets (``offset``: the calibration's ``HealthySpread.state``, its plane 5;
+      None: none) into ``outputs[0]``;
+    * ``arbiter_observe`` of y, learning on the rows with nothing flagged or pending (``flags``: flagged
+      and deadline, the planes of one (2, n) array);
     * ``window_test`` of ``raw`` (n, m), or ``window_test_learn`` with ``learning`` = (rank, gear ratio, the χ²
       spread's and the calibration's (min_weight, s_max², state)); None: nothing learnt) into ``outputs[1:3]`` =
       (χ²/ŝ², ratio);
@@ -55,11 +57,11 @@ def detector_tick(y_raw, raw, x_hat, previous, tick, flags, offset, window, lear
       (predictor of each flagged mask, column, scale, test, state, learning) (None: no bias test), its sensors named
       into ``outputs[3]``.
 
-    ``window`` = (ŝ², ring, window sum, h_detect, h_window, the all-sensor observer's column). Returns (finished:
-    the tick needs no Python beyond a raised bias flag, repeated, exceeded, the arbiter's ℓ_J growing, a bias
-    raised)."""
+    ``window`` = (the χ² spread's ``HealthySpread.state``, of which ŝ² (plane 2), ring, window sum, h_detect,
+    h_window, the all-sensor observer's column). Returns (finished: the tick needs no Python beyond a raised bias
+    flag, repeated, exceeded, the arbiter's ℓ_J growing, a bias raised)."""
     slot, learns, healthy = tick
-    flagged, deadline = flags
+    flagged, deadline = flags[0], flags[1]
     y, chi2_stat, ratio, over = outputs
     n = y_raw.shape[0]
     tested, repeated = False, False
@@ -68,6 +70,7 @@ def detector_tick(y_raw, raw, x_hat, previous, tick, flags, offset, window, lear
     if offset is None:
         y[:, :] = y_raw
     else:
+        offset = offset[5]
         for r in range(n):
             for c in range(4):
                 y[r, c] = y_raw[r, c] - offset[r, c]
@@ -75,7 +78,8 @@ def detector_tick(y_raw, raw, x_hat, previous, tick, flags, offset, window, lear
     for r in range(n):
         learn[r] = flagged[r] == 0 and deadline[r] < 0
     growing = arbiter_observe(y, learn, arbiter, learns)
-    scale2, history, window_sum, h_detect, h_window, column = window
+    spread_state, history, window_sum, h_detect, h_window, column = window
+    scale2 = spread_state[2]
     if learning is None:
         exceeded = window_test(raw, scale2, history, slot, window_sum, h_detect, h_window, column, chi2_stat, ratio)
     else:
@@ -117,13 +121,13 @@ def detector_arguments(fdi) -> dict:
             b.column,
             b.scale,
             (b.parity_shifts, b.h),
-            (b.up, b.down, b.run_up, b.run_down, b.predictor),
+            (b.sums, b.predictor),
             (s.enabled, s.min_weight, s.max_scale2, s.state),
         )
     return {
-        "flags": (fdi.flagged, fdi.deadline),
-        "offset": calibration.offset if calibration.enabled else None,
-        "window": (spread.scale2, fdi._history, fdi._window_sum, fdi.h_detect, fdi.h_window, fdi._all_healthy),
+        "flags": fdi._flags,
+        "offset": calibration.state if calibration.enabled else None,
+        "window": (spread.state, fdi._history, fdi._window_sum, fdi.h_detect, fdi.h_window, fdi._all_healthy),
         "learning": learning,
         "arbiter": arbiter.compiled_arguments(),
         "bias": bias,

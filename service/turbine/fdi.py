@@ -129,6 +129,8 @@ design false-alarm rate.
 
 from __future__ import annotations
 
+from typing import ClassVar
+
 import numpy as np
 
 from service.turbine.adaptive import HealthySpread
@@ -150,12 +152,15 @@ from service.turbine.rotor_pair import RotorPairTest
 from service.turbine.uio import window_threshold
 from wwcore.backend import fast_module
 from wwcore.channels import SPEED_SENSORS
+from wwcore.planes import Planes, planes
 from wwcore.quantiles import chi2_isf
 from wwcore.scenario.mismatch import SENSOR_BIAS_TOLERANCE
 
 
-class SpeedSensorFDI:
+class SpeedSensorFDI(Planes):
     """Flags faulty speed sensors for n turbines; ``faulty`` (n, 4) bool in SPEED_SENSORS order."""
+
+    PLANES: ClassVar[dict[str, tuple]] = {"_flags": ("flagged", "deadline")}
 
     def __init__(self, bank: BankDesign, n: int, dt: float, settings: FDISettings = FDISettings(), fast=None):
         self.bank = bank
@@ -243,7 +248,11 @@ class SpeedSensorFDI:
         self.explanations = Explanations(bank)
         self.observer_of_mask = self.explanations.observer_of_mask  # explanation (bitmask) → its observer
         self.witnesses = self.explanations.witnesses
-        self.flagged = np.zeros(n, dtype=np.int64)  # bitmask of flagged sensors per turbine
+        # the bitmask of flagged sensors per turbine and the tick at which a pending isolation is decided (−1: none),
+        # the planes of one block (``wwcore.planes``), which the compiled tick takes
+        self._flags = np.zeros((len(self.PLANES["_flags"]), n), dtype=np.int64)
+        self._flags[1] = -1
+        self.__dict__.update(planes(self._flags, self.PLANES["_flags"]))
         self.readings = FrozenReadings((n, N_SPEED), settings.frozen_ticks, fast=fast)
         self.ticks = 0
         self.ambiguous = np.zeros(n, dtype=bool)  # no consistent observer was found at the last search
@@ -251,7 +260,6 @@ class SpeedSensorFDI:
         # Cheap state for the common tick on which no sensor is flagged or frozen (each skips a few numpy calls):
         self.ratio = np.zeros((n, bank.n_isolating))  # ``margins`` of the last step
         self._maybe_flagged = False  # False only while no row has a flagged sensor
-        self.deadline = np.full(n, -1, dtype=np.int64)  # tick at which a pending isolation is decided, −1 none
         self.started = np.zeros(n, dtype=np.int64)  # tick at which the pending isolation started
         # the ticks after the detection's have shown the fault (``_fault_persists``)
         self.confirmed = np.zeros(n, dtype=bool)

@@ -113,9 +113,16 @@ class TurbineContext:
         self._bank: ObserverBank | None = None
         self._bank_tick: int | None = None
         self._speed: np.ndarray | None = None  # the four speed readings of tick _bank_tick
-        # (n, 4) calibration offsets of the speed sensors, subtracted from the bank's inputs (None: none); a
-        # detector that estimates them (``fdi``, ``adaptive``) keeps them here, updated in place
-        self.speed_offset: np.ndarray | None = None
+        # the estimate of the speed sensors' calibration offsets that a detector keeps (``fdi``, an
+        # ``adaptive.HealthySpread`` whose ``offset`` (n, 4) is updated in place; None: none): ``speed_offset``
+        self.speed_calibration = None
+
+    @property
+    def speed_offset(self) -> np.ndarray | None:
+        """(n, 4) calibration offsets of the speed sensors, subtracted from the bank's inputs (None: none); the
+        object is held rather than its array, a view that a copy of the context would not keep
+        (``wwcore.planes``)."""
+        return None if self.speed_calibration is None else self.speed_calibration.offset
 
     @cached_property
     def bank_design(self) -> BankDesign:
@@ -148,9 +155,10 @@ class TurbineContext:
         numbers: ``tests/test_fast_kernels.py``) and calls this on the first frame only."""
         read = frame.sensors.take(BANK_COLUMNS, axis=1)  # (n, 6); column 4 becomes the power-speed channel
         read[:, 4] = power_speed(read[:, 4], read[:, 5], read, self.params)
-        self._speed = read[:, :4].copy() if self.speed_offset is not None else read[:, :4]
-        if self.speed_offset is not None:
-            read[:, :4] -= self.speed_offset
+        offset = self.speed_offset
+        self._speed = read[:, :4].copy() if offset is not None else read[:, :4]
+        if offset is not None:
+            read[:, :4] -= offset
         return read[:, :5]
 
     def _input_columns(self, frame: TurbineFrame) -> tuple:
