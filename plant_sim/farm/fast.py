@@ -110,7 +110,7 @@ def phasor_power(lead_re, lead_im, rate, age, out):
 
 @kernel
 def sub_steps(
-    x_out,
+    x,
     shared,
     wind,
     gain,
@@ -147,9 +147,8 @@ def sub_steps(
     ``sums`` = (Σ readings, Σ P_r) of the block, added to in place; ``last`` = (blades, hub, mean, τ_r,i, τ_r,
     y, pitch error, quantities, ω_g read, damper torque) of the last tick and ``frame`` = (τ_g,r, β_ref, P_r,
     zone) its frame carries (the controller's before the tick's control). ``states`` (T, n, 11) receives x at
-    each tick (the step's product writes each next tick's there), ``power`` (T, n) P_g = η_gc f_P ω_g τ_g, and
-    ``shaft`` = (out (T, n), K_dt f_K, B_dt f_B, N_g), unless None, the shaft torque K (θ_Δ − e(ψ)) + B (ω_r −
-    ω_g/N_g). ``x_out`` (x at tick k, in place) ends at tick k + T.
+    each tick, ``power`` (T, n) P_g = η_gc f_P ω_g τ_g, and ``shaft`` = (out (T, n), K_dt f_K, B_dt f_B, N_g),
+    unless None, the shaft torque K (θ_Δ − e(ψ)) + B (ω_r − ω_g/N_g). ``x`` (in place) ends at tick k + T.
 
     The three the controller and the faults may add, each acting where its flag says (``TurbineBatch.advance``,
     ``FarmTurbineController.step``, ``_ripple``, ``_extra_power``, the same operations): ``mesh`` = (flags [mesh
@@ -173,23 +172,22 @@ def sub_steps(
     r_dt, mean_gain, w3_gain, narrow_s, sogi_gain, track_step, engage_rate, minus_j_g, eta_gc = ripple_consts
     extra_on, lead_re, lead_im, extra_rate, extra_consts, extra_power = extra
     extra_k0, extra_dt, extra_since, extra_eta_gc = extra_consts
-    n, n_states = x_out.shape
+    n, n_states = x.shape
     own = draws.shape[0]  # rows with their own noise stream; twin rows repeat their run's
     azimuth, omega_r, p_g_m = np.empty(n), np.empty(n), np.empty(n)
     pitch = np.empty((n, 3))
     tsr, lam, f = np.empty(3 * n), np.empty(3 * n), np.empty((6, 3 * n))
     g_aero = np.empty((6, 3 * n))
-    twin_noise = np.empty((n, pick.size))
+    noise = np.empty((n, pick.size))
     base_torque = np.empty(n)
     omega_raw, pair = np.empty(n), np.empty(n)
     z = np.empty((n, shared.shape[0]))
     n_mech = gamma_ext.shape[1]
-    ticks = states.shape[0]
-    states[0] = x_out
-    for i in range(ticks):
+    for i in range(states.shape[0]):
         j = first_j + i
-        x = states[i]  # the tick's state; the step writes the next tick's into states[i + 1] (the last into x_out)
         for r in range(n):
+            for c in range(n_states):
+                states[i, r, c] = x[r, c]
             azimuth[r] = x[r, 4]
             omega_r[r] = x[r, 0]
             for b in range(3):
@@ -217,13 +215,9 @@ def sub_steps(
         _blade_features(omega_r, radius, blades, pitch, tsr, lam, f)
         np.dot(m_t, f, g_aero)
         _blade_torques(tsr, lam, f, g_aero, blades, blade_gain, torque, tau_aero)
-        if own == n:  # every row its own stream: the block's tick read in place
-            noise = draws[:, first_noise + i, :]
-        else:
-            noise = twin_noise
-            for r in range(n):
-                for s in range(pick.size):
-                    noise[r, s] = draws[r % own, first_noise + i, s]
+        for r in range(n):
+            for s in range(pick.size):
+                noise[r, s] = draws[r % own, first_noise + i, s]
         readings(x, hub_out, power_gain, pick, noise, bias, beta_m1, beta_m2, quantities, y, pitch_error)
         now = ref_before if i == 0 else power_refs[i - 1]
         for r in range(n):
@@ -300,7 +294,6 @@ def sub_steps(
             for r in range(n):
                 for b in range(3):
                     z[r, n_states + 2 + b] = z[r, n_states + 2 + b] + trim[r, b]
-        x = x_out if i == ticks - 1 else states[i + 1]
         np.dot(z, shared, x)
         if meshing:
             for r in range(n):
