@@ -358,6 +358,21 @@ def test_the_sum_and_interpolation_kernels_equal_numpy():
     np.testing.assert_array_equal(got, available_power(BENCHMARK, x))
 
 
+def test_the_thrust_grids_binned_interpolation_equals_np_interp():
+    """``interp_binned`` (h⁻¹'s grid searched from h's uniform bin) against ``np.interp`` on the thrust's grid: at,
+    beside and between its 4 001 knots, at and beside every bin edge (where the bin's rounding matters), dense near
+    the Betz point where the knots crowd, and beyond the ends and nan; equal to the last bit."""
+    fast = fast_module("wwcore.thrust_fast")
+    rng = np.random.default_rng(SEED)
+    knots, edges = thrust._H_GRID, np.arange(4097) / fast._H_PER_BIN
+    uniform, betz = rng.uniform(0.0, thrust.H_MAX, 20000), rng.uniform(0.55, thrust.H_MAX, 20000)
+    inside = [uniform, betz, (knots[1:] + knots[:-1]) / 2]
+    near = [np.nextafter(v, side) for v in (knots, edges) for side in (-1.0, 2.0)]
+    h = np.concatenate([*inside, knots, edges, *near, [np.nan, -1.0, -0.0, thrust.H_MAX, 1.0, np.inf]])
+    got = np.array([fast.interp_binned(v, knots, thrust._CT_GRID, fast._H_BIN_FIRST, fast._H_PER_BIN) for v in h])
+    np.testing.assert_array_equal(got.view(np.int64), np.interp(h, knots, thrust._CT_GRID).view(np.int64))
+
+
 def test_the_thrust_coefficient_kernels_equal_the_reference():
     """``wwcore.thrust_fast.thrust_coefficient`` (three kernels around numpy's transcendental functions and product)
     against ``wwcore.thrust.thrust_coefficient`` on operating points inside and outside the fit's table (λ < 1,

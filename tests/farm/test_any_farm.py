@@ -227,6 +227,26 @@ def test_power_balance_counts_the_farms_of_n_turbines():
     assert balance.missing == pytest.approx([0.0, 20e6 * 0.1 * 1])
 
 
+def test_power_balance_by_blocks_sums_as_tick_by_tick():
+    """``PowerBalance.block`` (the evaluation's, a farm sample's ticks at once) gives the ticks' numbers bit for bit,
+    the blocks of a sample split anyhow."""
+    rng = np.random.default_rng(84602)
+    rows, per_sample, samples = 2 * 9, 10, 700
+    power = rng.uniform(0.0, 5e6, (samples * per_sample, rows)) * rng.uniform(0.5, 1.5, rows)
+    demand = rng.uniform(20e6, 40e6, (samples, 2))
+    by_tick, by_block = (PowerBalance(rows, per_sample, 9) for _ in range(2))
+    for k in range(len(power)):
+        by_tick.tick(k, power[k], (k + 1) % per_sample == 0, demand[k // per_sample])
+    for first in range(0, len(power), per_sample):
+        cut = first + (3 if first // per_sample % 2 else per_sample)  # some samples as two blocks
+        for start, end in ((first, cut), (cut, first + per_sample)):
+            if end > start:
+                end_sample = end == first + per_sample
+                by_block.block(end - 1, power[start:end], end_sample, demand[first // per_sample])
+    for name in ("over", "missing", "demand", "power_sum"):
+        assert getattr(by_block, name).tobytes() == getattr(by_tick, name).tobytes()
+
+
 # ---- what is still refused -----------------------------------------------------------------------------------
 def _layout_scenario(**supervisor) -> dict:
     return {

@@ -123,11 +123,13 @@ def simulate_chunk(
     trace: dict[str, list] = {k: [] for k in ("t", "power", "demand", "power_t", "ref_t", "stat", "thr", "flags")}
     events: list[Event] = []
 
-    def record(k: int, power: np.ndarray, shaft: np.ndarray | None, frame, refs) -> None:
-        """Tick k's truth (its turbines' power and shaft torque); ``frame`` the farm sample's on its last tick."""
-        p_farm = balance.tick(k, power, frame is not None, None if frame is None else frame.demand)
+    def record(k: int, block, refs) -> None:
+        """A block's truth (its turbines' power and shaft torque, ticks to k); the farm sample's when it ends one."""
+        frame = block.frame if block.frame.sample else None
+        p_farm = balance.block(k, block.power, frame is not None, None if frame is None else frame.demand)
         if damage_counter is not None:
-            damage_counter.step(k, shaft)
+            for i, shaft in enumerate(block.shaft_torque):
+                damage_counter.step(block.first_tick + i, shaft)
         if p_farm is None:
             return
         t = (k + 1) // per_sample * FARM_DT_S
@@ -154,14 +156,12 @@ def simulate_chunk(
     while plant.k < n_steps:
         block = plant.run_sample(refs, n_steps - plant.k, shaft_torque=damage_counter is not None)
         refs = sup.step(block.frame)
-        last = len(block.power) - 1
-        for i in range(last + 1):
-            k = block.first_tick + i
-            shaft = None if block.shaft_torque is None else block.shaft_torque[i]
-            record(k, block.power[i], shaft, block.frame if i == last and block.frame.sample else None, refs)
-            if (k + 1) % PROGRESS_EVERY == 0:
-                events.extend(plant.drain_events() + sup.drain_events())
-                progress(PROGRESS_EVERY * dt)
+        first, end = block.first_tick, block.first_tick + len(block.power)
+        record(end - 1, block, refs)
+        passed = end // PROGRESS_EVERY - first // PROGRESS_EVERY  # progress marks the block's ticks reached
+        if passed:
+            events.extend(plant.drain_events() + sup.drain_events())
+            progress(passed * PROGRESS_EVERY * dt)
     events += plant.drain_events() + sup.drain_events()
     progress((n_steps % PROGRESS_EVERY) * dt)
     if damage_counter is not None:

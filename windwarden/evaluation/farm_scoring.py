@@ -98,8 +98,17 @@ class PowerBalance:
         """Tick k's turbine powers (W, one per row); on a farm sample tick the block's mean farm power (W, one per
         farm), counted against ``demand`` once past the warm-up; None between samples."""
         self.power_sum += power
-        if not sample:
-            return None
+        return self._sample(k, demand) if sample else None
+
+    def block(self, k: int, power: np.ndarray, sample: bool, demand: np.ndarray) -> np.ndarray | None:
+        """``tick`` for the ticks of a block ending at tick k, ``power`` (ticks, rows) W: the rows added in their
+        order, as tick by tick."""
+        for row in power:
+            self.power_sum += row
+        return self._sample(k, demand) if sample else None
+
+    def _sample(self, k: int, demand: np.ndarray) -> np.ndarray:
+        """The farm sample ending at tick k: its mean farm power (W, one per farm), counted once past the warm-up."""
         p_farm = (self.power_sum * (1.0 / self.per_sample)).reshape(self.farms, self.turbines).sum(axis=1)
         self.power_sum[:] = 0.0
         if (k + 1) // self.per_sample > self.warm_sample:
