@@ -7,6 +7,8 @@ whole tick, scorecards and backend choice: ``tests/test_fast_backend.py``.
 from __future__ import annotations
 
 import copy
+import ctypes
+from pathlib import Path
 from types import SimpleNamespace
 
 import numpy as np
@@ -413,24 +415,49 @@ def test_the_recovery_map_product_equals_numpy_matmul(n):
         np.testing.assert_array_equal(np.signbit(got), np.signbit(expected))
 
 
+def _blas_core() -> str:
+    """The kernel family numpy's bundled OpenBLAS picked for this CPU (``openblas_get_corename``), or "" where numpy
+    bundles none."""
+    for path in sorted((Path(np.__file__).parent.parent / "numpy.libs").glob("lib*openblas*.so*")):
+        library = ctypes.CDLL(str(path))
+        for symbol in ("scipy_openblas_get_corename64_", "scipy_openblas_get_corename", "openblas_get_corename"):
+            name = getattr(library, symbol, None)
+            if name is not None:
+                name.restype = ctypes.c_char_p
+                return name().decode()
+    return ""
+
+
 def test_the_reproduced_blas_product_equals_numpy_matmul():
     # ``fast_actuator.blas_vector_matrix`` against numpy's stacked ``(1, 6) @ (6, 6)`` (one BLAS ``dgemv`` per
     # product) on random states of the bank's own matrices and on random matrices over twelve decades, zeros among
-    # them, to the last bit; a plain loop product differs on the same operands
+    # them, to the last bit; on the random matrices a plain loop product and the other CPU family's order differ. On
+    # OpenBLAS's SkylakeX and Haswell kernels the self-check must find its order (a wide batch otherwise takes the
+    # numpy path, N-20)
     fast_actuator = fast_module("service.turbine.fast_actuator")
-    if not fast_actuator.reproduces_numpy_matmul():
-        pytest.skip("numpy's BLAS on this machine is not the kernel blas_vector_matrix reproduces")
+    core = _blas_core()
+    expected_order = {"SkylakeX": fast_actuator.SKYLAKEX, "Haswell": fast_actuator.HASWELL}.get(core)
+    if expected_order is not None:
+        assert fast_actuator.numpy_matmul_order() == expected_order, core
+    order = fast_actuator.numpy_matmul_order()
+    if order == fast_actuator.BLAS_CALL:
+        pytest.skip(f"numpy's BLAS on this machine ({core or 'unknown'}) is not a kernel blas_vector_matrix reproduces")
     rng = np.random.default_rng(SEED)
     bank_matrices = TurbineSupervisor(1, backend="numpy").detector.components.signatures._At
-    for a_t in (bank_matrices, rng.standard_normal((40, 6, 6)) * np.exp(rng.standard_normal((40, 1, 1)))):
+    random_matrices = rng.standard_normal((40, 6, 6)) * np.exp(rng.standard_normal((40, 1, 1)))
+    for a_t in (bank_matrices, random_matrices):
         x = rng.standard_normal((500, len(a_t), 6)) * np.exp(6.0 * rng.standard_normal((500, len(a_t), 1)))
         x[::11, :, 2:] = 0.0
+        x[5::13] = -0.0
         expected = np.matmul(x[:, :, None, :], a_t[None])[:, :, 0, :]
         got = np.empty_like(x)
-        fast_actuator.vector_matrix_rows(x, a_t, got)
+        fast_actuator.vector_matrix_rows(x, a_t, got, order)
         np.testing.assert_array_equal(got.view(np.int64), expected.view(np.int64))
-        loop = np.einsum("nqi,qij->nqj", x, a_t, optimize=False)  # the six products added in turn, unfused
-        assert (loop != expected).mean() > 0.1
+    other = fast_actuator.HASWELL if order == fast_actuator.SKYLAKEX else fast_actuator.SKYLAKEX
+    fast_actuator.vector_matrix_rows(x, random_matrices, got, other)
+    assert (got != expected).mean() > 0.1
+    loop = np.einsum("nqi,qij->nqj", x, random_matrices, optimize=False)  # the six products added in turn, unfused
+    assert (loop != expected).mean() > 0.1
 
 
 @pytest.mark.parametrize("reproduced", [False, True])
@@ -440,8 +467,10 @@ def test_the_signature_kernel_equals_the_reference(n, reproduced):
     # ``fast_actuator.signature_block``, block after block from rest through ramps, steps and noise, the states
     # carried over; every array equal to the last bit (a sequential six-term sum or a loop product fails this), the
     # state products by BLAS calls and by the reproduced BLAS arithmetic
-    if reproduced and not fast_module("service.turbine.fast_actuator").reproduces_numpy_matmul():
-        pytest.skip("numpy's BLAS on this machine is not the kernel blas_vector_matrix reproduces")
+    fast_actuator = fast_module("service.turbine.fast_actuator")
+    order = fast_actuator.numpy_matmul_order() if reproduced else fast_actuator.BLAS_CALL
+    if reproduced and order == fast_actuator.BLAS_CALL:
+        pytest.skip("numpy's BLAS on this machine is not a kernel blas_vector_matrix reproduces")
     rng = np.random.default_rng(SEED + n)
     components = TurbineSupervisor(n, backend="numpy").detector.components
     ticks = components._ref_block.shape[0]
@@ -459,7 +488,7 @@ def test_the_signature_kernel_equals_the_reference(n, reproduced):
             np.einsum("knc,knc->nc", s, s),
             np.concatenate([w.sum(axis=0), s.sum(axis=0)], axis=1),
         )
-        got = fast_bank.block_sums(reference, w, kernel, reproduced)
+        got = fast_bank.block_sums(reference, w, kernel, order)
         for name, a, b in zip(("correlation", "energy", "sums"), got, expected, strict=True):
             np.testing.assert_array_equal(a, b, f"block {block}: {name}")
         np.testing.assert_array_equal(fast_bank.x, reference_bank.x, f"block {block}: state")

@@ -23,10 +23,18 @@ def gemm_product(a, matrix, nonzeros, out):
     coefficient changes no result: the accumulators start at +0 and never become −0 (a fused multiply-add rounds
     an exact zero sum to +0), so adding x · 0 = ±0 to one leaves it as it was, for finite x. A row with a
     non-finite entry takes every k (its products with the zeros are NaN, as BLAS's). The rows' chains are
-    independent: the loops run over the rows innermost, so that they overlap."""
+    independent: the loops run over the rows innermost, so that they overlap, on a's columns transposed, only those
+    a nonzero reads (the wind recovery's map reads 67 of its 152)."""
     starts, ks, values, lanes_from = nonzeros
     n, k_count = a.shape
-    a_t = np.ascontiguousarray(a.T)  # (K, n): a coefficient's products with every row, contiguous
+    used = np.zeros(k_count, dtype=np.bool_)
+    for e in range(ks.size):
+        used[ks[e]] = True
+    a_t = np.empty((k_count, n))  # (K, n): a coefficient's products with every row, contiguous; rows read only
+    for k in range(k_count):
+        if used[k]:
+            for r in range(n):
+                a_t[k, r] = a[r, k]
     acc = np.empty(n)
     lanes = np.empty((8, n))
     for j in range(out.shape[1]):
@@ -49,10 +57,10 @@ def gemm_product(a, matrix, nonzeros, out):
             low = (lanes[0, r] + lanes[1, r]) + (lanes[2, r] + lanes[3, r])
             out[r, j] = low + ((lanes[4, r] + lanes[5, r]) + (lanes[6, r] + lanes[7, r]))
     for r in range(n):  # rows with a non-finite entry: every k, the zeros' products included
-        finite = True
+        non_finite = 0
         for k in range(k_count):
-            finite = finite and np.isfinite(a[r, k])
-        if finite:
+            non_finite += 0 if np.isfinite(a[r, k]) else 1
+        if non_finite == 0:
             continue
         for j in range(out.shape[1]):
             if j < lanes_from:

@@ -105,12 +105,12 @@ def actuator_whitener(p: TurbineParams) -> tuple[np.ndarray, np.ndarray]:
 CROSS_BLADE = np.array([[1.0, -0.5, -0.5], [-0.5, 1.0, -0.5], [-0.5, -0.5, 1.0]])
 """e = m̄ @ CROSS_BLADE: each blade's pair mean minus the mean of the other two blades' (symmetric)."""
 SIGNATURE_KERNEL_ROWS = 12
-"""Where ``fast_actuator.reproduces_numpy_matmul`` is false (a BLAS or CPU whose vector-matrix kernel the compiled
+"""Where ``fast_actuator.numpy_matmul_order`` finds none (a BLAS or CPU whose vector-matrix kernel the compiled
 arithmetic does not reproduce), batches of at most this many rows compute the pitch-actuator signatures by
 ``fast_actuator.signature_block`` with BLAS calls, wider ones by numpy (the same numbers): the kernel makes one BLAS
 call per row and candidate where numpy's stacked ``matmul`` makes them without leaving C, and was the slower above
 12–16 rows (measured: 2 rows 60–100 µs per block against numpy's 130–250, 100 rows 2.9–3.3 ms against 2.4). Where it
-is true, every batch takes the kernel, with the products computed in it."""
+finds one, every batch takes the kernel, with the products computed in it."""
 
 
 class ComponentFDI(Planes):
@@ -143,8 +143,8 @@ class ComponentFDI(Planes):
         self._fast_actuator = fast_module("service.turbine.fast_actuator") if fast is not None else None
         self._fast_converter = fast_module("service.turbine.fast_converter") if fast is not None else None
         # the signature bank's state products: BLAS's arithmetic in the kernel where it equals numpy's on this machine
-        self._reproduced_products = fast is not None and self._fast_actuator.reproduces_numpy_matmul()
-        self._compiled_signatures = fast is not None and (n <= SIGNATURE_KERNEL_ROWS or self._reproduced_products)
+        self._matmul_order = self._fast_actuator.numpy_matmul_order() if fast is not None else 0
+        self._compiled_signatures = fast is not None and (n <= SIGNATURE_KERNEL_ROWS or self._matmul_order != 0)
         alpha = settings.false_alarms_per_1000s * p.dt / 1000.0
         self.sigma_beta = sigma["beta_1_m1"]
         self.sigma_tau = sigma["tau_g_m"]
@@ -469,7 +469,7 @@ class ComponentFDI(Planes):
         """The signatures of the block and its sums Σ w s_θ, Σ s_θ², [Σ w | Σ s_θ], by one kernel (the numpy lines
         of ``_actuators`` in their order: ``SignatureBank.block_sums``)."""
         kernel = self._fast_actuator.signature_block
-        return self.signatures.block_sums(self._ref_block, w, kernel, self._reproduced_products)
+        return self.signatures.block_sums(self._ref_block, w, kernel, self._matmul_order)
 
     def _fast_actuator_test(self, z1, z2, block_correlation, block_energy, block_sums) -> None:
         """``_actuators`` from the block's sums on, by ``service.turbine.fast_actuator.actuator_test`` (the same

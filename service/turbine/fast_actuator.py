@@ -7,8 +7,9 @@ equal the reference's bit for bit (``tests/test_fast_backend.py``). ``signature_
 and the block's sums in the order numpy's ``einsum`` and ``matmul`` give them on this numpy build (``einsum``'s
 two-lane inner loop for the six-term contraction, tick order for the block's sums); the state update's product is
 either a BLAS call, as numpy's stacked ``matmul`` makes one per row and candidate, or ``blas_vector_matrix``, the
-arithmetic of the BLAS kernel numpy's call reaches, used only where ``reproduces_numpy_matmul`` found it equal to
-numpy's on this machine; the tests compare them with the numpy lines bit for bit.
+arithmetic of the BLAS kernel numpy's call reaches (OpenBLAS's SkylakeX or Haswell ``dgemv_n``), used only where
+``numpy_matmul_order`` found one of them equal to numpy's on this machine; the tests compare them with the numpy lines
+bit for bit.
 """
 
 from __future__ import annotations
@@ -19,21 +20,33 @@ from service.turbine.fast import learn_spread
 from wwcore.aero_fast import maximum
 from wwcore.jit import fma, kernel
 
-
 # -- signature bank and block sums (``pitch_actuator.SignatureBank.block``, ``ComponentFDI._actuators``) --------------
+BLAS_CALL, SKYLAKEX, HASWELL = 0, 1, 2
+"""The state products' arithmetic in ``signature_block``: a BLAS call, or OpenBLAS's ``dgemv_n`` kernels of one CPU
+family reproduced (``blas_vector_matrix``), as ``numpy_matmul_order`` finds them on this machine."""
+
+
 @kernel
-def blas_vector_matrix(a, q, j, x0, x1, x2, x3, x4, x5):
+def blas_vector_matrix(a, q, j, x0, x1, x2, x3, x4, x5, order):
     """Output j of x a[q] for x = (x0 … x5) and a (K, 6, 6) in C order, with the arithmetic of the BLAS call numpy's
-    ``matmul`` makes for a (1, 6) @ (6, 6) product (``reproduces_numpy_matmul`` checks that it is numpy's on this
-    machine).
+    ``matmul`` makes for a (1, 6) @ (6, 6) product on OpenBLAS's ``order`` kernels (``SKYLAKEX`` or ``HASWELL``;
+    ``numpy_matmul_order`` checks which, if either, is numpy's on this machine).
 
     numpy asks for ``cblas_dgemv(RowMajor, Trans)``: OpenBLAS's ``dgemv_n`` on the column-major view of a[q], whose
-    column i is a[q]'s row i, and y = +0 first (β = 0). On its SkylakeX kernels (OpenBLAS 0.3.31 of numpy 2.4.6, on an
-    AVX-512 CPU) outputs 0–3 take the 4 × 4 micro-kernel on a's rows 0–3, fused multiply-adds from a₁x₁:
-    fma(a₃x₃, fma(a₂x₂, fma(a₀x₀, a₁x₁))), added to y, then the 4 × 2 micro-kernel's fma(a₄x₄, a₅x₅) added;
-    outputs 4–5 take the scalar tail, a chain of fused multiply-adds over the six rows from 0, added to y. Found
-    by comparing candidate orders with numpy's products on random operands (0 of 800 000 values differ; the
-    two-accumulator order of OpenBLAS's Haswell kernel differs in 38 %, the other orders tried in 14–54 %)."""
+    column i is a[q]'s row i, and y = +0 first (β = 0). Outputs 0–3 take the 4 × 4 micro-kernel on a's rows 0–3, then
+    the 4 × 2 micro-kernel's on rows 4–5, each added to y; outputs 4–5 the scalar tail over the six rows from 0, added
+    to y. On the SkylakeX kernels (OpenBLAS 0.3.31 of numpy 2.4.6, on an AVX-512 CPU that OpenBLAS names SkylakeX) the
+    4 × 4 kernel is fma(a₃x₃, fma(a₂x₂, fma(a₀x₀, a₁x₁))), the 4 × 2 fma(a₄x₄, a₅x₅) and the tail a chain of fused
+    multiply-adds. On the Haswell kernels (the same OpenBLAS on an AMD Zen 5 CPU, which it names Haswell) the 4 × 4
+    kernel has two accumulators, fma(a₂x₂, a₀x₀) + fma(a₃x₃, a₁x₁), the 4 × 2 kernel a₄x₄ + a₅x₅, and the tail is
+    the six products added in turn, unfused. Found by comparing candidate orders with numpy's products on random
+    operands (0 of 800 000 values differ for SkylakeX, 0 of 960 000 for Haswell, each on its own CPU)."""
+    if order == HASWELL:
+        if j < 4:
+            head = fma(a[q, 2, j], x2, a[q, 0, j] * x0) + fma(a[q, 3, j], x3, a[q, 1, j] * x1)
+            return (head + 0.0) + (a[q, 4, j] * x4 + a[q, 5, j] * x5)
+        tail = a[q, 0, j] * x0 + a[q, 1, j] * x1 + a[q, 2, j] * x2 + a[q, 3, j] * x3 + a[q, 4, j] * x4
+        return (tail + a[q, 5, j] * x5) + 0.0
     if j < 4:
         head = fma(a[q, 3, j], x3, fma(a[q, 2, j], x2, fma(a[q, 0, j], x0, a[q, 1, j] * x1)))
         return (head + 0.0) + fma(a[q, 4, j], x4, a[q, 5, j] * x5)
@@ -46,44 +59,55 @@ def blas_vector_matrix(a, q, j, x0, x1, x2, x3, x4, x5):
 
 
 @kernel
-def vector_matrix_rows(x, a, out):
+def vector_matrix_rows(x, a, out, order):
     """``blas_vector_matrix`` of every x[r, q] (n, K, 6) with a[q] (K, 6, 6), into out (n, K, 6): the stacked
     ``np.matmul(x[:, :, None, :], a[None])[:, :, 0, :]`` of ``SignatureBank.block``."""
     for r in range(x.shape[0]):
         for q in range(x.shape[1]):
             x0, x1, x2, x3, x4, x5 = x[r, q, 0], x[r, q, 1], x[r, q, 2], x[r, q, 3], x[r, q, 4], x[r, q, 5]
             for j in range(6):
-                out[r, q, j] = blas_vector_matrix(a, q, j, x0, x1, x2, x3, x4, x5)
+                out[r, q, j] = blas_vector_matrix(a, q, j, x0, x1, x2, x3, x4, x5, order)
 
 
-_REPRODUCED: list[bool] = []  # the answer of ``reproduces_numpy_matmul``, once per process
+_ORDER: list[int] = []  # the answer of ``numpy_matmul_order``, once per process
 
 
-def reproduces_numpy_matmul() -> bool:
-    """Whether ``blas_vector_matrix`` gives numpy's stacked ``matmul`` bit for bit on this machine (numpy's BLAS and
-    the kernel it picks for this CPU): random operands over twelve decades, zero rows among them, 24 000 values
-    compared. Asked once per process; where it is false, ``signature_block`` makes BLAS calls instead."""
-    if not _REPRODUCED:
+def numpy_matmul_order() -> int:
+    """Which of ``blas_vector_matrix``'s orders (``SKYLAKEX``, ``HASWELL``) gives numpy's stacked ``matmul`` bit for
+    bit on this machine (numpy's BLAS and the kernel it picks for this CPU), else ``BLAS_CALL``: random operands over
+    twelve decades, zero rows among them, 24 000 values compared per order. Asked once per process; with
+    ``BLAS_CALL``, ``signature_block`` makes BLAS calls instead."""
+    if not _ORDER:
         rng = np.random.default_rng(20261127)
         x = rng.standard_normal((60, 40, 6)) * np.exp(6.0 * rng.standard_normal((60, 40, 1)))
         x[::7] = 0.0
         a = rng.standard_normal((40, 6, 6)) * np.exp(rng.standard_normal((40, 1, 1)))
-        expected = np.matmul(x[:, :, None, :], a[None])[:, :, 0, :]
+        expected = np.matmul(x[:, :, None, :], a[None])[:, :, 0, :].view(np.int64)
         got = np.empty_like(x)
-        vector_matrix_rows(x, a, got)
-        _REPRODUCED.append(bool(np.array_equal(expected.view(np.int64), got.view(np.int64))))
-    return _REPRODUCED[0]
+        for order in (SKYLAKEX, HASWELL):
+            vector_matrix_rows(x, a, got, order)
+            if np.array_equal(expected, got.view(np.int64)):
+                _ORDER.append(order)
+                break
+        else:
+            _ORDER.append(BLAS_CALL)
+    return _ORDER[0]
+
+
+def reproduces_numpy_matmul() -> bool:
+    """Whether one of ``blas_vector_matrix``'s orders is numpy's stacked ``matmul`` on this machine."""
+    return numpy_matmul_order() != BLAS_CALL
 
 
 @kernel
-def signature_block(reference, x, a_t, b, c, d, w, correlation, energy, block_sums, reproduced):
+def signature_block(reference, x, a_t, b, c, d, w, correlation, energy, block_sums, order):
     """``SignatureBank.block`` of the block's references (ticks, n) from the states x (n, K, 6), in place, and the
     block's sums of ``ComponentFDI._actuators``: Σ_k w s_θ (n, 3, K), Σ_k s_θ² (n, K) and [Σ_k w | Σ_k s_θ]
     (n, 3 + K), with w (ticks, n, 3) the whitened residual.
 
     s_θ[k] = C x + r D, the six products added as numpy's ``einsum("nkj,kj->nk")`` adds them (two lanes:
-    ((p0 + p2) + p4) + ((p1 + p3) + p5)); x ← x Aᵀ + r B, the product by ``blas_vector_matrix`` where
-    ``reproduced`` (``reproduces_numpy_matmul``), else by a BLAS call (the vector-matrix product numpy's stacked
+    ((p0 + p2) + p4) + ((p1 + p3) + p5)); x ← x Aᵀ + r B, the product by ``blas_vector_matrix`` in ``order``
+    (``numpy_matmul_order``), or with ``BLAS_CALL`` by a BLAS call (the vector-matrix product numpy's stacked
     ``matmul`` makes); the block's sums in tick order from the first tick, as ``einsum`` and ``sum(axis=0)`` add
     along the ticks."""
     ticks, n = reference.shape
@@ -102,9 +126,9 @@ def signature_block(reference, x, a_t, b, c, d, w, correlation, energy, block_su
                 p0, p1, p2 = x0 * c[q, 0], x1 * c[q, 1], x2 * c[q, 2]
                 p3, p4, p5 = x3 * c[q, 3], x4 * c[q, 4], x5 * c[q, 5]
                 s[q] = (((p0 + p2) + p4) + ((p1 + p3) + p5)) + rk * d[q]
-                if reproduced:
+                if order != BLAS_CALL:
                     for j in range(6):
-                        x[r, q, j] = blas_vector_matrix(a_t, q, j, x0, x1, x2, x3, x4, x5) + rk * b[q, j]
+                        x[r, q, j] = blas_vector_matrix(a_t, q, j, x0, x1, x2, x3, x4, x5, order) + rk * b[q, j]
                 else:
                     np.dot(x[r, q], a_t[q], moved)
                     for j in range(6):

@@ -155,17 +155,18 @@ class SignatureBank:
         return s
 
     def block_sums(
-        self, reference: np.ndarray, w: np.ndarray, kernel, reproduced: bool = False
+        self, reference: np.ndarray, w: np.ndarray, kernel, order: int = 0
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """``block`` of the references (ticks, n) with the sums a pitch-actuator test takes of it, given the whitened
         residual w (ticks, n, 3): Σ_k w s_θ (n, 3, K), Σ_k s_θ² (n, K) and [Σ_k w | Σ_k s_θ] (n, 3 + K), by a compiled
         ``kernel`` (``service.turbine.fast_actuator.signature_block``: numpy's operations in numpy's order; its state
-        products by the reproduced BLAS arithmetic where ``reproduced``, else by BLAS calls)."""
+        products by the reproduced BLAS arithmetic of ``order`` (``fast_actuator.numpy_matmul_order``), by BLAS
+        calls with 0)."""
         if self.x is None:
             self.x = reference[0][:, None, None] * self._steady[None]
         k = len(self.candidates)
         correlation, energy, sums = np.empty((self.n, 3, k)), np.empty((self.n, k)), np.empty((self.n, 3 + k))
-        kernel(reference, self.x, self._At, self._B, self._C, self._D, w, correlation, energy, sums, reproduced)
+        kernel(reference, self.x, self._At, self._B, self._C, self._D, w, correlation, energy, sums, order)
         return correlation, energy, sums
 
 
