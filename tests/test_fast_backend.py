@@ -28,6 +28,7 @@ from tests.live.helpers import TURBINE_SHORT
 from windwarden.cli import EXIT_BAD_INPUT, main
 from windwarden.evaluation.kinds import EvalOptions
 from windwarden.kinds import kind_for
+from wwcore import jit
 from wwcore.backend import ENV_VAR, BackendError, available, fast_module, process_backend, resolve_backend
 from wwcore.scenario import load_scenario, parse_scenario
 from wwcore.turbine_params import BENCHMARK
@@ -282,3 +283,26 @@ def test_eval_refuses_the_numba_backend_where_numba_is_missing(monkeypatch, tmp_
     out = tmp_path / "out"
     assert main(["eval", "ftwse-2012", "--runs", "1", "--quiet", "--out", str(out)]) == EXIT_BAD_INPUT
     assert "--step-backend" in capsys.readouterr().err and not out.exists()  # refused before anything ran
+
+
+def test_the_kernel_cache_is_keyed_on_every_kernel_module_not_only_the_kernel_s_own(tmp_path, monkeypatch):
+    """numba re-checks a cached kernel against its own file only; the cache's subdirectory is named by a hash of
+    every module of the kernel packages, so a changed callee in another module compiles afresh (``wwcore.jit``)."""
+    for package in jit.KERNEL_PACKAGES:
+        (tmp_path / package).mkdir()
+        (tmp_path / package / "kernels.py").write_text("x = 1\n")
+    (tmp_path / "notes.py").write_text("y = 1\n")
+    key = jit.source_key(tmp_path)
+    assert len(key) == 16 and key == jit.source_key(tmp_path)
+    (tmp_path / "notes.py").write_text("y = 2\n")  # outside the kernel packages
+    assert jit.source_key(tmp_path) == key
+    (tmp_path / "wwcore" / "kernels.py").write_text("x = 2\n")  # a callee changed
+    changed = jit.source_key(tmp_path)
+    assert changed != key
+    (tmp_path / "service" / "new.py").write_text("")  # a module added
+    assert jit.source_key(tmp_path) != changed
+    monkeypatch.setenv("NUMBA_CACHE_DIR", str(tmp_path / "numba"))
+    assert jit.cache_dir() == tmp_path / "numba" / f"source-{jit.source_key()}"
+    monkeypatch.delenv("NUMBA_CACHE_DIR")
+    monkeypatch.setenv("WINDWARDEN_CACHE", str(tmp_path / "cache"))
+    assert jit.cache_dir() == tmp_path / "cache" / "numba" / f"source-{jit.source_key()}"
