@@ -58,6 +58,7 @@ FORGET_S = 10.0  # T of (1): the fault estimate's forgetting time, s
 ALPHA = 1e-3  # the residual test's false-restart probability per block
 N_PARAMS = 2  # b, s
 DIFFUSE = 1e6  # the recursive least squares' starting P (in units of the innovations' variance): no prior
+NOISE_BLOCK = 256  # noise samples whose coefficients ``torque_noise_variances`` holds at once (memory, not numbers)
 
 
 @lru_cache(maxsize=8)
@@ -101,22 +102,28 @@ def torque_noise_variances(
         theta[:, n] += gain
         P = (P - np.outer(gain, Pphi)) / lam
     size = history + horizon
-    on_healthy = np.zeros((size, size))  # ω̂'s coefficients on e_h (all ticks) and on e_f (from the start)
-    on_faulty = np.zeros((size, horizon))
-    idx = np.arange(history)
-    on_healthy[idx, idx] = 1.0
-    post = history + np.arange(horizon)
-    on_healthy[post, post] = 1.0 - weight_faulty
-    on_healthy[history:, history:] += weight_faulty * predict  # −w a_nᵀ(e_f − e_h)
-    on_faulty[post, np.arange(horizon)] = weight_faulty
-    on_faulty[history:, :] -= weight_faulty * predict
     b, a = butter2_lowpass(cutoff_pair_hz, dt)
     variance = np.zeros(horizon)
-    for coefficients, sigma in ((on_healthy, sigma_healthy), (on_faulty, sigma_faulty)):
+    # ω̂'s coefficients (rows: ticks) on each noise sample (columns): e_h at every tick, e_f from the start; the
+    # columns are independent noise samples, so their squared filtered coefficients are summed a block at a time
+    for first in range(0, size + horizon, NOISE_BLOCK):
+        columns = np.arange(first, min(first + NOISE_BLOCK, size + horizon))
+        coefficients = np.zeros((size, len(columns)))
+        healthy, faulty = columns < size, columns >= size
+        before = healthy & (columns < history)
+        coefficients[columns[before], np.flatnonzero(before)] = 1.0
+        after = healthy & ~before
+        k = columns[after] - history
+        coefficients[history:, after] = weight_faulty * predict[:, k]  # −w a_nᵀ(e_f − e_h)
+        coefficients[columns[after], np.flatnonzero(after)] = 1.0 - weight_faulty
+        k = columns[faulty] - size
+        coefficients[history:, faulty] = -weight_faulty * predict[:, k]
+        coefficients[history + k, np.flatnonzero(faulty)] = weight_faulty
+        sigma = np.where(healthy, sigma_healthy, sigma_faulty)
         raw = c_now * coefficients
         raw[1:] += c_prev * coefficients[:-1]
         filtered = lfilter(b, a, raw, axis=0)[history:]
-        variance += sigma**2 * np.sum(filtered**2, axis=1)
+        variance += np.sum((sigma * filtered) ** 2, axis=1)
     variance[:N_PARAMS] = np.inf
     b1, a1 = butter2_lowpass(cutoff_one_hz, dt)
     impulse = np.zeros(history + horizon)
