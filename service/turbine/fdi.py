@@ -57,33 +57,21 @@ evidence that its sensor is healthy again.
   so such an explanation is decided on the 4th tick at the earliest, after about 9.7 on a healthy pair, and the test
   names the biased sensor (``rotor_pair``). An explanation naming a
   frozen sensor is decided on one look (the sum's z beyond the isolation level in the pair's learnt spread).
-* **Hold.** Once the fault is confirmed ("No fault" above), an isolation that waits on an explanation it already
-  holds (the arbitration's choice between the encoders, the rotor-speed pair's test, a doubt) keeps it while the
-  wait lasts; on a tick where another explanation is consistent too, no tie-break replaces it. Among consistent
-  explanations of one size the choice is a tie-break on noise (the smaller statistic), and a choice re-made on every
-  tick of a wait that lasts hundreds of ticks lands sooner or later on whatever has no test to wait for, so its
-  error probability has no bound; the held explanation's is the bound of the tests it waits on. For the same reason
-  the held explanation is not given up on a witness's crossing of the isolation level α_iso, which a true one makes
-  with probability about α_iso on every tick of the wait: it is rejected only at the wait's level α_iso/N (each
-  witness's statistic and window sum at the upper α_iso/(2N) quantiles, N = ``arbitration_s``/Ts, the most ticks
-  any wait lasts), which a true held explanation ever reaches over its whole wait with probability ≤ α_iso per
-  witness (Bonferroni over the N looks). So rejected, the explanation consistent at α_iso takes its place where it
-  keeps the held sensors (or the held one with the other encoder: a further fault beside it); otherwise the
-  isolation starts afresh on that tick, with its own "no fault" test and the arbitration's sums restarted: the
-  data no longer fit what it was waiting on (most often the fault has ended), and neither the explanation nor the
-  sums gathered for it carry over. An explanation naming a frozen sensor is not held: its doubts wait on the
-  witnesses' next ticks and are re-explained on each ("Frozen signals" below); nor is one during a chance join's
-  patience (below).
-* **Chance joins.** Where the chosen explanation grows a smaller one (a superset of the flagged and frozen sensors
-  naming a sensor beside the flags) that is consistent at the detection level, only a witness of the smaller one
-  between the isolation and the detection levels made the choice: a healthy witness crosses α_iso on a tick with
-  probability about α_iso (n_w α_iso for an explanation's n_w witnesses, 3–4·10⁻³ for a one-sensor one). The
-  decision then waits a tick rather than flag the healthy sensor, while the isolation has waited less than
-  ``isolation_delay`` + ``isolation_patience`` ticks, and the choice is re-made on each of them, nothing held, so
-  the decision at the patience's end is the choice of that tick. A healthy sensor then joins only if a witness is
-  over α_iso on the deciding tick and again at the patience's end, a window or more later: about (n_w α_iso)²; a
-  real second fault whose witness stays between the two levels joins at the patience's end, one beyond the
-  detection level at once (docs/decisions.md N-31 for a frozen reading, N-36 for any explanation).
+* **Hold.** Once the fault is confirmed ("No fault" above), an isolation that waits on an explanation (the
+  arbitration between the encoders, the rotor-speed pair's test, a doubt) holds it while the wait lasts: a choice
+  re-made by tie-break on every tick of a long wait lands sooner or later on whatever has nothing to wait for. The
+  held explanation is rejected only at the wait's level α_iso/N (N = ``arbitration_s``/Ts, the longest wait), which
+  a true one reaches over its whole wait with probability ≤ α_iso per witness (Bonferroni); so rejected, the
+  explanation consistent at α_iso takes its place where it keeps the held sensors, else the isolation starts afresh
+  with its own "no fault" test and the arbitration's sums restarted (docs/decisions.md N-33). An explanation naming
+  a frozen sensor is not held, nor one during a chance join's patience (below): both are re-explained each tick.
+* **Chance joins.** Where the chosen explanation grows a smaller one (the flagged and frozen sensors and a sensor
+  beside them) that is consistent at the detection level, only a witness between the isolation and the detection
+  levels made the choice, which a healthy witness does with probability about α_iso a tick. The decision then waits
+  a tick, up to ``isolation_delay`` + ``isolation_patience`` ticks since the isolation started, the choice re-made
+  on each: a healthy sensor joins only if a witness is over α_iso on the deciding tick and again at the patience's
+  end, about (n_w α_iso)² for n_w witnesses; a real second fault beyond the detection level joins at once, one
+  between the levels at the patience's end (docs/decisions.md N-31 for a frozen reading, N-36 for any explanation).
 * **Persistent rotor-speed bias.** Beside the window tests, Page's CUSUMs (a bank of shifts ``bias_shift``·2^k,
   k < ``bias_bank``) on the parity of the two rotor-speed sensors' exclusion residuals against the generator-speed
   Kalman filter (``bias_test``; ``rotor_bias_test``, ``bias_shift``) flag a bias of 1–2 σ that the UIOs take for
