@@ -2,18 +2,23 @@
 
 from __future__ import annotations
 
+from types import SimpleNamespace
+
 import numpy as np
 import pytest
 
 from plant_sim.turbine import TurbineBatch
-from service.turbine.component_fdi import actuator_whitener
+from service.turbine.component_fdi import ComponentFDI, actuator_whitener
+from service.turbine.component_settings import ComponentSettings
 from service.turbine.supervisor import TurbineSupervisor
-from wwcore.channels import DIAGNOSIS_TARGETS
+from wwcore.channels import DIAGNOSIS_TARGETS, N_SENSORS, SENSOR_INDEX, SENSORS, TARGET_INDEX, noise_std
 from wwcore.scenario import FaultSpec, WindSpec
 from wwcore.scenario.turbine import TurbinePlant
+from wwcore.turbine_frames import TurbineFrame
 from wwcore.turbine_params import BENCHMARK as P
 
 REGION3 = WindSpec(mean=[(0.0, 16.0)])  # turbulent, pitching
+SIGMA = {c.name: noise_std(c, "sigma") for c in SENSORS}  # the sensors' noise σ, the supervisor's convention
 
 
 def flags_over_time(faults, seconds, wind=REGION3, seed=11, runs=2, mismatch=None):
@@ -128,12 +133,7 @@ def _converter_run(offsets_sigma, ticks, start, end=None, rate=0.01, n_per=1, se
     """Drive ``ComponentFDI`` with frames whose torque reference is constant and whose τ_g,m is the first-order
     converter's response to reference + offset, plus τ_g,m's noise; pitch sensors noisy and equal in mean.
     Returns the converter flags (ticks, rows) and the detector."""
-    from service.turbine.component_fdi import ComponentFDI
-    from service.turbine.component_settings import ComponentSettings
-    from wwcore.channels import N_SENSORS, SENSOR_INDEX, SENSORS, noise_std
-    from wwcore.turbine_frames import TurbineFrame
-
-    sigma = {c.name: noise_std(c, "sigma") for c in SENSORS}
+    sigma = SIGMA
     offsets = np.repeat(np.asarray(offsets_sigma, dtype=float), n_per) * sigma["tau_g_m"]
     n = len(offsets)
     settings = ComponentSettings(false_alarms_per_1000s=rate, adapt_time_s=adapt, warmup_s=0.0)
@@ -276,3 +276,39 @@ def test_wind_torque_takes_the_measured_generator_torque_on_a_distrusted_convert
         for row in (1, 2):
             expected = before[row, j] + P.N_g / P.eta_dt * (measured[row] - x_hat[row, state])
             assert raw[row, j] == pytest.approx(expected, rel=1e-12)
+
+
+# -- pitch sensors ------------------------------------------------------------------------------------------------
+def _pitch_run(seconds: float, gain_from_s: float, gain_to_s: float, seed: int = 8) -> np.ndarray:
+    """Pitch readings of three blades at a collective pitch that wanders between 1.2 and 2.8 deg, with blade 2's
+    second sensor reading 1.2 × from ``gain_from_s`` to ``gain_to_s``: its parity is 0.85–2 σ per tick, its window
+    mean 2.7–6.3 σ, across the raise level and the window's clearing level. Returns the flags of every tick."""
+    sigma = SIGMA
+    components = ComponentFDI(P, 1, sigma, ComponentSettings())
+    rng = np.random.default_rng(seed)
+    ticks = round(seconds / P.dt)
+    flags = []
+    columns = [SENSOR_INDEX[f"beta_{i}_m{m}"] for m in (1, 2) for i in (1, 2, 3)]
+    for k in range(ticks):
+        t = k * P.dt
+        beta = 2.0 + 0.8 * np.sin(2.0 * np.pi * t / 10.0)
+        y = np.zeros((1, N_SENSORS))
+        y[0, columns] = beta + sigma["beta_1_m1"] * rng.standard_normal(6)
+        if gain_from_s <= t < gain_to_s:
+            y[0, SENSOR_INDEX["beta_2_m2"]] *= 1.2
+        y[0, SENSOR_INDEX["tau_g_m"]] = 2.0e4 + sigma["tau_g_m"] * rng.standard_normal()
+        frame = SimpleNamespace(sensors=y, tau_g_ref=np.array([2.0e4]), beta_ref=np.array([beta]))
+        flags.append(components.step(frame)[0].copy())
+    return np.array(flags)
+
+
+def test_a_pitch_sensor_gain_near_its_detection_limit_is_flagged_once_and_kept():
+    flags = _pitch_run(70.0, 10.0, 60.0)
+    faulty = flags[:, TARGET_INDEX["beta_2_m2"]]
+    raises = np.flatnonzero(np.diff(faulty.astype(int)) == 1) + 1
+    start, end = round(10.0 / P.dt), round(60.0 / P.dt)
+    assert len(raises) == 1 and start <= raises[0] < start + round(10.0 / P.dt), raises * P.dt
+    assert faulty[raises[0] : end].all(), "the flag is kept while the fault persists"
+    assert not faulty[end + round(1.0 / P.dt) :].any(), "its end is recognised within a second"
+    others = [TARGET_INDEX[name] for name in TARGET_INDEX if name != "beta_2_m2"]
+    assert not flags[:, others].any(), "the other sensor of the pair (and everything else) is never flagged"

@@ -284,9 +284,7 @@ class UIOBankEstimator:
         for k, bit in enumerate(_GENERATOR_BITS):
             encoder[(generator == bit) & (flagged & bit != 0)] = k
         if not (encoder >= 0).any():
-            estimate.stop()
-            self._corrected[:] = False
-            self._compensated[:] = False
+            self._stop_compensation()
             return bank.x_hat
         speeds = self.context.speed_readings(frame)[:, _GENERATOR_SPEEDS]
         if self.context.speed_offset is not None:  # the bank's readings
@@ -311,6 +309,12 @@ class UIOBankEstimator:
             source = np.asarray(self._pair)[encoder[rows]]  # the healthy encoder's observer
             self.recovery.transfer(rows, self._own[encoder[rows]], source, self.context.bank_design, x_hat)
         return x_hat
+
+    def _stop_compensation(self) -> None:
+        """No row has one generator-speed encoder flagged: the fault estimate stops and no column is corrected."""
+        self._fault_estimate.stop()
+        self._corrected[:] = False
+        self._compensated[:] = False
 
     def _take_over(self, bank, selected: np.ndarray, mask: np.ndarray, flagged: np.ndarray) -> None:
         """Where a speed sensor that was flagged is trusted again (``mask``: the distrusted speed sensors, ``flagged``:
@@ -448,8 +452,7 @@ class UIOBankEstimator:
         if distrusting or fast is None:
             pitch = frame.sensors[:, PITCH_M12]  # [β_i,m1 | β_i,m2], one gather
             pitch_m1, pitch_m2 = pitch[:, :3], pitch[:, 3:]
-        if fast is not None and distrusting:
-            n = self.context.n
+        if distrusting:
             mask, selected = self.select(faulty, frame.tau_g_ref, frame.zone)
             flagged_mask = self._flagged_mask(flagged, mask)
             self._take_over(bank, selected, mask, flagged_mask)
@@ -459,26 +462,17 @@ class UIOBankEstimator:
                 _converter_torque(frame, faulty),
             )  # fmt: skip
             columns = np.maximum(selected, 0)
-            omega_r, omega_g = np.empty(n), np.empty(n)
-            fast.gather_speeds(recovery.filtered, *recovery.speed_starts, selected, omega_r, omega_g)
-        elif distrusting:
-            mask, selected = self.select(faulty, frame.tau_g_ref, frame.zone)
-            flagged_mask = self._flagged_mask(flagged, mask)
-            self._take_over(bank, selected, mask, flagged_mask)
-            x_hat = bank.x_hat if self._fault_estimate is None else self._compensate(bank, mask, flagged_mask, frame)
-            recovery.step(
-                x_hat, frame.beta_ref, pitch_m1, pitch_m2, ~faulty[:, PITCH_M1_T], ~faulty[:, PITCH_M2_T],
-                _converter_torque(frame, faulty),
-            )  # fmt: skip
-            columns = np.maximum(selected, 0)
-            rows = self._rows
-            omega_r, omega_g = recovery.omega_r[rows, columns], recovery.omega_g[rows, columns]
+            if fast is not None:
+                n = self.context.n
+                omega_r, omega_g = np.empty(n), np.empty(n)
+                fast.gather_speeds(recovery.filtered, *recovery.speed_starts, selected, omega_r, omega_g)
+            else:
+                rows = self._rows
+                omega_r, omega_g = recovery.omega_r[rows, columns], recovery.omega_g[rows, columns]
         else:  # the common tick: every sensor healthy, every row on the observer that uses all four speed sensors
             selected = self._all_healthy.copy()
             if self._fault_estimate is not None and self._fault_estimate.active:
-                self._fault_estimate.stop()
-                self._corrected[:] = False
-                self._compensated[:] = False
+                self._stop_compensation()
             if self._switched:
                 none = np.zeros(len(selected), dtype=np.int64)
                 self._take_over(bank, selected, none, none)

@@ -14,6 +14,8 @@ bit for bit.
 
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 
 from service.turbine.fast import learn_spread
@@ -69,34 +71,23 @@ def vector_matrix_rows(x, a, out, order):
                 out[r, q, j] = blas_vector_matrix(a, q, j, x0, x1, x2, x3, x4, x5, order)
 
 
-_ORDER: list[int] = []  # the answer of ``numpy_matmul_order``, once per process
-
-
+@functools.cache
 def numpy_matmul_order() -> int:
     """Which of ``blas_vector_matrix``'s orders (``SKYLAKEX``, ``HASWELL``) gives numpy's stacked ``matmul`` bit for
     bit on this machine (numpy's BLAS and the kernel it picks for this CPU), else ``BLAS_CALL``: random operands over
     twelve decades, zero rows among them, 24 000 values compared per order. Asked once per process; with
     ``BLAS_CALL``, ``signature_block`` makes BLAS calls instead."""
-    if not _ORDER:
-        rng = np.random.default_rng(20261127)
-        x = rng.standard_normal((60, 40, 6)) * np.exp(6.0 * rng.standard_normal((60, 40, 1)))
-        x[::7] = 0.0
-        a = rng.standard_normal((40, 6, 6)) * np.exp(rng.standard_normal((40, 1, 1)))
-        expected = np.matmul(x[:, :, None, :], a[None])[:, :, 0, :].view(np.int64)
-        got = np.empty_like(x)
-        for order in (SKYLAKEX, HASWELL):
-            vector_matrix_rows(x, a, got, order)
-            if np.array_equal(expected, got.view(np.int64)):
-                _ORDER.append(order)
-                break
-        else:
-            _ORDER.append(BLAS_CALL)
-    return _ORDER[0]
-
-
-def reproduces_numpy_matmul() -> bool:
-    """Whether one of ``blas_vector_matrix``'s orders is numpy's stacked ``matmul`` on this machine."""
-    return numpy_matmul_order() != BLAS_CALL
+    rng = np.random.default_rng(20261127)
+    x = rng.standard_normal((60, 40, 6)) * np.exp(6.0 * rng.standard_normal((60, 40, 1)))
+    x[::7] = 0.0
+    a = rng.standard_normal((40, 6, 6)) * np.exp(rng.standard_normal((40, 1, 1)))
+    expected = np.matmul(x[:, :, None, :], a[None])[:, :, 0, :].view(np.int64)
+    got = np.empty_like(x)
+    for order in (SKYLAKEX, HASWELL):
+        vector_matrix_rows(x, a, got, order)
+        if np.array_equal(expected, got.view(np.int64)):
+            return order
+    return BLAS_CALL
 
 
 @kernel
