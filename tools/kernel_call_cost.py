@@ -2,7 +2,8 @@
 for ``ftwse-2012`` on the compiled backend, warmed up; one tick's arguments of each kernel named are captured, then
 timed (best of ``--repeat`` blocks of ``--calls`` calls, µs a call): the kernel itself on copies of them (each call
 does the captured tick's work), and an empty ``njit`` function taking the same arguments (what the dispatcher's
-type check and unboxing cost). The arrays a call unboxes are counted through its tuples.
+type check and unboxing cost). The arrays a call unboxes are counted through its tuples; a ``wwcore.kept.Kept``
+(the kept arguments as one struct: the ``_kept`` entry points) counts as one struct, the arrays it holds apart.
 
     .venv/bin/python tools/kernel_call_cost.py
 """
@@ -18,22 +19,36 @@ import numpy as np
 
 from windwarden.bench import _Stepper, turbine_pair
 from wwcore.backend import fast_module
+from wwcore.kept import Kept
 
 KERNELS = (
     ("service.turbine.fast_detector", "detector_tick"),
+    ("service.turbine.fast_detector", "detector_tick_kept"),
     ("service.turbine.fast", "component_step"),
+    ("service.turbine.fast", "component_step_kept"),
     ("service.turbine.fast", "bank_tick"),
+    ("service.turbine.fast", "bank_tick_kept"),
     ("plant_sim.turbine.fast", "measure"),
 )
 
 
 def arrays(value) -> int:
-    """The arrays in ``value``, through nested tuples."""
+    """The arrays in ``value``, through nested tuples (not those a struct holds)."""
     if isinstance(value, np.ndarray):
         return 1
     if isinstance(value, tuple):
         return sum(arrays(v) for v in value)
     return 0
+
+
+def structs(value) -> tuple[int, int]:
+    """The ``Kept`` structs in ``value``, through nested tuples, and the arrays they hold."""
+    if isinstance(value, Kept):
+        return 1, arrays(value.args)
+    if isinstance(value, tuple):
+        counts = [structs(v) for v in value] or [(0, 0)]
+        return tuple(int(sum(c)) for c in zip(*counts, strict=True))
+    return 0, 0
 
 
 def empty_kernel(arity: int):
@@ -65,11 +80,14 @@ def main() -> None:
     plant, supervisor = turbine_pair("ftwse-2012", args.rows, 0, False, "numba")
     stepper = _Stepper(plant, supervisor)
     stepper.run(args.warmup)
-    print("| kernel | arrays unboxed | the kernel, µs a call | an empty njit of its arguments, µs a call |")
+    print("| kernel | arrays unboxed (+ structs: their arrays) | the kernel, µs a call | empty njit, µs a call |")
     print("|---|---|---|---|")
     for module, name in KERNELS:
         kernels = fast_module(module)
-        real = getattr(kernels, name)
+        real = getattr(kernels, name, None)
+        if real is None:
+            print(f"| `{name}` | not in this tree | | |")
+            continue
         captured: list = []
 
         def capture(*call_args, _real=real, _captured=captured):
@@ -92,7 +110,9 @@ def main() -> None:
         # each copy once: every call does the captured tick's work
         real_us = best(lambda i, f=real, c=copies: f(*c.pop()), args.calls, args.repeat)
         empty_us = best(lambda i, f=empty, a=call_args: f(*a), args.calls, args.repeat)
-        print(f"| `{name}` | {arrays(call_args)} | {real_us:.1f} | {empty_us:.1f} |")
+        packed, held = structs(call_args)
+        unboxed = f"{arrays(call_args)}" + (f" + {packed}: {held}" if packed else "")
+        print(f"| `{name}` | {unboxed} | {real_us:.1f} | {empty_us:.1f} |")
 
 
 if __name__ == "__main__":
