@@ -1,7 +1,7 @@
 """Where one turbine run's tick goes: ``windwarden bench turbine``'s plant and supervisor for ``ftwse-2012`` on the
-compiled backend, warmed up, timed unprofiled over ``--ticks`` ticks (µs a tick), then the same number of ticks under
-cProfile, sorted by own time (how docs/cluster.md's "What is left" profiles were taken; the profiler slows Python
-calls more than kernels, so read shares and call counts per tick, not microseconds).
+compiled backend, warmed up, timed unprofiled over ``--ticks`` ticks (µs a tick, wall and CPU time), then the same
+number of ticks under cProfile, sorted by own time (how docs/cluster.md's "What is left" profiles were taken; the
+profiler slows Python calls more than kernels, so read shares and call counts per tick, not microseconds).
 
     .venv/bin/python tools/profile_turbine_tick.py --rows 1 --ticks 3000
 """
@@ -27,9 +27,10 @@ def main() -> None:
     plant, supervisor = turbine_pair("ftwse-2012", args.rows, 0, False, args.backend)
     stepper = _Stepper(plant, supervisor)
     stepper.run(args.warmup)
-    start = time.perf_counter()
+    start, cpu = time.perf_counter(), time.process_time()
     stepper.run(args.ticks)
-    print(f"unprofiled: {1e6 * (time.perf_counter() - start) / args.ticks:.1f} µs a tick")
+    wall, cpu = time.perf_counter() - start, time.process_time() - cpu
+    print(f"unprofiled: {1e6 * wall / args.ticks:.1f} µs a tick, {1e6 * cpu / args.ticks:.1f} µs of CPU time a tick")
     profile = cProfile.Profile()
     profile.enable()
     stepper.run(args.ticks)
