@@ -16,7 +16,10 @@ from plant_sim.turbine import TurbineBatch
 from service.turbine.bank import SPARSE_PRODUCT_ROWS
 from service.turbine.builtin import UIOBankEstimator
 from service.turbine.interfaces import TurbineContext
+from service.turbine.wind_recovery import WARM_ITERATIONS, WindRecovery
 from tests.fast_compare import SEED, assert_close
+from wwcore import aero
+from wwcore.backend import fast_module
 from wwcore.channels import DIAGNOSIS_TARGETS, TARGET_INDEX
 from wwcore.scenario import load_scenario
 from wwcore.turbine_params import BENCHMARK
@@ -112,3 +115,34 @@ def test_the_common_compiled_tick_is_a_few_calls():
         sys.setprofile(None)
     calls.remove("setprofile")
     assert len(calls) <= 6, calls  # 17 before the kept arguments and the one kernel call
+
+
+@pytest.mark.parametrize("n", [1, 3, SPARSE_PRODUCT_ROWS, 50])
+def test_the_compiled_inversion_of_the_columns_equals_the_wrapper_s(n):
+    """``fast.column_winds`` (``WindRecovery.wind``'s warm inversion in one kernel) against the gathers and
+    ``aero_fast.wind_from_torque`` it replaces, to the last bit: torques of winds 3–25 m/s at rotor speeds 0.9–2.2
+    rad/s and pitch −2…25 deg, guesses ±15 % off, a NaN torque and a guess outside [1, 40] m/s."""
+    fast = fast_module("service.turbine.fast")
+    recovery = WindRecovery(BENCHMARK, TurbineContext(BENCHMARK, n).bank_design, n, 0.3, 2.0, fast=fast)
+    m = recovery.n_obs
+    rng = np.random.default_rng(SEED + n)
+    for trial in range(4):
+        speed = rng.uniform(0.9, 2.2, (n, m))
+        pitch = rng.uniform(-2.0, 25.0, n)
+        truth = rng.uniform(3.0, 25.0, (n, m))
+        tau = aero.rotor_torque(truth, speed, pitch[:, None], BENCHMARK)
+        filtered = np.column_stack([tau, speed, 97.0 * speed, pitch])
+        columns = rng.integers(0, m, (2, n))
+        guess = truth[np.arange(n), columns] * rng.uniform(0.85, 1.15, (2, n))
+        if trial == 3:
+            filtered[-1, columns[0, -1]] = np.nan
+            guess[1, 0] = 45.0
+        rows = np.broadcast_to(np.arange(n), columns.shape)
+        expected = fast.wind_from_torque(
+            filtered[rows, columns], filtered[rows, m + columns], np.broadcast_to(filtered[:, -1], columns.shape),
+            guess, BENCHMARK, iterations=WARM_ITERATIONS,
+        )  # fmt: skip
+        got = fast.column_winds(
+            filtered, 0, m, columns, guess, BENCHMARK.radius, BENCHMARK.aero_torque_gain, WARM_ITERATIONS
+        )
+        _same_bits(got, expected, f"trial {trial}")

@@ -17,7 +17,7 @@ import numpy as np
 
 from service.turbine.fast_bank import bank_step, bank_tick, bank_tick_kept  # noqa: F401 (the observer bank's)
 from service.turbine.fast_converter import converter_tick
-from wwcore.aero_fast import maximum, wind_from_torque  # noqa: F401 (the wind recovery's inversion)
+from wwcore.aero_fast import maximum, wind_from_torque, wind_from_torque_flat  # noqa: F401 (the wind's inversion)
 from wwcore.blas_fast import gemm_layout, gemm_product, nonzeros  # noqa: F401 (the bank's and recovery's set-up)
 from wwcore.jit import kernel
 from wwcore.kept import Kept  # noqa: F401 (the kept arguments' struct, for the objects that build one)
@@ -112,6 +112,28 @@ def recovery_healthy_tick(faulty, x_hat, x_prev, sensors, reference, zone, pitch
     gather_speeds(filtered, rotor_start, generator_start, selected, omega_r, omega_g)
     region2_speed(x_hat, selected, zone, encoder_state, omega_g)
     return True
+
+
+@kernel
+def column_winds(filtered, torque_start, rotor_start, columns, guess, radius, gain, iterations):
+    """``WindRecovery.wind``'s warm inversion in one call: v (m, n) of observer ``columns`` (m, n) of each row from
+    its filtered τ̂_r, ω̂_r (the columns from ``torque_start``, ``rotor_start``) and β̄ (the last column), from
+    ``guess`` (m, n), by ``aero_fast.wind_from_torque_flat`` on the entries in ``columns``' order (the gathers and
+    ``aero_fast.wind_from_torque``'s operations, with ``radius`` R and ``gain`` ½ρπR³)."""
+    m, n = columns.shape
+    size = m * n
+    tau, rw, v, beta = np.empty(size), np.empty(size), np.empty(size), np.empty(size)
+    pitch = filtered.shape[1] - 1
+    for i in range(m):
+        for r in range(n):
+            k = i * n + r
+            j = columns[i, r]
+            tau[k] = filtered[r, torque_start + j]
+            rw[k] = filtered[r, rotor_start + j] * radius
+            beta[k] = filtered[r, pitch]
+            v[k] = guess[i, r]
+    wind_from_torque_flat(tau, rw, v, beta, gain, iterations)
+    return v.reshape((m, n))
 
 
 @kernel

@@ -507,13 +507,21 @@ class WindRecovery:
         same as from the guess. That result replaces the guess's where it is a root above it by more than
         DISTINCT_ROOT (relative): the stalled root. Where τ(v) has one root (β ≥ 0: at most a flat plateau) the
         two are the same root and the guess's is kept."""
-        rows = np.broadcast_to(np.arange(self.n), columns.shape)
         torque, omega_r = self._groups[0], self._groups[1]  # the published ω̂_r (see the module docstring)
+        if self._fast is not None:  # the gathers and the warm iterations below by one kernel
+            v = self._fast.column_winds(
+                self._filtered, torque.start, omega_r.start, columns, v_guess, self.p.radius,
+                self.p.aero_torque_gain, WARM_ITERATIONS,
+            )  # fmt: skip
+            if moved is None or not moved.any():
+                return v
+        rows = np.broadcast_to(np.arange(self.n), columns.shape)
         invert = aero.wind_from_torque if self._fast is None else self._fast.wind_from_torque
         tau = self._filtered[rows, torque.start + columns]
         speed = self._filtered[rows, omega_r.start + columns]
         pitch = np.broadcast_to(self.pitch_filtered, columns.shape)
-        v = invert(tau, speed, pitch, v_guess, self.p, iterations=WARM_ITERATIONS)
+        if self._fast is None:
+            v = invert(tau, speed, pitch, v_guess, self.p, iterations=WARM_ITERATIONS)
         if moved is not None and moved.any():
             at = np.nonzero(moved)
             v[at] = invert(tau[at], speed[at], pitch[at], v[at], self.p, iterations=SETTLE_ITERATIONS - WARM_ITERATIONS)
