@@ -86,14 +86,14 @@ def recovery_healthy_tick(faulty, x_hat, x_prev, sensors, reference, zone, pitch
     into ``raw`` (``product`` = (stacked, map, nonzeros or None, raw): ``map_product``), ``recovery_tick`` with
     every pitch sensor healthy on the readings [β_i,m1 | β_i,m2] gathered from ``sensors`` (columns
     ``pitch_columns``), ``gather_speeds`` of ``selected`` into ``speeds`` = (rotor start, generator start, ω̂_r,
-    ω̂_g) and ``region2_speed`` of the controller's ``zone`` (``UIOBankEstimator.step``'s common tick). ``kept`` =
-    (product, pitch, coef, biquads, filtered, speeds, encoder state), ``WindRecovery._healthy_kept``: written in
-    place."""
+    ω̂_g) and ``region2_speed`` of the controller's ``zone`` (``UIOBankEstimator.step``'s common tick). ``kept`` is
+    a ``wwcore.kept.Kept`` of (product, pitch, coef, biquads, filtered, speeds, encoder state),
+    ``WindRecovery._healthy_kept``: written in place."""
     for r in range(faulty.shape[0]):
         for c in range(faulty.shape[1]):
             if faulty[r, c]:
                 return False
-    product, pitch, coef, biquads, filtered, speeds, encoder_state = kept
+    product, pitch, coef, biquads, filtered, speeds, encoder_state = kept.args
     stacked, matrix, sparse, raw = product
     width = x_hat.shape[1]
     n = sensors.shape[0]

@@ -221,7 +221,7 @@ class WindRecovery:
         self._filter_in = np.empty((n, 3 * m + 1))
         self._no_columns = np.empty((n, 0))  # the empty middle block of ``fast.stack``
         self._map_nonzeros = self._sparse_map(fast, n)
-        self._healthy_arguments: tuple | None = None  # ``step_healthy``'s kept arguments (``_healthy_kept``)
+        self._healthy_arguments = None  # ``step_healthy``'s kept arguments (``_healthy_kept``)
         self._healthy_speeds: tuple[np.ndarray, np.ndarray] | None = None  # its (ω̂_r, ω̂_g), written in place
 
     def _sparse_map(self, fast, n: int) -> tuple | None:
@@ -382,15 +382,15 @@ class WindRecovery:
         self._x_prev = x_hat
         return self._healthy_speeds
 
-    def _healthy_kept(self) -> tuple:
-        """``step_healthy``'s kept arguments, arrays written in place and replaced only by ``start``: (([x̂[n],
-        x̂[n−1]], map, its nonzeros or None, raw), the pitch model's (β, β̇), its coefficients, the biquads' (b0, a1,
-        a2, s1, s2), ``_filtered``, (the first ω̂_r and ω̂_g column, ω̂_r and ω̂_g out), the map's ω̂_g state of
-        each observer)."""
+    def _healthy_kept(self):
+        """``step_healthy``'s kept arguments as one ``wwcore.kept.Kept`` (one struct for the kernel to unbox),
+        arrays written in place and replaced only by ``start``: (([x̂[n], x̂[n−1]], map, its nonzeros or None, raw),
+        the pitch model's (β, β̇), its coefficients, the biquads' (b0, a1, a2, s1, s2), ``_filtered``, (the first
+        ω̂_r and ω̂_g column, ω̂_r and ω̂_g out), the map's ω̂_g state of each observer)."""
         f, n = self.filter, self.n
         self._healthy_speeds = (np.empty(n), np.empty(n))
         raw = np.empty((n, self._map.shape[1]))
-        return (
+        return self._fast.Kept((
             (self._stacked, self._map, self._map_nonzeros, raw),
             self.pitch.x,
             self.pitch._coef_array,
@@ -398,7 +398,7 @@ class WindRecovery:
             self._filtered,
             (self._groups[1].start, self._groups[2].start, *self._healthy_speeds),
             self._encoder_speed_state,
-        )
+        ))  # fmt: skip
 
     def region2_generator_speed(
         self, x_hat: np.ndarray, selected: np.ndarray, zone: np.ndarray, omega_g: np.ndarray
