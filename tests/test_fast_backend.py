@@ -299,13 +299,8 @@ def test_the_kept_and_fused_plant_tick_equals_the_separate_calls():
     # pitch errors, controller state, truth and plant state equal to the last bit, with the supervisor's references
     # and twin rows (which repeat their run's noise), across noise blocks and the wind's second chunk
     scenario = parse_scenario(tomllib.loads(SENSOR_FAULTS))
-    plants = [
-        TurbineBatch(
-            scenario.plant, scenario.wind, scenario.faults, seed=SEED, runs=[0, 1], backend="numba", noise_chunk=300,
-            fault_free_twins=True,
-        )  # fmt: skip
-        for _ in range(2)
-    ]
+    options = {"seed": SEED, "runs": [0, 1], "backend": "numba", "noise_chunk": 300, "fault_free_twins": True}
+    plants = [TurbineBatch(scenario.plant, scenario.wind, scenario.faults, **options) for _ in range(2)]
     fused, separate = plants
     separate._one_measure_kernel = separate._fused_control = False
     assert fused._one_measure_kernel and fused._fused_control
