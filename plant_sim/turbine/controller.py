@@ -98,13 +98,15 @@ class BenchmarkController:
         tau_region2 = p.k_opt * omega_g * omega_g
         self.tau_g_ref = np.where(region3, tau_region3, tau_region2)
 
-    def step_readings(self, k: int, y: np.ndarray, columns: tuple[int, int], refs: TurbineRefs | None, step) -> None:
+    def step_readings(
+        self, k: int, y: np.ndarray, columns: tuple[int, int], refs: TurbineRefs | None, step: tuple, product
+    ) -> None:
         """``step`` on the compiled backend from the readings ``y`` (n, sensors) and their (ω_g,m, P_g,m) ``columns``,
         the same numbers; in the same kernel call (``plant_sim.turbine.fast.control_inputs``) the plant's exact step
         inputs z = [x, τ_r, τ_g,r + Δτ, β_ref + β_f] from the new commands where ``step`` = (fill, x, τ_r, Δτ, β_f,
-        z) asks."""
+        z) asks, and with ``product`` = (the step matrix, x') one row's next state."""
         estimate = refs.omega_g if self._take(k, refs) else None
         self._fast.control_inputs(
             y, columns, self.using_estimates, estimate, np.ascontiguousarray(self.power_ref, dtype=float), self.zone,
-            self.integrator, self.beta_ref, self.tau_g_ref, self._constants, step,
+            self.integrator, self.beta_ref, self.tau_g_ref, self._constants, step, product,
         )  # fmt: skip

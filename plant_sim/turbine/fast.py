@@ -15,6 +15,7 @@ import numpy as np
 
 from wwcore.aero import _M_T, TSR_MAX
 from wwcore.aero_fast import cq_inside, features, maximum, minimum
+from wwcore.blas_fast import vector_matrix, vector_matrix_is_numpys  # noqa: F401 (the plant's set-up)
 from wwcore.jit import kernel
 
 TWO_PI = 2.0 * math.pi
@@ -157,11 +158,14 @@ def control(omega_g_m, estimated, omega_g_est, p_g_m, power_ref, zone, integrato
 
 
 @kernel
-def control_inputs(y, columns, estimated, omega_g_est, power_ref, zone, integrator, beta_ref, tau_g_ref, consts, step):
+def control_inputs(y, columns, estimated, omega_g_est, power_ref, zone, integrator, beta_ref, tau_g_ref, consts, step,
+                   product):  # fmt: skip
     """``control`` on the readings ``y``'s generator-speed and power columns (``columns``), the estimate ``omega_g_est``
     where ``estimated`` (None: no fresh estimate, the sensor's reading), then, where ``step`` = (fill, x, τ_r, Δτ,
     β_f (n, 3), z) asks (``fill``), the exact step's inputs z from the new commands (``step_inputs``): the plant's
-    ``control`` and the first half of its ``advance`` in one call."""
+    ``control`` and the first half of its ``advance`` in one call. With ``product`` = (the shared step matrix, x'),
+    not None, also its second half for one row: x' = z @ shared with numpy's BLAS arithmetic
+    (``wwcore.blas_fast.vector_matrix``)."""
     omega_g_m, p_g_m = y[:, columns[0]], y[:, columns[1]]
     if omega_g_est is None:
         control(omega_g_m, estimated, omega_g_m, p_g_m, power_ref, zone, integrator, beta_ref, tau_g_ref, consts)
@@ -170,6 +174,9 @@ def control_inputs(y, columns, estimated, omega_g_est, power_ref, zone, integrat
     fill, x, tau_r, torque_offset, pitch_error, z = step
     if fill:
         step_inputs(x, tau_r, tau_g_ref, torque_offset, beta_ref, pitch_error, z)
+    if product is not None:
+        shared, x_next = product
+        vector_matrix(z[0], shared, x_next[0])
 
 
 # -- step (``DiscreteStep.step``, every row alike) -----------------------------------------------------------

@@ -175,6 +175,12 @@ class TurbineBatch(Planes):
         self._kept_chunk: tuple | None = None  # the wind chunk they hold
         self._wind_row = -1  # the one-kernel measurement's row of the wind chunk (``_wind_sample``)
         self._inputs_ready = False  # ``control`` wrote the shared step's inputs (``advance``)
+        self._next_x: np.ndarray | None = None  # and with one row the next state
+        # one row's shared step x' = z @ shared inside that kernel call, where its reproduction of numpy's BLAS product
+        # (``wwcore.blas_fast.vector_matrix``) is this machine's; else numpy's product in ``advance``
+        self._step_product = (
+            self.n == 1 and self._fast is not None and self._fast.vector_matrix_is_numpys(N_STATES + 5, N_STATES)
+        )
         # the controller's law and the shared step's inputs in one kernel call (``control``), where the controller
         # is the benchmark's own (a farm's replaces it)
         self._fused_control = self._fast is not None
@@ -360,11 +366,14 @@ class TurbineBatch(Planes):
     def control(self, refs: TurbineRefs | None) -> None:
         y, c = self.last_reading, self.controller
         if self._fused_control and type(c) is BenchmarkController:
-            # the law and, where ``advance`` takes the shared step, that step's inputs z in one kernel call: x, τ_r,
-            # the faults and the pitch-sensor errors stay as they are from here to ``advance``
-            fill = self.discrete.shared is not None and not self._adjusted()
+            # the law and, where ``advance`` takes the shared step, that step's inputs z (with one row its product
+            # too) in one kernel call: x, τ_r, the faults and the pitch-sensor errors stay as they are until ``advance``
+            shared = self.discrete.shared
+            fill = shared is not None and not self._adjusted()
             inputs = (fill, self.x, self.tau_aero, self.faults.torque_offset, self._pitch_error, self.discrete.inputs)
-            c.step_readings(self.k, y, _CONTROL_COLUMNS, refs, inputs)
+            product = (shared, np.empty((1, N_STATES))) if fill and self._step_product else None
+            self._next_x = None if product is None else product[1]
+            c.step_readings(self.k, y, _CONTROL_COLUMNS, refs, inputs, product)
             self._inputs_ready = fill
             return
         c.step(self.k, y[:, _OMEGA_G_M1], y[:, _P_G_M], refs)
@@ -372,8 +381,8 @@ class TurbineBatch(Planes):
     def advance(self) -> None:
         """Exact step from tick k to k+1 with controller outputs, wind and aerodynamic torque held."""
         if self._inputs_ready:  # ``control`` wrote the shared step's inputs (every row alike, nothing else in them)
-            self._inputs_ready = False
-            self.x = self.discrete.inputs @ self.discrete.shared
+            self._inputs_ready, next_x = False, self._next_x
+            self.x = self.discrete.inputs @ self.discrete.shared if next_x is None else next_x
             self.k += 1
             return
         c, f, x = self.controller, self.faults, self.x
