@@ -236,61 +236,6 @@ def test_the_plant_kernels_kept_arguments_follow_the_faults():
     assert offsets == {0.0, 2.0}
 
 
-# a sensor fault of each class, a torque offset (the step's inputs) and a pitch actuator's dynamics (the per-row step:
-# no shared inputs) over 22 s, so the wind's second chunk (20 s) starts
-SENSOR_FAULTS = """
-name = "fused-plant-check"
-duration_s = 22.0
-[plant]
-kind = "turbine"
-[wind]
-mean = [[0.0, 10.5], [22.0, 13.5]]
-turbulence_intensity = 0.12
-[[faults]]
-name = "generator sensor 2 fixed"
-target = "omega_g_m2"
-kind = "fixed"
-value = 100.0
-start_s = 2.0
-end_s = 5.0
-[[faults]]
-name = "rotor sensor 2 gain"
-target = "omega_r_m2"
-kind = "gain"
-value = 1.1
-start_s = 4.0
-end_s = 8.0
-[[faults]]
-name = "rotor sensor 1 stuck"
-target = "omega_r_m1"
-kind = "stuck"
-start_s = 9.0
-end_s = 12.0
-[[faults]]
-name = "pitch sensor offset"
-target = "beta_1_m1"
-kind = "offset"
-value = 2.0
-start_s = 6.0
-end_s = 14.0
-[[faults]]
-name = "converter offset"
-target = "converter"
-kind = "torque_offset"
-value = 100.0
-start_s = 13.0
-end_s = 16.0
-[[faults]]
-name = "pitch actuator dynamics"
-target = "pitch_actuator_2"
-kind = "pitch_dynamics"
-omega_n = 3.42
-zeta = 0.9
-start_s = 17.0
-end_s = 19.0
-"""
-
-
 @pytest.mark.parametrize("runs, twins", [([0], False), ([0, 1], True)])
 def test_the_kept_and_fused_plant_tick_equals_the_separate_calls(runs, twins):
     # the one-kernel measurement (its arguments kept, the wind chunk's row and the noise block's column read by the
@@ -298,16 +243,19 @@ def test_the_kept_and_fused_plant_tick_equals_the_separate_calls(runs, twins):
     # (``TurbineBatch.control``) against the same compiled plant making the separate calls (``WindField.sample``,
     # ``blade_torques``, ``readings``, ``BenchmarkController.step``, ``step_inputs``): every tick's frame, torques,
     # pitch errors, controller state, truth and plant state equal to the last bit, with the supervisor's references,
-    # across noise blocks and the wind's second chunk; one row (the step's product inside the call, numpy's
-    # ``gemv`` reproduced), and two runs with their twin rows (which repeat their run's noise; numpy's ``gemm``)
-    scenario = parse_scenario(tomllib.loads(SENSOR_FAULTS))
-    options = {"seed": SEED, "runs": runs, "backend": "numba", "noise_chunk": 300, "fault_free_twins": twins}
+    # through FAULTY's first 48 s (a fixed, a stuck and a gain speed sensor, a drifting anemometer, a pitch-sensor
+    # offset, a pitch actuator's dynamics and the drive train's efficiency: per-row steps where rows differ, a
+    # converter offset in the step's inputs), across noise blocks and the wind's second and third chunks; one row (the
+    # step's product inside the call, numpy's ``gemv`` reproduced), and two runs with their twin rows (which repeat
+    # their run's noise; numpy's ``gemm``)
+    scenario = parse_scenario(tomllib.loads(FAULTY))
+    options = {"seed": SEED, "runs": runs, "backend": "numba", "noise_chunk": 700, "fault_free_twins": twins}
     plants = [TurbineBatch(scenario.plant, scenario.wind, scenario.faults, **options) for _ in range(2)]
     fused, separate = plants
     separate._one_measure_kernel = separate._fused_control = False
     assert fused._one_measure_kernel and fused._fused_control and fused._step_product == (len(runs) == 1)
     supervisor, refs, shared, estimated = TurbineSupervisor(fused.n, backend="numba"), None, set(), set()
-    for k in range(round(scenario.duration_s / fused.dt)):
+    for k in range(4800):
         frames = [plant.measure() for plant in plants]
         for name in ("sensors", "tau_g_ref", "beta_ref", "power_ref", "zone"):
             np.testing.assert_array_equal(getattr(frames[0], name), getattr(frames[1], name), f"tick {k}: {name}")
