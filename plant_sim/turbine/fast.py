@@ -2,9 +2,10 @@
 call these with ``backend="numba"`` and the numpy code otherwise.
 
 Each kernel performs the numpy reference's operations in its order, row by row, so its results equal the
-reference's bit for bit (``tests/test_fast_backend.py``); the matrix products stay numpy's (BLAS). They cover the
-common tick: a nominal plant (no ``[mismatch]`` surface shift) and no sensor fault active; the plant falls back
-to the numpy code for the rest.
+reference's bit for bit (``tests/test_fast_backend.py``); the matrix products stay BLAS's, but for one row's exact
+step, whose ``gemv`` ``control_inputs`` reproduces where ``wwcore.blas_fast`` finds it numpy's on this machine. They
+cover the common tick: a nominal plant (no ``[mismatch]`` surface shift) and no sensor fault active; the plant falls
+back to the numpy code for the rest.
 """
 
 from __future__ import annotations
