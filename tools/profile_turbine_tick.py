@@ -1,9 +1,9 @@
 """Where one turbine run's tick goes: ``windwarden bench turbine``'s plant and supervisor for ``ftwse-2012`` on the
-compiled backend, warmed up, timed unprofiled over ``--ticks`` ticks (µs a tick), then the same number of ticks under
-cProfile, sorted by own time (how docs/cluster.md's "What is left" profiles were taken; the profiler slows Python
-calls more than kernels, so read shares and call counts per tick, not microseconds). ``--calls N`` first times the
-plant's three calls of the contract by the CPU clock read around each (``measure``, ``control``, ``advance``; best of
-N blocks of 1 000 ticks, the clock's own reads included).
+compiled backend, warmed up, timed unprofiled over ``--ticks`` ticks (µs a tick, wall and CPU time), then the same
+number of ticks under cProfile, sorted by own time (how docs/cluster.md's "What is left" profiles were taken; the
+profiler slows Python calls more than kernels, so read shares and call counts per tick, not microseconds).
+``--calls N`` first times the plant's three calls of the contract by the CPU clock read around each (``measure``,
+``control``, ``advance``; best of N blocks of 1 000 ticks, the clock's own reads included).
 
     .venv/bin/python tools/profile_turbine_tick.py --rows 1 --ticks 3000
 """
@@ -35,7 +35,7 @@ def main() -> None:
     start, cpu = time.perf_counter(), time.process_time()
     stepper.run(args.ticks)
     wall, cpu = time.perf_counter() - start, time.process_time() - cpu
-    print(f"unprofiled: {1e6 * wall / args.ticks:.1f} µs a tick ({1e6 * cpu / args.ticks:.1f} µs of CPU)")
+    print(f"unprofiled: {1e6 * wall / args.ticks:.1f} µs a tick, {1e6 * cpu / args.ticks:.1f} µs of CPU time a tick")
     if args.calls:
         plant_calls(stepper, args.calls)
     profile = cProfile.Profile()

@@ -303,6 +303,9 @@ class ObserverBank:
         self.chi2 = np.zeros((n, len(design.names)))  # ‖W_j r_j‖², χ²-distributed with rank_j dof when healthy
         self.steps = 0
         self._y_prev: np.ndarray | None = None  # y[n−1]
+        # ``step_readings``' arguments kept once the transient update matrices are used up: the inputs' constants,
+        # the steady update, the output, the work arrays and the nonzeros, as one ``wwcore.kept.Kept``
+        self._kept = None
 
     def initialise(self, x0: np.ndarray, y: np.ndarray) -> None:
         """Start every observer at the state estimate x0 (n, 4): z[0] = x0 − H y[0] (and d̂ from x0 statics)."""
@@ -390,16 +393,26 @@ class ObserverBank:
         """``step`` with y[n] gathered from a frame's readings by the same kernel call (``fast.bank_tick``: the
         inputs as ``TurbineContext._bank_inputs``'s, ``inputs`` = (sensors, columns, threshold, N_g, η_gc), less
         the speed sensors' calibration ``offset`` (n, 4) if any); after the first step, with the compiled backend
-        only. The speed readings before the offset (n, 4)."""
+        only. ``inputs[1:]`` are constants: once the transient update matrices are used up, they are kept with the
+        bank's other kept arguments (``fast.bank_tick_kept``). The speed readings before the offset (n, 4)."""
         n = self.n
         read = np.empty((n, 6))
         speed = np.empty((n, 4)) if offset is not None else read[:, :4]
-        update, sparse = self._fast_products(True)
         self.chi2 = np.empty((n, len(self.d.names)))
-        self.z, out = self._fast.bank_tick(
-            inputs, offset is not None, speed if offset is None else offset, speed, read, self.z, u_prev,
-            self._y_prev, update, self._output, self._work, self.chi2, sparse,
-        )  # fmt: skip
+        subtract, offset = offset is not None, speed if offset is None else offset
+        if self.steps < len(self._update_transient):
+            update, sparse = self._fast_products(True)
+            self.z, out = self._fast.bank_tick(
+                inputs, subtract, offset, speed, read, self.z, u_prev, self._y_prev, update, self._output, self._work,
+                self.chi2, sparse,
+            )  # fmt: skip
+        else:  # the steady update: the kept arguments as one struct (``fast.bank_tick_kept``)
+            if self._kept is None:
+                update, sparse = self._fast_products(True)
+                self._kept = self._fast.Kept((*inputs[1:], update, self._output, self._work, sparse))
+            self.z, out = self._fast.bank_tick_kept(
+                inputs[0], subtract, offset, speed, read, self.z, u_prev, self._y_prev, self.chi2, self._kept
+            )
         self.steps += 1
         self.x_hat = out[:, : self._width]
         self._y_prev = read[:, :5]

@@ -269,13 +269,12 @@ class ComponentFDI(Planes):
         (``service.turbine.fast.component_step``, the same operations), then the pitch-sensor decisions."""
         kept = self._kept or self._tick_arguments()
         w, o = self.parity, self.outlier
-        beta = kept["beta"][self.ticks % 2]  # two buffers: the frozen test keeps the last tick's (``previous``)
-        converter = (self._tau_hat, self.ticks == 0, self.ticks + 1 > self.warmup_ticks)
-        any_suspicious, repeated = self._fast.component_step(
-            (frame.sensors, M12, TAU_G_M, frame.tau_g_ref, j, CROSS_BLADE), kept["blocks"],
-            (w.sums, w.count % w.size), (o.sums, o.count % o.size), kept["scales"],
-            (beta, *kept["parity"]), self.readings.previous, kept["adapt"], converter + kept["converter"],
-        )  # fmt: skip
+        buffer = self.ticks % 2  # two β buffers: the frozen test keeps the last tick's (``previous``)
+        tick = (j, w.count % w.size, o.count % o.size, buffer, self.ticks == 0, self.ticks + 1 > self.warmup_ticks)
+        any_suspicious, repeated = self._fast.component_step_kept(
+            frame.sensors, frame.tau_g_ref, tick, self.readings.previous, kept["packed"]
+        )
+        beta = kept["beta"][buffer]
         w.count += 1
         o.count += 1
         self.readings.push(beta, repeated)
@@ -284,7 +283,8 @@ class ComponentFDI(Planes):
     def _tick_arguments(self) -> tuple:
         """``_fast_tick``'s kernel arguments kept from tick to tick: the two β buffers, the blocks, the scales, the
         parity's outputs, the adaptation's and the converter's (outputs written and read within a tick; state
-        arrays updated in place, never replaced)."""
+        arrays updated in place, never replaced), and all of them with the windows' sums as one ``Kept``
+        (``"packed"``, ``fast.component_step_kept``'s)."""
         n, spread = self.n, self.parity_spread
         parity, window = np.empty((n, 3)), np.empty((n, 3))
         parity_n, window_n = (np.empty((n, 3)), np.empty((n, 3))) if spread.enabled else (parity, window)
@@ -300,6 +300,11 @@ class ComponentFDI(Planes):
             "normalised": (parity_n, window_n),  # the parity's statistics in the learnt spread: the decisions read them
             "converter": (self._converter_spread_state, self._converter_test, self._converter_state),
         }
+        k = self._kept  # ``component_step_kept``'s one argument for them all
+        k["packed"] = self._fast.Kept((
+            (M12, TAU_G_M, CROSS_BLADE), k["blocks"], (self.parity.sums, self.outlier.sums), k["scales"], k["beta"],
+            k["parity"], k["adapt"], self._tau_hat, k["converter"],
+        ))  # fmt: skip
         return self._kept
 
     # -- pitch sensors ------------------------------------------------------------------------------------------

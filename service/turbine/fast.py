@@ -15,11 +15,12 @@ from __future__ import annotations
 
 import numpy as np
 
-from service.turbine.fast_bank import bank_step, bank_tick  # noqa: F401 (the observer bank's)
+from service.turbine.fast_bank import bank_step, bank_tick, bank_tick_kept  # noqa: F401 (the observer bank's)
 from service.turbine.fast_converter import converter_tick
 from wwcore.aero_fast import maximum, wind_from_torque  # noqa: F401 (the wind recovery's inversion)
 from wwcore.blas_fast import gemm_layout, gemm_product, nonzeros  # noqa: F401 (the bank's and recovery's set-up)
 from wwcore.jit import kernel
+from wwcore.kept import Kept  # noqa: F401 (the kept arguments' struct, for the objects that build one)
 
 
 # -- stacking (the wind recovery's operands) ------------------------------------------------------------------------
@@ -302,6 +303,22 @@ def component_step(tick, blocks, ring, outlier, scales, outputs, previous, adapt
     tau_hat, first, warm, converter_spread, test, state = converter
     converter_tick(tau_block[j, 0], tau_block[j, 1], tau_hat, first, warm, converter_spread, test, flags, state)
     return suspicious, repeated
+
+
+@kernel
+def component_step_kept(sensors, tau_g_ref, tick, previous, kept):
+    """``component_step`` with the arguments ``ComponentFDI`` keeps from tick to tick as one ``wwcore.kept.Kept``
+    (``kept.args`` = ((m12, τ_g,m column, cross), blocks, the parity window's and the outlier window's sums, scales,
+    the two β buffers, (parity, window), adapt, τ̂_g, the converter's (spread, test, state))) and the tick's: the
+    frame's readings and τ_g,r, ``tick`` = (j, the two windows' slots, which β buffer, first, warm), ``previous``."""
+    constants, blocks, (sums, outlier_sums), scales, betas, (parity, window), adapt, tau_hat, converter = kept.args
+    m12, tau_col, cross = constants
+    j, slot, outlier_slot, buffer, first, warm = tick
+    spread, test, state = converter
+    return component_step(
+        (sensors, m12, tau_col, tau_g_ref, j, cross), blocks, (sums, slot), (outlier_sums, outlier_slot), scales,
+        (betas[buffer], parity, window), previous, adapt, (tau_hat, first, warm, spread, test, state),
+    )  # fmt: skip
 
 
 @kernel

@@ -1,6 +1,7 @@
 """Compiled twin of the observer bank's tick (``wwcore.backend``): its inputs from a frame's readings
 (``TurbineContext._bank_inputs``), the two products and the χ² statistics (``ObserverBank.step``), and the two in
-one call (``bank_tick``). ``service.turbine.fast`` exports them with the supervisor's other kernels.
+one call (``bank_tick``; ``bank_tick_kept`` with its kept arguments as one struct). ``service.turbine.fast``
+exports them with the supervisor's other kernels.
 
 Each kernel performs the numpy reference's operations in its order, row by row, so its results equal the
 reference's bit for bit (``tests/test_fast_backend.py``, ``tests/test_fast_kernels.py``). The two products are
@@ -103,6 +104,16 @@ def bank_tick(inputs, subtract, offset, speed, read, z, u_prev, y_prev, update, 
     update_in, output_in, terms, n_res = work
     y = read[:, :5]
     return bank_step(z, u_prev, y_prev, update, update_in, y, output, output_in, terms, n_res, True, stat, sparse)
+
+
+@kernel
+def bank_tick_kept(sensors, subtract, offset, speed, read, z, u_prev, y_prev, stat, kept):
+    """``bank_tick`` with the arguments the bank keeps from tick to tick once its transient update matrices are
+    used up as one ``wwcore.kept.Kept`` (``kept.args`` = (columns, threshold, N_g, η_gc, update, output, work,
+    sparse)) and the tick's: the frame's readings, the offset, the fresh outputs, z, u[n−1], y[n−1]. (z, out)."""
+    columns, threshold, n_g, eta_gc, update, output, work, sparse = kept.args
+    inputs = (sensors, columns, threshold, n_g, eta_gc)
+    return bank_tick(inputs, subtract, offset, speed, read, z, u_prev, y_prev, update, output, work, stat, sparse)
 
 
 @kernel

@@ -18,6 +18,7 @@ import numpy as np
 from service.turbine.fast import any_equal, rotor_bias, window_test, window_test_learn
 from service.turbine.fast_arbitration import arbiter_learn, arbiter_push
 from wwcore.jit import kernel
+from wwcore.kept import Kept
 
 
 @kernel
@@ -99,10 +100,26 @@ def detector_tick(y_raw, raw, x_hat, previous, tick, flags, offset, window, lear
     return finished, repeated, exceeded, growing, raised
 
 
+@kernel
+def detector_tick_kept(y_raw, raw, x_hat, previous, tick, kept, ratio):
+    """``detector_tick`` with its arguments kept from tick to tick as one ``wwcore.kept.Kept`` (``kept.args`` =
+    (flags, offset, window, learning, arbiter, bias, y, χ²/ŝ², over): ``detector_arguments``' ``"packed"``) and the
+    fresh ``ratio``: one struct to unbox for the kept arrays."""
+    flags, offset, window, learning, arbiter, bias, y, chi2_stat, over = kept.args
+    return detector_tick(
+        y_raw, raw, x_hat, previous, tick, flags, offset, window, learning, arbiter, bias, (y, chi2_stat, ratio, over)
+    )
+
+
+PACKED = ("flags", "offset", "window", "learning", "arbiter", "bias", "y", "chi2_stat", "over")
+"""``detector_arguments``' names in ``detector_tick_kept``'s ``kept.args``, in order."""
+
+
 def detector_arguments(fdi) -> dict:
     """``detector_tick``'s arguments of a ``SpeedSensorFDI`` kept from tick to tick (its arrays are updated in
     place, never replaced): flags, offset, window, learning, arbiter, bias, and the outputs read only within the tick
-    (the calibrated readings, χ²/ŝ², the bias test's sensors; the ratio leaves the tick and stays new)."""
+    (the calibrated readings, χ²/ŝ², the bias test's sensors; the ratio leaves the tick and stays new); ``"packed"``:
+    the nine as ``detector_tick_kept``'s one ``Kept``."""
     n, m = fdi._window_sum.shape
     spread, calibration, arbiter = fdi.spread, fdi.calibration, fdi.arbiter
     learning = None
@@ -124,7 +141,7 @@ def detector_arguments(fdi) -> dict:
             (b.sums, b.predictor),
             (s.enabled, s.min_weight, s.max_scale2, s.state),
         )
-    return {
+    kept = {
         "flags": fdi._flags,
         "offset": calibration.state if calibration.enabled else None,
         "window": (spread.state, fdi._history, fdi._window_sum, fdi.h_detect, fdi.h_window, fdi._all_healthy),
@@ -135,3 +152,5 @@ def detector_arguments(fdi) -> dict:
         "chi2_stat": np.empty((n, m)),
         "over": np.empty((n, 2), dtype=bool),
     }
+    kept["packed"] = Kept(tuple(kept[name] for name in PACKED))
+    return kept

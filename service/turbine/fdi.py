@@ -302,11 +302,9 @@ class SpeedSensorFDI(Planes):
             healthy = self.ticks >= self.warmup_ticks and not (self._maybe_flagged or self._pending)
             self.ratio = ratio = np.empty_like(self._window_sum)
             tick = (self.ticks % self.s.window, self._learns, healthy)
-            finished, repeated, exceeded, growing, raised = self._detector.detector_tick(
-                y, raw, x_hat, previous if quiet else None, tick,
-                kept["flags"], kept["offset"], kept["window"], kept["learning"], kept["arbiter"], kept["bias"],
-                (kept["y"], kept["chi2_stat"], ratio, kept["over"]),
-            )  # fmt: skip
+            finished, repeated, exceeded, growing, raised = self._detector.detector_tick_kept(
+                y, raw, x_hat, previous if quiet else None, tick, kept["packed"], ratio
+            )
             any_frozen = readings.push(y, repeated if quiet else None)
             self.ticks += 1
             self._learns = self.arbiter.observed(growing)
