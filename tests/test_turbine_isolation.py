@@ -563,7 +563,7 @@ def test_a_frozen_reading_s_one_look_at_a_healthy_pair_joins_no_rotor_speed_sens
     few hundredths of such rows (a simulation of the walk: 0.02–0.05) and else names ω_g,m2 alone once every Λ_s
     ≤ −ln(1/α_confirm). Synthetic, 200 rows: the pair apart by ±1.6 σ_r on each of the first three ticks (z = 3.92 at
     the frozen test's tick, Λ_s = 3.7 < 8.3): the one look alone joined ω_r,m1 in every row on that tick; now
-    ω_g,m2 alone first in 196 (≥ 95 %), 3–36 ticks later (the walk back to Λ_s ≤ −3)."""
+    ω_g,m2 alone first in 196 (≥ 95 %), 5–37 ticks later (the walk back to Λ_s ≤ −3)."""
     fdi, first, tick = _frozen_generator_first_flags(200, 81, 1.6, 0.0)
     deciding = fdi.s.frozen_ticks - 1
     z = 2 * 1.6 / math.sqrt(2) * math.sqrt(fdi.s.frozen_ticks)
