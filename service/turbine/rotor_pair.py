@@ -19,7 +19,7 @@ tick, while the UIOs see it only as their states drift from it. The sums live in
 * **One look** (an explanation naming a frozen sensor, decided on the frozen test's tick): the pair's z beyond the
   isolation's two-sided level in the pair's learnt spread (N-22) does not join a sensor by itself; it hands the
   decision to the sequential test above, which the explanation then waits on as any other (a healthy pair joins
-  where both pass: about α_iso × 0.02–0.05 a look instead of α_iso).
+  where both pass: about α_iso × 0.02–0.05 a look against one encoder, × 0.04–0.13 for the pair, instead of α_iso).
 """
 
 from __future__ import annotations
