@@ -289,6 +289,8 @@ class WindField:
         self._chunk_start = 0
         self._chunk_end = 0  # ticks [start, end) are in the arrays below
         self._hub = self._base = self._u3 = self._mean = np.empty((0, self.n))
+        # (v_m + u_0, u_3, v_hub, v_m) (ticks, n) of the chunk (``advance``'s row j), new arrays at each refill
+        self.chunk = (self._base, self._u3, self._hub, self._mean)
 
     def _refill(self) -> None:
         """Filter the next turbulence chunk and interpolate it (and v_m) to the ticks it covers."""
@@ -313,21 +315,18 @@ class WindField:
         self._u3 = u3
         for shared in (self._mean, self._hub):  # ``sample`` hands out rows of these: read-only views
             shared.flags.writeable = False
+        self.chunk = (self._base, self._u3, self._hub, self._mean)
         self._chunk_start, self._chunk_end = int(ticks[0]), k_end
 
     def advance(self, k: int) -> int:
         """Move on to tick k (0, 1, 2, … in turn), the next chunk filtered when k needs it; k's row in the chunk's
-        arrays (``fields``)."""
+        arrays (``chunk``)."""
         if k != self._next_k:
             raise ValueError(f"WindField.sample expects tick {self._next_k}, got {k}")
         self._next_k = k + 1
         if k >= self._chunk_end:
             self._refill()
         return k - self._chunk_start
-
-    def fields(self, j: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-        """(v_m + u_0, u_3, v_hub, v_m) (n,) each at row j of the chunk (``advance``), for a compiled ``sample``."""
-        return self._base[j], self._u3[j], self._hub[j], self._mean[j]
 
     def interpolation(self) -> tuple[np.ndarray, np.ndarray, float, np.ndarray]:
         """(F's table, its slope per grid step, grid steps per rad, the blades' offsets in grid steps): ``sample``'s

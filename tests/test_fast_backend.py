@@ -236,6 +236,50 @@ def test_the_plant_kernels_kept_arguments_follow_the_faults():
     assert offsets == {0.0, 2.0}
 
 
+@pytest.mark.parametrize("runs, twins", [([0], False), ([0, 1], True)])
+def test_the_kept_and_fused_plant_tick_equals_the_separate_calls(runs, twins):
+    # the one-kernel measurement (its arguments kept, the wind chunk's row and the noise block's column read by the
+    # kernel, its outputs planes of two blocks) and the controller's law with the shared step's inputs in one call
+    # (``TurbineBatch.control``) against the same compiled plant making the separate calls (``WindField.sample``,
+    # ``blade_torques``, ``readings``, ``BenchmarkController.step``, ``step_inputs``): every tick's frame, torques,
+    # pitch errors, controller state, truth and plant state equal to the last bit, with the supervisor's references,
+    # through FAULTY's first 48 s (a fixed, a stuck and a gain speed sensor, a drifting anemometer, a pitch-sensor
+    # offset, a pitch actuator's dynamics and the drive train's efficiency: per-row steps where rows differ, a
+    # converter offset in the step's inputs), across noise blocks and the wind's second and third chunks; one row (the
+    # step's product inside the call, numpy's ``gemv`` reproduced), and two runs with their twin rows (which repeat
+    # their run's noise; numpy's ``gemm``)
+    scenario = parse_scenario(tomllib.loads(FAULTY))
+    options = {"seed": SEED, "runs": runs, "backend": "numba", "noise_chunk": 700, "fault_free_twins": twins}
+    plants = [TurbineBatch(scenario.plant, scenario.wind, scenario.faults, **options) for _ in range(2)]
+    fused, separate = plants
+    separate._one_measure_kernel = separate._fused_control = False
+    assert fused._one_measure_kernel and fused._fused_control and fused._step_product == (len(runs) == 1)
+    supervisor, refs, shared, estimated = TurbineSupervisor(fused.n, backend="numba"), None, set(), set()
+    for k in range(4800):
+        frames = [plant.measure() for plant in plants]
+        for name in ("sensors", "tau_g_ref", "beta_ref", "power_ref", "zone"):
+            np.testing.assert_array_equal(getattr(frames[0], name), getattr(frames[1], name), f"tick {k}: {name}")
+        for name in ("tau_aero", "blade_torque", "_pitch_error"):
+            np.testing.assert_array_equal(getattr(fused, name), getattr(separate, name), f"tick {k}: {name}")
+        for plant in plants:
+            plant.control(refs)
+        for name in ("tau_g_ref", "beta_ref", "zone", "integrator", "using_estimates"):
+            mine, its = (getattr(plant.controller, name) for plant in plants)
+            np.testing.assert_array_equal(mine, its, f"tick {k}: controller {name}")
+        shared.add(fused._inputs_ready)
+        estimated.add(bool(fused.controller.using_estimates.any()))
+        refs = supervisor.step(frames[0])
+        if k % 100 == 0:
+            for (name, mine), its in zip(fused.truth().items(), separate.truth().values(), strict=True):
+                np.testing.assert_array_equal(mine, its, f"tick {k}: truth {name}")
+        for plant in plants:
+            plant.advance()
+        np.testing.assert_array_equal(fused.x, separate.x, f"tick {k}: state")
+    assert estimated == {True, False}
+    # with twin rows the pitch actuator's dynamics make the rows differ: the per-row step (no shared step's inputs)
+    assert shared == ({True, False} if twins else {True})
+
+
 def test_compiled_objects_copy_and_pickle():
     kernels = fast_module("plant_sim.turbine.fast")
     assert copy.deepcopy(kernels) is kernels

@@ -14,6 +14,8 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
+from plant_sim.turbine.dynamics import N_STATES, DiscreteStep
+from plant_sim.turbine.faults import FaultState
 from service.turbine.adaptive import HealthySpread
 from service.turbine.bank import GENERATOR, SPARSE_PRODUCT_ROWS, ObserverBank
 from service.turbine.builtin import SPEED_TARGETS, BenchmarkDetector, UIOBankEstimator
@@ -458,6 +460,45 @@ def test_the_reproduced_blas_product_equals_numpy_matmul():
     assert (got != expected).mean() > 0.1
     loop = np.einsum("nqi,qij->nqj", x, random_matrices, optimize=False)  # the six products added in turn, unfused
     assert (loop != expected).mean() > 0.1
+
+
+def test_the_plant_s_one_row_step_product_equals_numpy_matmul():
+    # ``wwcore.blas_fast.vector_matrix`` against numpy's one-row (1, 16) @ (16, 11) (one BLAS ``dgemv``) on the
+    # plant's own step matrices (nominal, and with a slower pitch actuator and a lower drive-train efficiency) and on
+    # random matrices over twelve decades, zeros and −0 among the inputs, to the last bit and zeros' signs; the
+    # plain loop (the sixteen products added in turn) differs. On OpenBLAS's Haswell kernels the self-check must hold
+    # (a one-row plant otherwise keeps numpy's product in ``advance``)
+    blas_fast = fast_module("wwcore.blas_fast")
+    core, shape = _blas_core(), (N_STATES + 5, N_STATES)
+    if core == "Haswell":
+        assert blas_fast.vector_matrix_is_numpys(*shape), core
+    if not blas_fast.vector_matrix_is_numpys(*shape):
+        pytest.skip(f"numpy's BLAS on this machine ({core or 'unknown'}) is not the kernel vector_matrix reproduces")
+    rng = np.random.default_rng(SEED)
+    step, faults, matrices = DiscreteStep(BENCHMARK, 1), FaultState(1, BENCHMARK), []
+    for change in (None, "pitch", "efficiency"):
+        if change == "pitch":  # blade 2's actuator at ω_n = 3.42 rad/s, ζ = 0.9
+            faults.pitch_a0 = faults.pitch_a0 * [1.0, 3.42**2 / faults.pitch_a0[0, 1], 1.0]
+            faults.pitch_a1 = faults.pitch_a1 * [1.0, 2 * 0.9 * 3.42 / faults.pitch_a1[0, 1], 1.0]
+        if change == "efficiency":
+            faults.eta_dt = 0.92 * faults.eta_dt
+        step.update(faults)
+        matrices.append(step.shared.copy())
+    assert not np.array_equal(matrices[0], matrices[1]) and not np.array_equal(matrices[1], matrices[2])
+    matrices.append(rng.standard_normal(shape) * np.exp(rng.standard_normal((shape[0], 1))))
+    got, differ = np.empty(shape[1]), 0
+    for a in matrices:
+        for i in range(500):
+            x = rng.standard_normal(shape[0]) * np.exp(6.0 * rng.standard_normal())
+            x[i % shape[0]] = 0.0 if i % 2 else -0.0
+            expected = (x[None] @ a)[0]
+            blas_fast.vector_matrix(x, a, got)
+            np.testing.assert_array_equal(got.view(np.int64), expected.view(np.int64))
+            loop = np.zeros(shape[1])
+            for k in range(shape[0]):
+                loop = loop + x[k] * a[k]
+            differ += not np.array_equal(loop, expected)
+    assert differ > 0.2 * 500 * len(matrices)
 
 
 @pytest.mark.parametrize("reproduced", [False, True])

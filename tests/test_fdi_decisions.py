@@ -539,15 +539,22 @@ def test_a_rotor_speed_sensor_joins_the_first_flag_by_the_rotor_pair_s_sequentia
     assert [fdi._doubtful(row, g1, confirm, waited=3) for row in range(4)] == [False, True, True, False]
     assert not fdi._doubtful(2, g1, confirm, waited=500)  # the rotor patience has run out
     assert not fdi._doubtful(2, g1 | r2, confirm, waited=3)  # the explanation names a rotor-speed sensor already
-    assert not fdi._doubtful(2, g1, confirm, waited=3, frozen=g1)  # a frozen sensor's explanation: one look
+    # a frozen sensor's explanation: decided at once where the one look finds the pair agreeing (rows 0, 1: z = 0.33,
+    # 1.16); where it disagrees (rows 2, 3: z = 3.33, 4.17 > 3.29) the sequential test decides it as any other
+    assert [fdi._doubtful(row, g1, confirm, waited=3, frozen=g1) for row in range(4)] == [False, False, True, False]
+    assert fdi.pair_disagreed.tolist() == [False, False, True, True]
     # the test against one encoder names the sensor, whatever the UIOs' statistics prefer
     assert [fdi.rotor_pair.with_rotor(row, g1, own, fdi.observer_of_mask) for row in range(4)] == [g1, g1, g1, g1 | r2]
-    assert (
-        fdi.rotor_pair.with_rotor(2, g1, own, fdi.observer_of_mask, frozen=g1) == g1 | r1
-    )  # one look: z = 3.33 > 3.29
+    assert [fdi.rotor_pair.with_rotor(row, g1, own, fdi.observer_of_mask, frozen=g1) for row in range(4)] == [
+        g1,
+        g1,
+        g1,  # the one look passes, the sequential test is open: no join on the look alone
+        g1 | r2,
+    ]
     # the one look in the pair's learnt spread: sensors 2 % noisier than the design (ŝ = 1.02) move the level to 3.36
+    assert fdi.rotor_pair.disagrees(2)
     fdi.bias.spread.scale[2] = 1.02
-    assert fdi.rotor_pair.with_rotor(2, g1, own, fdi.observer_of_mask, frozen=g1) == g1
+    assert not fdi.rotor_pair.disagrees(2)
     fdi.bias.spread.scale[2] = 1.0
     own[fdi.observer_of_mask[g1 | r2]] = 0.1
     assert fdi.rotor_pair.with_rotor(3, g1, own, fdi.observer_of_mask) == g1 | r2

@@ -158,15 +158,22 @@ def _settled_fdi(rows: int, seed: int, **options):
     return fdi, rng, x_hat, truth, healthy
 
 
+def _seen_at_once(healthy: np.ndarray, sensor: str) -> np.ndarray:
+    """The ``healthy`` statistics with every observer that reads ``sensor`` far off (χ² = 10⁴): a fault they all see
+    at once."""
+    stat = healthy.copy()
+    for j, left_out in enumerate(DESIGN.left_out):
+        if sensor not in left_out:
+            stat[:, j] = 1e4
+    return stat
+
+
 def _single_generator_fault_first_flags(rows: int, rotor_bias_sigma: float, seed: int) -> np.ndarray:
     """A fault on ω_g,m1 from tick 0 that every observer using it sees at once (χ² = 10⁴) on ``rows`` turbines, with
     ω_r,m2 biased by ``rotor_bias_sigma`` σ_r, which the UIOs do not see: only the rotor-speed pair's difference
     tells. Returns each row's first flagged bitmask (0: none within 80 ticks)."""
     fdi, rng, x_hat, truth, healthy = _settled_fdi(rows, seed)
-    stat = healthy.copy()
-    for j, left_out in enumerate(DESIGN.left_out):
-        if "omega_g_m1" not in left_out:
-            stat[:, j] = 1e4
+    stat = _seen_at_once(healthy, "omega_g_m1")
     first = np.zeros(rows, dtype=np.int64)
     for _ in range(80):
         y = truth + SPEED_SIGMA * rng.standard_normal((rows, 4))
@@ -523,6 +530,59 @@ def test_a_second_fault_over_the_isolation_level_joins_within_the_patience(level
     assert (first == BIT["omega_r_m1"] | BIT["omega_g_m2"]).all(), np.unique(first, return_counts=True)
     bound = fdi.s.isolation_delay + (fdi.s.isolation_patience if level == "between" else 0)
     assert (tick <= bound).all(), tick
+
+
+def _frozen_generator_first_flags(rows: int, seed: int, rotor_excursion: float, rotor_bias: float) -> tuple:
+    """ω_g,m2 frozen far from the truth from tick 0 (every observer using it sees it at once, χ² = 10⁴; detected on
+    tick 0, the frozen test fires on tick ``frozen_ticks`` − 1), as the mismatch set's one-generator window
+    (docs/turbine.md, seed 84506); the rotor-speed readings white, ω_r,m1 and ω_r,m2 apart by ± ``rotor_excursion``
+    σ_r on each tick up to the frozen test's (noise, as run 2's; white after), ω_r,m2 biased by ``rotor_bias`` σ_r
+    throughout.
+    Returns each row's first flagged bitmask (0: none within 60 ticks) and the tick of it."""
+    fdi, rng, x_hat, truth, healthy = _settled_fdi(rows, seed)
+    stat = _seen_at_once(healthy, "omega_g_m2")
+    first, tick = np.zeros(rows, dtype=np.int64), np.full(rows, -1)
+    for k in range(60):
+        y = truth + SPEED_SIGMA * rng.standard_normal((rows, 4))
+        if k < fdi.s.frozen_ticks:
+            apart = np.array([1.0, -1.0]) * rotor_excursion + 1e-3 * rng.standard_normal((rows, 2))  # not frozen
+            y[:, :2] = truth[0] + apart * SPEED_SIGMA[:2]
+        y[:, 1] += rotor_bias * SPEED_SIGMA[1]
+        y[:, 3] = 100.0
+        fdi.step(y, stat, x_hat)
+        tick = np.where((first == 0) & (fdi.flagged != 0), k, tick)
+        first = np.where(first == 0, fdi.flagged, first)
+    return fdi, first, tick
+
+
+def test_a_frozen_reading_s_one_look_at_a_healthy_pair_joins_no_rotor_speed_sensor_alone():
+    """The mismatch set's one wrong first flag (docs/turbine.md, seed 84506, run 2): the healthy rotor-speed pair's
+    difference ran 2.9 σ of the plant's on the isolation's first two ticks by chance, so the frozen sensor's one
+    look at it passed (z > 3.29 ŝ, probability α_iso a look) and ω_r,m1 joined the frozen ω_g,m2. A look that passes
+    now hands the decision to the sequential test against the trusted encoder, which joins a healthy sensor in a
+    few hundredths of such rows (a simulation of the walk: 0.02–0.05) and else names ω_g,m2 alone once every Λ_s
+    ≤ −ln(1/α_confirm). Synthetic, 200 rows: the pair apart by ±1.6 σ_r on each of the first three ticks (z = 3.92 at
+    the frozen test's tick, Λ_s = 3.7 < 8.3): the one look alone joined ω_r,m1 in every row on that tick; now
+    ω_g,m2 alone first in 196 (≥ 95 %), 5–37 ticks later (the walk back to Λ_s ≤ −3)."""
+    fdi, first, tick = _frozen_generator_first_flags(200, 81, 1.6, 0.0)
+    deciding = fdi.s.frozen_ticks - 1
+    z = 2 * 1.6 / math.sqrt(2) * math.sqrt(fdi.s.frozen_ticks)
+    assert z > fdi.arbiter.parity_level  # 3.92 > 3.29: the look passes
+    assert (first & BIT["omega_g_m2"] != 0).all(), np.unique(first, return_counts=True)
+    alone = int((first == BIT["omega_g_m2"]).sum())
+    assert alone >= 0.95 * 200, np.unique(first, return_counts=True)
+    assert (tick[first == BIT["omega_g_m2"]] > deciding).all()  # waited on the sequential test
+
+
+def test_a_frozen_reading_s_partner_rotor_speed_fault_still_joins_on_the_frozen_test_s_tick():
+    """A 4 σ_r bias on ω_r,m2 beside the frozen ω_g,m2: the one look passes and the sequential test against ω_g,m1
+    is already beyond its level on the frozen test's tick (Λ_2 ≈ 1.25 × 12 − 3 × 0.78 = 12.7 ≥ 8.3), so both are
+    flagged first on that tick, as the one look alone flagged two sensors there; the test names ω_r,m2, where the
+    one look alone took the rotor-speed sensor whose explanation's own observer had the smaller statistic (with
+    every observer at its mean, ω_r,m1 in every row)."""
+    fdi, first, tick = _frozen_generator_first_flags(200, 82, 0.0, 4.0)
+    both = int(((first == BIT["omega_g_m2"] | BIT["omega_r_m2"]) & (tick == fdi.s.frozen_ticks - 1)).sum())
+    assert both >= 0.97 * 200, np.unique(first, return_counts=True)
 
 
 @pytest.mark.parametrize(

@@ -51,20 +51,25 @@ class BenchmarkController:
         self.beta_ref[:] = beta_ref
         self.tau_g_ref[:] = tau_g_ref
 
-    def step(self, k: int, omega_g_m: np.ndarray, p_g_m: np.ndarray, refs: TurbineRefs | None) -> None:
-        """Compute τ_g,r and β_ref for tick k from the turbine's own sensors and fresh references."""
-        p = self.p
-        omega_g = omega_g_m
+    def _take(self, k: int, refs: TurbineRefs | None) -> bool:
+        """Whether ``refs`` are fresh at tick k; the rows that use their estimates, their power references taken."""
         fresh = refs is not None and 0 <= k - refs.tick <= self.max_ref_age
         if fresh:
             # The fault-tolerant estimate replaces the raw generator-speed sensor while it is valid.
             self.using_estimates = refs.valid.copy()
-            if self._fast is None:  # the kernel below makes this choice row by row
-                omega_g = np.where(refs.valid, refs.omega_g, omega_g_m)
             if refs.power_ref is not None:
                 self.power_ref = np.where(refs.valid, refs.power_ref, self.power_ref)
         else:
             self.using_estimates[:] = False
+        return fresh
+
+    def step(self, k: int, omega_g_m: np.ndarray, p_g_m: np.ndarray, refs: TurbineRefs | None) -> None:
+        """Compute τ_g,r and β_ref for tick k from the turbine's own sensors and fresh references."""
+        p = self.p
+        omega_g = omega_g_m
+        fresh = self._take(k, refs)
+        if fresh and self._fast is None:  # the kernel below makes this choice row by row
+            omega_g = np.where(refs.valid, refs.omega_g, omega_g_m)
         if self._fast is not None:  # the same operations, row by row, into the controller's own arrays
             # (written in place: the plant's frame and truth copy what they hand on, and nothing else keeps them)
             power_ref = np.ascontiguousarray(self.power_ref, dtype=float)
@@ -92,3 +97,16 @@ class BenchmarkController:
         tau_region3 = self.power_ref / (p.eta_gc * safe_omega)
         tau_region2 = p.k_opt * omega_g * omega_g
         self.tau_g_ref = np.where(region3, tau_region3, tau_region2)
+
+    def step_readings(
+        self, k: int, y: np.ndarray, columns: tuple[int, int], refs: TurbineRefs | None, step: tuple, product
+    ) -> None:
+        """``step`` on the compiled backend from the readings ``y`` (n, sensors) and their (ω_g,m, P_g,m) ``columns``,
+        the same numbers; in the same kernel call (``plant_sim.turbine.fast.control_inputs``) the plant's exact step
+        inputs z = [x, τ_r, τ_g,r + Δτ, β_ref + β_f] from the new commands where ``step`` = (fill, x, τ_r, Δτ, β_f,
+        z) asks, and with ``product`` = (the step matrix, x') one row's next state."""
+        estimate = refs.omega_g if self._take(k, refs) else None
+        self._fast.control_inputs(
+            y, columns, self.using_estimates, estimate, np.ascontiguousarray(self.power_ref, dtype=float), self.zone,
+            self.integrator, self.beta_ref, self.tau_g_ref, self._constants, step, product,
+        )  # fmt: skip

@@ -2,9 +2,10 @@
 call these with ``backend="numba"`` and the numpy code otherwise.
 
 Each kernel performs the numpy reference's operations in its order, row by row, so its results equal the
-reference's bit for bit (``tests/test_fast_backend.py``); the matrix products stay numpy's (BLAS). They cover the
-common tick: a nominal plant (no ``[mismatch]`` surface shift) and no sensor fault active; the plant falls back
-to the numpy code for the rest.
+reference's bit for bit (``tests/test_fast_backend.py``); the matrix products stay BLAS's, but for one row's exact
+step, whose ``gemv`` ``control_inputs`` reproduces where ``wwcore.blas_fast`` finds it numpy's on this machine. They
+cover the common tick: a nominal plant (no ``[mismatch]`` surface shift) and no sensor fault active; the plant falls
+back to the numpy code for the rest.
 """
 
 from __future__ import annotations
@@ -15,6 +16,7 @@ import numpy as np
 
 from wwcore.aero import _M_T, TSR_MAX
 from wwcore.aero_fast import cq_inside, features, maximum, minimum
+from wwcore.blas_fast import vector_matrix, vector_matrix_is_numpys  # noqa: F401 (the plant's set-up)
 from wwcore.jit import kernel
 
 TWO_PI = 2.0 * math.pi
@@ -96,17 +98,28 @@ def readings(x, hub, power_gain, pick, noise, bias, beta_m1, beta_m2, quantities
 
 # -- the whole measurement (``TurbineBatch.measure`` with its own ``WindField``, nominal plant) ----------------------
 @kernel
-def measure(x, wind, aero, sensors, blades, rotor, torque, tau_aero, quantities, y, pitch_error):
+def measure(x, j, i, kept, y):
     """``measure``'s common tick in one call: the blades' wind (``blade_winds``), the blade torques
     (``blade_torques``: the pitch with its offsets, the gain ρπR³/6 f_aero, Mᵀ f by BLAS as numpy's product) and the
     readings without sensor faults (``readings``, P_g's gain η_gc f_P), each kernel's operations in its order.
 
-    ``wind`` = (table, slope, per_rad, offsets, v_m + u_0, u_3, v_hub) of the tick; ``aero`` = (Mᵀ, ρπR³/6, f_aero
-    (n,), pitch offsets (n, 3), R); ``sensors`` = (η_gc, f_P (n,), pick, noise (n, sensors), bias, β_m1, β_m2)."""
-    table, slope, per_rad, offsets, base, u3, hub = wind
+    ``j``: the tick's row of the wind chunk, ``i`` its column of the noise block. ``kept`` = (wind, aero, sensors,
+    outputs), the arguments ``TurbineBatch._measure_arguments`` keeps between ticks: ``wind`` = (the table and its
+    slope (2, m), per_rad, offsets, the chunk's v_m + u_0, u_3 and v_hub (ticks, n)); ``aero`` = (Mᵀ, ρπR³/6,
+    f_aero (n,), pitch offsets (n, 3), R); ``sensors`` = (η_gc, f_P (n,), the columns (pick, β_m1, β_m2), the noise
+    block (rows, ticks, sensors), the tick's noise (n, sensors; twin rows repeat their run's row), bias);
+    ``outputs`` = (the blades' wind, torques and pitch errors (3, n, 3), the rotor's wind and τ_r (2, n), the
+    quantities (n, 8))."""
+    wind, aero, sensors, outputs = kept
+    tables, per_rad, offsets, base, u3, hub = wind
     m_t, blade_gain, aero_factor, pitch_offset, radius = aero
-    eta_gc, power_factor, pick, noise, bias, beta_m1, beta_m2 = sensors
+    eta_gc, power_factor, columns, draws, noise, bias = sensors
+    per_blade, per_row, quantities = outputs
+    blades, torque, pitch_error = per_blade[0], per_blade[1], per_blade[2]
+    rotor, tau_aero = per_row[0], per_row[1]
+    pick, beta_m1, beta_m2 = columns[: bias.size], columns[bias.size : bias.size + 3], columns[bias.size + 3 :]
     n = x.shape[0]
+    rows = draws.shape[0]
     azimuth, omega_r, gain, power_gain = np.empty(n), np.empty(n), np.empty(n), np.empty(n)
     pitch = np.empty((n, 3))
     for r in range(n):
@@ -116,11 +129,13 @@ def measure(x, wind, aero, sensors, blades, rotor, torque, tau_aero, quantities,
         power_gain[r] = eta_gc * power_factor[r]
         for b in range(3):
             pitch[r, b] = x[r, 5 + 2 * b] + pitch_offset[r, b]
-    blade_winds(azimuth, table, slope, per_rad, offsets, base, u3, blades, rotor)
+        for s in range(noise.shape[1]):
+            noise[r, s] = draws[r % rows, i, s]
+    blade_winds(azimuth, tables[0], tables[1], per_rad, offsets, base[j], u3[j], blades, rotor)
     tsr, lam, f = np.empty(3 * n), np.empty(3 * n), np.empty((6, 3 * n))
     _blade_features(omega_r, radius, blades, pitch, tsr, lam, f)
     _blade_torques(tsr, lam, f, m_t @ f, blades, gain, torque, tau_aero)
-    readings(x, hub, power_gain, pick, noise, bias, beta_m1, beta_m2, quantities, y, pitch_error)
+    readings(x, hub[j], power_gain, pick, noise, bias, beta_m1, beta_m2, quantities, y, pitch_error)
 
 
 # -- controller (``BenchmarkController.step``) ------------------------------------------------------------------
@@ -141,6 +156,28 @@ def control(omega_g_m, estimated, omega_g_est, p_g_m, power_ref, zone, integrato
         beta_pi = minimum(maximum(k_p * error + k_i * integrator[r], lo), hi)
         beta_ref[r] = beta_pi if region3 else 0.0
         tau_g_ref[r] = power_ref[r] / (eta_gc * maximum(w, 1.0)) if region3 else k_opt * w * w
+
+
+@kernel
+def control_inputs(y, columns, estimated, omega_g_est, power_ref, zone, integrator, beta_ref, tau_g_ref, consts, step,
+                   product):  # fmt: skip
+    """``control`` on the readings ``y``'s generator-speed and power columns (``columns``), the estimate ``omega_g_est``
+    where ``estimated`` (None: no fresh estimate, the sensor's reading), then, where ``step`` = (fill, x, τ_r, Δτ,
+    β_f (n, 3), z) asks (``fill``), the exact step's inputs z from the new commands (``step_inputs``): the plant's
+    ``control`` and the first half of its ``advance`` in one call. With ``product`` = (the shared step matrix, x'),
+    not None, also its second half for one row: x' = z @ shared with numpy's BLAS arithmetic
+    (``wwcore.blas_fast.vector_matrix``)."""
+    omega_g_m, p_g_m = y[:, columns[0]], y[:, columns[1]]
+    if omega_g_est is None:
+        control(omega_g_m, estimated, omega_g_m, p_g_m, power_ref, zone, integrator, beta_ref, tau_g_ref, consts)
+    else:
+        control(omega_g_m, estimated, omega_g_est, p_g_m, power_ref, zone, integrator, beta_ref, tau_g_ref, consts)
+    fill, x, tau_r, torque_offset, pitch_error, z = step
+    if fill:
+        step_inputs(x, tau_r, tau_g_ref, torque_offset, beta_ref, pitch_error, z)
+    if product is not None:
+        shared, x_next = product
+        vector_matrix(z[0], shared, x_next[0])
 
 
 # -- step (``DiscreteStep.step``, every row alike) -----------------------------------------------------------

@@ -13,6 +13,7 @@ unknown input that the observers' discrete design model assumes.
 from __future__ import annotations
 
 from collections.abc import Sequence
+from typing import ClassVar
 
 import numpy as np
 
@@ -35,6 +36,7 @@ from plant_sim.wind import WindField, WindSample
 from wwcore.backend import fast_module, resolve_backend
 from wwcore.channels import SENSOR_INDEX, SENSORS, noise_std
 from wwcore.events import Event, EventType
+from wwcore.planes import Planes
 from wwcore.scenario.faults import FaultKind, FaultSpec
 from wwcore.scenario.mismatch import Mismatch
 from wwcore.scenario.turbine import TurbinePlant
@@ -50,6 +52,8 @@ _BETA_M2 = np.array([SENSOR_INDEX[f"beta_{i}_m2"] for i in (1, 2, 3)])
 _BETA_M12 = np.concatenate([_BETA_M1, _BETA_M2])
 _OMEGA_G_M1 = SENSOR_INDEX["omega_g_m1"]
 _P_G_M = SENSOR_INDEX["p_g_m"]
+_CONTROL_COLUMNS = (_OMEGA_G_M1, _P_G_M)  # the controller's readings: ω_g,m1 and P_g,m
+_MEASURE_COLUMNS = np.concatenate([_PICK, _BETA_M1, _BETA_M2])  # the measurement kernel's: pick, β_m1, β_m2
 ERROR_ONSET_S = 0.25  # s, time constant of each of the two lags through which a transmission error develops (fault 3)
 
 
@@ -62,7 +66,7 @@ def row_streams(seed: int, run: int, turbine: int) -> tuple[np.random.Generator,
     return np.random.default_rng(wind_seq), np.random.default_rng(noise_seq)
 
 
-class TurbineBatch:
+class TurbineBatch(Planes):
     """n independent benchmark turbines (rows = Monte Carlo runs × turbines), one tick per step call.
 
     ``mismatch`` (a scenario's ``[mismatch]`` section) makes the plant differ from the design model: its rows get
@@ -72,6 +76,12 @@ class TurbineBatch:
     ``backend`` (``wwcore.backend``): ``"numba"`` runs the common tick through ``plant_sim.turbine.fast``, with the
     same results; ``None`` takes the process default.
     """
+
+    # the one-kernel measurement's outputs (``_measure_arguments``) are planes of two blocks (``wwcore.planes``)
+    PLANES: ClassVar[dict[str, tuple]] = {
+        "_per_blade": (("blade_torque", 1), ("_pitch_error", 2)),
+        "_per_row": (("tau_aero", 1),),
+    }
 
     def __init__(
         self,
@@ -148,7 +158,7 @@ class TurbineBatch:
         self._error_level = np.zeros(self.n)  # rad, transmission error amplitude acting now (farm fault 3)
         self._error_stage = np.zeros(self.n)  # rad, first stage of its onset filter
         self._error_active = False
-        self._wind_sample = None
+        self._sample: WindSample | None = None
         # the whole measurement by one kernel (``_fast_measure_frame``) where the plant samples its own ``WindField``
         # (not a farm's ``FarmWindField``, a ``WindField`` whose ``sample`` adds the wakes' means) with the design's
         # tip-speed ratios and one calibration bias per sensor
@@ -156,8 +166,24 @@ class TurbineBatch:
             self._fast is not None and wind_field is None and self._tsr_shift is None and self.bias.ndim == 1
         )
         if self._one_measure_kernel:
-            self._wind_table, self._m_t = self.wind.interpolation(), self._fast.M_T
-        self._kept: dict | None = None  # ``_fast_measure_frame``'s kernel arguments while the faults stay
+            table, slope, per_rad, offsets = self.wind.interpolation()
+            self._wind_table = (np.stack([table, slope]), per_rad, offsets)
+        # the one-kernel measurement's outputs read within the tick, as planes of two blocks (``PLANES``): the blades'
+        # wind, torques and pitch errors (3, n, 3), the rotor's wind and τ_r (2, n)
+        self._per_blade, self._per_row = np.empty((3, self.n, 3)), np.empty((2, self.n))
+        self._kept: tuple | None = None  # ``_fast_measure_frame``'s kernel arguments while the faults stay
+        self._kept_chunk: tuple | None = None  # the wind chunk they hold
+        self._wind_row = -1  # the one-kernel measurement's row of the wind chunk (``_wind_sample``)
+        self._inputs_ready = False  # ``control`` wrote the shared step's inputs (``advance``)
+        self._next_x: np.ndarray | None = None  # and with one row the next state
+        # one row's shared step x' = z @ shared inside that kernel call, where its reproduction of numpy's BLAS product
+        # (``wwcore.blas_fast.vector_matrix``) is this machine's; else numpy's product in ``advance``
+        self._step_product = (
+            self.n == 1 and self._fast is not None and self._fast.vector_matrix_is_numpys(N_STATES + 5, N_STATES)
+        )
+        # the controller's law and the shared step's inputs in one kernel call (``control``), where the controller
+        # is the benchmark's own (a farm's replaces it)
+        self._fused_control = self._fast is not None
 
     # -- set-up -----------------------------------------------------------------------------------------------
     def _trim(self, wind0: float, power_reference: float) -> None:
@@ -268,35 +294,50 @@ class TurbineBatch:
     def _fast_measure_frame(self, x: np.ndarray) -> TurbineFrame:
         """``measure`` with the plant's own ``WindField`` by one kernel (``plant_sim.turbine.fast.measure``: the wind
         sample, the blade torques and the readings, the same operations as ``sample``, ``blade_torques`` and
-        ``_fast_frame``), then with a sensor fault active ``faulty_readings`` in the readings' place. The kernel's
-        arguments are kept between ticks (``_measure_arguments``); the readings ``y`` are new every tick (the
-        frame hands them on)."""
-        wind = self.wind
-        kept = self._kept or self._measure_arguments()
-        base, u3, hub, mean = wind.fields(wind.advance(self.k))
+        ``_fast_frame``), then with a sensor fault active ``faulty_readings`` in the readings' place. The kernel reads
+        the tick's row of the wind chunk and column of the noise block itself; its arguments are kept between ticks
+        (``_measure_arguments``); the readings ``y`` are new every tick (the frame hands them on)."""
+        wind, k = self.wind, self.k
+        j = wind.advance(k)
+        i = k % self.noise_chunk
+        if i == 0 or not self._noise_drawn:
+            self._draw_noise()
+        kept = self._kept
+        if kept is None or self._kept_chunk is not wind.chunk:
+            kept = self._measure_arguments()
         y = np.empty((self.n, len(SENSORS)))
-        noise = self._next_noise()
-        blades, rotor, torque, tau_aero, pitch_error = kept["outputs"]
-        self._fast.measure(
-            x, (*self._wind_table, base, u3, hub), kept["aero"], (*kept["gains"], noise, *kept["sensors"]),
-            blades, rotor, torque, tau_aero, self._quantities, y, pitch_error,
-        )  # fmt: skip
-        self._wind_sample = WindSample(blades=blades, hub=hub, rotor=rotor, mean=mean)
-        return self._fast_faulty_frame(self._fast, x, noise, y)
+        self._fast.measure(x, j, i, kept, y)
+        self._sample, self._wind_row = None, j  # ``_wind_sample`` built when asked
+        return self._fast_faulty_frame(self._fast, x, self._tick_noise, y)
 
-    def _measure_arguments(self) -> dict:
+    def _measure_arguments(self) -> tuple:
         """``_fast_measure_frame``'s kernel arguments that stay from tick to tick until the faults change
-        (``_update_faults`` drops them): the fault factors, the constants, and the outputs read within the tick
-        (the blades' and rotor's wind and the torques: the evaluation and the twins copy what they keep)."""
-        n, f = self.n, self.faults
-        self.blade_torque, self.tau_aero, self._pitch_error = np.empty((n, 3)), np.empty(n), np.empty((n, 3))
-        self._kept = {
-            "aero": (self._m_t, self.dynamics.blade_gain, f.aero_factor, f.pitch_offset, self.p.radius),
-            "gains": (self.p.eta_gc, f.power_factor, _PICK),
-            "sensors": (self.bias, _BETA_M1, _BETA_M2),
-            "outputs": (np.empty((n, 3)), np.empty(n), self.blade_torque, self.tau_aero, self._pitch_error),
-        }
+        (``_update_faults`` drops them) or the wind's next chunk starts: the chunk, the fault factors, the constants,
+        the noise block, and the outputs read within the tick (the blades' and rotor's wind and the torques: the
+        evaluation and the twins copy what they keep)."""
+        f, per_blade, per_row = self.faults, self._per_blade, self._per_row
+        self.blade_torque, self._pitch_error, self.tau_aero = per_blade[1], per_blade[2], per_row[1]
+        self._kept_chunk = chunk = self.wind.chunk
+        self._kept = (
+            (*self._wind_table, *chunk[:3]),
+            (self._fast.M_T, self.dynamics.blade_gain, f.aero_factor, f.pitch_offset, self.p.radius),
+            (self.p.eta_gc, f.power_factor, _MEASURE_COLUMNS, self._draws, self._tick_noise, self.bias),
+            (per_blade, per_row, self._quantities),
+        )
         return self._kept
+
+    @property
+    def _wind_sample(self) -> WindSample:
+        """The current tick's wind (``WindSample``); the one-kernel measurement's built from its outputs when asked."""
+        if self._sample is None and self._wind_row >= 0:
+            _, _, hub, mean = self._kept_chunk
+            j = self._wind_row
+            self._sample = WindSample(blades=self._per_blade[0], hub=hub[j], rotor=self._per_row[0], mean=mean[j])
+        return self._sample
+
+    @_wind_sample.setter
+    def _wind_sample(self, sample: WindSample) -> None:
+        self._sample, self._wind_row = sample, -1
 
     def _fast_frame(self, fast, x: np.ndarray, ws, pitch: np.ndarray) -> TurbineFrame:
         """``measure``'s readings, by ``plant_sim.turbine.fast``: ``readings``, then with a sensor fault active
@@ -323,11 +364,27 @@ class TurbineBatch:
         return self._frame(y)
 
     def control(self, refs: TurbineRefs | None) -> None:
-        y = self.last_reading
-        self.controller.step(self.k, y[:, _OMEGA_G_M1], y[:, _P_G_M], refs)
+        y, c = self.last_reading, self.controller
+        if self._fused_control and type(c) is BenchmarkController:
+            # the law and, where ``advance`` takes the shared step, that step's inputs z (with one row its product
+            # too) in one kernel call: x, τ_r, the faults and the pitch-sensor errors stay as they are until ``advance``
+            shared = self.discrete.shared
+            fill = shared is not None and not self._adjusted()
+            inputs = (fill, self.x, self.tau_aero, self.faults.torque_offset, self._pitch_error, self.discrete.inputs)
+            product = (shared, np.empty((1, N_STATES))) if fill and self._step_product else None
+            self._next_x = None if product is None else product[1]
+            c.step_readings(self.k, y, _CONTROL_COLUMNS, refs, inputs, product)
+            self._inputs_ready = fill
+            return
+        c.step(self.k, y[:, _OMEGA_G_M1], y[:, _P_G_M], refs)
 
     def advance(self) -> None:
         """Exact step from tick k to k+1 with controller outputs, wind and aerodynamic torque held."""
+        if self._inputs_ready:  # ``control`` wrote the shared step's inputs (every row alike, nothing else in them)
+            self._inputs_ready, next_x = False, self._next_x
+            self.x = self.discrete.inputs @ self.discrete.shared if next_x is None else next_x
+            self.k += 1
+            return
         c, f, x = self.controller, self.faults, self.x
         shared = self.discrete.shared
         if self._fast is not None and shared is not None and not self._adjusted():

@@ -246,11 +246,12 @@ class GeneratorArbiter(Planes):
         N(0, 1) in magnitude while both are healthy (0 before anything is summed)."""
         return np.abs(self.parity) / (self.parity_sigma * np.sqrt(np.maximum(self.count, 1.0)))
 
-    def rotor_log_ratio(self, shift: float, rows=slice(None)) -> np.ndarray:
-        """Λ = shift·|Σd| − k·shift²/2 of ``rows`` (all: (n,); one row index: a scalar), d = (y_r1 − y_r2)/σ_d over
-        the k ticks summed: the log-likelihood ratio of "one rotor-speed sensor is biased by ±shift σ_d of their
-        difference" (the sign that fits) against "both are healthy" (0 before anything is summed)."""
-        return shift * np.abs(self.parity[rows]) / self.parity_sigma - 0.5 * shift**2 * self.count[rows]
+    def rotor_log_ratio(self, shift: float, rows=slice(None), spread: float = 1.0) -> np.ndarray:
+        """Λ = shift·|Σd| − k·shift²/2 of ``rows`` (all: (n,); one row index: a scalar), d = (y_r1 − y_r2)/(σ_d ŝ)
+        over the k ticks summed, ŝ = ``spread``: the log-likelihood ratio of "one rotor-speed sensor is biased by
+        ±shift σ_d ŝ of their difference" (the sign that fits) against "both are healthy" (0 before anything is
+        summed)."""
+        return shift * np.abs(self.parity[rows]) / (self.parity_sigma * spread) - 0.5 * shift**2 * self.count[rows]
 
     def rotor_sensor_log_ratios(self, shift: float, row: int, encoder: int, spread: float = 1.0) -> np.ndarray:
         """Λ_s = shift·|Σe_s| − k·shift²/2 for s = ω_r,m1, ω_r,m2 (2,) on ``row``, e_s = (y_rs − y_g/N_g)/(σ_e ŝ)

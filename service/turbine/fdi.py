@@ -56,7 +56,9 @@ evidence that its sensor is healthy again.
   sign: the same two levels, the upper ln(4/α_iso) for four alternatives; Λ_s falls by at most m²/2 = 0.78 a tick,
   so such an explanation is decided on the 4th tick at the earliest, after about 9.7 on a healthy pair, and the test
   names the biased sensor (``rotor_pair``). An explanation naming a
-  frozen sensor is decided on one look (the sum's z beyond the isolation level in the pair's learnt spread).
+  frozen sensor is decided on one look (the sum's z beyond the isolation level in the pair's learnt spread): where
+  the pair agrees, at once and alone; where it disagrees, the sequential test above decides it as any other, so a
+  healthy sensor joins only where both the look (α_iso) and the test's level pass (a few hundredths of α_iso).
 * **Hold.** Once the fault is confirmed ("No fault" above), an isolation that waits on an explanation (the
   arbitration between the encoders, the rotor-speed pair's test, a doubt) holds it while the wait lasts: a choice
   re-made by tie-break on every tick of a long wait lands sooner or later on whatever has nothing to wait for. The
@@ -92,7 +94,8 @@ evidence that its sensor is healthy again.
   on the tick the frozen test fires (the test has seen ``frozen_ticks`` of the fault already) and never waits for
   the generator-speed arbitration (``arbitration``), which a reading frozen near the truth would keep open for
   seconds; but where the flagged and frozen sensors alone are consistent at the detection level and a witness
-  is over the isolation level, the decision waits as for any chance join ("Chance joins" above).
+  is over the isolation level, the decision waits as for any chance join ("Chance joins" above), and where the
+  one look finds the rotor-speed pair disagreeing, it waits on the pair's sequential test ("Doubt" above).
 * **Which generator-speed sensor.** Where an explanation names one generator-speed sensor and the other is not
   ruled out, the isolation waits for the arbitration (``arbitration``): the fault's first ticks against the pair
   mean's own prediction, then sums against the rotor-speed sensors and the power-speed channel.
@@ -255,6 +258,9 @@ class SpeedSensorFDI(Planes):
         self.held = np.full(n, -1, dtype=np.int64)
         # a chance join was waited out (``_isolate``): the choice is re-made on every tick up to the patience
         self.rechoosing = np.zeros(n, dtype=bool)
+        # a frozen sensor's one look found the rotor-speed pair disagreeing: their sequential test decides
+        # (``_doubtful``)
+        self.pair_disagreed = np.zeros(n, dtype=bool)
         self.arbiter = GeneratorArbiter(bank, n, iso, dt, fast)
         self.arbitration_ticks = round(settings.arbitration_s / dt)
         # the rotor-speed sensors' sequential tests judge an explanation that names no rotor-speed sensor, on every
@@ -406,6 +412,7 @@ class SpeedSensorFDI(Planes):
         self.confirmed[start] = untestable[start]
         self.held[start] = -1
         self.rechoosing[start] = False
+        self.pair_disagreed[start] = False
         # the onset's jump names the generator-speed sensor unless one of the pair is flagged (``arbitration``)
         self.arbiter.reset(start, (self.flagged & GENERATOR_BITS) == 0)
         suspected = SENSORS_OF_MASK[self.flagged | self.provisional]
@@ -490,7 +497,9 @@ class SpeedSensorFDI(Planes):
                         continue
                     if (self.arbiter.log_ratio[row] > 0.0) != bool(explanation & BITS[2]):
                         explanation = other
-                explanation = self.rotor_pair.with_rotor(row, explanation, isolate[i], self.observer_of_mask, frozen)
+                explanation = self.rotor_pair.with_rotor(
+                    row, explanation, isolate[i], self.observer_of_mask, frozen, bool(self.pair_disagreed[row])
+                )
                 self.flagged[row] = explanation
                 self.deadline[row] = -1
                 self.held[row] = -1
@@ -534,6 +543,7 @@ class SpeedSensorFDI(Planes):
         self.confirmed[row] = False
         self.held[row] = -1
         self.rechoosing[row] = False
+        self.pair_disagreed[row] = False
         rows = self._rows == row
         self.arbiter.reset(rows, rows & ((self.flagged & GENERATOR_BITS) == 0))
 
@@ -555,17 +565,19 @@ class SpeedSensorFDI(Planes):
           their sequential test has not yet decided (``rotor_pair.verdict`` 0): a rotor-speed gain beside a
           generator-speed fault shows in the pair's difference from its first tick but in the UIOs only as their
           states drift, so that flagging before the test says "healthy" would name a part of the faulty set first,
-          and joining before it says "biased" would name a healthy sensor. Not for an explanation that names a
-          ``frozen`` sensor: it is decided on the tick the frozen test fires."""
+          and joining before it says "biased" would name a healthy sensor. An explanation that names a ``frozen``
+          sensor is decided on the tick the frozen test fires unless the one look at the pair
+          (``rotor_pair.disagrees``) finds it disagreeing, on this or an earlier tick of the isolation; from then on
+          the sequential test decides it as any other, so a healthy sensor joins only where both the look
+          (α_iso) and the test's Ville-bounded level pass."""
         j = self.observer_of_mask[explanation]
         if j < 0 or self.ambiguous[row]:
             return False
-        if (
-            not explanation & ROTOR_BITS
-            and not explanation & frozen
-            and waited < self.rotor_pair.patience
-            and self.rotor_pair.verdict(row, explanation) == 0
-        ):
+        rotor_open = not explanation & ROTOR_BITS and waited < self.rotor_pair.patience
+        if rotor_open and explanation & frozen:
+            self.pair_disagreed[row] |= self.rotor_pair.disagrees(row)
+            rotor_open = bool(self.pair_disagreed[row])
+        if rotor_open and self.rotor_pair.verdict(row, explanation) == 0:
             return True
         return waited < patience and bool((self.witnesses[j] * confirm).max() > 1.0)
 

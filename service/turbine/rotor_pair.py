@@ -14,10 +14,12 @@ tick, while the UIOs see it only as their states drift from it. The sums live in
   look), decide alone once every Λ_s ≤ −ln(1/α_confirm) (a bias of the design size gets there with probability
   ≤ α_confirm); the sensor with the larger Λ_s is the one that joins.
 * **The pair** (an explanation naming both generator-speed sensors): Λ = m_d |Σd| − k m_d²/2 on the pair's difference
-  d = (y_r1 − y_r2)/σ_d, m_d = ``bias_shift``/√2 σ_d, join at ln(2/α_iso), the same lower level (N-16); the UIOs'
-  statistics then choose which rotor-speed sensor joins.
+  d = (y_r1 − y_r2)/(σ_d ŝ) in its learnt spread, m_d = ``bias_shift``/√2 σ_d, join at ln(2/α_iso), the same lower
+  level (N-16); the UIOs' statistics then choose which rotor-speed sensor joins.
 * **One look** (an explanation naming a frozen sensor, decided on the frozen test's tick): the pair's z beyond the
-  isolation's two-sided level in the pair's learnt spread (N-22).
+  isolation's two-sided level in the pair's learnt spread (N-22) does not join a sensor by itself; it hands the
+  decision to the sequential test above, which the explanation then waits on as any other (a healthy pair joins
+  where both pass: about α_iso × 0.02–0.05 a look against one encoder, × 0.04–0.13 for the pair, instead of α_iso).
 """
 
 from __future__ import annotations
@@ -86,7 +88,7 @@ class RotorPairTest:
         if ratios is not None:
             evidence, join = float(ratios.max()), self.encoder_join_level
         else:
-            evidence, join = float(self.arbiter.rotor_log_ratio(self.shift, row)), self.join_level
+            evidence, join = float(self.arbiter.rotor_log_ratio(self.shift, row, self._spread(row))), self.join_level
         if evidence >= join:
             return 1
         return -1 if evidence <= self.healthy_level else 0
@@ -109,21 +111,29 @@ class RotorPairTest:
         return bool(self.arbiter.rotor_z[row] > self.arbiter.parity_level * self._spread(row))
 
     def with_rotor(
-        self, row: int, explanation: int, own: np.ndarray, observer_of_mask: np.ndarray, frozen: int = 0
+        self,
+        row: int,
+        explanation: int,
+        own: np.ndarray,
+        observer_of_mask: np.ndarray,
+        frozen: int = 0,
+        disagreed: bool = False,
     ) -> int:
         """The ``explanation`` with a rotor-speed sensor added where it names none and the sequential test says one
-        is biased (``verdict`` +1), or, for an explanation naming a ``frozen`` sensor, where the one look passes
-        (``disagrees``). The test against one encoder names the sensor; otherwise, of the two, the one whose
-        explanation's own observer (``observer_of_mask``) has the smaller statistic (``own``, at the isolation
-        level)."""
+        is biased (``verdict`` +1); for an explanation naming a ``frozen`` sensor only where, besides, the one look
+        found the pair disagreeing (``disagreed`` on an earlier tick of the isolation, or ``disagrees`` now): a
+        healthy pair passes the look with probability α_iso and then the test's level in a few hundredths of
+        those. The test against one encoder names the sensor; otherwise, of the two, the one whose explanation's
+        own observer (``observer_of_mask``) has the smaller statistic (``own``, at the isolation level)."""
         if explanation & _ROTOR_BITS:
             return explanation
-        one_look = bool(explanation & frozen) and self.disagrees(row)
+        if explanation & frozen and not (disagreed or self.disagrees(row)):
+            return explanation
         ratios = self.encoder_log_ratios(row, explanation)
-        if not one_look and self._decide(row, ratios) <= 0:
+        if self._decide(row, ratios) <= 0:
             return explanation
         candidates = [explanation | bit for bit in _ROTOR_BIT if observer_of_mask[explanation | bit] >= 0]
-        if not one_look and ratios is not None:
+        if ratios is not None:
             named = explanation | _ROTOR_BIT[int(ratios.argmax())]
             candidates = [named] if named in candidates else candidates
         if not candidates:
