@@ -126,6 +126,16 @@ def _newton(tau_aero, rw, v, f, g, gain, iterations):
             v[i] = minimum(maximum(v[i] * (1.0 - step), WIND_MIN), WIND_MAX)
 
 
+@kernel
+def wind_from_torque_flat(tau_aero, rw, v, beta, gain, iterations):
+    """``wind_from_torque``'s arithmetic on flat arrays (m,) inside a kernel: the pitch features of β, g = Mᵀ f by
+    numba's product (which calls the BLAS routine numpy's ``@`` does, with its numbers: ``tests/test_fast_kernels.py``)
+    and ``_newton`` on v in place; ``rw`` = ω_r R."""
+    f = np.empty((6, beta.size))
+    pitch_features(beta, f)
+    _newton(tau_aero, rw, v, f, _M_T @ f, gain, iterations)
+
+
 def wind_from_torque(
     tau_aero: np.ndarray,
     omega_r: np.ndarray,

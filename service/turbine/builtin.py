@@ -216,6 +216,10 @@ class UIOBankEstimator:
         self.reference = design.reference
         self._reference_columns = np.full(context.n, design.reference)
         self._all_healthy = np.full(context.n, self.observer_of_mask[0])  # ``selected`` when nothing is flagged
+        # ``Estimates.selected`` and ``valid`` (before, after the warm-up) of the common compiled tick: arrays that
+        # are handed out every such tick and never written
+        self._healthy_selected = self._all_healthy.copy()
+        self._healthy_valid = (np.zeros(context.n, dtype=bool), self._all_healthy >= 0)
         self._rows = np.arange(context.n)
         self.names = design.names
         self.ticks = 0
@@ -448,11 +452,21 @@ class UIOBankEstimator:
             self._winds = np.tile(np.maximum(frame.sensors[:, SENSOR_INDEX["v_hub_m"]], 3.0), (2, 1))
         recovery = self.recovery
         fast = self.context.fast
-        distrusting = bool(faulty.any())
+        speeds = None  # the common compiled tick's (ω̂_r, ω̂_g)
+        estimate = self._fault_estimate
+        if fast is not None and not self._switched and (estimate is None or not estimate.active):
+            # every row on the observer that uses all four speed sensors, nothing to hand over or stop: the recovery's
+            # step, the speeds' gather and region 2's below by one kernel call, unless a target is distrusted
+            speeds = recovery.step_healthy(
+                faulty, bank.x_hat, frame.beta_ref, frame.sensors, PITCH_M12, self._all_healthy, frame.zone
+            )  # fmt: skip
+        distrusting = speeds is None and bool(faulty.any())
         if distrusting or fast is None:
             pitch = frame.sensors[:, PITCH_M12]  # [β_i,m1 | β_i,m2], one gather
             pitch_m1, pitch_m2 = pitch[:, :3], pitch[:, 3:]
-        if distrusting:
+        if speeds is not None:
+            (omega_r, omega_g), selected, columns = speeds, self._healthy_selected, self._all_healthy
+        elif distrusting:
             mask, selected = self.select(faulty, frame.tau_g_ref, frame.zone)
             flagged_mask = self._flagged_mask(flagged, mask)
             self._take_over(bank, selected, mask, flagged_mask)
@@ -469,18 +483,17 @@ class UIOBankEstimator:
             else:
                 rows = self._rows
                 omega_r, omega_g = recovery.omega_r[rows, columns], recovery.omega_g[rows, columns]
-        else:  # the common tick: every sensor healthy, every row on the observer that uses all four speed sensors
-            selected = self._all_healthy.copy()
+        else:  # every sensor healthy, every row on the observer that uses all four speed sensors
+            selected = self._all_healthy.copy()  # new: ``_take_over`` keeps it
             if self._fault_estimate is not None and self._fault_estimate.active:
                 self._stop_compensation()
             if self._switched:
                 none = np.zeros(len(selected), dtype=np.int64)
                 self._take_over(bank, selected, none, none)
             columns = self._all_healthy
-            if fast is not None:  # the recovery's step and the speeds' gather below, by one kernel after the map
-                omega_r, omega_g = np.empty(self.context.n), np.empty(self.context.n)
-                recovery.step_healthy(
-                    bank.x_hat, frame.beta_ref, frame.sensors, PITCH_M12, selected, frame.zone, omega_r, omega_g
+            if fast is not None:  # the common compiled tick's kernel, after the hand-over
+                omega_r, omega_g = recovery.step_healthy(
+                    faulty, bank.x_hat, frame.beta_ref, frame.sensors, PITCH_M12, selected, frame.zone
                 )  # fmt: skip
             else:
                 recovery.step(bank.x_hat, frame.beta_ref, pitch_m1, pitch_m2, None, None)
@@ -522,8 +535,12 @@ class UIOBankEstimator:
                     columns = np.where(unfit, self._inverted, columns)
             self._inverted = columns.copy()
         self.ticks += 1
+        if speeds is None:
+            valid = (selected >= 0) & (self.ticks > self.warmup_ticks)
+        else:
+            valid = self._healthy_valid[self.ticks > self.warmup_ticks]
         return Estimates(
-            valid=(selected >= 0) & (self.ticks > self.warmup_ticks),
+            valid=valid,
             omega_r=omega_r,
             omega_g=omega_g,
             wind=self._winds[0],

@@ -17,7 +17,7 @@ import numpy as np
 
 from service.turbine.fast_bank import bank_step, bank_tick, bank_tick_kept  # noqa: F401 (the observer bank's)
 from service.turbine.fast_converter import converter_tick
-from wwcore.aero_fast import maximum, wind_from_torque  # noqa: F401 (the wind recovery's inversion)
+from wwcore.aero_fast import maximum, wind_from_torque, wind_from_torque_flat  # noqa: F401 (the wind's inversion)
 from wwcore.blas_fast import gemm_layout, gemm_product, nonzeros  # noqa: F401 (the bank's and recovery's set-up)
 from wwcore.jit import kernel
 from wwcore.kept import Kept  # noqa: F401 (the kept arguments' struct, for the objects that build one)
@@ -71,36 +71,80 @@ def recovery_filter(raw, pitch_m1, pitch_m2, healthy, modelled, b0, a1, a2, s1, 
 
 @kernel
 def recovery_tick(raw, pitch_m1, pitch_m2, healthy, pitch, reference, coef, biquads, filtered):
-    """``pitch_model`` from ``pitch`` = (β, β̇) and the reference, then ``recovery_filter`` with the new β as the
-    modelled pitch (``WindRecovery.step``); ``biquads`` = (b0, a1, a2, s1, s2). Returns the new (β, β̇)."""
-    n = reference.size
-    beta, rate = np.empty(n), np.empty(n)
-    pitch_model(pitch[0], pitch[1], reference, coef, beta, rate)
+    """``pitch_model`` of ``pitch`` = (β, β̇) and the reference, in place, then ``recovery_filter`` with the new β as
+    the modelled pitch (``WindRecovery.step``); ``biquads`` = (b0, a1, a2, s1, s2)."""
+    beta, rate = pitch
+    pitch_model(beta, rate, reference, coef, beta, rate)
     b0, a1, a2, s1, s2 = biquads
     recovery_filter(raw, pitch_m1, pitch_m2, healthy, beta, b0, a1, a2, s1, s2, filtered)
-    return beta, rate
 
 
 @kernel
-def recovery_healthy_tick(
-    raw, sensors, pitch_columns, pitch, reference, coef, biquads, filtered, speeds, selected, region2
-):
-    """``recovery_tick`` with every pitch sensor healthy, the readings [β_i,m1 | β_i,m2] gathered from ``sensors``
-    (columns ``pitch_columns``), then ``gather_speeds`` of ``selected`` with ``speeds`` = (rotor start, generator
-    start, ω̂_r out, ω̂_g out), then ``region2_speed`` with ``region2`` = (x̂, zone, encoder state)
-    (``UIOBankEstimator.step``'s common tick). Returns the new (β, β̇)."""
+def recovery_healthy_tick(faulty, x_hat, x_prev, sensors, reference, zone, pitch_columns, selected, kept):
+    """``WindRecovery.step_healthy``: nothing done and False where any of ``faulty`` (the estimator's distrusted
+    targets) is set; else True after [x̂[n], x̂[n−1]] (``x_hat``, ``x_prev``) stacked into ``stacked`` and mapped
+    into ``raw`` (``product`` = (stacked, map, nonzeros or None, raw): ``map_product``), ``recovery_tick`` with
+    every pitch sensor healthy on the readings [β_i,m1 | β_i,m2] gathered from ``sensors`` (columns
+    ``pitch_columns``), ``gather_speeds`` of ``selected`` into ``speeds`` = (rotor start, generator start, ω̂_r,
+    ω̂_g) and ``region2_speed`` of the controller's ``zone`` (``UIOBankEstimator.step``'s common tick). ``kept`` is
+    a ``wwcore.kept.Kept`` of (product, pitch, coef, biquads, filtered, speeds, encoder state),
+    ``WindRecovery._healthy_kept``: written in place."""
+    for r in range(faulty.shape[0]):
+        for c in range(faulty.shape[1]):
+            if faulty[r, c]:
+                return False
+    product, pitch, coef, biquads, filtered, speeds, encoder_state = kept.args
+    stacked, matrix, sparse, raw = product
+    width = x_hat.shape[1]
     n = sensors.shape[0]
+    for r in range(n):
+        for c in range(width):
+            stacked[r, c] = x_hat[r, c]
+            stacked[r, width + c] = x_prev[r, c]
+    map_product(stacked, matrix, sparse, raw)
     pitch_m1, pitch_m2 = np.empty((n, 3)), np.empty((n, 3))
     for r in range(n):
         for b in range(3):
             pitch_m1[r, b] = sensors[r, pitch_columns[b]]
             pitch_m2[r, b] = sensors[r, pitch_columns[3 + b]]
-    new_pitch = recovery_tick(raw, pitch_m1, pitch_m2, None, pitch, reference, coef, biquads, filtered)
+    recovery_tick(raw, pitch_m1, pitch_m2, None, pitch, reference, coef, biquads, filtered)
     rotor_start, generator_start, omega_r, omega_g = speeds
     gather_speeds(filtered, rotor_start, generator_start, selected, omega_r, omega_g)
-    x_hat, zone, encoder_state = region2
     region2_speed(x_hat, selected, zone, encoder_state, omega_g)
-    return new_pitch
+    return True
+
+
+@kernel
+def column_winds(filtered, torque_start, rotor_start, columns, guess, radius, gain, iterations):
+    """``WindRecovery.wind``'s warm inversion in one call: v (m, n) of observer ``columns`` (m, n) of each row from
+    its filtered τ̂_r, ω̂_r (the columns from ``torque_start``, ``rotor_start``) and β̄ (the last column), from
+    ``guess`` (m, n), by ``aero_fast.wind_from_torque_flat`` on the entries in ``columns``' order (the gathers and
+    ``aero_fast.wind_from_torque``'s operations, with ``radius`` R and ``gain`` ½ρπR³)."""
+    m, n = columns.shape
+    size = m * n
+    tau, rw, v, beta = np.empty(size), np.empty(size), np.empty(size), np.empty(size)
+    pitch = filtered.shape[1] - 1
+    for i in range(m):
+        for r in range(n):
+            k = i * n + r
+            j = columns[i, r]
+            tau[k] = filtered[r, torque_start + j]
+            rw[k] = filtered[r, rotor_start + j] * radius
+            beta[k] = filtered[r, pitch]
+            v[k] = guess[i, r]
+    wind_from_torque_flat(tau, rw, v, beta, gain, iterations)
+    return v.reshape((m, n))
+
+
+@kernel
+def map_product(stacked, matrix, sparse, raw):
+    """raw = stacked @ matrix: ``gemm_product`` over the matrix's nonzeros ``sparse`` (``blas_fast.nonzeros``), or
+    with None BLAS's product (numba's calls the routine numpy's ``@`` does, with its numbers:
+    ``tests/test_fast_kernels.py``)."""
+    if sparse is None:
+        np.dot(stacked, matrix, raw)
+    else:
+        gemm_product(stacked, matrix, sparse, raw)
 
 
 @kernel
@@ -397,11 +441,13 @@ def whiten_block(e, b0, b1, b2, a1, a2, s1, s2, w):
 
 @kernel
 def pitch_model(beta, rate, reference, coef, new_beta, new_rate):
-    """[β, β̇] ← [a β + b β̇ + g0 β_ref, c β + d β̇ + g1 β_ref] (``wind_recovery.PitchModel.step``)."""
+    """[β, β̇] ← [a β + b β̇ + g0 β_ref, c β + d β̇ + g1 β_ref] (``wind_recovery.PitchModel.step``); ``new_beta``,
+    ``new_rate`` may be ``beta``, ``rate`` (in place)."""
     a, b, c, d, g0, g1 = coef[0], coef[1], coef[2], coef[3], coef[4], coef[5]
     for r in range(beta.size):
-        new_beta[r] = a * beta[r] + b * rate[r] + g0 * reference[r]
-        new_rate[r] = c * beta[r] + d * rate[r] + g1 * reference[r]
+        old_beta, old_rate = beta[r], rate[r]
+        new_beta[r] = a * old_beta + b * old_rate + g0 * reference[r]
+        new_rate[r] = c * old_beta + d * old_rate + g1 * reference[r]
 
 
 @kernel

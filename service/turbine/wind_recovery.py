@@ -221,6 +221,8 @@ class WindRecovery:
         self._filter_in = np.empty((n, 3 * m + 1))
         self._no_columns = np.empty((n, 0))  # the empty middle block of ``fast.stack``
         self._map_nonzeros = self._sparse_map(fast, n)
+        self._healthy_arguments = None  # ``step_healthy``'s kept arguments (``_healthy_kept``)
+        self._healthy_speeds: tuple[np.ndarray, np.ndarray] | None = None  # its (ω̂_r, ω̂_g), written in place
 
     def _sparse_map(self, fast, n: int) -> tuple | None:
         """The map as its nonzeros for ``fast.gemm_product`` where ``fast.gemm_layout`` finds BLAS's arithmetic for
@@ -272,6 +274,7 @@ class WindRecovery:
         self.filter.start(np.column_stack([raw, beta0]))
         self._filtered = np.column_stack([raw, beta0])
         self._x_prev = x_hat
+        self._healthy_arguments = None  # the filters' states, the pitch model's and ``_filtered`` are new arrays
 
     def transfer(
         self, rows: np.ndarray, target: np.ndarray, source: np.ndarray, bank: BankDesign, x_hat: np.ndarray
@@ -325,11 +328,10 @@ class WindRecovery:
         raw = self._mapped(stacked)
         if measured_torque is not None:
             self.converter_correction(raw, x_hat, measured_torque)
-        if self._fast is not None:  # the lines below, the pitch model's and the filters' by one kernel
+        if self._fast is not None:  # the lines below by one kernel, the pitch model's state and ``_filtered`` in place
             f, pitch = self.filter, self.pitch
-            self._filtered = np.empty_like(self._filter_in)
             healthy = None if healthy_m1 is None and healthy_m2 is None else (healthy_m1, healthy_m2)
-            pitch.x = self._fast.recovery_tick(
+            self._fast.recovery_tick(
                 raw, pitch_m1, pitch_m2, healthy, pitch.x, np.ascontiguousarray(beta_ref_prev, dtype=float),
                 pitch._coef_array, (f._b0, f._a1, f._a2, f.s1, f.s2), self._filtered,
             )  # fmt: skip
@@ -354,32 +356,49 @@ class WindRecovery:
 
     def step_healthy(
         self,
+        faulty: np.ndarray,
         x_hat: np.ndarray,
         beta_ref_prev: np.ndarray,
         sensors: np.ndarray,
         pitch_columns: np.ndarray,
         selected: np.ndarray,
         zone: np.ndarray,
-        omega_r: np.ndarray,
-        omega_g: np.ndarray,
-    ) -> None:
-        """``step`` with every pitch sensor healthy and no converter correction, on the compiled backend only: the
-        pitch readings gathered from ``sensors`` (columns ``pitch_columns``: β_i,m1 then β_i,m2), then each row's
-        ω̂_r and ω̂_g of observer ``selected`` written to ``omega_r`` and ``omega_g`` (n,), ω̂_g already
-        ``region2_generator_speed``'s for the controller's ``zone``: one kernel after the map
-        (``fast.recovery_healthy_tick``, the same operations as ``step``, the estimator's gather and
-        ``region2_generator_speed``)."""
-        self._fast.stack(x_hat, self._no_columns, self._x_prev, self._stacked)
-        raw = self._mapped(self._stacked)
-        f, pitch = self.filter, self.pitch
-        self._filtered = np.empty_like(self._filter_in)
-        speeds = (self._groups[1].start, self._groups[2].start, omega_r, omega_g)
-        pitch.x = self._fast.recovery_healthy_tick(
-            raw, sensors, pitch_columns, pitch.x, np.ascontiguousarray(beta_ref_prev, dtype=float),
-            pitch._coef_array, (f._b0, f._a1, f._a2, f.s1, f.s2), self._filtered, speeds, selected,
-            (x_hat, zone, self._encoder_speed_state),
-        )  # fmt: skip
+    ) -> tuple[np.ndarray, np.ndarray] | None:
+        """``step`` with every pitch sensor healthy and no converter correction, then each row's filtered ω̂_r and
+        ω̂_g of observer ``selected``, ω̂_g already ``region2_generator_speed``'s for the controller's ``zone``, on
+        the compiled backend only, by one kernel call (``fast.recovery_healthy_tick``: the same operations as
+        ``_mapped``, ``step``, the estimator's gather and ``region2_generator_speed``). The pitch readings are
+        gathered from ``sensors`` (columns ``pitch_columns``: β_i,m1 then β_i,m2). None, with nothing done, where
+        any of ``faulty`` (the estimator's distrusted targets) is set; else (ω̂_r, ω̂_g) (n,) each, kept arrays that
+        the next call overwrites: whoever keeps them past the tick copies them."""
+        kept = self._healthy_arguments
+        if kept is None:
+            kept = self._healthy_arguments = self._healthy_kept()
+        beta_ref_prev = np.ascontiguousarray(beta_ref_prev, dtype=float)
+        if not self._fast.recovery_healthy_tick(
+            faulty, x_hat, self._x_prev, sensors, beta_ref_prev, zone, pitch_columns, selected, kept
+        ):
+            return None
         self._x_prev = x_hat
+        return self._healthy_speeds
+
+    def _healthy_kept(self):
+        """``step_healthy``'s kept arguments as one ``wwcore.kept.Kept`` (one struct for the kernel to unbox),
+        arrays written in place and replaced only by ``start``: (([x̂[n], x̂[n−1]], map, its nonzeros or None, raw),
+        the pitch model's (β, β̇), its coefficients, the biquads' (b0, a1, a2, s1, s2), ``_filtered``, (the first
+        ω̂_r and ω̂_g column, ω̂_r and ω̂_g out), the map's ω̂_g state of each observer)."""
+        f, n = self.filter, self.n
+        self._healthy_speeds = (np.empty(n), np.empty(n))
+        raw = np.empty((n, self._map.shape[1]))
+        return self._fast.Kept((
+            (self._stacked, self._map, self._map_nonzeros, raw),
+            self.pitch.x,
+            self.pitch._coef_array,
+            (f._b0, f._a1, f._a2, f.s1, f.s2),
+            self._filtered,
+            (self._groups[1].start, self._groups[2].start, *self._healthy_speeds),
+            self._encoder_speed_state,
+        ))  # fmt: skip
 
     def region2_generator_speed(
         self, x_hat: np.ndarray, selected: np.ndarray, zone: np.ndarray, omega_g: np.ndarray
@@ -488,13 +507,21 @@ class WindRecovery:
         same as from the guess. That result replaces the guess's where it is a root above it by more than
         DISTINCT_ROOT (relative): the stalled root. Where τ(v) has one root (β ≥ 0: at most a flat plateau) the
         two are the same root and the guess's is kept."""
-        rows = np.broadcast_to(np.arange(self.n), columns.shape)
         torque, omega_r = self._groups[0], self._groups[1]  # the published ω̂_r (see the module docstring)
+        if self._fast is not None:  # the gathers and the warm iterations below by one kernel
+            v = self._fast.column_winds(
+                self._filtered, torque.start, omega_r.start, columns, v_guess, self.p.radius,
+                self.p.aero_torque_gain, WARM_ITERATIONS,
+            )  # fmt: skip
+            if moved is None or not moved.any():
+                return v
+        rows = np.broadcast_to(np.arange(self.n), columns.shape)
         invert = aero.wind_from_torque if self._fast is None else self._fast.wind_from_torque
         tau = self._filtered[rows, torque.start + columns]
         speed = self._filtered[rows, omega_r.start + columns]
         pitch = np.broadcast_to(self.pitch_filtered, columns.shape)
-        v = invert(tau, speed, pitch, v_guess, self.p, iterations=WARM_ITERATIONS)
+        if self._fast is None:
+            v = invert(tau, speed, pitch, v_guess, self.p, iterations=WARM_ITERATIONS)
         if moved is not None and moved.any():
             at = np.nonzero(moved)
             v[at] = invert(tau[at], speed[at], pitch[at], v[at], self.p, iterations=SETTLE_ITERATIONS - WARM_ITERATIONS)
