@@ -6,8 +6,9 @@ operation for operation: a compiled loop would sum the six products in another o
 multiply-adds. The kernels' ``asinh``, ``exp`` and ``log1p`` are the C library's; numpy's equal them on an AVX2 CPU,
 but where numpy runs its AVX-512 SIMD versions (arrays of three or more elements) they differ in the last place on
 some entries (on this AMD Zen 5 machine: h = asinh(β/β_h) on 226 of 1 000 random pitch angles, C_q on 216, and the
-wind's inversion, whose Newton steps carry that on, up to 1 400 units in the last place, about 3·10⁻¹³ relative), so the numbers equal the reference
-within the tests' 1e-12 of each quantity's scale, not always to the last bit (``docs/cluster.md``).
+wind's inversion, whose Newton steps carry that on, up to 1 400 units in the last place, about 3·10⁻¹³ relative),
+so the numbers equal the reference within the tests' 1e-12 of each quantity's scale, not always to the last bit
+(``docs/cluster.md``).
 """
 
 from __future__ import annotations
