@@ -26,10 +26,13 @@ EXAMPLE_PLUGIN = Path(__file__).resolve().parents[1] / "docs" / "examples" / "me
 
 @pytest.fixture(scope="module")
 def two_workers():
-    """Two single-thread workers in this process (cheap to start), over TCP on loopback: the tasks and their
-    results travel through the scheduler serialised, as they would to another machine."""
+    """Two single-thread worker processes, as `docs/cluster.md` starts them (`--nthreads 1`, one process per core),
+    over TCP on loopback: the tasks and their results travel through the scheduler serialised, as they would to
+    another machine. Not threads of this process: chunks running side by side in threads of one interpreter are not
+    a supported set-up (once, under a loaded `pytest -n 2`, two such threads building supervisors and the main
+    thread's garbage collection waited on each other for good)."""
     with LocalCluster(
-        n_workers=2, threads_per_worker=1, processes=False, protocol="tcp://", host="127.0.0.1", dashboard_address=None
+        n_workers=2, threads_per_worker=1, processes=True, protocol="tcp://", host="127.0.0.1", dashboard_address=None
     ) as local:
         yield local.scheduler_address
 

@@ -168,12 +168,17 @@ for k in kernels:
 
 def test_a_second_process_loads_the_packed_kernels_from_the_cache():
     """The struct's builder and the three packed entry points are found in numba's disk cache by a fresh process
-    (the first one here may compile them; the second must not)."""
-    for _ in range(2):
+    (the first one here may compile them; a later one must not). Up to two later processes are asked: another
+    test process compiling new signatures of ``keep`` at the same time rewrites its cache index and can drop an
+    entry the first probe wrote (numba's index is read, extended and written back, not locked)."""
+    counts = {}
+    for attempt in range(3):
         out = subprocess.run(
             [sys.executable, "-c", _CACHE_PROBE], capture_output=True, text=True, env={**os.environ}, check=True
         )
-    counts = {name: (int(hits), int(misses)) for name, hits, misses in map(str.split, out.stdout.splitlines())}
+        counts = {name: (int(hits), int(misses)) for name, hits, misses in map(str.split, out.stdout.splitlines())}
+        if attempt and all(hits >= 1 and misses == 0 for hits, misses in counts.values()):
+            break
     assert set(counts) == {"keep", "detector_tick_kept", "component_step_kept", "bank_tick_kept"}
     for name, (hits, misses) in counts.items():
         assert hits >= 1 and misses == 0, (name, hits, misses)
