@@ -18,7 +18,6 @@ from __future__ import annotations
 import numpy as np
 
 from wwcore.backend import fast_module, resolve_backend
-from wwcore.kept import Kept
 from wwcore.turbine_frames import TurbineRefs
 from wwcore.turbine_params import TurbineParams
 
@@ -44,7 +43,6 @@ class BenchmarkController:
         self.beta_ref = np.zeros(n)
         self.pitch_trim: np.ndarray | None = None  # (n, 3) deg added to each blade's command (None: no trim)
         self.using_estimates = np.zeros(n, dtype=bool)
-        self._law: Kept | None = None  # ``step_readings_kept``'s kept arguments, built at its first call
 
     def initialise(self, zone: np.ndarray, beta_ref: np.ndarray, tau_g_ref: np.ndarray) -> None:
         """Start from a trimmed operating point (see ``TurbineBatch``)."""
@@ -113,19 +111,13 @@ class BenchmarkController:
             self.integrator, self.beta_ref, self.tau_g_ref, self._constants, step, product,
         )  # fmt: skip
 
-    def step_readings_kept(
-        self, k: int, y: np.ndarray, refs: TurbineRefs | None, plant: Kept, fill: bool, x: np.ndarray, x_next
-    ) -> None:
-        """``step_readings`` with the arguments that stay from tick to tick as two ``wwcore.kept.Kept``
-        (``plant_sim.turbine.fast.control_inputs_kept``): the controller's own (zone, integrator, β_ref, τ_g,r, the
-        constants; its arrays written in place by the kernel, the struct built once) and the plant's ``plant`` (the
-        readings' columns, τ_r, Δτ, β_f, z, the step matrix); ``fill``, ``x`` and ``x_next`` (None: no product) as
-        ``step_readings``' ``step`` and ``product``. The same numbers."""
-        law = self._law
-        if law is None:
-            law = self._law = Kept((self.zone, self.integrator, self.beta_ref, self.tau_g_ref, self._constants))
+    def step_readings_kept(self, k: int, y: np.ndarray, refs: TurbineRefs | None, kept, fill: bool, x, x_next) -> None:
+        """``step_readings`` with the arguments that stay from tick to tick as one ``wwcore.kept.Kept`` ``kept``
+        (``plant_sim.turbine.fast.control_inputs_kept``, built by the plant: the readings' columns, this controller's
+        zone, integrator, β_ref, τ_g,r and constants, written in place and never replaced on the compiled backend,
+        and the plant's step arguments); ``fill``, ``x`` and ``x_next`` (None: no product) as ``step_readings``'
+        ``step`` and ``product``. The same numbers."""
         estimate = refs.omega_g if self._take(k, refs) else None
         self._fast.control_inputs_kept(
-            y, self.using_estimates, estimate, np.ascontiguousarray(self.power_ref, dtype=float), law, plant, fill, x,
-            x_next,
-        )  # fmt: skip
+            y, self.using_estimates, estimate, np.ascontiguousarray(self.power_ref, dtype=float), kept, fill, x, x_next
+        )

@@ -188,14 +188,13 @@ def control_inputs(y, columns, estimated, omega_g_est, power_ref, zone, integrat
 
 
 @kernel
-def control_inputs_kept(y, estimated, omega_g_est, power_ref, law, plant, fill, x, x_next):
-    """``control_inputs`` with the arguments kept from tick to tick as two ``wwcore.kept.Kept``: ``law.args`` =
-    (zone, integrator, β_ref, τ_g,r, the constants), the controller's (``BenchmarkController.step_readings_kept``),
-    and ``plant.args`` = (the readings' columns, ``measure``'s two output blocks (β_f = per_blade[2], τ_r =
-    per_row[1]), Δτ, z, the shared step matrix or None), the plant's (``TurbineBatch._measure_arguments``);
-    ``fill``, the state ``x`` and one row's next state ``x_next`` (None: no product in the call) are the tick's."""
-    zone, integrator, beta_ref, tau_g_ref, consts = law.args
-    columns, per_blade, per_row, torque_offset, z, shared = plant.args
+def control_inputs_kept(y, estimated, omega_g_est, power_ref, kept, fill, x, x_next):
+    """``control_inputs`` with the arguments kept from tick to tick as one ``wwcore.kept.Kept``: ``kept.args`` =
+    (the readings' columns, the controller's zone, integrator, β_ref, τ_g,r and constants, ``measure``'s two output
+    blocks (β_f = per_blade[2], τ_r = per_row[1]), Δτ, z, the shared step matrix or None), built by
+    ``TurbineBatch._measure_arguments``; ``fill``, the state ``x`` and one row's next state ``x_next`` (None: no
+    product in the call) are the tick's."""
+    columns, zone, integrator, beta_ref, tau_g_ref, consts, per_blade, per_row, torque_offset, z, shared = kept.args
     step = (fill, x, per_row[1], torque_offset, per_blade[2], z)
     if x_next is None:
         control_inputs(y, columns, estimated, omega_g_est, power_ref, zone, integrator, beta_ref, tau_g_ref, consts,

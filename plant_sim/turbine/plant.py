@@ -327,8 +327,11 @@ class TurbineBatch(Planes):
             (self.p.eta_gc, f.power_factor, _MEASURE_COLUMNS, self._draws, self._tick_noise, self.bias),
             (per_blade, per_row, self._quantities),
         ))  # fmt: skip
-        step = (per_blade, per_row, f.torque_offset, self.discrete.inputs, self.discrete.shared)
-        self._control_kept = Kept((_CONTROL_COLUMNS, *step))  # the blocks, not their planes (``wwcore.planes``)
+        c = self.controller
+        if type(c) is BenchmarkController:  # the blocks, not their planes (``wwcore.planes``)
+            law = (c.zone, c.integrator, c.beta_ref, c.tau_g_ref, c._constants)
+            step = (per_blade, per_row, f.torque_offset, self.discrete.inputs, self.discrete.shared)
+            self._control_kept = Kept((_CONTROL_COLUMNS, *law, *step))
         return self._kept
 
     @property
