@@ -316,8 +316,9 @@ class TurbineBatch(Planes):
         """``_fast_measure_frame``'s kernel arguments that stay from tick to tick until the faults change
         (``_update_faults`` drops them) or the wind's next chunk starts: the chunk, the fault factors, the constants,
         the noise block, and the outputs read within the tick (the blades' and rotor's wind and the torques: the
-        evaluation and the twins copy what they keep), as one ``wwcore.kept.Kept``; with them ``control``'s kept
-        arguments (the readings' columns, τ_r, Δτ, the pitch-sensor errors, the step's inputs z and matrix)."""
+        evaluation and the twins copy what they keep), as one ``wwcore.kept.Kept``; with them, for the benchmark's
+        controller, ``control``'s kept arguments as another (``fast.control_inputs_kept``: the readings' columns, the
+        controller's arrays, written in place, and constants, the two output blocks, Δτ, the step's z and matrix)."""
         f, per_blade, per_row = self.faults, self._per_blade, self._per_row
         self.blade_torque, self._pitch_error, self.tau_aero = per_blade[1], per_blade[2], per_row[1]
         self._kept_chunk = chunk = self.wind.chunk
