@@ -18,6 +18,7 @@ from wwcore.aero import _M_T, TSR_MAX
 from wwcore.aero_fast import cq_inside, features, maximum, minimum
 from wwcore.blas_fast import vector_matrix, vector_matrix_is_numpys  # noqa: F401 (the plant's set-up)
 from wwcore.jit import kernel
+from wwcore.kept import Kept  # noqa: F401 (the plant's kept arguments, ``TurbineBatch._measure_arguments``)
 
 TWO_PI = 2.0 * math.pi
 M_T = _M_T  # (6, 6): Mᵀ of the aerodynamic fit, g = Mᵀ f (``measure``'s argument)

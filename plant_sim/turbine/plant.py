@@ -36,7 +36,6 @@ from plant_sim.wind import WindField, WindSample
 from wwcore.backend import fast_module, resolve_backend
 from wwcore.channels import SENSOR_INDEX, SENSORS, noise_std
 from wwcore.events import Event, EventType
-from wwcore.kept import Kept
 from wwcore.planes import Planes
 from wwcore.scenario.faults import FaultKind, FaultSpec
 from wwcore.scenario.mismatch import Mismatch
@@ -172,8 +171,9 @@ class TurbineBatch(Planes):
         # the one-kernel measurement's outputs read within the tick, as planes of two blocks (``PLANES``): the blades'
         # wind, torques and pitch errors (3, n, 3), the rotor's wind and τ_r (2, n)
         self._per_blade, self._per_row = np.empty((3, self.n, 3)), np.empty((2, self.n))
-        self._kept: Kept | None = None  # ``_fast_measure_frame``'s kernel arguments while the faults stay
-        self._control_kept: Kept | None = None  # and ``control``'s (``_measure_arguments``)
+        # ``_fast_measure_frame``'s kernel arguments while the faults stay, and ``control``'s (``_measure_arguments``):
+        # ``wwcore.kept.Kept`` structs, built by the compiled module (``self._fast.Kept``: no compiler on import)
+        self._kept = self._control_kept = None
         self._kept_chunk: tuple | None = None  # the wind chunk they hold
         self._wind_row = -1  # the one-kernel measurement's row of the wind chunk (``_wind_sample``)
         self._inputs_ready = False  # ``control`` wrote the shared step's inputs (``advance``)
@@ -312,7 +312,7 @@ class TurbineBatch(Planes):
         self._sample, self._wind_row = None, j  # ``_wind_sample`` built when asked
         return self._fast_faulty_frame(self._fast, x, self._tick_noise, y)
 
-    def _measure_arguments(self) -> Kept:
+    def _measure_arguments(self):
         """``_fast_measure_frame``'s kernel arguments that stay from tick to tick until the faults change
         (``_update_faults`` drops them) or the wind's next chunk starts: the chunk, the fault factors, the constants,
         the noise block, and the outputs read within the tick (the blades' and rotor's wind and the torques: the
@@ -322,7 +322,7 @@ class TurbineBatch(Planes):
         f, per_blade, per_row = self.faults, self._per_blade, self._per_row
         self.blade_torque, self._pitch_error, self.tau_aero = per_blade[1], per_blade[2], per_row[1]
         self._kept_chunk = chunk = self.wind.chunk
-        self._kept = Kept((
+        self._kept = self._fast.Kept((
             (*self._wind_table, *chunk[:3]),
             (self._fast.M_T, self.dynamics.blade_gain, f.aero_factor, f.pitch_offset, self.p.radius),
             (self.p.eta_gc, f.power_factor, _MEASURE_COLUMNS, self._draws, self._tick_noise, self.bias),
@@ -332,7 +332,7 @@ class TurbineBatch(Planes):
         if type(c) is BenchmarkController:  # the blocks, not their planes (``wwcore.planes``)
             law = (c.zone, c.integrator, c.beta_ref, c.tau_g_ref, c._constants)
             step = (per_blade, per_row, f.torque_offset, self.discrete.inputs, self.discrete.shared)
-            self._control_kept = Kept((_CONTROL_COLUMNS, *law, *step))
+            self._control_kept = self._fast.Kept((_CONTROL_COLUMNS, *law, *step))
         return self._kept
 
     @property
