@@ -10,15 +10,19 @@ import os
 import pickle
 import subprocess
 import sys
+import tomllib
 
 import numba
 import numpy as np
 
+from plant_sim.turbine import TurbineBatch
 from service.turbine import fast
 from service.turbine.fast_detector import PACKED, detector_tick
+from tests.fast_compare import FAULTY, SEED
 from windwarden.bench import _Stepper, turbine_pair
 from wwcore.backend import fast_module
 from wwcore.kept import Kept
+from wwcore.scenario import parse_scenario
 
 
 @numba.njit
@@ -150,6 +154,41 @@ def test_a_compiled_supervisor_copied_mid_run_holds_its_own_packed_arguments():
         assert _packed_state(other) == _packed_state(supervisor)
         np.testing.assert_array_equal(other.context._bank.chi2, supervisor.context._bank.chi2)
         np.testing.assert_array_equal(other.detector.fdi.ratio, supervisor.detector.fdi.ratio)
+
+
+def test_a_compiled_plant_copied_mid_run_carries_on_with_its_own_kept_arguments():
+    """A deep copy and a pickle of a compiled plant (its measurement's and its controller's arguments kept as
+    ``Kept`` structs) taken mid-run hold structs of their own arrays, and go on with the original's numbers to the
+    last bit through the sensor faults that start after the copy (FAULTY's drift, fixed and offset: the structs
+    rebuilt at each fault change) while the original's arrays are left alone."""
+    scenario = parse_scenario(tomllib.loads(FAULTY))
+    plant = TurbineBatch(scenario.plant, scenario.wind, scenario.faults, seed=SEED, runs=(0,), backend="numba")
+    assert plant._one_measure_kernel and plant._fused_control
+
+    def tick(batch):
+        frame = batch.measure()
+        batch.control(None)
+        batch.advance()
+        return frame
+
+    for _ in range(700):
+        tick(plant)
+    copies = [copy.deepcopy(plant), pickle.loads(pickle.dumps(plant))]
+    for other in copies:
+        per_blade, per_row, quantities = other._kept.args[3]
+        assert per_blade is other._per_blade is not plant._per_blade and quantities is other._quantities
+        assert other._kept.args[2][3] is other._draws is not plant._draws
+        _, zone, _, _, _, _, blades, rows, _, z, _ = other._control_kept.args
+        assert zone is other.controller.zone is not plant.controller.zone
+        assert z is other.discrete.inputs is not plant.discrete.inputs
+        assert blades is per_blade and rows is per_row is not plant._per_row and other.tau_aero.base is per_row
+    for k in range(700, 1500):
+        frames = [tick(batch) for batch in (plant, *copies)]
+        for other, frame in zip(copies, frames[1:], strict=True):
+            np.testing.assert_array_equal(frame.sensors, frames[0].sensors, f"tick {k}")
+            np.testing.assert_array_equal(other.x, plant.x, f"tick {k}")
+            np.testing.assert_array_equal(other.controller.integrator, plant.controller.integrator, f"tick {k}")
+    assert plant.faults.sensor_faults_active
 
 
 _CACHE_PROBE = """

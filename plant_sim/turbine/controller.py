@@ -110,3 +110,14 @@ class BenchmarkController:
             y, columns, self.using_estimates, estimate, np.ascontiguousarray(self.power_ref, dtype=float), self.zone,
             self.integrator, self.beta_ref, self.tau_g_ref, self._constants, step, product,
         )  # fmt: skip
+
+    def step_readings_kept(self, k: int, y: np.ndarray, refs: TurbineRefs | None, kept, fill: bool, x, x_next) -> None:
+        """``step_readings`` with the arguments that stay from tick to tick as one ``wwcore.kept.Kept`` ``kept``
+        (``plant_sim.turbine.fast.control_inputs_kept``, built by the plant: the readings' columns, this controller's
+        zone, integrator, β_ref, τ_g,r and constants, written in place and never replaced on the compiled backend,
+        and the plant's step arguments); ``fill``, ``x`` and ``x_next`` (None: no product) as ``step_readings``'
+        ``step`` and ``product``. The same numbers."""
+        estimate = refs.omega_g if self._take(k, refs) else None
+        self._fast.control_inputs_kept(
+            y, self.using_estimates, estimate, np.ascontiguousarray(self.power_ref, dtype=float), kept, fill, x, x_next
+        )

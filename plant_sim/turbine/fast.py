@@ -18,6 +18,7 @@ from wwcore.aero import _M_T, TSR_MAX
 from wwcore.aero_fast import cq_inside, features, maximum, minimum
 from wwcore.blas_fast import vector_matrix, vector_matrix_is_numpys  # noqa: F401 (the plant's set-up)
 from wwcore.jit import kernel
+from wwcore.kept import Kept  # noqa: F401 (the plant's kept arguments, ``TurbineBatch._measure_arguments``)
 
 TWO_PI = 2.0 * math.pi
 M_T = _M_T  # (6, 6): Mᵀ of the aerodynamic fit, g = Mᵀ f (``measure``'s argument)
@@ -138,6 +139,13 @@ def measure(x, j, i, kept, y):
     readings(x, hub[j], power_gain, pick, noise, bias, beta_m1, beta_m2, quantities, y, pitch_error)
 
 
+@kernel
+def measure_kept(x, j, i, kept, y):
+    """``measure`` with its kept argument tuple as one ``wwcore.kept.Kept`` (``kept.args``, built by
+    ``TurbineBatch._measure_arguments``): one struct to unbox instead of its 18 arrays."""
+    measure(x, j, i, kept.args, y)
+
+
 # -- controller (``BenchmarkController.step``) ------------------------------------------------------------------
 @kernel
 def control(omega_g_m, estimated, omega_g_est, p_g_m, power_ref, zone, integrator, beta_ref, tau_g_ref, consts):
@@ -178,6 +186,23 @@ def control_inputs(y, columns, estimated, omega_g_est, power_ref, zone, integrat
     if product is not None:
         shared, x_next = product
         vector_matrix(z[0], shared, x_next[0])
+
+
+@kernel
+def control_inputs_kept(y, estimated, omega_g_est, power_ref, kept, fill, x, x_next):
+    """``control_inputs`` with the arguments kept from tick to tick as one ``wwcore.kept.Kept``: ``kept.args`` =
+    (the readings' columns, the controller's zone, integrator, β_ref, τ_g,r and constants, ``measure``'s two output
+    blocks (β_f = per_blade[2], τ_r = per_row[1]), Δτ, z, the shared step matrix or None), built by
+    ``TurbineBatch._measure_arguments``; ``fill``, the state ``x`` and one row's next state ``x_next`` (None: no
+    product in the call) are the tick's."""
+    columns, zone, integrator, beta_ref, tau_g_ref, consts, per_blade, per_row, torque_offset, z, shared = kept.args
+    step = (fill, x, per_row[1], torque_offset, per_blade[2], z)
+    if x_next is None:
+        control_inputs(y, columns, estimated, omega_g_est, power_ref, zone, integrator, beta_ref, tau_g_ref, consts,
+                       step, None)  # fmt: skip
+    else:
+        control_inputs(y, columns, estimated, omega_g_est, power_ref, zone, integrator, beta_ref, tau_g_ref, consts,
+                       step, (shared, x_next))  # fmt: skip
 
 
 # -- step (``DiscreteStep.step``, every row alike) -----------------------------------------------------------

@@ -171,7 +171,9 @@ class TurbineBatch(Planes):
         # the one-kernel measurement's outputs read within the tick, as planes of two blocks (``PLANES``): the blades'
         # wind, torques and pitch errors (3, n, 3), the rotor's wind and τ_r (2, n)
         self._per_blade, self._per_row = np.empty((3, self.n, 3)), np.empty((2, self.n))
-        self._kept: tuple | None = None  # ``_fast_measure_frame``'s kernel arguments while the faults stay
+        # ``_fast_measure_frame``'s kernel arguments while the faults stay, and ``control``'s (``_measure_arguments``):
+        # ``wwcore.kept.Kept`` structs, built by the compiled module (``self._fast.Kept``: no compiler on import)
+        self._kept = self._control_kept = None
         self._kept_chunk: tuple | None = None  # the wind chunk they hold
         self._wind_row = -1  # the one-kernel measurement's row of the wind chunk (``_wind_sample``)
         self._inputs_ready = False  # ``control`` wrote the shared step's inputs (``advance``)
@@ -306,24 +308,31 @@ class TurbineBatch(Planes):
         if kept is None or self._kept_chunk is not wind.chunk:
             kept = self._measure_arguments()
         y = np.empty((self.n, len(SENSORS)))
-        self._fast.measure(x, j, i, kept, y)
+        self._fast.measure_kept(x, j, i, kept, y)
         self._sample, self._wind_row = None, j  # ``_wind_sample`` built when asked
         return self._fast_faulty_frame(self._fast, x, self._tick_noise, y)
 
-    def _measure_arguments(self) -> tuple:
+    def _measure_arguments(self):
         """``_fast_measure_frame``'s kernel arguments that stay from tick to tick until the faults change
         (``_update_faults`` drops them) or the wind's next chunk starts: the chunk, the fault factors, the constants,
         the noise block, and the outputs read within the tick (the blades' and rotor's wind and the torques: the
-        evaluation and the twins copy what they keep)."""
+        evaluation and the twins copy what they keep), as one ``wwcore.kept.Kept``; with them, for the benchmark's
+        controller, ``control``'s kept arguments as another (``fast.control_inputs_kept``: the readings' columns, the
+        controller's arrays, written in place, and constants, the two output blocks, Δτ, the step's z and matrix)."""
         f, per_blade, per_row = self.faults, self._per_blade, self._per_row
         self.blade_torque, self._pitch_error, self.tau_aero = per_blade[1], per_blade[2], per_row[1]
         self._kept_chunk = chunk = self.wind.chunk
-        self._kept = (
+        self._kept = self._fast.Kept((
             (*self._wind_table, *chunk[:3]),
             (self._fast.M_T, self.dynamics.blade_gain, f.aero_factor, f.pitch_offset, self.p.radius),
             (self.p.eta_gc, f.power_factor, _MEASURE_COLUMNS, self._draws, self._tick_noise, self.bias),
             (per_blade, per_row, self._quantities),
-        )
+        ))  # fmt: skip
+        c = self.controller
+        if type(c) is BenchmarkController:  # the blocks, not their planes (``wwcore.planes``)
+            law = (c.zone, c.integrator, c.beta_ref, c.tau_g_ref, c._constants)
+            step = (per_blade, per_row, f.torque_offset, self.discrete.inputs, self.discrete.shared)
+            self._control_kept = self._fast.Kept((_CONTROL_COLUMNS, *law, *step))
         return self._kept
 
     @property
@@ -370,6 +379,11 @@ class TurbineBatch(Planes):
             # too) in one kernel call: x, τ_r, the faults and the pitch-sensor errors stay as they are until ``advance``
             shared = self.discrete.shared
             fill = shared is not None and not self._adjusted()
+            if self._control_kept is not None:  # the one-kernel measurement's kept arguments (``_measure_arguments``)
+                self._next_x = np.empty((1, N_STATES)) if fill and self._step_product else None
+                c.step_readings_kept(self.k, y, refs, self._control_kept, fill, self.x, self._next_x)
+                self._inputs_ready = fill
+                return
             inputs = (fill, self.x, self.tau_aero, self.faults.torque_offset, self._pitch_error, self.discrete.inputs)
             product = (shared, np.empty((1, N_STATES))) if fill and self._step_product else None
             self._next_x = None if product is None else product[1]
@@ -504,7 +518,7 @@ class TurbineBatch(Planes):
             elif k == sched.end_tick and k > sched.start_tick:
                 self._emit(EventType.FAULT_CLEARED, sched)
         self.faults.reset()
-        self._kept = None  # the fault factors are new arrays
+        self._kept = self._control_kept = None  # the fault factors and the step matrix are new arrays
         for sched in self.schedule:
             level = sched.intensity(k, dt)
             if level > 0.0:
