@@ -55,10 +55,7 @@ evidence that its sensor is healthy again.
   twice the pair's information per tick), for a bias of ``rotor_pair_shift`` (1.25 σ_r) on either sensor, either
   sign: the same two levels, the upper ln(4/α_iso) for four alternatives; Λ_s falls by at most m²/2 = 0.78 a tick,
   so such an explanation is decided on the 4th tick at the earliest, after about 9.7 on a healthy pair, and the test
-  names the biased sensor (``rotor_pair``). An explanation naming a
-  frozen sensor is decided on one look (the sum's z beyond the isolation level in the pair's learnt spread): where
-  the pair agrees, at once and alone; where it disagrees, the sequential test above decides it as any other, so a
-  healthy sensor joins only where both the look (α_iso) and the test's level pass (a few hundredths of α_iso).
+  names the biased sensor (``rotor_pair``). A frozen sensor's explanation: "Frozen signals" below.
 * **Hold.** Once the fault is confirmed ("No fault" above), an isolation that waits on an explanation (the
   arbitration between the encoders, the rotor-speed pair's test, a doubt) holds it while the wait lasts: a choice
   re-made by tie-break on every tick of a long wait lands sooner or later on whatever has nothing to wait for. The
@@ -94,8 +91,10 @@ evidence that its sensor is healthy again.
   on the tick the frozen test fires (the test has seen ``frozen_ticks`` of the fault already) and never waits for
   the generator-speed arbitration (``arbitration``), which a reading frozen near the truth would keep open for
   seconds; but where the flagged and frozen sensors alone are consistent at the detection level and a witness
-  is over the isolation level, the decision waits as for any chance join ("Chance joins" above), and where the
-  one look finds the rotor-speed pair disagreeing, it waits on the pair's sequential test ("Doubt" above).
+  is over the isolation level, the decision waits as for any chance join ("Chance joins" above). It looks once at
+  the rotor-speed pair (the sum's z against the isolation level in the pair's learnt spread): agreeing, it is
+  decided alone; disagreeing, the sequential test ("Doubt" above) decides it as any other, so a healthy sensor
+  joins only where the look (α_iso) and the test's level both pass, a few hundredths of α_iso (decisions N-42).
 * **Which generator-speed sensor.** Where an explanation names one generator-speed sensor and the other is not
   ruled out, the isolation waits for the arbitration (``arbitration``): the fault's first ticks against the pair
   mean's own prediction, then sums against the rotor-speed sensors and the power-speed channel.
