@@ -39,23 +39,12 @@ evidence that its sensor is healthy again.
   ``isolation_confirm_alpha`` (default 0.05), the decision waits one more tick, up to ``isolation_patience``
   ticks beyond the deadline, with the explanations considered suspected (so the estimate already leaves them
   out): a first flag that names only part of the faulty set is a wrong isolation, and one more tick is cheaper.
-  The rotor-speed pair's summed difference (``arbitration``, ``rotor_pair``) judges an explanation that names no
-  rotor-speed sensor
-  (a double fault's rotor-speed gain, which the UIOs see only as their states drift) by Wald's sequential test of
-  "both healthy" against "one biased by the bias test's smallest design size": Λ = m_d |Σd| − k m_d²/2 over the k
-  ticks since the isolation started, m_d = ``bias_shift``/√2 σ of the pair's difference. The decision waits while
-  −ln(1/α_confirm) < Λ < ln(2/α_iso), looked at on every tick: at the upper level the rotor-speed sensor whose
-  explanation's own observer has the smaller statistic joins the flag (a healthy pair ever gets there with
-  probability ≤ α_iso, however many ticks are looked at: Ville's inequality), at the lower one the explanation is
-  decided as it is (a rotor-speed bias of the design size ever gets there with probability ≤ α_confirm, larger ones
-  far less often). Λ falls by at most m_d²/2 = 0.56 a tick, so a generator-speed explanation waits 6 ticks at least,
-  about 10 on a healthy pair: the price of a first flag whose partial-set risk is bounded. An explanation naming
-  one generator-speed sensor is judged instead by each rotor-speed sensor against the other generator-speed sensor
-  through the gear (the one-encoder rigid observer's prediction, white N(0, σ_r²) on the plant at every wind:
-  twice the pair's information per tick), for a bias of ``rotor_pair_shift`` (1.25 σ_r) on either sensor, either
-  sign: the same two levels, the upper ln(4/α_iso) for four alternatives; Λ_s falls by at most m²/2 = 0.78 a tick,
-  so such an explanation is decided on the 4th tick at the earliest, after about 9.7 on a healthy pair, and the test
-  names the biased sensor (``rotor_pair``). A frozen sensor's explanation: "Frozen signals" below.
+  An explanation that names no rotor-speed sensor (a double fault's rotor-speed gain, which the UIOs see only as
+  their states drift) also waits on the rotor-speed sensors' sequential tests (``rotor_pair``: Wald's test of "both
+  healthy" against "one biased by a design size", looked at on every tick, its join level Ville-bounded at α_iso,
+  its release level at α_confirm): at the upper level the sensor the test names joins the flag, at the lower one
+  the explanation is decided as it is. The price is time: about 10 ticks on a healthy pair. A frozen sensor's
+  explanation: "Frozen signals" below.
 * **Hold.** Once the fault is confirmed ("No fault" above), an isolation that waits on an explanation (the
   arbitration between the encoders, the rotor-speed pair's test, a doubt) holds it while the wait lasts: a choice
   re-made by tie-break on every tick of a long wait lands sooner or later on whatever has nothing to wait for. The
