@@ -127,7 +127,7 @@ def test_detector_arguments_pack_the_kept_arguments_in_order():
 
 def _packed_state(supervisor) -> list:
     detector = supervisor.detector
-    return _bits((detector.fdi._kept["packed"], detector.components._kept["packed"], supervisor.context._bank._kept))
+    return _bits((detector.fdi._kept["packed"], detector.components._kept["packed"], supervisor.context._bank.kept))
 
 
 def test_a_compiled_supervisor_copied_mid_run_holds_its_own_packed_arguments():
@@ -141,7 +141,7 @@ def test_a_compiled_supervisor_copied_mid_run_holds_its_own_packed_arguments():
         fdi, components, bank = other.detector.fdi, other.detector.components, other.context._bank
         assert fdi._kept["packed"].args[0] is fdi._flags is not supervisor.detector.fdi._flags
         assert components._kept["packed"].args[2][0] is components.parity.sums
-        assert bank._kept.args[5] is bank._output
+        assert bank.kept.args[5] is bank._output
     refs = stepper.refs
     for _ in range(20):
         frame = plant.measure()

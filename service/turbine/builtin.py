@@ -37,6 +37,7 @@ from service.turbine.interfaces import (
     static_state_guess,
 )
 from service.turbine.wind_recovery import WindRecovery
+from wwcore.backend import fast_module
 from wwcore.channels import DIAGNOSIS_TARGETS, SENSOR_INDEX, SPEED_SENSORS, TARGET_INDEX
 from wwcore.options import Bounds
 from wwcore.turbine_frames import TurbineFrame
@@ -124,11 +125,15 @@ class UIOBankDetector:
     def step(self, frame: TurbineFrame) -> Diagnosis:
         bank = self.context.bank(frame)
         speed = self.context.speed_readings(frame)
-        fast = self.context.fast
         band, channel = self.power_speed_inputs(frame)
         self.fdi.step(speed, bank.chi2, bank.x_hat, band, channel)
-        # = empty_diagnosis with the speed-sensor columns set to fdi.faulty, and margins = fdi.margins(bank.chi2)
+        return self.diagnosis()
+
+    def diagnosis(self) -> Diagnosis:
+        """The speed FDI's verdict after its step: ``empty_diagnosis`` with the speed-sensor columns set to
+        ``fdi.faulty``, margins = ``fdi.margins(bank.chi2)``, and while an isolation is pending the suspects."""
         fdi = self.fdi
+        fast = self.context.fast
         suspect = None  # read only while an isolation is pending; the fast path skips it otherwise
         if fdi.pending or fast is None:
             suspect = _DIAGNOSIS_OF_MASK[np.where(fdi.deadline >= 0, fdi.flagged | fdi.provisional, fdi.flagged)]
@@ -150,12 +155,23 @@ class BenchmarkDetector(UIOBankDetector):
         self.components = ComponentFDI(context.params, context.n, context.sensor_sigma, settings, fast=context.fast)
 
     def step(self, frame: TurbineFrame) -> Diagnosis:
-        diagnosis = super().step(frame)
-        flags = self.components.step(frame)
+        return self.with_components(super().step(frame), self.components.step(frame))
+
+    @staticmethod
+    def with_components(diagnosis: Diagnosis, flags: np.ndarray) -> Diagnosis:
+        """The speed FDI's ``diagnosis`` with the component tests' ``flags`` added."""
         diagnosis.faulty |= flags
         if diagnosis.suspect is not None:
             diagnosis.suspect |= flags
         return diagnosis
+
+    def folded(self, estimator) -> object | None:
+        """The compiled supervisor's common tick in one call with ``estimator``'s (``fast_supervisor.FoldedTick``),
+        where the backend is compiled and ``estimator`` is ``uio-bank``'s; else None."""
+        if self.context.fast is None or not isinstance(estimator, UIOBankEstimator):
+            return None
+        constants = (_DIAGNOSIS_OF_MASK, _P_G_M, _TAU_G_M, PITCH_M12)
+        return fast_module("service.turbine.fast_supervisor").FoldedTick(self, estimator, constants)
 
 
 @TURBINE_DETECTORS.register("none")
@@ -241,6 +257,13 @@ class UIOBankEstimator:
         self._corrected = np.zeros(context.n, dtype=bool)  # rows with a column on the corrected pair (``_compensate``)
         self._compensated = np.zeros(context.n, dtype=bool)  # rows whose wind's torque is that column's
         self._compensated_inverted = np.zeros(context.n, dtype=bool)  # ``_compensated`` at the last inversion
+
+    def healthy_ready(self) -> bool:
+        """Whether this tick's ``step`` begins with the common compiled tick's call (``WindRecovery.step_healthy``):
+        the compiled backend, no row distrusting a speed sensor at the last tick (nothing to hand over), no encoder
+        compensation running."""
+        estimate = self._fault_estimate
+        return self.context.fast is not None and not self._switched and (estimate is None or not estimate.active)
 
     def _encoder_fault_estimate(self, design, context: TurbineContext) -> EncoderFaultEstimate:
         """The fault estimate of a flagged generator-speed encoder (``encoder_compensation``), with the ticks from
@@ -440,9 +463,14 @@ class UIOBankEstimator:
             return mask
         return (flagged[:, SPEED_TARGETS] @ _MASK_WEIGHTS) & mask
 
-    def step(self, frame: TurbineFrame, faulty: np.ndarray, flagged: np.ndarray | None = None) -> Estimates:
+    def step(
+        self, frame: TurbineFrame, faulty: np.ndarray, flagged: np.ndarray | None = None, healthy=None
+    ) -> Estimates:
         """``faulty``: the targets not to use (flagged or suspected); ``flagged``: those of them the detector has
-        flagged (None: all of them), which decides whether a sensor trusted again hands over (``_take_over``)."""
+        flagged (None: all of them), which decides whether a sensor trusted again hands over (``_take_over``).
+        ``healthy``: where a caller's kernel made the common compiled tick's call on ``faulty`` (``healthy_ready``,
+        ``fast_supervisor``), its outcome: (ω̂_r, ω̂_g) of ``WindRecovery.healthy_ticked``, or False where a target
+        was distrusted (nothing done); None: not made."""
         bank = self.context.bank(frame)
         if self.ticks == 0:
             p = self.context.params
@@ -453,8 +481,9 @@ class UIOBankEstimator:
         recovery = self.recovery
         fast = self.context.fast
         speeds = None  # the common compiled tick's (ω̂_r, ω̂_g)
-        estimate = self._fault_estimate
-        if fast is not None and not self._switched and (estimate is None or not estimate.active):
+        if healthy is not None:
+            speeds = healthy or None
+        elif self.healthy_ready():
             # every row on the observer that uses all four speed sensors, nothing to hand over or stop: the recovery's
             # step, the speeds' gather and region 2's below by one kernel call, unless a target is distrusted
             speeds = recovery.step_healthy(

@@ -371,16 +371,24 @@ class WindRecovery:
         gathered from ``sensors`` (columns ``pitch_columns``: β_i,m1 then β_i,m2). None, with nothing done, where
         any of ``faulty`` (the estimator's distrusted targets) is set; else (ω̂_r, ω̂_g) (n,) each, kept arrays that
         the next call overwrites: whoever keeps them past the tick copies them."""
-        kept = self._healthy_arguments
-        if kept is None:
-            kept = self._healthy_arguments = self._healthy_kept()
         beta_ref_prev = np.ascontiguousarray(beta_ref_prev, dtype=float)
         if not self._fast.recovery_healthy_tick(
-            faulty, x_hat, self._x_prev, sensors, beta_ref_prev, zone, pitch_columns, selected, kept
+            faulty, x_hat, self._x_prev, sensors, beta_ref_prev, zone, pitch_columns, selected, self.healthy_kept()
         ):
             return None
+        return self.healthy_ticked(x_hat)
+
+    def healthy_ticked(self, x_hat: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """``step_healthy``'s lines after its kernel found nothing distrusted, where a caller's kernel made the same
+        call (``fast_supervisor``): x̂[n] kept as the next tick's x̂[n−1]; (ω̂_r, ω̂_g), the kept arrays."""
         self._x_prev = x_hat
         return self._healthy_speeds
+
+    def healthy_kept(self):
+        """``step_healthy``'s kept arguments (``_healthy_kept``), built on the first call after ``start``."""
+        if self._healthy_arguments is None:
+            self._healthy_arguments = self._healthy_kept()
+        return self._healthy_arguments
 
     def _healthy_kept(self):
         """``step_healthy``'s kept arguments as one ``wwcore.kept.Kept`` (one struct for the kernel to unbox),
