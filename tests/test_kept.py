@@ -93,6 +93,7 @@ def test_the_packed_calls_equal_the_unpacked_kernels_on_a_live_tick(monkeypatch)
     of its transient matrices, the FDIs before and after their warm-up): the packed call and the unpacked kernel on
     copies of them return the same values and leave every array equal to the last bit."""
     plant, supervisor = turbine_pair("ftwse-2012", 2, 0, False, "numba")
+    supervisor._folded = None  # the entries called one by one, from Python (one call: ``test_fast_supervisor.py``)
     stepper = _Stepper(plant, supervisor)
     captured: dict[str, list] = {name: [] for _, name, _ in PACKED_CALLS}
     packed = {}

@@ -371,12 +371,16 @@ class WindRecovery:
         gathered from ``sensors`` (columns ``pitch_columns``: β_i,m1 then β_i,m2). None, with nothing done, where
         any of ``faulty`` (the estimator's distrusted targets) is set; else (ω̂_r, ω̂_g) (n,) each, kept arrays that
         the next call overwrites: whoever keeps them past the tick copies them."""
+        kept = self._healthy_arguments
+        if kept is None:
+            kept = self._healthy_arguments = self._healthy_kept()
         beta_ref_prev = np.ascontiguousarray(beta_ref_prev, dtype=float)
         if not self._fast.recovery_healthy_tick(
-            faulty, x_hat, self._x_prev, sensors, beta_ref_prev, zone, pitch_columns, selected, self.healthy_kept()
+            faulty, x_hat, self._x_prev, sensors, beta_ref_prev, zone, pitch_columns, selected, kept
         ):
             return None
-        return self.healthy_ticked(x_hat)
+        self._x_prev = x_hat  # = ``healthy_ticked``, inline: the common tick's calls are counted
+        return self._healthy_speeds
 
     def healthy_ticked(self, x_hat: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """``step_healthy``'s lines after its kernel found nothing distrusted, where a caller's kernel made the same
