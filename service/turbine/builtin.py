@@ -130,12 +130,11 @@ class UIOBankDetector:
         return self.diagnosis()
 
     def diagnosis(self) -> Diagnosis:
-        """The speed FDI's verdict after its step: ``empty_diagnosis`` with the speed-sensor columns set to
-        ``fdi.faulty``, margins = ``fdi.margins(bank.chi2)``, and while an isolation is pending the suspects."""
+        """The speed FDI's verdict after its step: the speed-sensor columns ``fdi.faulty``, margins its ratio
+        max(χ²_j/h_j, Σχ²_j/h_window,j) (above 1: inconsistent), while an isolation is pending the suspects."""
         fdi = self.fdi
-        fast = self.context.fast
         suspect = None  # read only while an isolation is pending; the fast path skips it otherwise
-        if fdi.pending or fast is None:
+        if fdi.pending or self.context.fast is None:
             suspect = _DIAGNOSIS_OF_MASK[np.where(fdi.deadline >= 0, fdi.flagged | fdi.provisional, fdi.flagged)]
         return Diagnosis(
             _DIAGNOSIS_OF_MASK[fdi.flagged], fdi.ratio, self._margin_names, suspect if fdi.pending else None
@@ -166,8 +165,7 @@ class BenchmarkDetector(UIOBankDetector):
         return diagnosis
 
     def folded(self, estimator) -> object | None:
-        """The compiled supervisor's common tick in one call with ``estimator``'s (``fast_supervisor.FoldedTick``),
-        where the backend is compiled and ``estimator`` is ``uio-bank``'s; else None."""
+        """The compiled tick in one call with ``uio-bank`` ``estimator``'s (``fast_supervisor.FoldedTick``), or None."""
         if self.context.fast is None or not isinstance(estimator, UIOBankEstimator):
             return None
         constants = (_DIAGNOSIS_OF_MASK, _P_G_M, _TAU_G_M, PITCH_M12)
@@ -259,11 +257,10 @@ class UIOBankEstimator:
         self._compensated_inverted = np.zeros(context.n, dtype=bool)  # ``_compensated`` at the last inversion
 
     def healthy_ready(self) -> bool:
-        """Whether this tick's ``step`` begins with the common compiled tick's call (``WindRecovery.step_healthy``):
-        the compiled backend, no row distrusting a speed sensor at the last tick (nothing to hand over), no encoder
-        compensation running."""
-        estimate = self._fault_estimate
-        return self.context.fast is not None and not self._switched and (estimate is None or not estimate.active)
+        """Whether ``step`` begins with the common compiled tick's call (``WindRecovery.step_healthy``): compiled,
+        nothing to hand over (no speed sensor distrusted last tick), no encoder compensation running."""
+        active = self._fault_estimate is not None and self._fault_estimate.active
+        return self.context.fast is not None and not (self._switched or active)
 
     def _encoder_fault_estimate(self, design, context: TurbineContext) -> EncoderFaultEstimate:
         """The fault estimate of a flagged generator-speed encoder (``encoder_compensation``), with the ticks from
@@ -468,9 +465,8 @@ class UIOBankEstimator:
     ) -> Estimates:
         """``faulty``: the targets not to use (flagged or suspected); ``flagged``: those of them the detector has
         flagged (None: all of them), which decides whether a sensor trusted again hands over (``_take_over``).
-        ``healthy``: where a caller's kernel made the common compiled tick's call on ``faulty`` (``healthy_ready``,
-        ``fast_supervisor``), its outcome: (ω̂_r, ω̂_g) of ``WindRecovery.healthy_ticked``, or False where a target
-        was distrusted (nothing done); None: not made."""
+        ``healthy``: the common compiled tick's outcome where a caller's kernel made its call (``fast_supervisor``):
+        (ω̂_r, ω̂_g) (``WindRecovery.healthy_ticked``), or False (a target distrusted: nothing done); None: not made."""
         bank = self.context.bank(frame)
         if self.ticks == 0:
             p = self.context.params
@@ -480,10 +476,8 @@ class UIOBankEstimator:
             self._winds = np.tile(np.maximum(frame.sensors[:, SENSOR_INDEX["v_hub_m"]], 3.0), (2, 1))
         recovery = self.recovery
         fast = self.context.fast
-        speeds = None  # the common compiled tick's (ω̂_r, ω̂_g)
-        if healthy is not None:
-            speeds = healthy or None
-        elif self.healthy_ready():
+        speeds = healthy or None  # the common compiled tick's (ω̂_r, ω̂_g)
+        if healthy is None and self.healthy_ready():
             # every row on the observer that uses all four speed sensors, nothing to hand over or stop: the recovery's
             # step, the speeds' gather and region 2's below by one kernel call, unless a target is distrusted
             speeds = recovery.step_healthy(

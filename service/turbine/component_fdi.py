@@ -243,15 +243,11 @@ class ComponentFDI(Planes):
         y = frame.sensors
         j = self.ticks % self.s.block
         self._ref_block[j] = frame.beta_ref
-        if self._fast is not None:
-            # the gathers, the parity statistics, the block's inputs, the frozen readings' repeat test, the parity's
-            # adaptive normalisation and the converter's tick by one kernel (``fast.component_step``, the same
-            # operations), then the pitch-sensor decisions
-            tick = self.tick_inputs(j)
-            ticked = self._fast.component_step_kept(
-                y, frame.tau_g_ref, tick, self.readings.previous, self._kept["packed"]
+        if self._fast is not None:  # the lines below by one kernel (``fast.component_step``), then the decisions
+            tick, kept = self.tick_inputs(j), self._kept["packed"]
+            return self.ticked(
+                j, *self._fast.component_step_kept(y, frame.tau_g_ref, tick, self.readings.previous, kept)
             )
-            return self.ticked(j, *ticked)
         beta = y[:, M12]  # [β_i,m1 | β_i,m2], one gather
         m1, m2 = beta[:, :3], beta[:, 3:]
         self._pitch_sensors(beta, m1, m2)
@@ -272,9 +268,8 @@ class ComponentFDI(Planes):
         return j, w.count % w.size, o.count % o.size, buffer, self.ticks == 0, self.ticks + 1 > self.warmup_ticks
 
     def ticked(self, j: int, any_suspicious: bool, repeated: bool) -> np.ndarray:
-        """``step``'s lines after the compiled tick (``fast.component_step_kept`` on ``tick_inputs(j)``, whose
-        results are ``any_suspicious``, ``repeated``): the windows' counts, the frozen readings, the pitch-sensor
-        decisions, the block's tests at its end. The flags."""
+        """``step``'s lines after its kernel (``fast.component_step_kept`` on ``tick_inputs(j)``, its results
+        ``any_suspicious``, ``repeated``): counts, frozen readings, pitch decisions, the block's end. The flags."""
         beta = self._kept["beta"][self.ticks % 2]
         self.parity.count += 1
         self.outlier.count += 1
@@ -284,15 +279,10 @@ class ComponentFDI(Planes):
         return self._block_end(j)
 
     def settled(self, j: int) -> bool:
-        """Whether a compiled tick at block slot ``j`` that finds nothing suspicious and no repeated reading changes
-        no flag (``ticked``): not the block's last tick, past the warm-up, no pitch sensor flagged, no frozen count
-        running."""
-        readings = self.readings
-        return (
-            j != self.s.block - 1
-            and self.ticks + 1 > self.warmup_ticks
-            and not (self._pitch_flagged or readings.counting or readings.ticks < 2)
-        )
+        """Whether a compiled tick at block slot ``j`` that finds nothing suspicious or repeated changes no flag
+        (``ticked``): not the block's last tick, past the warm-up, no pitch sensor flagged, no frozen count running."""
+        readings, warm = self.readings, self.ticks + 1 > self.warmup_ticks
+        return j != self.s.block - 1 and warm and not (self._pitch_flagged or readings.counting or readings.ticks < 2)
 
     def _block_end(self, j: int) -> np.ndarray:
         """The block's tests at its last tick, the flags dropped through the warm-up; the flags."""
