@@ -93,6 +93,7 @@ def test_the_packed_calls_equal_the_unpacked_kernels_on_a_live_tick(monkeypatch)
     of its transient matrices, the FDIs before and after their warm-up): the packed call and the unpacked kernel on
     copies of them return the same values and leave every array equal to the last bit."""
     plant, supervisor = turbine_pair("ftwse-2012", 2, 0, False, "numba")
+    supervisor._folded = None  # the entries called one by one, from Python (one call: ``test_fast_supervisor.py``)
     stepper = _Stepper(plant, supervisor)
     captured: dict[str, list] = {name: [] for _, name, _ in PACKED_CALLS}
     packed = {}
@@ -127,7 +128,7 @@ def test_detector_arguments_pack_the_kept_arguments_in_order():
 
 def _packed_state(supervisor) -> list:
     detector = supervisor.detector
-    return _bits((detector.fdi._kept["packed"], detector.components._kept["packed"], supervisor.context._bank._kept))
+    return _bits((detector.fdi._kept["packed"], detector.components._kept["packed"], supervisor.context._bank.kept))
 
 
 def test_a_compiled_supervisor_copied_mid_run_holds_its_own_packed_arguments():
@@ -141,7 +142,7 @@ def test_a_compiled_supervisor_copied_mid_run_holds_its_own_packed_arguments():
         fdi, components, bank = other.detector.fdi, other.detector.components, other.context._bank
         assert fdi._kept["packed"].args[0] is fdi._flags is not supervisor.detector.fdi._flags
         assert components._kept["packed"].args[2][0] is components.parity.sums
-        assert bank._kept.args[5] is bank._output
+        assert bank.kept.args[5] is bank._output
     refs = stepper.refs
     for _ in range(20):
         frame = plant.measure()

@@ -305,7 +305,7 @@ class ObserverBank:
         self._y_prev: np.ndarray | None = None  # y[n−1]
         # ``step_readings``' arguments kept once the transient update matrices are used up: the inputs' constants,
         # the steady update, the output, the work arrays and the nonzeros, as one ``wwcore.kept.Kept``
-        self._kept = None
+        self.kept = None
 
     def initialise(self, x0: np.ndarray, y: np.ndarray) -> None:
         """Start every observer at the state estimate x0 (n, 4): z[0] = x0 − H y[0] (and d̂ from x0 statics)."""
@@ -398,25 +398,32 @@ class ObserverBank:
         n = self.n
         read = np.empty((n, 6))
         speed = np.empty((n, 4)) if offset is not None else read[:, :4]
-        self.chi2 = np.empty((n, len(self.d.names)))
+        chi2 = np.empty((n, len(self.d.names)))
         subtract, offset = offset is not None, speed if offset is None else offset
         if self.steps < len(self._update_transient):
             update, sparse = self._fast_products(True)
-            self.z, out = self._fast.bank_tick(
+            z, out = self._fast.bank_tick(
                 inputs, subtract, offset, speed, read, self.z, u_prev, self._y_prev, update, self._output, self._work,
-                self.chi2, sparse,
+                chi2, sparse,
             )  # fmt: skip
         else:  # the steady update: the kept arguments as one struct (``fast.bank_tick_kept``)
-            if self._kept is None:
+            if self.kept is None:
                 update, sparse = self._fast_products(True)
-                self._kept = self._fast.Kept((*inputs[1:], update, self._output, self._work, sparse))
-            self.z, out = self._fast.bank_tick_kept(
-                inputs[0], subtract, offset, speed, read, self.z, u_prev, self._y_prev, self.chi2, self._kept
+                self.kept = self._fast.Kept((*inputs[1:], update, self._output, self._work, sparse))
+            z, out = self._fast.bank_tick_kept(
+                inputs[0], subtract, offset, speed, read, self.z, u_prev, self._y_prev, chi2, self.kept
             )
+        self.ticked(z, out, read, chi2)
+        return speed
+
+    def ticked(self, z: np.ndarray, out: np.ndarray, read: np.ndarray, chi2: np.ndarray) -> None:
+        """``step_readings``' bookkeeping after its kernel (z, out; the inputs ``read`` and χ² ``chi2`` it wrote),
+        also where a caller's kernel made the same call (``fast_supervisor``): x̂ from ``out``, y[n] (``read``'s
+        first 5 columns) kept for the next step."""
+        self.z, self.chi2 = z, chi2
         self.steps += 1
         self.x_hat = out[:, : self._width]
         self._y_prev = read[:, :5]
-        return speed
 
     def restart(self, rows: np.ndarray, target: np.ndarray, source: np.ndarray) -> None:
         """Re-initialise observer ``target[i]`` of row ``rows[i]`` from observer ``source[i]``'s estimate of this

@@ -37,6 +37,7 @@ from service.turbine.interfaces import (
     static_state_guess,
 )
 from service.turbine.wind_recovery import WindRecovery
+from wwcore.backend import fast_module
 from wwcore.channels import DIAGNOSIS_TARGETS, SENSOR_INDEX, SPEED_SENSORS, TARGET_INDEX
 from wwcore.options import Bounds
 from wwcore.turbine_frames import TurbineFrame
@@ -124,13 +125,16 @@ class UIOBankDetector:
     def step(self, frame: TurbineFrame) -> Diagnosis:
         bank = self.context.bank(frame)
         speed = self.context.speed_readings(frame)
-        fast = self.context.fast
         band, channel = self.power_speed_inputs(frame)
         self.fdi.step(speed, bank.chi2, bank.x_hat, band, channel)
-        # = empty_diagnosis with the speed-sensor columns set to fdi.faulty, and margins = fdi.margins(bank.chi2)
+        return self.diagnosis()
+
+    def diagnosis(self) -> Diagnosis:
+        """The speed FDI's verdict after its step: the speed-sensor columns ``fdi.faulty``, margins its ratio
+        max(χ²_j/h_j, Σχ²_j/h_window,j) (above 1: inconsistent), while an isolation is pending the suspects."""
         fdi = self.fdi
         suspect = None  # read only while an isolation is pending; the fast path skips it otherwise
-        if fdi.pending or fast is None:
+        if fdi.pending or self.context.fast is None:
             suspect = _DIAGNOSIS_OF_MASK[np.where(fdi.deadline >= 0, fdi.flagged | fdi.provisional, fdi.flagged)]
         return Diagnosis(
             _DIAGNOSIS_OF_MASK[fdi.flagged], fdi.ratio, self._margin_names, suspect if fdi.pending else None
@@ -150,12 +154,22 @@ class BenchmarkDetector(UIOBankDetector):
         self.components = ComponentFDI(context.params, context.n, context.sensor_sigma, settings, fast=context.fast)
 
     def step(self, frame: TurbineFrame) -> Diagnosis:
-        diagnosis = super().step(frame)
-        flags = self.components.step(frame)
+        return self.with_components(super().step(frame), self.components.step(frame))
+
+    @staticmethod
+    def with_components(diagnosis: Diagnosis, flags: np.ndarray) -> Diagnosis:
+        """The speed FDI's ``diagnosis`` with the component tests' ``flags`` added."""
         diagnosis.faulty |= flags
         if diagnosis.suspect is not None:
             diagnosis.suspect |= flags
         return diagnosis
+
+    def folded(self, estimator) -> object | None:
+        """The compiled tick in one call with ``uio-bank`` ``estimator``'s (``fast_supervisor.FoldedTick``), or None."""
+        if self.context.fast is None or not isinstance(estimator, UIOBankEstimator):
+            return None
+        constants = (_DIAGNOSIS_OF_MASK, _P_G_M, _TAU_G_M, PITCH_M12)
+        return fast_module("service.turbine.fast_supervisor").FoldedTick(self, estimator, constants)
 
 
 @TURBINE_DETECTORS.register("none")
@@ -241,6 +255,12 @@ class UIOBankEstimator:
         self._corrected = np.zeros(context.n, dtype=bool)  # rows with a column on the corrected pair (``_compensate``)
         self._compensated = np.zeros(context.n, dtype=bool)  # rows whose wind's torque is that column's
         self._compensated_inverted = np.zeros(context.n, dtype=bool)  # ``_compensated`` at the last inversion
+
+    def healthy_ready(self) -> bool:
+        """Whether ``step`` begins with the common compiled tick's call (``WindRecovery.step_healthy``): compiled,
+        nothing to hand over (no speed sensor distrusted last tick), no encoder compensation running."""
+        active = self._fault_estimate is not None and self._fault_estimate.active
+        return self.context.fast is not None and not (self._switched or active)
 
     def _encoder_fault_estimate(self, design, context: TurbineContext) -> EncoderFaultEstimate:
         """The fault estimate of a flagged generator-speed encoder (``encoder_compensation``), with the ticks from
@@ -440,9 +460,13 @@ class UIOBankEstimator:
             return mask
         return (flagged[:, SPEED_TARGETS] @ _MASK_WEIGHTS) & mask
 
-    def step(self, frame: TurbineFrame, faulty: np.ndarray, flagged: np.ndarray | None = None) -> Estimates:
+    def step(
+        self, frame: TurbineFrame, faulty: np.ndarray, flagged: np.ndarray | None = None, healthy=None
+    ) -> Estimates:
         """``faulty``: the targets not to use (flagged or suspected); ``flagged``: those of them the detector has
-        flagged (None: all of them), which decides whether a sensor trusted again hands over (``_take_over``)."""
+        flagged (None: all of them), which decides whether a sensor trusted again hands over (``_take_over``).
+        ``healthy``: the common compiled tick's outcome where a caller's kernel made its call (``fast_supervisor``):
+        (ω̂_r, ω̂_g) (``WindRecovery.healthy_ticked``), or False (a target distrusted: nothing done); None: not made."""
         bank = self.context.bank(frame)
         if self.ticks == 0:
             p = self.context.params
@@ -452,9 +476,8 @@ class UIOBankEstimator:
             self._winds = np.tile(np.maximum(frame.sensors[:, SENSOR_INDEX["v_hub_m"]], 3.0), (2, 1))
         recovery = self.recovery
         fast = self.context.fast
-        speeds = None  # the common compiled tick's (ω̂_r, ω̂_g)
-        estimate = self._fault_estimate
-        if fast is not None and not self._switched and (estimate is None or not estimate.active):
+        speeds = healthy or None  # the common compiled tick's (ω̂_r, ω̂_g)
+        if healthy is None and self.healthy_ready():
             # every row on the observer that uses all four speed sensors, nothing to hand over or stop: the recovery's
             # step, the speeds' gather and region 2's below by one kernel call, unless a target is distrusted
             speeds = recovery.step_healthy(

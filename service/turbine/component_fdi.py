@@ -237,24 +237,55 @@ class ComponentFDI(Planes):
         )  # fmt: skip
         self._converter_spread_state = self.converter_spread.state  # its planes' block (``wwcore.planes``)
         self._converter_state = (self._converter_cusums, self._converter_sums)
-        self._kept: dict | None = None  # ``_fast_tick``'s kernel arguments (``_tick_arguments``)
+        self._kept: dict | None = None  # the compiled tick's kernel arguments (``_tick_arguments``)
 
     def step(self, frame: TurbineFrame) -> np.ndarray:
         y = frame.sensors
         j = self.ticks % self.s.block
         self._ref_block[j] = frame.beta_ref
-        if self._fast is not None:
-            self._fast_tick(frame, j)  # the converter's tick included
-            self.ticks += 1
-        else:
-            beta = y[:, M12]  # [β_i,m1 | β_i,m2], one gather
-            m1, m2 = beta[:, :3], beta[:, 3:]
-            self._pitch_sensors(beta, m1, m2)
-            np.matmul(0.5 * (m1 + m2), CROSS_BLADE, out=self._e_block[j])
-            self._tau_block[j, 0] = y[:, TAU_G_M]
-            self._tau_block[j, 1] = frame.tau_g_ref
-            self.ticks += 1
-            self._converter(self._tau_block[j, 0], self._tau_block[j, 1])
+        if self._fast is not None:  # the lines below by one kernel (``fast.component_step``), then the decisions
+            tick, kept = self.tick_inputs(j), self._kept["packed"]
+            return self.ticked(
+                j, *self._fast.component_step_kept(y, frame.tau_g_ref, tick, self.readings.previous, kept)
+            )
+        beta = y[:, M12]  # [β_i,m1 | β_i,m2], one gather
+        m1, m2 = beta[:, :3], beta[:, 3:]
+        self._pitch_sensors(beta, m1, m2)
+        np.matmul(0.5 * (m1 + m2), CROSS_BLADE, out=self._e_block[j])
+        self._tau_block[j, 0] = y[:, TAU_G_M]
+        self._tau_block[j, 1] = frame.tau_g_ref
+        self.ticks += 1
+        self._converter(self._tau_block[j, 0], self._tau_block[j, 1])
+        return self._block_end(j)
+
+    def tick_inputs(self, j: int) -> tuple:
+        """``fast.component_step_kept``'s ``tick`` for block slot ``j``: (j, the two windows' slots, which β buffer,
+        first, warm); the kept arguments (``_kept``, ``"packed"`` the kernel's struct) built once."""
+        if self._kept is None:
+            self._tick_arguments()
+        buffer = self.ticks % 2  # two β buffers: the frozen test keeps the last tick's (``previous``)
+        w, o = self.parity, self.outlier
+        return j, w.count % w.size, o.count % o.size, buffer, self.ticks == 0, self.ticks + 1 > self.warmup_ticks
+
+    def ticked(self, j: int, any_suspicious: bool, repeated: bool) -> np.ndarray:
+        """``step``'s lines after its kernel (``fast.component_step_kept`` on ``tick_inputs(j)``, its results
+        ``any_suspicious``, ``repeated``): counts, frozen readings, pitch decisions, the block's end. The flags."""
+        beta = self._kept["beta"][self.ticks % 2]
+        self.parity.count += 1
+        self.outlier.count += 1
+        self.readings.push(beta, repeated)
+        self._pitch_flags(*self._kept["normalised"], any_suspicious)
+        self.ticks += 1
+        return self._block_end(j)
+
+    def settled(self, j: int) -> bool:
+        """Whether a compiled tick at block slot ``j`` that finds nothing suspicious or repeated changes no flag
+        (``ticked``): not the block's last tick, past the warm-up, no pitch sensor flagged, no frozen count running."""
+        readings, warm = self.readings, self.ticks + 1 > self.warmup_ticks
+        return j != self.s.block - 1 and warm and not (self._pitch_flagged or readings.counting or readings.ticks < 2)
+
+    def _block_end(self, j: int) -> np.ndarray:
+        """The block's tests at its last tick, the flags dropped through the warm-up; the flags."""
         if j == self.s.block - 1:
             self._actuators()
             self._converter_spread()
@@ -263,25 +294,8 @@ class ComponentFDI(Planes):
             self._pitch_flagged = False
         return self.flags
 
-    def _fast_tick(self, frame: TurbineFrame, j: int) -> None:
-        """The gathers, the parity statistics, the block's inputs, the frozen readings' repeat test, the parity's
-        adaptive normalisation and the converter's tick of ``step`` by one kernel
-        (``service.turbine.fast.component_step``, the same operations), then the pitch-sensor decisions."""
-        kept = self._kept or self._tick_arguments()
-        w, o = self.parity, self.outlier
-        buffer = self.ticks % 2  # two β buffers: the frozen test keeps the last tick's (``previous``)
-        tick = (j, w.count % w.size, o.count % o.size, buffer, self.ticks == 0, self.ticks + 1 > self.warmup_ticks)
-        any_suspicious, repeated = self._fast.component_step_kept(
-            frame.sensors, frame.tau_g_ref, tick, self.readings.previous, kept["packed"]
-        )
-        beta = kept["beta"][buffer]
-        w.count += 1
-        o.count += 1
-        self.readings.push(beta, repeated)
-        self._pitch_flags(*kept["normalised"], any_suspicious)
-
     def _tick_arguments(self) -> tuple:
-        """``_fast_tick``'s kernel arguments kept from tick to tick: the two β buffers, the blocks, the scales, the
+        """``step``'s compiled kernel arguments kept from tick to tick: the two β buffers, the blocks, the scales, the
         parity's outputs, the adaptation's and the converter's (outputs written and read within a tick; state
         arrays updated in place, never replaced), and all of them with the windows' sums as one ``Kept``
         (``"packed"``, ``fast.component_step_kept``'s)."""

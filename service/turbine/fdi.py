@@ -262,19 +262,11 @@ class SpeedSensorFDI(Planes):
         self._detector = fast_module("service.turbine.fast_detector") if fast is not None else None
         self._kept: dict | None = None
         self._learns = False
+        self._quiet = False  # ``tick_inputs`` left the repeat test to the kernel
 
     @property
     def faulty(self) -> np.ndarray:
         return SENSORS_OF_MASK[self.flagged]
-
-    @property
-    def selected(self) -> np.ndarray:
-        """Index of the observer matching the flagged set (−1 when no observer of the bank matches)."""
-        return self.observer_of_mask[self.flagged]
-
-    def margins(self, chi2_stat: np.ndarray) -> np.ndarray:
-        """max(χ²_j/h_j, Σχ²_j/h_window,j) for every isolating observer (n, n_isolating): above 1 is inconsistent."""
-        return np.maximum(chi2_stat[:, : self.bank.n_isolating] / self.h_detect, self._window_sum / self.h_window)
 
     def step(
         self,
@@ -288,46 +280,58 @@ class SpeedSensorFDI(Planes):
         state estimates x̂ (n, width), the 5-pe design for the torque (``clearing``) and the power-speed
         channel (n,) (NaN where it is only the rotor-speed mean; ``arbitration``)."""
         raw = chi2_stat[:, : self.bank.n_isolating]
-        if self._fast is not None:  # the lines of the else branch, and a healthy tick's bias test, by one kernel
-            self._kept = kept = self._kept or self._detector.detector_arguments(self)  # kept between ticks
-            readings = self.readings
-            previous = readings.previous
-            quiet = not (readings.counting or readings.ticks < 2) and previous is not None
-            healthy = self.ticks >= self.warmup_ticks and not (self._maybe_flagged or self._pending)
-            self.ratio = ratio = np.empty_like(self._window_sum)
-            tick = (self.ticks % self.s.window, self._learns, healthy)
-            finished, repeated, exceeded, growing, raised = self._detector.detector_tick_kept(
-                y, raw, x_hat, previous if quiet else None, tick, kept["packed"], ratio
-            )
-            any_frozen = readings.push(y, repeated if quiet else None)
-            self.ticks += 1
-            self._learns = self.arbiter.observed(growing)
-            if finished:  # nothing inconsistent, frozen, flagged or pending: the bias test has run
-                if raised:
-                    self._raise_bias(kept["over"])
-                    self._clear_raised(kept["y"] if self.calibration.enabled else y, x_hat, torque_band)
-                return
-            y, chi2_stat = (kept["y"] if self.calibration.enabled else y), kept["chi2_stat"]
-        else:
-            slot = self.ticks % self.s.window
-            chi2_stat = raw / self.spread.scale2 if self.spread.enabled else raw  # χ²_j / ŝ²_j (``adaptive``)
-            self._window_sum += chi2_stat - self._history[slot]
-            self._history[slot] = chi2_stat
-            any_frozen = self.readings.push(y)  # the raw readings: a frozen one stays frozen
-            y_raw = y
-            if self.calibration.enabled:  # the clearing and the arbitration see the bank's calibrated readings
-                y = y - self.calibration.offset
-            self.ticks += 1
-            # the pair mean's history and its prediction error, for the onset's log-likelihood ratio (``arbitration``)
-            self.arbiter.observe(y, (self.flagged == 0) & (self.deadline < 0))
-            self.ratio = ratio = np.maximum(chi2_stat / self.h_detect, self._window_sum / self.h_window)
-            exceeded = True  # the all-sensor observer's ratios are tested below with the others
-            if self.spread.enabled:  # learn from rows with nothing flagged, pending or inconsistent
-                healthy = (self.flagged == 0) & (self.deadline < 0) & (ratio <= 1.0).all(axis=1)
-                self.spread.update_rows(raw / self._rank, healthy)
-                generator = 0.5 * (y_raw[:, 2] + y_raw[:, 3])
-                deviation = y_raw - np.column_stack([generator / self._gear_ratio] * 2 + [generator] * 2)
-                self.calibration.update_rows(None, healthy, deviation)  # offsets only
+        if self._fast is not None:  # the lines below, and a healthy tick's bias test, by one kernel
+            (previous, tick), kept = self.tick_inputs(), self._kept["packed"]
+            detected = self._detector.detector_tick_kept(y, raw, x_hat, previous, tick, kept, self.ratio)
+            return self.ticked(detected, y, x_hat, torque_band, power_speed)
+        slot = self.ticks % self.s.window
+        chi2_stat = raw / self.spread.scale2 if self.spread.enabled else raw  # χ²_j / ŝ²_j (``adaptive``)
+        self._window_sum += chi2_stat - self._history[slot]
+        self._history[slot] = chi2_stat
+        any_frozen = self.readings.push(y)  # the raw readings: a frozen one stays frozen
+        y_raw = y
+        if self.calibration.enabled:  # the clearing and the arbitration see the bank's calibrated readings
+            y = y - self.calibration.offset
+        self.ticks += 1
+        # the pair mean's history and its prediction error, for the onset's log-likelihood ratio (``arbitration``)
+        self.arbiter.observe(y, (self.flagged == 0) & (self.deadline < 0))
+        self.ratio = ratio = np.maximum(chi2_stat / self.h_detect, self._window_sum / self.h_window)
+        exceeded = True  # the all-sensor observer's ratios are tested below with the others
+        if self.spread.enabled:  # learn from rows with nothing flagged, pending or inconsistent
+            healthy = (self.flagged == 0) & (self.deadline < 0) & (ratio <= 1.0).all(axis=1)
+            self.spread.update_rows(raw / self._rank, healthy)
+            generator = 0.5 * (y_raw[:, 2] + y_raw[:, 3])
+            deviation = y_raw - np.column_stack([generator / self._gear_ratio] * 2 + [generator] * 2)
+            self.calibration.update_rows(None, healthy, deviation)  # offsets only
+        self._decide(exceeded, any_frozen, y, chi2_stat, ratio, x_hat, torque_band, power_speed)
+
+    def tick_inputs(self) -> tuple:
+        """``fast_detector.detector_tick_kept``'s ``previous`` (None: no repeat test) and ``tick`` (slot, the arbiter
+        learns, a healthy tick may finish); ``self.ratio`` new (it leaves the tick), ``_kept`` built once."""
+        self._kept = self._kept or self._detector.detector_arguments(self)
+        readings, previous = self.readings, self.readings.previous
+        self._quiet = quiet = not (readings.counting or readings.ticks < 2) and previous is not None
+        healthy = self.ticks >= self.warmup_ticks and not (self._maybe_flagged or self._pending)
+        self.ratio = np.empty(self._window_sum.shape)
+        return (previous if quiet else None), (self.ticks % self.s.window, self._learns, healthy)
+
+    def ticked(self, detected: tuple, y: np.ndarray, x_hat: np.ndarray, torque_band, power_speed) -> None:
+        """``step``'s lines after its kernel (``detected``: ``detector_tick_kept``'s results on ``tick_inputs``): the
+        frozen readings, the arbiter's count, and where the kernel did not finish, the decisions on what it wrote."""
+        (finished, repeated, exceeded, growing, raised), kept = detected, self._kept
+        any_frozen = self.readings.push(y, repeated if self._quiet else None)
+        self.ticks += 1
+        self._learns = self.arbiter.observed(growing)
+        if finished:  # nothing inconsistent, frozen, flagged or pending: the bias test has run
+            if raised:
+                self._raise_bias(kept["over"])
+                self._clear_raised(kept["y"] if self.calibration.enabled else y, x_hat, torque_band)
+            return
+        y = kept["y"] if self.calibration.enabled else y
+        self._decide(exceeded, any_frozen, y, kept["chi2_stat"], self.ratio, x_hat, torque_band, power_speed)
+
+    def _decide(self, exceeded: bool, any_frozen: bool, y, chi2_stat, ratio, x_hat, torque_band, power_speed) -> None:
+        """``step``'s isolation, bias test and clearing after the window tests (``exceeded``: a ratio may exceed 1)."""
         if self.ticks <= self.warmup_ticks:
             return
         if not (exceeded or any_frozen or self._maybe_flagged or self._pending):

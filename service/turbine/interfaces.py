@@ -149,6 +149,20 @@ class TurbineContext:
             self._bank_tick = frame.k
         return self._bank
 
+    def steady_bank(self, k: int) -> ObserverBank | None:
+        """The compiled bank where its step to tick ``k`` is its kept call (``fast.bank_tick_kept``: it has taken its
+        first frame and not this one, and its transient update matrices are used up), which a caller's kernel may
+        make (``fast_supervisor``; then ``bank_ticked``); else None."""
+        bank = self._bank
+        if bank is None or bank.kept is None or self._bank_tick == k:
+            return None
+        return bank
+
+    def bank_ticked(self, k: int, speed: np.ndarray) -> None:
+        """The bank stepped to tick ``k`` by a caller's kernel (``fast_supervisor``; ``ObserverBank.ticked``), with
+        ``speed`` the tick's speed readings (``speed_readings``)."""
+        self._bank_tick, self._speed = k, speed
+
     def _bank_inputs(self, frame: TurbineFrame) -> np.ndarray:
         """The bank's input columns (``bank_design.inputs``: 4 speeds, the power-speed channel) for this frame;
         keeps the speed readings aside. The compiled path gathers them inside its step (``fast.bank_tick``, the same

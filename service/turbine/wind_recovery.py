@@ -379,8 +379,20 @@ class WindRecovery:
             faulty, x_hat, self._x_prev, sensors, beta_ref_prev, zone, pitch_columns, selected, kept
         ):
             return None
+        self._x_prev = x_hat  # = ``healthy_ticked``, inline: the common tick's calls are counted
+        return self._healthy_speeds
+
+    def healthy_ticked(self, x_hat: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """``step_healthy``'s lines after its kernel found nothing distrusted, where a caller's kernel made the same
+        call (``fast_supervisor``): x̂[n] kept as the next tick's x̂[n−1]; (ω̂_r, ω̂_g), the kept arrays."""
         self._x_prev = x_hat
         return self._healthy_speeds
+
+    def healthy_kept(self):
+        """``step_healthy``'s kept arguments (``_healthy_kept``), built on the first call after ``start``."""
+        if self._healthy_arguments is None:
+            self._healthy_arguments = self._healthy_kept()
+        return self._healthy_arguments
 
     def _healthy_kept(self):
         """``step_healthy``'s kept arguments as one ``wwcore.kept.Kept`` (one struct for the kernel to unbox),
