@@ -301,22 +301,34 @@ class WindField:
         ticks = np.arange(self._chunk_end, k_end)
         p = (ticks * self.dt - t0) / TURBULENCE_SAMPLE_TIME  # position in samples after the kept one, in [0, S)
         q = np.minimum(p.astype(int), CHUNK_SAMPLES - 1)
-        frac = (p - q)[:, None]
-
-        def at_ticks(prev: np.ndarray, chunk: np.ndarray) -> np.ndarray:
-            s = np.concatenate((prev[:, None], chunk), axis=1).T  # (S+1, n)
-            return s[q] * (1.0 - frac) + s[q + 1] * frac  # (T, n), linear interpolation
-
-        up, u0, u3 = (at_ticks(a, b) for a, b in zip(last, fresh, strict=True))
-        vm = mean_wind(self.spec, ticks * self.dt)[:, None]
-        self._mean = np.repeat(vm, self.n, axis=1)
-        self._hub = vm + up
-        self._base = vm + u0
-        self._u3 = u3
+        frac = p - q
+        vm = mean_wind(self.spec, ticks * self.dt)
+        self._mean, self._hub, self._base, self._u3 = self._chunk_at_ticks(last, fresh, q, frac, vm)
         for shared in (self._mean, self._hub):  # ``sample`` hands out rows of these: read-only views
             shared.flags.writeable = False
         self.chunk = (self._base, self._u3, self._hub, self._mean)
         self._chunk_start, self._chunk_end = int(ticks[0]), k_end
+
+    def _chunk_at_ticks(
+        self,
+        last: tuple[np.ndarray, ...],
+        fresh: tuple[np.ndarray, ...],
+        q: np.ndarray,
+        frac: np.ndarray,
+        vm: np.ndarray,
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """(v_m, v_m + u_p, v_m + u_0, u_3), each (T, n), at the chunk's ticks: the turbulence samples (``last``
+        (u_p, u_0, u_3) each (n,) at the kept sample, ``fresh`` each (n, S) after it) interpolated linearly at the
+        ticks' positions q + frac (T,) samples after the kept one; ``vm`` (T,) the ticks' mean wind."""
+        w = frac[:, None]
+
+        def at_ticks(prev: np.ndarray, chunk: np.ndarray) -> np.ndarray:
+            s = np.concatenate((prev[:, None], chunk), axis=1).T  # (S+1, n)
+            return s[q] * (1.0 - w) + s[q + 1] * w  # (T, n), linear interpolation
+
+        up, u0, u3 = (at_ticks(a, b) for a, b in zip(last, fresh, strict=True))
+        vm = vm[:, None]
+        return np.repeat(vm, self.n, axis=1), vm + up, vm + u0, u3
 
     def advance(self, k: int) -> int:
         """Move on to tick k (0, 1, 2, … in turn), the next chunk filtered when k needs it; k's row in the chunk's

@@ -351,6 +351,22 @@ class FarmWindField(WindField):
         """The row model's (farms, rows) row means; with FLORIS wakes each turbine's own (farms, N)."""
         return getattr(self.wakes, "row_wind", self.turbine_wind)
 
+    def _chunk_at_ticks(
+        self,
+        last: tuple[np.ndarray, ...],
+        fresh: tuple[np.ndarray, ...],
+        q: np.ndarray,
+        frac: np.ndarray,
+        vm: np.ndarray,
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """``WindField._chunk_at_ticks``; with the compiled backend by ``plant_sim.farm.fast.chunk_at_ticks`` (the
+        same operations on each element, so the same numbers)."""
+        if self._farm_fast is None:
+            return super()._chunk_at_ticks(last, fresh, q, frac, vm)
+        out = np.empty((4, q.size, self.n))
+        self._farm_fast.chunk_at_ticks(last, fresh, q, frac, vm, out)
+        return out[0], out[1], out[2], out[3]
+
     def _refill(self) -> None:
         super()._refill()
         rf = self._row_field
