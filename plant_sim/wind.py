@@ -285,6 +285,7 @@ class WindField:
         self._slope = blade_factor(left + (step - 1e-9), spec, params) - self._table  # per grid step
         self._per_rad = per_turn / TWO_PI
         self._offsets = BLADE_OFFSETS * self._per_rad  # in grid steps: exact multiples of per_turn/3
+        self._chunk_fast = None  # ``plant_sim.farm.fast`` where a subclass sets it (``_chunk_at_ticks``)
         self._next_k = 0
         self._chunk_start = 0
         self._chunk_end = 0  # ticks [start, end) are in the arrays below
@@ -319,7 +320,13 @@ class WindField:
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """(v_m, v_m + u_p, v_m + u_0, u_3), each (T, n), at the chunk's ticks: the turbulence samples (``last``
         (u_p, u_0, u_3) each (n,) at the kept sample, ``fresh`` each (n, S) after it) interpolated linearly at the
-        ticks' positions q + frac (T,) samples after the kept one; ``vm`` (T,) the ticks' mean wind."""
+        ticks' positions q + frac (T,) samples after the kept one; ``vm`` (T,) the ticks' mean wind. With
+        ``_chunk_fast`` (the compiled ``FarmWindField``'s) by ``chunk_at_ticks``, the same operations on each
+        element."""
+        if self._chunk_fast is not None:
+            out = np.empty((4, q.size, self.n))
+            self._chunk_fast.chunk_at_ticks(last, fresh, q, frac, vm, out)
+            return out[0], out[1], out[2], out[3]
         w = frac[:, None]
 
         def at_ticks(prev: np.ndarray, chunk: np.ndarray) -> np.ndarray:

@@ -312,6 +312,7 @@ class FarmWindField(WindField):
         super().__init__(spec, params, rngs, dt, backend=backend)
         # ``"numba"``: ``sample`` by ``plant_sim.farm.fast.blade_winds`` (the same numbers)
         self._farm_fast = fast_module("plant_sim.farm.fast") if self._fast is not None else None
+        self._chunk_fast = self._farm_fast  # each turbulence chunk to its ticks in one kernel (the same numbers)
         self.plant = plant
         self.params = params
         self.mast = mast
@@ -350,22 +351,6 @@ class FarmWindField(WindField):
     def row_wind(self) -> np.ndarray:
         """The row model's (farms, rows) row means; with FLORIS wakes each turbine's own (farms, N)."""
         return getattr(self.wakes, "row_wind", self.turbine_wind)
-
-    def _chunk_at_ticks(
-        self,
-        last: tuple[np.ndarray, ...],
-        fresh: tuple[np.ndarray, ...],
-        q: np.ndarray,
-        frac: np.ndarray,
-        vm: np.ndarray,
-    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-        """``WindField._chunk_at_ticks``; with the compiled backend by ``plant_sim.farm.fast.chunk_at_ticks`` (the
-        same operations on each element, so the same numbers)."""
-        if self._farm_fast is None:
-            return super()._chunk_at_ticks(last, fresh, q, frac, vm)
-        out = np.empty((4, q.size, self.n))
-        self._farm_fast.chunk_at_ticks(last, fresh, q, frac, vm, out)
-        return out[0], out[1], out[2], out[3]
 
     def _refill(self) -> None:
         super()._refill()
