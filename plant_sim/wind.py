@@ -285,6 +285,7 @@ class WindField:
         self._slope = blade_factor(left + (step - 1e-9), spec, params) - self._table  # per grid step
         self._per_rad = per_turn / TWO_PI
         self._offsets = BLADE_OFFSETS * self._per_rad  # in grid steps: exact multiples of per_turn/3
+        self._chunk_fast = None  # ``plant_sim.farm.fast`` where a subclass sets it (``_chunk_at_ticks``)
         self._next_k = 0
         self._chunk_start = 0
         self._chunk_end = 0  # ticks [start, end) are in the arrays below
@@ -301,22 +302,40 @@ class WindField:
         ticks = np.arange(self._chunk_end, k_end)
         p = (ticks * self.dt - t0) / TURBULENCE_SAMPLE_TIME  # position in samples after the kept one, in [0, S)
         q = np.minimum(p.astype(int), CHUNK_SAMPLES - 1)
-        frac = (p - q)[:, None]
-
-        def at_ticks(prev: np.ndarray, chunk: np.ndarray) -> np.ndarray:
-            s = np.concatenate((prev[:, None], chunk), axis=1).T  # (S+1, n)
-            return s[q] * (1.0 - frac) + s[q + 1] * frac  # (T, n), linear interpolation
-
-        up, u0, u3 = (at_ticks(a, b) for a, b in zip(last, fresh, strict=True))
-        vm = mean_wind(self.spec, ticks * self.dt)[:, None]
-        self._mean = np.repeat(vm, self.n, axis=1)
-        self._hub = vm + up
-        self._base = vm + u0
-        self._u3 = u3
+        frac = p - q
+        vm = mean_wind(self.spec, ticks * self.dt)
+        self._mean, self._hub, self._base, self._u3 = self._chunk_at_ticks(last, fresh, q, frac, vm)
         for shared in (self._mean, self._hub):  # ``sample`` hands out rows of these: read-only views
             shared.flags.writeable = False
         self.chunk = (self._base, self._u3, self._hub, self._mean)
         self._chunk_start, self._chunk_end = int(ticks[0]), k_end
+
+    def _chunk_at_ticks(
+        self,
+        last: tuple[np.ndarray, ...],
+        fresh: tuple[np.ndarray, ...],
+        q: np.ndarray,
+        frac: np.ndarray,
+        vm: np.ndarray,
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """(v_m, v_m + u_p, v_m + u_0, u_3), each (T, n), at the chunk's ticks: the turbulence samples (``last``
+        (u_p, u_0, u_3) each (n,) at the kept sample, ``fresh`` each (n, S) after it) interpolated linearly at the
+        ticks' positions q + frac (T,) samples after the kept one; ``vm`` (T,) the ticks' mean wind. With
+        ``_chunk_fast`` (the compiled ``FarmWindField``'s) by ``chunk_at_ticks``, the same operations on each
+        element."""
+        if self._chunk_fast is not None:
+            out = np.empty((4, q.size, self.n))
+            self._chunk_fast.chunk_at_ticks(last, fresh, q, frac, vm, out)
+            return out[0], out[1], out[2], out[3]
+        w = frac[:, None]
+
+        def at_ticks(prev: np.ndarray, chunk: np.ndarray) -> np.ndarray:
+            s = np.concatenate((prev[:, None], chunk), axis=1).T  # (S+1, n)
+            return s[q] * (1.0 - w) + s[q + 1] * w  # (T, n), linear interpolation
+
+        up, u0, u3 = (at_ticks(a, b) for a, b in zip(last, fresh, strict=True))
+        vm = vm[:, None]
+        return np.repeat(vm, self.n, axis=1), vm + up, vm + u0, u3
 
     def advance(self, k: int) -> int:
         """Move on to tick k (0, 1, 2, … in turn), the next chunk filtered when k needs it; k's row in the chunk's

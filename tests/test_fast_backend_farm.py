@@ -520,3 +520,52 @@ def test_the_compiled_samples_kept_arguments_follow_the_faults():
         np.testing.assert_array_equal(kept.shaft[0], p.K_dt * f.stiffness_factor)
         seen.add(float(f.power_factor[4]))
     assert seen == {1.0, 0.97}  # compiled samples before, during and after the debris on turbine 5
+
+
+def test_the_turbulence_chunks_interpolation_kernel_equals_the_reference():
+    """``chunk_at_ticks`` (the compiled ``FarmWindField``'s chunk of ticks) against ``WindField._chunk_at_ticks``'s
+    numpy arithmetic on random turbulence samples, positions at, between and at the ends of the samples and a
+    ramping mean: (v_m, v_m + u_p, v_m + u_0, u_3) equal to the last bit; and two farms' wind fields, numpy's and the
+    compiled one, refilled chunk after chunk, hold the same chunks."""
+    rng = np.random.default_rng(SEED)
+    n, samples, ticks = 23, 400, 2000
+    last = tuple(rng.normal(0.0, 1.5, n) for _ in range(3))
+    fresh = tuple(rng.normal(0.0, 1.5, (n, samples)) for _ in range(3))
+    p = np.concatenate([[0.0, 0.5, samples - 1.0, samples - 1e-9], rng.uniform(0.0, samples, ticks - 4)])
+    q = np.minimum(p.astype(int), samples - 1)
+    frac = p - q
+    vm = np.linspace(9.0, 12.5, ticks)
+    field = plant_sim.wind.WindField(load_scenario("farm-case1").wind, BENCHMARK, [rng] * n, BENCHMARK.dt)
+    reference = field._chunk_at_ticks(last, fresh, q, frac, vm)
+    out = np.empty((4, ticks, n))
+    fast_module("plant_sim.farm.fast").chunk_at_ticks(last, fresh, q, frac, vm, out)
+    for got, expected in zip(out, reference, strict=True):
+        np.testing.assert_array_equal(got, expected)
+    fields = [farm_pair("farm-case1", 2, SEED, False, backend, 100.0)[0].field for backend in ("numpy", "numba")]
+    for _ in range(3):
+        for f in fields:
+            f._refill()
+        for got, expected in zip(fields[1].chunk, fields[0].chunk, strict=True):
+            np.testing.assert_array_equal(got, expected)
+
+
+def test_a_farm_sample_without_its_states_steps_as_with_them():
+    """``FarmBatch.run_sample(states=False)`` (the evaluation's call: it reads the power and shaft torque only) makes
+    no states block and leaves every tick's power, shaft torque and the farm samples' frames as the call with the
+    states does, compiled samples and per-tick calls alike (the early-faults farm: faults start and end)."""
+    scenario = parse_scenario(farm_with_early_faults())
+    runs = {}
+    for states in (True, False):
+        plant, supervisor = farm_pair(scenario, 1, SEED, False, "numba", 12.0)
+        blocks, refs = [], None
+        while plant.k < round(12.0 / BENCHMARK.dt):
+            block = plant.run_sample(refs, shaft_torque=True, states=states)
+            refs = supervisor.step(block.frame)
+            assert (block.states is None) != states
+            blocks.append(np.concatenate([block.power, block.shaft_torque], axis=1))
+            if block.frame.sample:
+                blocks.append(farm_sample_numbers(block.frame, refs)[None, :])
+        runs[states] = blocks, plant.turbines.x
+    for got, expected in zip(runs[False][0], runs[True][0], strict=True):
+        np.testing.assert_array_equal(got, expected)
+    np.testing.assert_array_equal(runs[False][1], runs[True][1])

@@ -79,6 +79,26 @@ def control(omega_g, omega_g_m, p_g_m, state, references, consts):
 
 
 @kernel
+def chunk_at_ticks(last, fresh, q, frac, vm, out):
+    """``WindField._chunk_at_ticks``'s arithmetic: the turbulence samples s_0 = ``last`` (u_p, u_0, u_3, each (n,)),
+    s_1 … s_S = ``fresh`` (each (n, S)) at tick t's position q_t + f_t, s_q (1 − f) + s_(q+1) f, into ``out`` (4, T,
+    n) = (v_m, v_m + u_p, v_m + u_0, u_3) of each tick (v_m = ``vm`` (T,))."""
+    n = out.shape[2]
+    for t in range(q.size):
+        i, f = q[t], frac[t]
+        g = 1.0 - f
+        v = vm[t]
+        for k in range(3):
+            prev, chunk = last[k], fresh[k]
+            for r in range(n):
+                low = prev[r] if i == 0 else chunk[r, i - 1]
+                value = low * g + chunk[r, i] * f
+                out[k + 1, t, r] = value if k == 2 else v + value
+        for r in range(n):
+            out[0, t, r] = v
+
+
+@kernel
 def ramp(power_ref, target, step, ticks, out):
     """The followed reference of ``ticks`` ticks (``FarmTurbineController.step`` while ramping): each tick moves
     P_r towards the target by at most ``step`` W; ``out`` (ticks, n). Returns the ticks after which P_r still
@@ -147,8 +167,9 @@ def sub_steps(
     ``sums`` = (Σ readings, Σ P_r) of the block, added to in place; ``last`` = (blades, hub, mean, τ_r,i, τ_r,
     y, pitch error, quantities, ω_g read, damper torque) of the last tick and ``frame`` = (τ_g,r, β_ref, P_r,
     zone) its frame carries (the controller's before the tick's control). ``states`` (T, n, 11) receives x at
-    each tick, ``power`` (T, n) P_g = η_gc f_P ω_g τ_g, and ``shaft`` = (out (T, n), K_dt f_K, B_dt f_B, N_g),
-    unless None, the shaft torque K (θ_Δ − e(ψ)) + B (ω_r − ω_g/N_g). ``x`` (in place) ends at tick k + T.
+    each tick unless None, ``power`` (T, n) P_g = η_gc f_P ω_g τ_g, and ``shaft`` = (out (T, n), K_dt f_K, B_dt
+    f_B, N_g), unless None, the shaft torque K (θ_Δ − e(ψ)) + B (ω_r − ω_g/N_g). ``x`` (in place) ends at tick
+    k + T.
 
     The three the controller and the faults may add, each acting where its flag says (``TurbineBatch.advance``,
     ``FarmTurbineController.step``, ``_ripple``, ``_extra_power``, the same operations): ``mesh`` = (flags [mesh
@@ -183,11 +204,12 @@ def sub_steps(
     omega_raw, pair = np.empty(n), np.empty(n)
     z = np.empty((n, shared.shape[0]))
     n_mech = gamma_ext.shape[1]
-    for i in range(states.shape[0]):
+    for i in range(power.shape[0]):
         j = first_j + i
         for r in range(n):
-            for c in range(n_states):
-                states[i, r, c] = x[r, c]
+            if states is not None:
+                for c in range(n_states):
+                    states[i, r, c] = x[r, c]
             azimuth[r] = x[r, 4]
             omega_r[r] = x[r, 0]
             for b in range(3):

@@ -29,28 +29,24 @@ through its 0.05 m/s overlap threshold, taken at ``reference_speed_mps``. The in
 FLORIS): the plant puts its own shear on each turbine's mean wind.
 
 **Cache.** Tables are stored as ``<cache_dir>/wakes-<key>.npz``, key the SHA-256 of the layout's positions and D,
-the settings, the FLORIS version and the table format: a second start with the same farm loads them.
+the settings, the FLORIS version and the table format: a second start with the same farm loads them
+(``plant_sim.farm.wake_cache``, which does not import FLORIS).
 """
 
 from __future__ import annotations
 
-import hashlib
-import json
 import logging
 import math
-import os
 import time
 from pathlib import Path
 from types import SimpleNamespace
-from typing import Literal
 
-import floris
 import numpy as np
 from floris import FlorisModel
-from pydantic import BaseModel, ConfigDict, Field, field_validator
 
 from plant_sim.farm.operating_curve import rated_curve
-from plant_sim.farm.wake_tables import FORMAT_VERSION, WakeTables
+from plant_sim.farm.wake_cache import WakeSettings, cached_wake_tables
+from plant_sim.farm.wake_tables import WakeTables
 from wwcore.layout import FarmLayout
 from wwcore.turbine_params import TurbineParams
 
@@ -75,42 +71,6 @@ ADDED_TI_REACH_D = 15.0  # D, FLORIS's sequential solver: wake-added turbulence 
 ADDED_TI_WIDTH_D = 2.0  # D, … and this far across
 CANDIDATE_REACH = (2.5, 0.35)  # (D, –): pairs with |Δy| > 2.5 D + 0.35 Δx are never evaluated (4σ at TI 0.2)
 CHUNK_POINTS = 2_000_000  # rotor points per call of FLORIS's model functions
-
-
-class WakeSettings(BaseModel):
-    """How the wake tables are built (all of it goes into the cache key)."""
-
-    model_config = ConfigDict(extra="forbid", frozen=True)
-
-    model: Literal["gauss", "jensen"] = "gauss"
-    turbulence_intensity: float = Field(default=0.10, gt=0.0, le=0.5, description="–, ambient TI of the free stream")
-    direction_step_deg: float = Field(default=1.0, ge=0.1, le=5.0, description="deg, table step in wind direction")
-    thrust_points: int = Field(default=8, ge=3, le=64, description="C_T grid points (uniform in 1 − √(1 − C_T))")
-    thrust_max: float = Field(default=0.9, gt=0.5, lt=1.0, description="–, largest C_T tabulated (clipped above)")
-    ti_points: int = Field(default=4, ge=2, le=32, description="TI grid points of the Gauss deficit")
-    reference_speed_mps: float = Field(default=10.0, gt=0.0, le=40.0, description="m/s, of the 0.05 m/s threshold")
-    min_deficit: float = Field(default=5e-4, ge=0.0, le=0.01, description="–, pairs below this δ and τ are dropped")
-    sector_deg: tuple[float, float] | None = Field(
-        default=None,
-        description="deg, (from, to) clockwise: tabulate only the directions of this sector (None: all 360 deg)",
-    )
-
-    @field_validator("sector_deg")
-    @classmethod
-    def _sector(cls, value: tuple[float, float] | None) -> tuple[float, float] | None:
-        if value is not None and not all(math.isfinite(v) and -360.0 <= v <= 720.0 for v in value):
-            raise ValueError("sector_deg: two finite directions in degrees")
-        return value
-
-    def covered(self, directions_deg: np.ndarray) -> np.ndarray:
-        """Which table directions the sector covers (with one table step either side)."""
-        if self.sector_deg is None:
-            return np.ones(len(directions_deg), dtype=bool)
-        lo, hi = self.sector_deg
-        if hi - lo >= 360.0:
-            return np.ones(len(directions_deg), dtype=bool)
-        width = (hi - lo) % 360.0 + 2.0 * self.direction_step_deg
-        return (np.asarray(directions_deg) - lo + self.direction_step_deg) % 360.0 <= width
 
 
 def benchmark_turbine(params: TurbineParams) -> dict:
@@ -167,20 +127,6 @@ def floris_model(
     return fm
 
 
-def cache_key(layout: FarmLayout, settings: WakeSettings, params: TurbineParams) -> str:
-    digest = hashlib.sha256()
-    digest.update(layout.fingerprint())
-    identity = {"settings": settings.model_dump(), "hub": params.hub_height, "floris": floris.__version__}
-    digest.update(json.dumps({**identity, "format": FORMAT_VERSION}, sort_keys=True).encode())
-    return digest.hexdigest()[:32]
-
-
-def default_cache_dir() -> Path:
-    """``$WINDWARDEN_CACHE/wakes`` or ``~/.cache/windwarden/wakes``."""
-    root = os.environ.get("WINDWARDEN_CACHE")
-    return Path(root) / "wakes" if root else Path.home() / ".cache" / "windwarden" / "wakes"
-
-
 def wake_tables(
     layout: FarmLayout,
     settings: WakeSettings | None = None,
@@ -190,20 +136,13 @@ def wake_tables(
     """The farm's wake tables: loaded from the cache when built before with the same key, else built and stored."""
     settings = settings or WakeSettings()
     params = params or TurbineParams()
-    if not math.isclose(layout.rotor_diameter, 2.0 * params.radius, rel_tol=1e-9):
-        raise ValueError(f"layout resolved for D = {layout.rotor_diameter} m, the turbine's is {2 * params.radius} m")
-    key = cache_key(layout, settings, params)
-    path = Path(cache_dir) if cache_dir is not None else default_cache_dir()
-    file = path / f"wakes-{key}.npz"
-    if file.is_file():
-        try:
-            return WakeTables.load(file, key)
-        except (ValueError, OSError, KeyError) as exc:  # a damaged or foreign file: build again
-            log.warning("wake table cache %s unusable (%s); rebuilding", file, exc)
+    key, file, tables = cached_wake_tables(layout, settings, params, cache_dir)
+    if tables is not None:
+        return tables
     start = time.perf_counter()
     tables = build_wake_tables(layout, settings, params, key)
     log.info("wake tables for %d turbines built in %.1f s", layout.n_turbines, time.perf_counter() - start)
-    path.mkdir(parents=True, exist_ok=True)
+    file.parent.mkdir(parents=True, exist_ok=True)
     tables.save(file)
     return tables
 

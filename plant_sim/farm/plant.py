@@ -112,7 +112,7 @@ class FarmBlock:
 
     first_tick: int
     frame: FarmFrame
-    states: np.ndarray  # (ticks, n, N_STATES) each turbine's state x
+    states: np.ndarray | None  # (ticks, n, N_STATES) each turbine's state x, when asked for
     power: np.ndarray  # (ticks, n) W, each turbine's electrical power (``FarmBatch.power_output``)
     shaft_torque: np.ndarray | None  # (ticks, n) N m (``FarmBatch.shaft_torque``), when asked for
 
@@ -347,10 +347,14 @@ class FarmBatch:
         self.k = self.turbines.k
 
     # -- a farm sample's ticks at once ------------------------------------------------------------------------
-    def run_sample(self, refs: FarmRefs | None, ticks: int | None = None, shaft_torque: bool = False) -> FarmBlock:
+    def run_sample(
+        self, refs: FarmRefs | None, ticks: int | None = None, shaft_torque: bool = False, states: bool = True
+    ) -> FarmBlock:
         """``measure`` → ``control(refs)`` → ``advance`` for every tick from k to the end of its farm sample (at most
         ``ticks``): the step contract's loop for a supervisor that answers farm samples only (``FarmSupervisor``
-        returns the same references in between), which is then given the returned block's ``frame``.
+        returns the same references in between), which is then given the returned block's ``frame``. The block
+        carries each tick's states unless ``states`` is false (the evaluation reads the power and shaft torque
+        only: the (ticks, n, N_STATES) array and its stores are then not made).
 
         With the compiled backend (``wwcore.backend``) a whole sample is one ``plant_sim.farm.fast.sub_steps`` call
         after the wakes' step when nothing but the common tick happens in it (no fault starts,
@@ -361,7 +365,8 @@ class FarmBatch:
         count = s - k0 % s if ticks is None else min(ticks, s - k0 % s)
         if count < 1:
             raise ValueError(f"run_sample needs at least one tick, got ticks = {ticks}")
-        states, power = np.empty((count, self.n, N_STATES)), np.empty((count, self.n))
+        kept = np.empty((count, self.n, N_STATES)) if states else None
+        power = np.empty((count, self.n))
         shaft = np.empty((count, self.n)) if shaft_torque else None
         if count == s and self.field._farm_fast is not None:
             # a whole sample: the wakes' step and the references first (neither changes what the turbines measure
@@ -369,19 +374,21 @@ class FarmBatch:
             self._open_sample()
             self._take(refs)
             if self._sub_steps_apply(count):
-                frame = self._sub_steps(states, power, shaft)
-                return FarmBlock(first_tick=k0, frame=frame, states=states, power=power, shaft_torque=shaft)
+                frame = self._sub_steps(kept, power, shaft)
+                return FarmBlock(first_tick=k0, frame=frame, states=kept, power=power, shaft_torque=shaft)
         for i in range(count):
-            frame = self._tick(refs, states, power, shaft, i)
-        return FarmBlock(first_tick=k0, frame=frame, states=states, power=power, shaft_torque=shaft)
+            frame = self._tick(refs, kept, power, shaft, i)
+        return FarmBlock(first_tick=k0, frame=frame, states=kept, power=power, shaft_torque=shaft)
 
     def _tick(
-        self, refs: FarmRefs | None, states: np.ndarray, power: np.ndarray, shaft: np.ndarray | None, i: int
+        self, refs: FarmRefs | None, states: np.ndarray | None, power: np.ndarray, shaft: np.ndarray | None, i: int
     ) -> FarmFrame:
-        """One tick of the contract, with its state and true power (and shaft torque) into row i of the block."""
+        """One tick of the contract, with its state (if asked for) and true power (and shaft torque) into row i of
+        the block."""
         frame = self.measure()
         self.control(refs)
-        states[i] = self.turbines.x
+        if states is not None:
+            states[i] = self.turbines.x
         power[i] = self.power_output()
         if shaft is not None:
             shaft[i] = self.shaft_torque()
@@ -421,7 +428,7 @@ class FarmBatch:
             tb._draw_noise()
         return common
 
-    def _sub_steps(self, states: np.ndarray, power: np.ndarray, shaft: np.ndarray | None) -> FarmFrame:
+    def _sub_steps(self, states: np.ndarray | None, power: np.ndarray, shaft: np.ndarray | None) -> FarmFrame:
         """``len(power)`` common ticks by ``plant_sim.farm.fast.sub_steps`` (``sample_kernel``), with the arguments
         kept since the last compiled sample while the turbines' fault factors are the same arrays; the last tick's
         frame."""

@@ -102,7 +102,7 @@ def followed_references(batch, kept: SampleArguments, count: int) -> tuple:
 
 
 def run_compiled_sample(
-    batch, kept: SampleArguments, states: np.ndarray, power: np.ndarray, shaft: np.ndarray | None
+    batch, kept: SampleArguments, states: np.ndarray | None, power: np.ndarray, shaft: np.ndarray | None
 ) -> FarmFrame:
     """``len(power)`` common ticks by ``plant_sim.farm.fast.sub_steps`` with the ``kept`` arguments (current); the
     last tick's frame, every object left as the ticks' calls would leave it."""

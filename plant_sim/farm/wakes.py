@@ -47,6 +47,7 @@ import numpy as np
 
 from plant_sim.farm.direction import DirectionSeries, advected_distance, arrival_lookup
 from plant_sim.farm.operating_curve import rated_curve
+from plant_sim.farm.wake_cache import WakeSettings, cached_wake_tables
 from plant_sim.farm.wake_tables import WakeTables
 from plant_sim.farm.wind import CT_FILTER_S, HISTORY_S, MIN_MEAN_WIND, MastSeries
 from wwcore import thrust
@@ -69,17 +70,21 @@ def plant_wake_tables(
     """
     if plant.wake_model not in ("gauss", "jensen"):
         raise ValueError(f"wake_model {plant.wake_model!r} has no FLORIS tables; use 'gauss' or 'jensen'")
-    # Imported here, not at the top: FLORIS takes seconds to import and only farms with FLORIS wakes need it (every
-    # farm scenario imports this module). There is no import cycle to dodge: floris_wakes does not import this module.
-    floris_wakes = importlib.import_module("plant_sim.farm.floris_wakes")
     lo, hi = plant.direction_sector_deg()  # the direction, or the range a moving one reaches
     lo, hi = lo - SECTOR_HALF_WIDTH_DEG, hi + SECTOR_HALF_WIDTH_DEG
-    settings = floris_wakes.WakeSettings(
+    settings = WakeSettings(
         model=plant.wake_model,
         turbulence_intensity=max(wind.turbulence_intensity, MIN_WAKE_TI),
         sector_deg=(lo, hi) if hi - lo < 360.0 else None,
     )
-    return floris_wakes.wake_tables(plant.resolved_layout(), settings, params, cache_dir)
+    layout = plant.resolved_layout()
+    _, _, tables = cached_wake_tables(layout, settings, params, cache_dir)
+    if tables is not None:
+        return tables
+    # Imported only to build the tables: FLORIS takes seconds to import, and a cached table does not need it (every
+    # process of an evaluation loads one). There is no import cycle to dodge: floris_wakes does not import this module.
+    floris_wakes = importlib.import_module("plant_sim.farm.floris_wakes")
+    return floris_wakes.wake_tables(layout, settings, params, cache_dir)
 
 
 def steady_winds(

@@ -312,6 +312,7 @@ class FarmWindField(WindField):
         super().__init__(spec, params, rngs, dt, backend=backend)
         # ``"numba"``: ``sample`` by ``plant_sim.farm.fast.blade_winds`` (the same numbers)
         self._farm_fast = fast_module("plant_sim.farm.fast") if self._fast is not None else None
+        self._chunk_fast = self._farm_fast  # each turbulence chunk to its ticks in one kernel (the same numbers)
         self.plant = plant
         self.params = params
         self.mast = mast

@@ -7,16 +7,23 @@ around 270 deg to keep the suite short (the full circle is the same code, ``tool
 
 from __future__ import annotations
 
+import hashlib
+import json
 import logging
+import subprocess
+import sys
 
+import floris
 import numpy as np
 import pytest
 
-from plant_sim.farm import floris_wakes
+from plant_sim.farm import floris_wakes, wake_cache
 from plant_sim.farm.floris_wakes import WakeSettings, floris_model, wake_tables
-from plant_sim.farm.wake_tables import WakeTables
+from plant_sim.farm.wake_tables import FORMAT_VERSION, WakeTables
+from plant_sim.farm.wakes import plant_wake_tables
 from wwcore.backend import fast_module
 from wwcore.layout import HORNS_REV_1, SEED001_DIRECTIONS_DEG, SEED001_LAYOUT, FarmLayout
+from wwcore.scenario import load_scenario
 from wwcore.turbine_params import BENCHMARK
 
 D = 2.0 * BENCHMARK.radius
@@ -234,3 +241,28 @@ def test_cache_round_trip_and_invalidation(seed001, tmp_path, monkeypatch, caplo
     assert np.array_equal(again.deficit, first.deficit)
     with pytest.raises(ValueError, match="is not"):
         WakeTables.load(files[0], key="0" * 32)
+
+
+def test_a_cached_table_loads_without_importing_floris(tmp_path):
+    """A farm whose wake tables are cached starts without importing FLORIS (``plant_sim.farm.wake_cache``: every
+    process of an evaluation loads the tables; FLORIS's import took about 0.65 CPU-s and 2 s of wall time in each),
+    and the cache key is the one FLORIS's module computed with ``floris.__version__``, so tables cached before load."""
+    scenario = load_scenario("farm-case1")
+    built = plant_wake_tables(scenario.plant, scenario.wind, BENCHMARK, tmp_path)  # built by FLORIS, cached
+    script = (
+        "import sys\n"
+        "from plant_sim.farm.wakes import plant_wake_tables\n"
+        "from wwcore.scenario import load_scenario\n"
+        "from wwcore.turbine_params import BENCHMARK\n"
+        "s = load_scenario('farm-case1')\n"
+        f"t = plant_wake_tables(s.plant, s.wind, BENCHMARK, {str(tmp_path)!r})\n"
+        "print(t.key, 'floris' in sys.modules)\n"
+    )
+    out = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, check=True).stdout.split()
+    assert out == [built.key, "False"]
+    settings = WakeSettings.model_validate_json(built.settings_json)
+    layout = scenario.plant.resolved_layout()
+    identity = {"settings": settings.model_dump(), "hub": BENCHMARK.hub_height, "floris": floris.__version__}
+    digest = hashlib.sha256(layout.fingerprint())
+    digest.update(json.dumps({**identity, "format": FORMAT_VERSION}, sort_keys=True).encode())
+    assert wake_cache.cache_key(layout, settings, BENCHMARK) == digest.hexdigest()[:32] == built.key

@@ -154,7 +154,7 @@ def simulate_chunk(
     # references in between, so it is given each sample's frame; the ticks' truth comes with the block.
     refs = None
     while plant.k < n_steps:
-        block = plant.run_sample(refs, n_steps - plant.k, shaft_torque=damage_counter is not None)
+        block = plant.run_sample(refs, n_steps - plant.k, shaft_torque=damage_counter is not None, states=False)
         refs = sup.step(block.frame)
         first, end = block.first_tick, block.first_tick + len(block.power)
         record(end - 1, block, refs)
