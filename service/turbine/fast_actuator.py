@@ -115,6 +115,12 @@ def numpy_matmul_order() -> int:
     return BLAS_CALL
 
 
+WIDTH = 40
+"""The candidates ``_signature_block_lanes`` computes per row and tick: K of ``pitch_actuator.SignatureBank`` (24 F,
+16 T), five AVX-512 registers of doubles; a bank of fewer is padded with zeros, one of more takes
+``_signature_block_calls``."""
+
+
 @kernel
 def signature_block(reference, x, a_t, b, c, d, w, correlation, energy, block_sums, order):
     """``SignatureBank.block`` of the block's references (ticks, n) from the states x (n, K, 6), in place, and the
@@ -152,12 +158,6 @@ def _signature_block_calls(reference, x, a_t, b, c, d, w, correlation, energy, b
                 for j in range(6):
                     x[r, q, j] = moved[j] + rk * b[q, j]
             _add_tick(k, r, s, w, correlation, energy, block_sums)
-
-
-WIDTH = 40
-"""The candidates ``_signature_block_lanes`` computes per row and tick: K of ``pitch_actuator.SignatureBank`` (24 F,
-16 T), five AVX-512 registers of doubles; a bank of fewer is padded with zeros, one of more takes
-``_signature_block_calls``."""
 
 
 @kernel
