@@ -9,7 +9,9 @@ two-lane inner loop for the six-term contraction, tick order for the block's sum
 either a BLAS call, as numpy's stacked ``matmul`` makes one per row and candidate, or ``blas_vector_matrix``, the
 arithmetic of the BLAS kernel numpy's call reaches (OpenBLAS's SkylakeX or Haswell ``dgemv_n``), used only where
 ``numpy_matmul_order`` found one of them equal to numpy's on this machine; the tests compare them with the numpy lines
-bit for bit.
+bit for bit. With the reproduced arithmetic the candidates are the innermost loop (``_signature_block_lanes``), which
+LLVM computes in SIMD lanes, one candidate a lane, each with the same operations in the same order (no ``fastmath``,
+the fused multiply-adds written out), so the numbers are the same as a loop over the rows'.
 """
 
 from __future__ import annotations
