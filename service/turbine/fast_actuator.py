@@ -165,14 +165,14 @@ def _signature_block_calls(reference, x, a_t, b, c, d, w, correlation, energy, b
 @kernel
 def _signature_block_lanes(reference, x, a_t, b, c, d, w, correlation, energy, block_sums, order):
     """``signature_block`` with the state products by ``blas_vector_matrix``'s arithmetic in ``order`` and the
-    candidates in the innermost loop (``_haswell_lanes``, ``_skylakex_lanes``), whose consecutive iterations LLVM
-    computes in SIMD lanes: each lane one candidate, with that candidate's operations in their order (no
-    reassociation; fused multiply-adds where ``blas_vector_matrix`` has them). Here each row's state and block sums
-    are one block of ``work`` (n, 3, 6, WIDTH): planes 0 and 1 the state of even and odd ticks (6, WIDTH), plane 2
-    Σ s², Σ w_i s (3) and Σ s; the coefficients (49, WIDTH); transposed in and out. Allocated here with the constant
-    ``WIDTH`` and the planes named by constants (the ticks taken in pairs), so that LLVM knows every offset between
-    the loop's memory accesses and the trip count (the candidates past K are zeros, never read back). Σ s_θ and Σ w
-    start at −0, which adds to every number exactly (the first tick's value, as numpy's sum)."""
+    candidates in the innermost loop (``_lanes``, with one CPU family's column functions), whose consecutive
+    iterations LLVM computes in SIMD lanes: each lane one candidate, with that candidate's operations in their order
+    (no reassociation; fused multiply-adds where ``blas_vector_matrix`` has them). Here each row's state and block
+    sums are one block of ``work`` (n, 3, 6, WIDTH): planes 0 and 1 the state of even and odd ticks (6, WIDTH),
+    plane 2 Σ s², Σ w_i s (3) and Σ s; the coefficients (49, WIDTH); transposed in and out. Allocated here with the
+    constant ``WIDTH`` and the planes named by constants (the ticks taken in pairs), so that LLVM knows every offset
+    between the loop's memory accesses and the trip count (the candidates past K are zeros, never read back). Σ s_θ
+    and Σ w start at −0, which adds to every number exactly (the first tick's value, as numpy's sum)."""
     ticks, n = reference.shape
     k_count = c.shape[0]
     coefficients = np.zeros((49, WIDTH))  # Aᵀ[i, j] in row 6 i + j, then B, C, D
@@ -193,14 +193,15 @@ def _signature_block_lanes(reference, x, a_t, b, c, d, w, correlation, energy, b
     for k in range(ticks):
         for r in range(n):
             rk, w0, w1, w2 = reference[k, r], w[k, r, 0], w[k, r, 1], w[k, r, 2]
+            w_r = (w0, w1, w2)
             if k % 2 == 0 and order == HASWELL:
-                _haswell_lanes(work, 0, 1, coefficients, r, rk, w0, w1, w2)
+                _lanes(work, 0, 1, coefficients, r, rk, w_r, _haswell_head, _haswell_tail)
             elif order == HASWELL:
-                _haswell_lanes(work, 1, 0, coefficients, r, rk, w0, w1, w2)
+                _lanes(work, 1, 0, coefficients, r, rk, w_r, _haswell_head, _haswell_tail)
             elif k % 2 == 0:
-                _skylakex_lanes(work, 0, 1, coefficients, r, rk, w0, w1, w2)
+                _lanes(work, 0, 1, coefficients, r, rk, w_r, _skylakex_head, _skylakex_tail)
             else:
-                _skylakex_lanes(work, 1, 0, coefficients, r, rk, w0, w1, w2)
+                _lanes(work, 1, 0, coefficients, r, rk, w_r, _skylakex_head, _skylakex_tail)
             block_sums[r, 0] += w0
             block_sums[r, 1] += w1
             block_sums[r, 2] += w2
@@ -216,15 +217,15 @@ def _signature_block_lanes(reference, x, a_t, b, c, d, w, correlation, energy, b
 
 
 @inlined_kernel
-def _signature_lane(x0, x1, x2, x3, x4, x5, rk, a, q, w0, w1, w2, work, r):
+def _signature_lane(x0, x1, x2, x3, x4, x5, rk, a, q, w, work, r):
     """s_θ = C x + r D of candidate q, the products added as ``einsum`` adds them, added to row r's block sums."""
     p0, p1, p2 = x0 * a[42, q], x1 * a[43, q], x2 * a[44, q]
     p3, p4, p5 = x3 * a[45, q], x4 * a[46, q], x5 * a[47, q]
     s = (((p0 + p2) + p4) + ((p1 + p3) + p5)) + rk * a[48, q]
     work[r, 2, 0, q] += s * s
-    work[r, 2, 1, q] += w0 * s
-    work[r, 2, 2, q] += w1 * s
-    work[r, 2, 3, q] += w2 * s
+    work[r, 2, 1, q] += w[0] * s
+    work[r, 2, 2, q] += w[1] * s
+    work[r, 2, 3, q] += w[2] * s
     work[r, 2, 4, q] += s
 
 
@@ -235,35 +236,21 @@ def _column(a, j, q):
 
 
 @inlined_kernel
-def _haswell_lanes(work, now, moved, a, r, rk, w0, w1, w2):
-    """Row r's tick: its signatures added to the block's sums, and moved[r] = now[r] Aᵀ + r B, with
-    ``blas_vector_matrix``'s Haswell arithmetic (``_signature_block_lanes``; the six outputs written out, so that
-    the loop over the candidates is the innermost)."""
+def _lanes(work, now, moved, a, r, rk, w, head, tail):
+    """Row r's tick: its signatures added to the block's sums, and moved[r] = now[r] Aᵀ + r B, the product by
+    ``head`` (outputs 0–3) and ``tail`` (4–5) of one CPU family's ``blas_vector_matrix`` arithmetic
+    (``_signature_block_lanes``; the six outputs written out, so that the loop over the candidates is the
+    innermost); w = the row's (w0, w1, w2) of the tick."""
     for q in range(WIDTH):
         x0, x1, x2 = work[r, now, 0, q], work[r, now, 1, q], work[r, now, 2, q]
         x3, x4, x5 = work[r, now, 3, q], work[r, now, 4, q], work[r, now, 5, q]
-        _signature_lane(x0, x1, x2, x3, x4, x5, rk, a, q, w0, w1, w2, work, r)
-        work[r, moved, 0, q] = _haswell_head(*_column(a, 0, q), x0, x1, x2, x3, x4, x5) + rk * a[36, q]
-        work[r, moved, 1, q] = _haswell_head(*_column(a, 1, q), x0, x1, x2, x3, x4, x5) + rk * a[37, q]
-        work[r, moved, 2, q] = _haswell_head(*_column(a, 2, q), x0, x1, x2, x3, x4, x5) + rk * a[38, q]
-        work[r, moved, 3, q] = _haswell_head(*_column(a, 3, q), x0, x1, x2, x3, x4, x5) + rk * a[39, q]
-        work[r, moved, 4, q] = _haswell_tail(*_column(a, 4, q), x0, x1, x2, x3, x4, x5) + rk * a[40, q]
-        work[r, moved, 5, q] = _haswell_tail(*_column(a, 5, q), x0, x1, x2, x3, x4, x5) + rk * a[41, q]
-
-
-@inlined_kernel
-def _skylakex_lanes(work, now, moved, a, r, rk, w0, w1, w2):
-    """``_haswell_lanes`` with ``blas_vector_matrix``'s SkylakeX arithmetic."""
-    for q in range(WIDTH):
-        x0, x1, x2 = work[r, now, 0, q], work[r, now, 1, q], work[r, now, 2, q]
-        x3, x4, x5 = work[r, now, 3, q], work[r, now, 4, q], work[r, now, 5, q]
-        _signature_lane(x0, x1, x2, x3, x4, x5, rk, a, q, w0, w1, w2, work, r)
-        work[r, moved, 0, q] = _skylakex_head(*_column(a, 0, q), x0, x1, x2, x3, x4, x5) + rk * a[36, q]
-        work[r, moved, 1, q] = _skylakex_head(*_column(a, 1, q), x0, x1, x2, x3, x4, x5) + rk * a[37, q]
-        work[r, moved, 2, q] = _skylakex_head(*_column(a, 2, q), x0, x1, x2, x3, x4, x5) + rk * a[38, q]
-        work[r, moved, 3, q] = _skylakex_head(*_column(a, 3, q), x0, x1, x2, x3, x4, x5) + rk * a[39, q]
-        work[r, moved, 4, q] = _skylakex_tail(*_column(a, 4, q), x0, x1, x2, x3, x4, x5) + rk * a[40, q]
-        work[r, moved, 5, q] = _skylakex_tail(*_column(a, 5, q), x0, x1, x2, x3, x4, x5) + rk * a[41, q]
+        _signature_lane(x0, x1, x2, x3, x4, x5, rk, a, q, w, work, r)
+        work[r, moved, 0, q] = head(*_column(a, 0, q), x0, x1, x2, x3, x4, x5) + rk * a[36, q]
+        work[r, moved, 1, q] = head(*_column(a, 1, q), x0, x1, x2, x3, x4, x5) + rk * a[37, q]
+        work[r, moved, 2, q] = head(*_column(a, 2, q), x0, x1, x2, x3, x4, x5) + rk * a[38, q]
+        work[r, moved, 3, q] = head(*_column(a, 3, q), x0, x1, x2, x3, x4, x5) + rk * a[39, q]
+        work[r, moved, 4, q] = tail(*_column(a, 4, q), x0, x1, x2, x3, x4, x5) + rk * a[40, q]
+        work[r, moved, 5, q] = tail(*_column(a, 5, q), x0, x1, x2, x3, x4, x5) + rk * a[41, q]
 
 
 @kernel
