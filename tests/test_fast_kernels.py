@@ -501,29 +501,21 @@ def test_the_plant_s_one_row_step_product_equals_numpy_matmul():
     assert differ > 0.2 * 500 * len(matrices)
 
 
-@pytest.mark.parametrize("reproduced", [False, True])
-@pytest.mark.parametrize("n", [1, 3, 40])
-def test_the_signature_kernel_equals_the_reference(n, reproduced):
-    # ``SignatureBank.block`` and ``_actuators``' block sums (``einsum``, ``sum(axis=0)``) against
-    # ``fast_actuator.signature_block``, block after block from rest through ramps, steps and noise, the states
-    # carried over; every array equal to the last bit (a sequential six-term sum or a loop product fails this), the
-    # state products by BLAS calls and by the reproduced BLAS arithmetic
-    fast_actuator = fast_module("service.turbine.fast_actuator")
-    order = fast_actuator.numpy_matmul_order() if reproduced else fast_actuator.BLAS_CALL
-    if reproduced and order == fast_actuator.BLAS_CALL:
-        pytest.skip("numpy's BLAS on this machine is not a kernel blas_vector_matrix reproduces")
-    rng = np.random.default_rng(SEED + n)
-    components = TurbineSupervisor(n, backend="numpy").detector.components
-    ticks = components._ref_block.shape[0]
-    reference_bank, fast_bank = components.signatures, copy.deepcopy(components.signatures)
-    kernel = fast_module("service.turbine.fast_actuator").signature_block
+def _compare_signature_blocks(bank, kernel, order, rng):
+    # ``SignatureBank.block`` and ``_actuators``' block sums (``einsum``, ``sum(axis=0)``) against ``kernel`` on a
+    # copy of ``bank``, block after block from rest through ramps, steps and noise, the states carried over; every
+    # array equal to the last bit
+    n, ticks = bank.n, 10
+    fast_bank = copy.deepcopy(bank)
     level = np.full(n, 6.0)
     for block in range(30):
         steps = rng.normal(0.0, 0.5, (ticks, n)) if block % 3 else np.zeros((ticks, n))
         reference = level + np.cumsum(steps, axis=0) + (rng.normal(0.0, 3.0, n) if block % 5 == 4 else 0.0)
         level = reference[-1]
         w = rng.normal(0.0, 10.0 ** rng.uniform(-3, 1), (ticks, n, 3))
-        s = reference_bank.block(reference)
+        if block == 7:  # zeros of both signs: the sums' first terms keep their sign
+            w[0, : n // 2 + 1] = -0.0
+        s = bank.block(reference)
         expected = (
             np.einsum("knb,knc->nbc", w, s),
             np.einsum("knc,knc->nc", s, s),
@@ -531,9 +523,42 @@ def test_the_signature_kernel_equals_the_reference(n, reproduced):
         )
         got = fast_bank.block_sums(reference, w, kernel, order)
         for name, a, b in zip(("correlation", "energy", "sums"), got, expected, strict=True):
-            np.testing.assert_array_equal(a, b, f"block {block}: {name}")
-        np.testing.assert_array_equal(fast_bank.x, reference_bank.x, f"block {block}: state")
-    assert np.abs(reference_bank.x).max() > 0.01  # the signatures moved
+            np.testing.assert_array_equal(a.view(np.int64), b.view(np.int64), f"block {block}: {name}")
+        np.testing.assert_array_equal(fast_bank.x, bank.x, f"block {block}: state")
+    assert np.abs(bank.x).max() > 0.01  # the signatures moved
+
+
+@pytest.mark.parametrize("reproduced", [False, True])
+@pytest.mark.parametrize("n", [1, 3, 7, 8, 9, 50])
+def test_the_signature_kernel_equals_the_reference(n, reproduced):
+    # ``fast_actuator.signature_block`` against the numpy lines (``_compare_signature_blocks``) with the state
+    # products by BLAS calls and by the reproduced BLAS arithmetic, the candidates in SIMD lanes; row counts around
+    # a SIMD register's 8 doubles (a sequential six-term sum or a loop product fails this)
+    fast_actuator = fast_module("service.turbine.fast_actuator")
+    order = fast_actuator.numpy_matmul_order() if reproduced else fast_actuator.BLAS_CALL
+    if reproduced and order == fast_actuator.BLAS_CALL:
+        pytest.skip("numpy's BLAS on this machine is not a kernel blas_vector_matrix reproduces")
+    components = TurbineSupervisor(n, backend="numpy").detector.components
+    assert components._ref_block.shape[0] == 10
+    _compare_signature_blocks(
+        components.signatures, fast_actuator.signature_block, order, np.random.default_rng(SEED + n)
+    )
+
+
+@pytest.mark.parametrize("k_count", [1, 8, 37])
+def test_the_signature_lanes_equal_the_reference_for_fewer_candidates(k_count):
+    # the SIMD kernel computes ``WIDTH`` candidates, the pitch-actuator bank's K, in every row's tick; a bank of fewer
+    # (the first k_count: padded lanes, a remainder of 8) gives the numpy lines' numbers, and the real bank has K =
+    # ``WIDTH`` (a bank of more would take the slower BLAS calls)
+    fast_actuator = fast_module("service.turbine.fast_actuator")
+    order = fast_actuator.numpy_matmul_order()
+    if order == fast_actuator.BLAS_CALL:
+        pytest.skip("numpy's BLAS on this machine is not a kernel blas_vector_matrix reproduces")
+    bank = TurbineSupervisor(9, backend="numpy").detector.components.signatures
+    assert len(bank.candidates) == fast_actuator.WIDTH
+    bank.candidates, bank._steady = bank.candidates[:k_count], bank._steady[:k_count]
+    bank._At, bank._B, bank._C, bank._D = bank._At[:k_count], bank._B[:k_count], bank._C[:k_count], bank._D[:k_count]
+    _compare_signature_blocks(bank, fast_actuator.signature_block, order, np.random.default_rng(SEED + k_count))
 
 
 def test_the_pitch_actuator_kernel_equals_the_reference():

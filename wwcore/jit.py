@@ -60,6 +60,13 @@ def kernel(func):
     return numba.njit(cache=True, nogil=True, error_model="numpy")(func)
 
 
+def inlined_kernel(func):
+    """``kernel``, inlined by numba into every kernel that calls it (``inline="always"``): its arrays are the
+    caller's, so LLVM sees their allocation (a shape the caller gives as a constant stays one, as in
+    ``service.turbine.fast_actuator._signature_block_lanes``)."""
+    return numba.njit(cache=True, nogil=True, error_model="numpy", inline="always")(func)
+
+
 @intrinsic
 def fma(typingctx, a, b, c):
     """a·b + c rounded once (IEEE fused multiply-add, LLVM's ``llvm.fma``): what numpy's SIMD complex loops

@@ -9,7 +9,9 @@ two-lane inner loop for the six-term contraction, tick order for the block's sum
 either a BLAS call, as numpy's stacked ``matmul`` makes one per row and candidate, or ``blas_vector_matrix``, the
 arithmetic of the BLAS kernel numpy's call reaches (OpenBLAS's SkylakeX or Haswell ``dgemv_n``), used only where
 ``numpy_matmul_order`` found one of them equal to numpy's on this machine; the tests compare them with the numpy lines
-bit for bit.
+bit for bit. With the reproduced arithmetic the candidates are the innermost loop (``_signature_block_lanes``), which
+LLVM computes in SIMD lanes, one candidate a lane, each with the same operations in the same order (no ``fastmath``,
+the fused multiply-adds written out), so the numbers are the same as a loop over the rows'.
 """
 
 from __future__ import annotations
@@ -20,7 +22,7 @@ import numpy as np
 
 from service.turbine.fast import learn_spread
 from wwcore.aero_fast import maximum
-from wwcore.jit import fma, kernel
+from wwcore.jit import fma, inlined_kernel, kernel
 
 # -- signature bank and block sums (``pitch_actuator.SignatureBank.block``, ``ComponentFDI._actuators``) --------------
 BLAS_CALL, SKYLAKEX, HASWELL = 0, 1, 2
@@ -43,21 +45,46 @@ def blas_vector_matrix(a, q, j, x0, x1, x2, x3, x4, x5, order):
     kernel has two accumulators, fma(a₂x₂, a₀x₀) + fma(a₃x₃, a₁x₁), the 4 × 2 kernel a₄x₄ + a₅x₅, and the tail is
     the six products added in turn, unfused. Found by comparing candidate orders with numpy's products on random
     operands (0 of 800 000 values differ for SkylakeX, 0 of 960 000 for Haswell, each on its own CPU)."""
+    a0, a1, a2, a3, a4, a5 = a[q, 0, j], a[q, 1, j], a[q, 2, j], a[q, 3, j], a[q, 4, j], a[q, 5, j]
     if order == HASWELL:
         if j < 4:
-            head = fma(a[q, 2, j], x2, a[q, 0, j] * x0) + fma(a[q, 3, j], x3, a[q, 1, j] * x1)
-            return (head + 0.0) + (a[q, 4, j] * x4 + a[q, 5, j] * x5)
-        tail = a[q, 0, j] * x0 + a[q, 1, j] * x1 + a[q, 2, j] * x2 + a[q, 3, j] * x3 + a[q, 4, j] * x4
-        return (tail + a[q, 5, j] * x5) + 0.0
+            return _haswell_head(a0, a1, a2, a3, a4, a5, x0, x1, x2, x3, x4, x5)
+        return _haswell_tail(a0, a1, a2, a3, a4, a5, x0, x1, x2, x3, x4, x5)
     if j < 4:
-        head = fma(a[q, 3, j], x3, fma(a[q, 2, j], x2, fma(a[q, 0, j], x0, a[q, 1, j] * x1)))
-        return (head + 0.0) + fma(a[q, 4, j], x4, a[q, 5, j] * x5)
-    tail = fma(a[q, 0, j], x0, 0.0)
-    tail = fma(a[q, 1, j], x1, tail)
-    tail = fma(a[q, 2, j], x2, tail)
-    tail = fma(a[q, 3, j], x3, tail)
-    tail = fma(a[q, 4, j], x4, tail)
-    return fma(a[q, 5, j], x5, tail) + 0.0
+        return _skylakex_head(a0, a1, a2, a3, a4, a5, x0, x1, x2, x3, x4, x5)
+    return _skylakex_tail(a0, a1, a2, a3, a4, a5, x0, x1, x2, x3, x4, x5)
+
+
+@kernel
+def _haswell_head(a0, a1, a2, a3, a4, a5, x0, x1, x2, x3, x4, x5):
+    """``blas_vector_matrix``'s outputs 0–3 on the Haswell kernels, a = the column's six coefficients."""
+    head = fma(a2, x2, a0 * x0) + fma(a3, x3, a1 * x1)
+    return (head + 0.0) + (a4 * x4 + a5 * x5)
+
+
+@kernel
+def _haswell_tail(a0, a1, a2, a3, a4, a5, x0, x1, x2, x3, x4, x5):
+    """``blas_vector_matrix``'s outputs 4–5 on the Haswell kernels."""
+    tail = a0 * x0 + a1 * x1 + a2 * x2 + a3 * x3 + a4 * x4
+    return (tail + a5 * x5) + 0.0
+
+
+@kernel
+def _skylakex_head(a0, a1, a2, a3, a4, a5, x0, x1, x2, x3, x4, x5):
+    """``blas_vector_matrix``'s outputs 0–3 on the SkylakeX kernels."""
+    head = fma(a3, x3, fma(a2, x2, fma(a0, x0, a1 * x1)))
+    return (head + 0.0) + fma(a4, x4, a5 * x5)
+
+
+@kernel
+def _skylakex_tail(a0, a1, a2, a3, a4, a5, x0, x1, x2, x3, x4, x5):
+    """``blas_vector_matrix``'s outputs 4–5 on the SkylakeX kernels."""
+    tail = fma(a0, x0, 0.0)
+    tail = fma(a1, x1, tail)
+    tail = fma(a2, x2, tail)
+    tail = fma(a3, x3, tail)
+    tail = fma(a4, x4, tail)
+    return fma(a5, x5, tail) + 0.0
 
 
 @kernel
@@ -90,6 +117,12 @@ def numpy_matmul_order() -> int:
     return BLAS_CALL
 
 
+WIDTH = 40
+"""The candidates ``_signature_block_lanes`` computes per row and tick: K of ``pitch_actuator.SignatureBank`` (24 F,
+16 T), five AVX-512 registers of doubles; a bank of fewer is padded with zeros, one of more takes
+``_signature_block_calls``."""
+
+
 @kernel
 def signature_block(reference, x, a_t, b, c, d, w, correlation, energy, block_sums, order):
     """``SignatureBank.block`` of the block's references (ticks, n) from the states x (n, K, 6), in place, and the
@@ -100,15 +133,21 @@ def signature_block(reference, x, a_t, b, c, d, w, correlation, energy, block_su
     ((p0 + p2) + p4) + ((p1 + p3) + p5)); x ← x Aᵀ + r B, the product by ``blas_vector_matrix`` in ``order``
     (``numpy_matmul_order``), or with ``BLAS_CALL`` by a BLAS call (the vector-matrix product numpy's stacked
     ``matmul`` makes); the block's sums in tick order from the first tick, as ``einsum`` and ``sum(axis=0)`` add
-    along the ticks."""
+    along the ticks. With a reproduced ``order``, ``_signature_block_lanes`` (the candidates in SIMD lanes), else
+    ``_signature_block_calls``: the same operations on every element."""
+    if order == BLAS_CALL or c.shape[0] > WIDTH:
+        _signature_block_calls(reference, x, a_t, b, c, d, w, correlation, energy, block_sums)
+    else:
+        _signature_block_lanes(reference, x, a_t, b, c, d, w, correlation, energy, block_sums, order)
+
+
+@kernel
+def _signature_block_calls(reference, x, a_t, b, c, d, w, correlation, energy, block_sums):
+    """``signature_block`` with the state products by BLAS calls (``np.dot``), one per row and candidate."""
     ticks, n = reference.shape
     k_count = c.shape[0]
     s, moved = np.empty(k_count), np.empty(6)
-    for r in range(n):
-        for q in range(k_count):
-            energy[r, q] = 0.0
-            for i in range(3):
-                correlation[r, i, q] = 0.0
+    _clear_sums(correlation, energy)
     for k in range(ticks):
         for r in range(n):
             rk = reference[k, r]
@@ -117,26 +156,133 @@ def signature_block(reference, x, a_t, b, c, d, w, correlation, energy, block_su
                 p0, p1, p2 = x0 * c[q, 0], x1 * c[q, 1], x2 * c[q, 2]
                 p3, p4, p5 = x3 * c[q, 3], x4 * c[q, 4], x5 * c[q, 5]
                 s[q] = (((p0 + p2) + p4) + ((p1 + p3) + p5)) + rk * d[q]
-                if order != BLAS_CALL:
-                    for j in range(6):
-                        x[r, q, j] = blas_vector_matrix(a_t, q, j, x0, x1, x2, x3, x4, x5, order) + rk * b[q, j]
-                else:
-                    np.dot(x[r, q], a_t[q], moved)
-                    for j in range(6):
-                        x[r, q, j] = moved[j] + rk * b[q, j]
-            for q in range(k_count):
-                energy[r, q] += s[q] * s[q]
-                for i in range(3):
-                    correlation[r, i, q] += w[k, r, i] * s[q]
-                if k == 0:
-                    block_sums[r, 3 + q] = s[q]
-                else:
-                    block_sums[r, 3 + q] += s[q]
+                np.dot(x[r, q], a_t[q], moved)
+                for j in range(6):
+                    x[r, q, j] = moved[j] + rk * b[q, j]
+            _add_tick(k, r, s, w, correlation, energy, block_sums)
+
+
+@kernel
+def _signature_block_lanes(reference, x, a_t, b, c, d, w, correlation, energy, block_sums, order):
+    """``signature_block`` with the state products by ``blas_vector_matrix``'s arithmetic in ``order`` and the
+    candidates in the innermost loop (``_lanes``, with one CPU family's column functions), whose consecutive
+    iterations LLVM computes in SIMD lanes: each lane one candidate, with that candidate's operations in their order
+    (no reassociation; fused multiply-adds where ``blas_vector_matrix`` has them). Here each row's state and block
+    sums are one block of ``work`` (n, 3, 6, WIDTH): planes 0 and 1 the state of even and odd ticks (6, WIDTH),
+    plane 2 Σ s², Σ w_i s (3) and Σ s; the coefficients (49, WIDTH); transposed in and out. Allocated here with the
+    constant ``WIDTH`` and the planes named by constants (the ticks taken in pairs), so that LLVM knows every offset
+    between the loop's memory accesses and the trip count (the candidates past K are zeros, never read back). Σ s_θ
+    and Σ w start at −0, which adds to every number exactly (the first tick's value, as numpy's sum)."""
+    ticks, n = reference.shape
+    k_count = c.shape[0]
+    coefficients = np.zeros((49, WIDTH))  # Aᵀ[i, j] in row 6 i + j, then B, C, D
+    work = np.zeros((n, 3, 6, WIDTH))
+    for q in range(k_count):
+        for i in range(6):
+            for j in range(6):
+                coefficients[6 * i + j, q] = a_t[q, i, j]
+            coefficients[36 + i, q], coefficients[42 + i, q] = b[q, i], c[q, i]
+        coefficients[48, q] = d[q]
+        for r in range(n):
+            for j in range(6):
+                work[r, 0, j, q] = x[r, q, j]
+            work[r, 2, 4, q] = -0.0
+    for r in range(n):
+        for i in range(3):
+            block_sums[r, i] = -0.0
+    for k in range(ticks):
+        for r in range(n):
+            rk, w0, w1, w2 = reference[k, r], w[k, r, 0], w[k, r, 1], w[k, r, 2]
+            w_r = (w0, w1, w2)
+            if k % 2 == 0 and order == HASWELL:
+                _lanes(work, 0, 1, coefficients, r, rk, w_r, _haswell_head, _haswell_tail)
+            elif order == HASWELL:
+                _lanes(work, 1, 0, coefficients, r, rk, w_r, _haswell_head, _haswell_tail)
+            elif k % 2 == 0:
+                _lanes(work, 0, 1, coefficients, r, rk, w_r, _skylakex_head, _skylakex_tail)
+            else:
+                _lanes(work, 1, 0, coefficients, r, rk, w_r, _skylakex_head, _skylakex_tail)
+            block_sums[r, 0] += w0
+            block_sums[r, 1] += w1
+            block_sums[r, 2] += w2
+    last = ticks % 2
+    for r in range(n):
+        for q in range(k_count):
+            for j in range(6):
+                x[r, q, j] = work[r, last, j, q]
+            energy[r, q] = work[r, 2, 0, q]
             for i in range(3):
-                if k == 0:
-                    block_sums[r, i] = w[k, r, i]
-                else:
-                    block_sums[r, i] += w[k, r, i]
+                correlation[r, i, q] = work[r, 2, 1 + i, q]
+            block_sums[r, 3 + q] = work[r, 2, 4, q]
+
+
+@inlined_kernel
+def _signature_lane(x0, x1, x2, x3, x4, x5, rk, a, q, w, work, r):
+    """s_θ = C x + r D of candidate q, the products added as ``einsum`` adds them, added to row r's block sums."""
+    p0, p1, p2 = x0 * a[42, q], x1 * a[43, q], x2 * a[44, q]
+    p3, p4, p5 = x3 * a[45, q], x4 * a[46, q], x5 * a[47, q]
+    s = (((p0 + p2) + p4) + ((p1 + p3) + p5)) + rk * a[48, q]
+    work[r, 2, 0, q] += s * s
+    work[r, 2, 1, q] += w[0] * s
+    work[r, 2, 2, q] += w[1] * s
+    work[r, 2, 3, q] += w[2] * s
+    work[r, 2, 4, q] += s
+
+
+@inlined_kernel
+def _column(a, j, q):
+    """Column j of candidate q's Aᵀ (six numbers) in ``_signature_block_lanes``'s coefficients."""
+    return a[j, q], a[6 + j, q], a[12 + j, q], a[18 + j, q], a[24 + j, q], a[30 + j, q]
+
+
+@inlined_kernel
+def _lanes(work, now, moved, a, r, rk, w, head, tail):
+    """Row r's tick: its signatures added to the block's sums, and moved[r] = now[r] Aᵀ + r B, the product by
+    ``head`` (outputs 0–3) and ``tail`` (4–5) of one CPU family's ``blas_vector_matrix`` arithmetic
+    (``_signature_block_lanes``; the six outputs written out, so that the loop over the candidates is the
+    innermost); w = the row's (w0, w1, w2) of the tick."""
+    for q in range(WIDTH):
+        x0, x1, x2 = work[r, now, 0, q], work[r, now, 1, q], work[r, now, 2, q]
+        x3, x4, x5 = work[r, now, 3, q], work[r, now, 4, q], work[r, now, 5, q]
+        _signature_lane(x0, x1, x2, x3, x4, x5, rk, a, q, w, work, r)
+        work[r, moved, 0, q] = head(*_column(a, 0, q), x0, x1, x2, x3, x4, x5) + rk * a[36, q]
+        work[r, moved, 1, q] = head(*_column(a, 1, q), x0, x1, x2, x3, x4, x5) + rk * a[37, q]
+        work[r, moved, 2, q] = head(*_column(a, 2, q), x0, x1, x2, x3, x4, x5) + rk * a[38, q]
+        work[r, moved, 3, q] = head(*_column(a, 3, q), x0, x1, x2, x3, x4, x5) + rk * a[39, q]
+        work[r, moved, 4, q] = tail(*_column(a, 4, q), x0, x1, x2, x3, x4, x5) + rk * a[40, q]
+        work[r, moved, 5, q] = tail(*_column(a, 5, q), x0, x1, x2, x3, x4, x5) + rk * a[41, q]
+
+
+@kernel
+def _clear_sums(correlation, energy):
+    """Σ w s_θ and Σ s_θ² start at +0."""
+    for r in range(energy.shape[0]):
+        for q in range(energy.shape[1]):
+            energy[r, q] = 0.0
+            for i in range(3):
+                correlation[r, i, q] = 0.0
+
+
+@kernel
+def _add_tick(k, r, s, w, correlation, energy, block_sums):
+    """Tick k's signatures s (K,) of row r added to its block sums (``signature_block``)."""
+    k_count = s.size
+    for q in range(k_count):
+        energy[r, q] += s[q] * s[q]
+    for i in range(3):
+        wi = w[k, r, i]
+        for q in range(k_count):
+            correlation[r, i, q] += wi * s[q]
+    if k == 0:
+        for q in range(k_count):
+            block_sums[r, 3 + q] = s[q]
+        for i in range(3):
+            block_sums[r, i] = w[k, r, i]
+    else:
+        for q in range(k_count):
+            block_sums[r, 3 + q] += s[q]
+        for i in range(3):
+            block_sums[r, i] += w[k, r, i]
 
 
 # -- pitch-actuator test (``service.turbine.component_fdi.ComponentFDI._actuators``, after the block's sums) -----------
