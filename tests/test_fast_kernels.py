@@ -392,26 +392,6 @@ def test_the_sparse_product_equals_numpy_matmul(n):
         assert (np.einsum("nk,kj->nj", rows, dense, optimize=False) != rows @ dense).any()
 
 
-@pytest.mark.parametrize("n", [2, 7, 8, 9, 50])
-def test_the_transposed_sparse_product_equals_numpy_matmul(n):
-    # ``blas_fast.gemm_columns`` (the observer bank's fused step: ``gemm_product``'s sums with both operands
-    # transposed) against numpy's dense ``@`` transposed, for the bank's shapes, finite rows with zero entries and a
-    # zero row: equal to the last bit, zeros' signs included
-    blas_fast = fast_module("wwcore.blas_fast")
-    rng = np.random.default_rng(SEED + 7 * n)
-    for k_count, n_columns in ((82, 76), (81, 108)):
-        lanes_from = blas_fast.gemm_layout(n, k_count, n_columns)
-        if lanes_from is None:
-            pytest.skip("numpy's BLAS on this machine is not the kernel gemm_product reproduces")
-        matrix = rng.standard_normal((k_count, n_columns)) * (rng.random((k_count, n_columns)) < 0.08)
-        a = rng.standard_normal((n, k_count)) * np.exp(3.0 * rng.standard_normal((n, 1)))
-        a[0], a[:, ::9] = 0.0, 0.0
-        got = np.full((n_columns, n), np.nan)
-        blas_fast.gemm_columns(np.ascontiguousarray(a.T), blas_fast.nonzeros(matrix, lanes_from), got, np.empty((8, n)))
-        expected = (a @ matrix).T
-        np.testing.assert_array_equal(got.view(np.int64), expected.view(np.int64))
-
-
 @pytest.mark.parametrize("n", [2, SPARSE_PRODUCT_ROWS, 50])
 def test_the_recovery_map_product_equals_numpy_matmul(n):
     # ``WindRecovery._mapped`` (the map from [x̂[n], x̂[n−1]] to every observer's raw τ̂_r, ω̂_r, ω̂_g) on the compiled

@@ -38,12 +38,27 @@ def gemm_product(a, matrix, nonzeros, out):
         if used[k]:
             for r in range(n):
                 a_t[k, r] = a[r, k]
-    out_t = np.empty((out.shape[1], n))
-    gemm_columns(a_t, nonzeros, out_t, np.empty((8, n)))
-    for r in range(n):
-        for j in range(out.shape[1]):
-            out[r, j] = out_t[j, r]
-    lanes = np.empty((8, 1))
+    acc = np.empty(n)
+    lanes = np.empty((8, n))
+    for j in range(out.shape[1]):
+        if j < lanes_from:
+            acc[:] = 0.0
+            for e in range(starts[j], starts[j + 1]):
+                row, value = a_t[ks[e]], values[e]
+                for r in range(n):
+                    acc[r] = fma(row[r], value, acc[r])
+            for r in range(n):
+                out[r, j] = acc[r]
+            continue
+        lanes[:] = 0.0
+        for e in range(starts[j], starts[j + 1]):
+            k = ks[e]
+            row, value, lane = a_t[k], values[e], lanes[k % 8]
+            for r in range(n):
+                lane[r] = fma(row[r], value, lane[r])
+        for r in range(n):
+            low = (lanes[0, r] + lanes[1, r]) + (lanes[2, r] + lanes[3, r])
+            out[r, j] = low + ((lanes[4, r] + lanes[5, r]) + (lanes[6, r] + lanes[7, r]))
     for r in range(n):  # rows with a non-finite entry: every k, the zeros' products included
         non_finite = 0
         for k in range(k_count):
@@ -63,34 +78,6 @@ def gemm_product(a, matrix, nonzeros, out):
                 lanes[k % 8, 0] = fma(a[r, k], matrix[k, j], lanes[k % 8, 0])
             low = (lanes[0, 0] + lanes[1, 0]) + (lanes[2, 0] + lanes[3, 0])
             out[r, j] = low + ((lanes[4, 0] + lanes[5, 0]) + (lanes[6, 0] + lanes[7, 0]))
-
-
-@kernel
-def gemm_columns(a_t, nonzeros, out_t, lanes):
-    """``gemm_product``'s sums over the nonzeros, on transposed operands: out_t (N, n) = (a_t.T @ matrix).T for a_t
-    (K, n), a coefficient's values of every row contiguous (a row of a_t), each output column a row of out_t, its
-    rows' chains accumulated in place; ``lanes`` (8, n) the eight accumulators' work array. No check of non-finite
-    entries (``gemm_product`` makes it)."""
-    starts, ks, values, lanes_from = nonzeros
-    n = a_t.shape[1]
-    for j in range(out_t.shape[0]):
-        acc = out_t[j]
-        if j < lanes_from:
-            acc[:] = 0.0
-            for e in range(starts[j], starts[j + 1]):
-                row, value = a_t[ks[e]], values[e]
-                for r in range(n):
-                    acc[r] = fma(row[r], value, acc[r])
-            continue
-        lanes[:] = 0.0
-        for e in range(starts[j], starts[j + 1]):
-            k = ks[e]
-            row, value, lane = a_t[k], values[e], lanes[k % 8]
-            for r in range(n):
-                lane[r] = fma(row[r], value, lane[r])
-        for r in range(n):
-            low = (lanes[0, r] + lanes[1, r]) + (lanes[2, r] + lanes[3, r])
-            acc[r] = low + ((lanes[4, r] + lanes[5, r]) + (lanes[6, r] + lanes[7, r]))
 
 
 def nonzeros(matrix: np.ndarray, lanes_from: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, int]:

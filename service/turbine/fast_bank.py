@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from wwcore.blas_fast import gemm_columns, gemm_product
+from wwcore.blas_fast import gemm_product
 from wwcore.jit import kernel
 
 
@@ -64,11 +64,6 @@ def bank_step(z, u_prev, y_prev, update, update_in, y, output, output_in, terms,
     with the same numbers: the tests)."""
     n, width = z.shape
     reproduced, update_nonzeros, output_nonzeros = sparse
-    if advance and reproduced:
-        done, z, out = _sparse_step(z, u_prev, y_prev, update_in.shape[1], y, output.shape[1], sparse)
-        if done:
-            chi2(out, width, terms, n_res, stat)
-            return z, out
     if advance:
         for r in range(n):
             for c in range(width):
@@ -93,53 +88,6 @@ def bank_step(z, u_prev, y_prev, update, update_in, y, output, output_in, terms,
         out = output_in @ output
     chi2(out, width, terms, n_res, stat)
     return z, out
-
-
-@kernel
-def _sparse_step(z, u_prev, y_prev, k_update, y, n_output, sparse):
-    """``bank_step``'s two products over the nonzeros (``gemm_product``'s arithmetic) with the rows contiguous
-    throughout: [z | u[n−1] | y[n−1]] transposed once into (K, n), the update's columns (``gemm_columns``) straight
-    into the first rows of the output product's transposed operand [z | y[n]]ᵀ, its columns into (N, n); z and out
-    transposed back once. (done, z, out); not done (nothing computed) where an operand has a non-finite entry,
-    which ``gemm_product`` takes row by row with every k."""
-    n, width = z.shape
-    _, update_nonzeros, output_nonzeros = sparse
-    stacked = np.empty((k_update, n))  # [z | u[n-1] | y[n-1]]ᵀ
-    for r in range(n):
-        for c in range(width):
-            stacked[c, r] = z[r, c]
-        stacked[width, r] = u_prev[r]
-        for c in range(y_prev.shape[1]):
-            stacked[width + 1 + c, r] = y_prev[r, c]
-    outputs_in = np.empty((width + y.shape[1], n))  # [z[n] | y[n]]ᵀ
-    for c in range(y.shape[1]):
-        for r in range(n):
-            outputs_in[width + c, r] = y[r, c]
-    if not (_finite(stacked) and _finite(outputs_in[width:])):
-        return False, z, z
-    lanes = np.empty((8, n))
-    gemm_columns(stacked, update_nonzeros, outputs_in[:width], lanes)
-    if not _finite(outputs_in[:width]):
-        return False, z, z
-    out_t = np.empty((n_output, n))
-    gemm_columns(outputs_in, output_nonzeros, out_t, lanes)
-    z_next, out = np.empty((n, width)), np.empty((n, n_output))
-    for r in range(n):
-        for c in range(width):
-            z_next[r, c] = outputs_in[c, r]
-        for c in range(n_output):
-            out[r, c] = out_t[c, r]
-    return True, z_next, out
-
-
-@kernel
-def _finite(a):
-    """Whether every entry of a (2-D) is finite."""
-    non_finite = 0
-    for i in range(a.shape[0]):
-        for j in range(a.shape[1]):
-            non_finite += 0 if np.isfinite(a[i, j]) else 1
-    return non_finite == 0
 
 
 @kernel
