@@ -9,9 +9,9 @@ fault-free twins for even counts, else runs rows alone) after ``--ticks`` ticks,
 from __future__ import annotations
 
 import argparse
-import time
 
 import numpy as np
+from signature_block_cost import call_cost  # this directory's, run as a script
 
 from windwarden.bench import _Stepper, turbine_pair
 
@@ -35,25 +35,13 @@ def captured(n: int, ticks: int) -> tuple:
     return bank._fast.bank_tick_kept, arguments
 
 
-def tick_cost(kernel, arguments: tuple) -> float:
-    """µs of CPU time of one call (best of five blocks of calls)."""
-    n = arguments[0].shape[0]
-    kernel(*arguments)
-    calls, best = max(200, 200_000 // n), []
-    for _ in range(5):
-        start = time.process_time()
-        for _ in range(calls):
-            kernel(*arguments)
-        best.append((time.process_time() - start) / calls * 1e6)
-    return min(best)
-
-
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--rows", default="1,8,50,225", help="row counts, comma-separated")
     parser.add_argument("--ticks", type=int, default=600, help="ticks run before the captured call")
     args = parser.parse_args()
-    costs = [(int(n), tick_cost(*captured(int(n), args.ticks))) for n in args.rows.split(",")]
+    rows = [int(n) for n in args.rows.split(",")]
+    costs = [(n, call_cost(*captured(n, args.ticks), max(200, 200_000 // n))) for n in rows]
     print("  ".join(f"{n} rows {cost:.2f} µs" for n, cost in costs))
 
 
