@@ -271,7 +271,7 @@ def test_the_observer_selection_kernels_equal_the_reference():
     assert {*design.power_speed, design.index(frozenset(GENERATOR))} <= selected_seen
 
 
-@pytest.mark.parametrize("n", [1, 2, 16, 50])
+@pytest.mark.parametrize("n", [1, 2, 7, 8, 9, 16, 17, 50])
 def test_the_bank_kernel_equals_the_reference(n):
     # ``ObserverBank.step``'s numpy lines against ``fast.bank_step`` (its products by BLAS from inside the kernel
     # for few rows, over the matrices' nonzeros with BLAS's arithmetic for more where ``gemm_layout`` finds it),

@@ -27,8 +27,13 @@ def block_cost(n: int, order: int, kernel) -> float:
     k = len(bank.candidates)
     sums = (np.empty((n, 3, k)), np.empty((n, k)), np.empty((n, 3 + k)))
     arguments = (reference, bank.x, bank._At, bank._B, bank._C, bank._D, w, *sums, order)
+    return call_cost(kernel, arguments, max(20, 20_000 // n))
+
+
+def call_cost(kernel, arguments: tuple, calls: int) -> float:
+    """µs of CPU time of one ``kernel(*arguments)`` (after one call), the best of five blocks of ``calls`` calls."""
     kernel(*arguments)
-    calls, best = max(20, 20_000 // n), []
+    best = []
     for _ in range(5):
         start = time.process_time()
         for _ in range(calls):
