@@ -269,3 +269,40 @@ def test_controller_uses_fresh_estimates_and_falls_back_when_stale():
     c2 = BenchmarkController(P, 2, P.rated_power)
     c2.step(11 + c2.max_ref_age + 1, np.array([100.0, 100.0]), np.array([1e6, 1e6]), refs)
     assert not c2.using_estimates.any() and not c2.zone.any(), "stale references are ignored"
+
+
+def test_the_controller_keeps_its_own_estimate_flags_in_place():
+    """Fresh references' ``valid`` is copied into the controller's own ``using_estimates`` array (in place, as stale
+    references clear it): the array is the same object from tick to tick, and it does not follow ``refs.valid``."""
+    c = BenchmarkController(P, 2, P.rated_power)
+    own = c.using_estimates
+    valid = np.array([True, False])
+    refs = TurbineRefs(tick=10, valid=valid, omega_g=np.full(2, 170.0), omega_r=np.zeros(2), wind=np.zeros(2))
+    c.step(11, np.array([100.0, 100.0]), np.array([1e6, 1e6]), refs)
+    assert c.using_estimates is own and list(own) == [True, False]
+    valid[:] = False
+    assert list(c.using_estimates) == [True, False], "the controller's flags are its own, not a view of refs.valid"
+    c.step(11 + c.max_ref_age + 1, np.array([100.0, 100.0]), np.array([1e6, 1e6]), refs)
+    assert c.using_estimates is own and not own.any()
+
+
+@pytest.mark.parametrize("runs", [[0], [0, 1]])
+@pytest.mark.parametrize("backend", ["numpy", "numba"])
+def test_a_frame_kept_past_its_tick_holds_its_own_values(backend, runs):
+    """A frame kept while the plant runs on (a sensor fault starting and ending meanwhile) keeps the readings and the
+    controller outputs it was built with: every tick's frame is new arrays, its time k·dt."""
+    wind = WindSpec(mean=[(0.0, 14.0)])
+    fault = [FaultSpec(target="omega_g_m1", kind="offset", value=5.0, start_s=0.2, end_s=0.4)]
+    plant = TurbineBatch(TurbinePlant(), wind, fault, seed=86400, runs=runs, backend=backend)
+    frames, copies = [], []
+    for _ in range(60):
+        frame = plant.measure()
+        frames.append(frame)
+        copies.append([a.copy() for a in (frame.sensors, frame.tau_g_ref, frame.beta_ref, frame.power_ref, frame.zone)])
+        plant.control(None)
+        plant.advance()
+    for k, (frame, kept) in enumerate(zip(frames, copies, strict=True)):
+        assert frame.k == k and frame.t == k * plant.dt
+        arrays = (frame.sensors, frame.tau_g_ref, frame.beta_ref, frame.power_ref, frame.zone)
+        assert all(np.array_equal(a, b) for a, b in zip(arrays, kept, strict=True))
+    assert not np.shares_memory(frames[0].tau_g_ref, plant.controller.tau_g_ref)

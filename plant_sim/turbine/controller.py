@@ -56,7 +56,7 @@ class BenchmarkController:
         fresh = refs is not None and 0 <= k - refs.tick <= self.max_ref_age
         if fresh:
             # The fault-tolerant estimate replaces the raw generator-speed sensor while it is valid.
-            self.using_estimates = refs.valid.copy()
+            self.using_estimates[:] = refs.valid  # in place, as below: the array is the controller's own
             if refs.power_ref is not None:
                 self.power_ref = np.where(refs.valid, refs.power_ref, self.power_ref)
         else:

@@ -243,7 +243,8 @@ class TurbineBatch(Planes):
 
     def measure(self) -> TurbineFrame:
         """Sensor readings y_k with noise and sensor faults (PARAMETERS.md a.3)."""
-        self._update_faults()
+        if self.k >= self._next_change:  # ``_update_faults``' own first test, without its call on a quiet tick
+            self._update_faults()
         x = self.x
         if self._one_measure_kernel:
             return self._fast_measure_frame(x)
@@ -287,11 +288,12 @@ class TurbineBatch(Planes):
         # which every published FDI result on this benchmark was obtained (docs/turbine.md).
         beta_m = y[:, _BETA_M12]
         self._pitch_error = 0.5 * (beta_m[:, :3] + beta_m[:, 3:]) - pitch
-        return self._frame(y)
+        return self._frame(y, self.k)
 
-    def _frame(self, y: np.ndarray) -> TurbineFrame:
+    def _frame(self, y: np.ndarray, k: int) -> TurbineFrame:
+        """Tick ``k``'s frame of the readings ``y``, with copies of the controller's outputs of tick k−1."""
         c = self.controller
-        return TurbineFrame(self.k, self.t, y, c.tau_g_ref.copy(), c.beta_ref.copy(), c.power_ref.copy(), c.zone.copy())
+        return TurbineFrame(k, k * self.dt, y, c.tau_g_ref.copy(), c.beta_ref.copy(), c.power_ref.copy(), c.zone.copy())
 
     def _fast_measure_frame(self, x: np.ndarray) -> TurbineFrame:
         """``measure`` with the plant's own ``WindField`` by one kernel (``plant_sim.turbine.fast.measure``: the wind
@@ -308,9 +310,13 @@ class TurbineBatch(Planes):
         if kept is None or self._kept_chunk is not wind.chunk:
             kept = self._measure_arguments()
         y = np.empty((self.n, len(SENSORS)))
-        self._fast.measure_kept(x, j, i, kept, y)
+        fast = self._fast
+        fast.measure_kept(x, j, i, kept, y)
         self._sample, self._wind_row = None, j  # ``_wind_sample`` built when asked
-        return self._fast_faulty_frame(self._fast, x, self._tick_noise, y)
+        if self.faults.sensor_faults_active:
+            return self._fast_faulty_frame(fast, x, self._tick_noise, y)
+        self.last_reading = y
+        return self._frame(y, k)
 
     def _measure_arguments(self):
         """``_fast_measure_frame``'s kernel arguments that stay from tick to tick until the faults change
@@ -370,7 +376,7 @@ class TurbineBatch(Planes):
             sensors = (self._quantities, _PICK, noise, self.bias, _BETA_M1, _BETA_M2)
             fast.faulty_readings(*sensors, x, faults, self.t, f.drift_active, y, self._pitch_error)
         self.last_reading = y
-        return self._frame(y)
+        return self._frame(y, self.k)
 
     def control(self, refs: TurbineRefs | None) -> None:
         y, c = self.last_reading, self.controller
