@@ -271,7 +271,7 @@ def test_the_observer_selection_kernels_equal_the_reference():
     assert {*design.power_speed, design.index(frozenset(GENERATOR))} <= selected_seen
 
 
-@pytest.mark.parametrize("n", [1, 2, 7, 8, 9, 16, 17, 50])
+@pytest.mark.parametrize("n", [1, 2, 7, 8, 9, 16, 17, 25, 49, 50, 100])
 def test_the_bank_kernel_equals_the_reference(n):
     # ``ObserverBank.step``'s numpy lines against ``fast.bank_step`` (its products by BLAS from inside the kernel
     # for few rows, over the matrices' nonzeros with BLAS's arithmetic for more where ``gemm_layout`` finds it),
@@ -366,17 +366,19 @@ def test_the_record_test_equals_the_reference():
             assert fast.record_unchanged(flags, faulty, selected, chosen) is expected
 
 
-@pytest.mark.parametrize("n", [2, 7, 50, 450])
+@pytest.mark.parametrize("n", [2, 7, 17, 49, 50, 100, 450])
 def test_the_sparse_product_equals_numpy_matmul(n):
     # ``fast.gemm_product`` over a sparse matrix's nonzeros against numpy's dense ``@`` (BLAS's gemm), for the
     # observer bank's and the wind recovery's shapes and random sparse matrices, with zero entries, a zero row,
     # an inf and a NaN row: equal to the last bit; a plain loop product differs on the same operands
     fast = fast_module("service.turbine.fast")
     rng = np.random.default_rng(SEED + n)
-    for k_count, n_columns in ((82, 76), (81, 108), (152, 54)):
-        lanes_from = fast.gemm_layout(n, k_count, n_columns)
-        if lanes_from is None:
-            pytest.skip("numpy's BLAS on this machine is not the kernel gemm_product reproduces")
+    layouts = {shape: fast.gemm_layout(n, *shape) for shape in ((82, 76), (81, 108), (152, 54))}
+    if all(layout is None for layout in layouts.values()):
+        pytest.skip("numpy's BLAS on this machine is not the kernel gemm_product reproduces")
+    for (k_count, n_columns), layout in layouts.items():
+        if layout is None:  # the recovery's map at odd row counts: BLAS's product
+            continue
         matrix = rng.standard_normal((k_count, n_columns)) * (rng.random((k_count, n_columns)) < 0.08)
         a = rng.standard_normal((n, k_count)) * np.exp(3.0 * rng.standard_normal((n, 1)))
         a[0] = 0.0
@@ -384,12 +386,26 @@ def test_the_sparse_product_equals_numpy_matmul(n):
         with np.errstate(invalid="ignore"):  # inf · 0
             expected = a @ matrix
         got = np.empty_like(expected)
-        fast.gemm_product(a, matrix, fast.nonzeros(matrix, lanes_from), got)
+        fast.gemm_product(a, matrix, fast.nonzeros(matrix, layout), got)
         np.testing.assert_array_equal(got, expected)
         finite = np.isfinite(expected)
         np.testing.assert_array_equal(got[finite].view(np.int64), expected[finite].view(np.int64))
         rows, dense = rng.standard_normal((8, k_count)), rng.standard_normal((k_count, n_columns))
         assert (np.einsum("nk,kj->nj", rows, dense, optimize=False) != rows @ dense).any()
+
+
+@pytest.mark.parametrize("n", [17, 25, 49, 65, 100])
+def test_the_layout_takes_the_odd_partitions_tail_rows(n):
+    # ``gemm_layout`` at row counts where OpenBLAS's thread partitions have an odd row count (an odd count's last
+    # row at one or two BLAS threads; 100 rows' four at two): their last rows sum in four accumulators, the others
+    # in one chain; with them the layout reproduces numpy's product for both of the bank's shapes, and the bank
+    # takes the sparse products
+    fast = fast_module("service.turbine.fast")
+    if fast.gemm_layout(50, 82, 76) is None:
+        pytest.skip("numpy's BLAS on this machine is not the kernel gemm_product reproduces")
+    layouts = [fast.gemm_layout(n, k_count, n_columns) for k_count, n_columns in ((82, 76), (81, 108))]
+    assert None not in layouts and (n % 2 == 0 or any(layout.tails for layout in layouts))
+    assert ObserverBank(TurbineSupervisor(n).context.bank_design, n, fast=fast)._sparse[0]
 
 
 @pytest.mark.parametrize("n", [2, SPARSE_PRODUCT_ROWS, 50])

@@ -6,7 +6,8 @@ exports them with the supervisor's other kernels.
 Each kernel performs the numpy reference's operations in its order, row by row, so its results equal the
 reference's bit for bit (``tests/test_fast_backend.py``, ``tests/test_fast_kernels.py``). The two products are
 ``wwcore.blas_fast.gemm_product``'s over the matrices' nonzeros where ``gemm_layout`` finds numpy's arithmetic for
-their shapes and rows, else BLAS (numba's product calls the routine numpy's does).
+their shapes and rows (each row's: one chain, or four accumulators on the last row of an odd OpenBLAS thread
+partition), else BLAS (numba's product calls the routine numpy's does).
 """
 
 from __future__ import annotations
